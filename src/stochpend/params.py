@@ -1,0 +1,288 @@
+"""Validated, immutable simulation settings.
+
+Every check happens here, once, at the Python boundary; kernels trust what they receive.
+Each refusal is a ``ValueError`` with one line that names the parameter, the value received
+and what is accepted; the command line prints that line and exits with code 2.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from stochpend import physics
+
+NOISES = ("white", "ou")
+BACKENDS = ("cpu", "auto", "cuda")
+
+#: Default step controls, from the accuracy study in docs/numerics.md.
+DEFAULT_H_MAX = 0.05
+DEFAULT_STEP_C = 0.25
+DEFAULT_HIST_BINS = 100
+DEFAULT_N_BATCHES = 100
+
+
+def _fail(name: str, value: Any, accepted: str) -> None:
+    raise ValueError(f"{name}={value!r} is not accepted: {accepted}")
+
+
+def _finite(name: str, value: Any, accepted: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        _fail(name, value, accepted)
+    if not math.isfinite(v):
+        _fail(name, value, accepted)
+    return v
+
+
+def _integer(name: str, value: Any, accepted: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        else:
+            _fail(name, value, accepted)
+    v = int(value)
+    if v < minimum:
+        _fail(name, value, accepted)
+    return v
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """Everything that determines a simulation's numbers (all times in the paper's units).
+
+    Construct with :meth:`build`, which validates and fills the defaults.
+    """
+
+    noise: str
+    D: float
+    tau: float | None
+    omega: float
+    paths: int
+    t_max: float
+    times: tuple[float, ...]
+    seed: int
+    theta0: float | None  # None: uniform on [-pi, pi)
+    Omega0: float
+    xi0: float | None  # None: stationary OU law N(0, D/(2 tau))
+    h_max: float
+    step_c: float
+    hist_bins: int
+    hist_E_max: tuple[float, ...]
+    n_batches: int
+    potential: str = "pendulum"
+    power_n: int = 2
+    coupling: str = "force"
+    extra: dict = field(default_factory=dict)
+
+    # -- derived, cheap -------------------------------------------------------------------
+    @property
+    def noise_code(self) -> int:
+        return NOISES.index(self.noise)
+
+    @property
+    def batch_size(self) -> int:
+        return -(-self.paths // self.n_batches)
+
+    @property
+    def tau_or_zero(self) -> float:
+        return 0.0 if self.tau is None else self.tau
+
+    def to_attrs(self) -> dict[str, Any]:
+        """Flat attributes for NetCDF (None becomes the string "none" or "uniform")."""
+        d = asdict(self)
+        d.pop("extra")
+        d.pop("times")
+        d.pop("hist_E_max")
+        d["tau"] = "none" if self.tau is None else self.tau
+        d["theta0"] = "uniform" if self.theta0 is None else self.theta0
+        d["xi0"] = "stationary" if self.xi0 is None else self.xi0
+        return d
+
+    @classmethod
+    def build(
+        cls,
+        *,
+        noise: str = "ou",
+        D: float = 1.0,
+        tau: float | None = 1.0,
+        omega: float = 1.0,
+        paths: int = 10_000,
+        t_max: float = 1000.0,
+        times: Any = None,
+        n_times: int = 40,
+        seed: int = 0,
+        theta0: float | str | None = "uniform",
+        Omega0: float = 0.0,
+        xi0: float | str | None = "stationary",
+        h_max: float = DEFAULT_H_MAX,
+        step_c: float = DEFAULT_STEP_C,
+        hist_bins: int = DEFAULT_HIST_BINS,
+        hist_E_max: Any = None,
+        n_batches: int = DEFAULT_N_BATCHES,
+        potential: str = "pendulum",
+        power_n: int = 2,
+        coupling: str = "force",
+    ) -> SimulationConfig:
+        """Validate every argument and return the frozen configuration."""
+        if noise not in NOISES:
+            _fail("noise", noise, f"one of {', '.join(NOISES)}")
+        D = _finite("D", D, "D must be a finite number >= 0 (the noise amplitude)")
+        if D < 0:
+            _fail("D", D, "D must be a finite number >= 0 (the noise amplitude)")
+        if noise == "ou":
+            if tau is None:
+                _fail("tau", tau, "OU noise needs tau, a finite number > 0 (its correlation time)")
+            tau = _finite("tau", tau, "tau must be a finite number > 0 (the OU correlation time)")
+            if tau <= 0:
+                _fail(
+                    "tau",
+                    tau,
+                    "tau must be a finite number > 0 (the OU correlation time); "
+                    "use noise='white' for the tau -> 0 limit",
+                )
+        else:
+            tau = None
+        omega = _finite("omega", omega, "omega must be a finite number >= 0 (the pendulum frequency)")
+        if omega < 0:
+            _fail("omega", omega, "omega must be a finite number >= 0 (the pendulum frequency)")
+        paths = _integer("paths", paths, "paths must be an integer >= 1", 1)
+        t_max = _finite("t_max", t_max, "t_max must be a finite number > 0")
+        if t_max <= 0:
+            _fail("t_max", t_max, "t_max must be a finite number > 0")
+        seed = _integer("seed", seed, "seed must be an integer in [0, 2**64)", 0)
+        if seed >= 2**64:
+            _fail("seed", seed, "seed must be an integer in [0, 2**64)")
+
+        if times is None:
+            n_times = _integer("n_times", n_times, "n_times must be an integer >= 1", 1)
+            grid = np.geomspace(t_max * 1e-3, t_max, n_times) if n_times > 1 else np.array([t_max])
+            grid[-1] = t_max
+        else:
+            try:
+                grid = np.asarray(times, dtype=np.float64).ravel()
+            except (TypeError, ValueError):
+                _fail("times", times, "times must be a list of numbers in [0, t_max]")
+            if grid.size == 0 or not np.all(np.isfinite(grid)):
+                _fail("times", times, "times must be a non-empty list of finite numbers in [0, t_max]")
+            if np.any(grid < 0) or np.any(grid > t_max):
+                _fail("times", times, f"times must lie in [0, t_max] = [0, {t_max}]")
+            if np.any(np.diff(grid) <= 0):
+                _fail("times", times, "times must be strictly increasing")
+
+        if isinstance(theta0, str):
+            if theta0 != "uniform":
+                _fail("theta0", theta0, "theta0 must be a finite number or 'uniform'")
+            theta0_v: float | None = None
+        elif theta0 is None:
+            theta0_v = None
+        else:
+            theta0_v = _finite("theta0", theta0, "theta0 must be a finite number or 'uniform'")
+        Omega0 = _finite("Omega0", Omega0, "Omega0 must be a finite number")
+        if isinstance(xi0, str):
+            if xi0 != "stationary":
+                _fail("xi0", xi0, "xi0 must be a finite number or 'stationary'")
+            xi0_v: float | None = None
+        elif xi0 is None:
+            xi0_v = None
+        else:
+            xi0_v = _finite("xi0", xi0, "xi0 must be a finite number or 'stationary'")
+
+        if potential not in physics.POTENTIALS:
+            _fail("potential", potential, f"one of {', '.join(physics.POTENTIALS)}")
+        if coupling not in physics.COUPLINGS:
+            _fail("coupling", coupling, f"one of {', '.join(physics.COUPLINGS)}")
+        power_n = _integer("power_n", power_n, "power_n must be an integer >= 1", 1)
+        if potential == "pendulum" and coupling == "position":
+            _fail(
+                "coupling",
+                coupling,
+                "the pendulum's angle is periodic, so its noise can only multiply the force "
+                "(coupling='force')",
+            )
+        pot = physics.POTENTIALS[potential]
+        cpl = physics.COUPLINGS[coupling]
+        if theta0_v is not None and Omega0 == 0.0:
+            g = physics.noise_shape(theta0_v, pot, power_n, cpl)
+            f = physics.force_shape(theta0_v, pot, power_n)
+            at_rest = abs(g) < 1e-12 and abs(f) < 1e-12
+            if at_rest:
+                _fail(
+                    "theta0",
+                    theta0_v,
+                    "(theta0, Omega0) is a fixed point that the multiplicative noise cannot "
+                    "leave; use theta0='uniform' or a nonzero Omega0",
+                )
+
+        h_max = _finite("h_max", h_max, "h_max must be a finite number > 0 (the largest step)")
+        if h_max <= 0:
+            _fail("h_max", h_max, "h_max must be a finite number > 0 (the largest step)")
+        step_c = _finite("step_c", step_c, "step_c must be a finite number >= 0 (0: fixed step)")
+        if step_c < 0:
+            _fail("step_c", step_c, "step_c must be a finite number >= 0 (0: fixed step)")
+        hist_bins = _integer("hist_bins", hist_bins, "hist_bins must be an integer >= 1", 1)
+        n_batches = _integer("n_batches", n_batches, "n_batches must be an integer >= 2", 2)
+        n_batches = min(n_batches, paths)
+        # Batches of equal size except the last; recompute the count so none is empty.
+        n_batches = -(-paths // (-(-paths // n_batches)))
+
+        if hist_E_max is None:
+            e_max = default_hist_E_max(grid, noise=noise, D=D, tau=tau, omega=omega)
+        else:
+            e_max = np.broadcast_to(np.asarray(hist_E_max, dtype=np.float64), grid.shape).copy()
+            if not np.all(np.isfinite(e_max)) or np.any(e_max <= -(omega**2)):
+                _fail("hist_E_max", hist_E_max, "hist_E_max must be finite and > -omega**2")
+
+        return cls(
+            noise=noise,
+            D=D,
+            tau=tau,
+            omega=omega,
+            paths=paths,
+            t_max=t_max,
+            times=tuple(float(x) for x in grid),
+            seed=seed,
+            theta0=theta0_v,
+            Omega0=Omega0,
+            xi0=xi0_v,
+            h_max=h_max,
+            step_c=step_c,
+            hist_bins=hist_bins,
+            hist_E_max=tuple(float(x) for x in e_max),
+            n_batches=n_batches,
+            potential=potential,
+            power_n=power_n,
+            coupling=coupling,
+        )
+
+
+def default_hist_E_max(times: np.ndarray, *, noise: str, D: float, tau: float | None, omega: float) -> np.ndarray:
+    """Upper edge of the energy histogram at each time: far in the tail of the expected law.
+
+    Uses the white-noise growth D t/4 for white noise and, for OU noise, the crossover
+    estimate (sqrt(D tau**2 phi t + 1) - 1)/(2 tau**2 phi) with phi = 2.19, which follows
+    D t/4 early and the t**(1/2) law late; 30 times that scale leaves < 1e-6 of the mass out.
+    """
+    t = np.asarray(times, dtype=np.float64)
+    if noise == "white" or tau is None:
+        scale = D * t / 4.0
+    else:
+        phi = 2.19
+        scale = (np.sqrt(D * tau**2 * phi * t + 1.0) - 1.0) / (2.0 * tau**2 * phi)
+    return omega**2 + 1.0 + 30.0 * scale
+
+
+def hist_edges(config: SimulationConfig) -> np.ndarray:
+    """Bin edges of the energy histogram, shape (n_times, hist_bins + 1).
+
+    Edges are uniform in sqrt(E - E_min), E_min = -omega**2 for the pendulum, so that the
+    bins are narrow near the bottom of the range, where the law diverges like E**(-1/2).
+    """
+    e_min = -(config.omega**2) if config.potential == "pendulum" else 0.0
+    u = np.linspace(0.0, 1.0, config.hist_bins + 1) ** 2
+    e_max = np.asarray(config.hist_E_max)[:, None]
+    return e_min + (e_max - e_min) * u[None, :]
