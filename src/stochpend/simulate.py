@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import platform
 import time as _time
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numba
 import numpy as np
@@ -179,6 +180,60 @@ def run(
     return sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
 
 
+@dataclass
+class RunState:
+    """Everything needed to continue ``run_batches`` exactly where it stopped.
+
+    The run is at chunk ``[b0, b1)`` (batch indices), has accumulated the output times before
+    ``j`` for that chunk, and holds the per-path state arrays of the chunk. ``acc`` holds the
+    finished chunks (and the finished times of this chunk in ``chunk_sums``/``chunk_hist``).
+    A checkpoint is this object written to disk (``stochpend.checkpoint``).
+    """
+
+    first_batch: int
+    stop_batch: int
+    b0: int
+    b1: int
+    j: int
+    x: np.ndarray
+    Omega: np.ndarray
+    xi: np.ndarray
+    t: np.ndarray
+    k: np.ndarray
+    status: np.ndarray
+    chunk_sums: np.ndarray
+    chunk_hist: np.ndarray
+    acc: EnsembleSums
+    path_steps: int
+    done_work: float
+
+
+class Checkpointer(Protocol):
+    """Called between kernel calls with the live state; may write it to disk."""
+
+    def maybe_save(self, state: RunState) -> None: ...
+
+
+def _new_chunk(config: SimulationConfig, b0: int, b1: int) -> tuple[np.ndarray, ...]:
+    bs = config.batch_size
+    p0 = b0 * bs
+    n = min(b1 * bs, config.paths) - p0
+    x = np.empty(n)
+    Omega = np.empty(n)
+    xi = np.empty(n)
+    t = np.empty(n)
+    k = np.empty(n, dtype=np.uint64)
+    status = np.empty(n, dtype=np.uint8)
+    key0, key1 = _rng.seed_to_key(config.seed)
+    cpu.init_paths(
+        x, Omega, xi, t, k, status, key0, key1, p0,
+        0.0 if config.theta0 is None else config.theta0, config.theta0 is None,
+        config.Omega0, 0.0 if config.xi0 is None else config.xi0, config.xi0 is None,
+        config.D, config.tau_or_zero, config.noise_code,
+    )
+    return x, Omega, xi, t, k, status
+
+
 def run_batches(
     config: SimulationConfig,
     first_batch: int,
@@ -186,67 +241,85 @@ def run_batches(
     *,
     chunk_paths: int | None = None,
     progress: Progress | None = None,
+    checkpointer: Checkpointer | None = None,
+    resume: RunState | None = None,
 ) -> tuple[EnsembleSums, int]:
     """Simulate batches ``first_batch .. stop_batch - 1`` and return their sums.
 
     This is the unit of work that Dask tasks and checkpointed runs are made of: the numbers
-    depend only on the configuration and the batch indices.
+    depend only on the configuration and the batch indices (never on ``chunk_paths``, the
+    thread count, or an interruption and ``resume``).
+
+    Returns ``(sums, path_steps)``; only the batches in range are filled in ``sums``.
     """
     progress = progress or NoProgress()
     times = np.asarray(config.times)
     edges = hist_edges(config)
     bs = config.batch_size
     n_times = times.size
-    acc = EnsembleSums.empty(config.n_batches, n_times, config.hist_bins)
-    chunk_batches = max(1, (chunk_paths or DEFAULT_CHUNK_PATHS) // bs)
+    n_cols = config.hist_bins + 2
     key0, key1 = _rng.seed_to_key(config.seed)
     pot = physics.POTENTIALS[config.potential]
     cpl = physics.COUPLINGS[config.coupling]
     omega2 = config.omega**2
     total_paths = min(stop_batch * bs, config.paths) - first_batch * bs
     progress.start(total_paths * config.t_max, "simulating")
-    done_work = 0.0
-    path_steps = 0
-    for b0 in range(first_batch, stop_batch, chunk_batches):
-        b1 = min(b0 + chunk_batches, stop_batch)
-        p0 = b0 * bs
-        p1 = min(b1 * bs, config.paths)
-        n = p1 - p0
-        x = np.empty(n)
-        Omega = np.empty(n)
-        xi = np.empty(n)
-        t = np.empty(n)
-        k = np.empty(n, dtype=np.uint64)
-        status = np.empty(n, dtype=np.uint8)
-        cpu.init_paths(
-            x, Omega, xi, t, k, status, key0, key1, p0,
-            0.0 if config.theta0 is None else config.theta0, config.theta0 is None,
-            config.Omega0, 0.0 if config.xi0 is None else config.xi0, config.xi0 is None,
-            config.D, config.tau_or_zero, config.noise_code,
+
+    if resume is None:
+        chunk_batches = max(1, (chunk_paths or DEFAULT_CHUNK_PATHS) // bs)
+        b1 = min(first_batch + chunk_batches, stop_batch)
+        state = RunState(
+            first_batch, stop_batch, first_batch, b1, 0, *_new_chunk(config, first_batch, b1),
+            chunk_sums=np.zeros((b1 - first_batch, n_times, cpu.N_SUMS)),
+            chunk_hist=np.zeros((n_times, n_cols), dtype=np.int64),
+            acc=EnsembleSums.empty(config.n_batches, n_times, config.hist_bins),
+            path_steps=0, done_work=0.0,
         )
-        sums = np.empty((b1 - b0, n_times, cpu.N_SUMS))
-        hist = np.empty((b1 - b0, config.hist_bins + 2), dtype=np.int64)
-        hist_total = np.zeros((n_times, config.hist_bins + 2), dtype=np.int64)
+    else:
+        state = resume
+        chunk_batches = state.b1 - state.b0
+    hist = np.empty((chunk_batches, n_cols), dtype=np.int64)
+
+    while True:
+        p0 = state.b0 * bs
+        n = state.x.shape[0]
         max_steps = max(1000, _WORK_PER_CALL // max(n, 1))
-        for j, t_target in enumerate(times):
+        while state.j < n_times:
+            t_target = float(times[state.j])
             while True:
                 steps, unfinished = cpu.advance_paths(
-                    x, Omega, xi, t, k, status, float(t_target), max_steps, config.noise_code,
-                    config.D, config.tau_or_zero, omega2, config.h_max, config.step_c, pot,
-                    config.power_n, cpl, key0, key1, p0,
+                    state.x, state.Omega, state.xi, state.t, state.k, state.status, t_target,
+                    max_steps, config.noise_code, config.D, config.tau_or_zero, omega2,
+                    config.h_max, config.step_c, pot, config.power_n, cpl, key0, key1, p0,
                 )
-                path_steps += steps
-                chunk_done = float(np.sum(t))
-                progress.update(done_work + chunk_done)
+                state.path_steps += steps
+                progress.update(state.done_work + float(np.sum(state.t)))
                 if unfinished == 0:
                     break
-            cpu.accumulate_batches(x, Omega, status, omega2, pot, config.power_n, cpl, bs,
-                                   edges[j], sums[:, j, :], hist)
-            hist_total[j] = hist.sum(axis=0)
-        done_work += n * config.t_max
-        acc.add_batches(b0, sums, hist_total)
+                if checkpointer is not None:
+                    checkpointer.maybe_save(state)
+            nb = state.b1 - state.b0
+            cpu.accumulate_batches(state.x, state.Omega, state.status, omega2, pot,
+                                   config.power_n, cpl, bs, edges[state.j],
+                                   state.chunk_sums[:, state.j, :], hist[:nb])
+            state.chunk_hist[state.j] = hist[:nb].sum(axis=0)
+            state.j += 1
+            if checkpointer is not None:
+                checkpointer.maybe_save(state)
+        state.acc.add_batches(state.b0, state.chunk_sums, state.chunk_hist)
+        state.done_work += n * config.t_max
+        if state.b1 >= stop_batch:
+            break
+        b0 = state.b1
+        b1 = min(b0 + chunk_batches, stop_batch)
+        (state.x, state.Omega, state.xi, state.t, state.k, state.status) = _new_chunk(config, b0, b1)
+        state.b0, state.b1, state.j = b0, b1, 0
+        state.chunk_sums = np.zeros((b1 - b0, n_times, cpu.N_SUMS))
+        state.chunk_hist = np.zeros((n_times, n_cols), dtype=np.int64)
+        if checkpointer is not None:
+            checkpointer.maybe_save(state)
     progress.finish()
-    return acc, path_steps
+    return state.acc, state.path_steps
 
 
 def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_time_s: float,
