@@ -1,0 +1,3 @@
+from stochpend.cli import main
+
+main()

@@ -1,0 +1,266 @@
+"""Command line: a thin layer over the Python API (Typer + Rich).
+
+Known errors print one red line on stderr and exit with code 2; ``--debug`` shows the
+traceback. Human output goes to stderr, so that stdout stays clean for pipes.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+app = typer.Typer(
+    name="stochpend",
+    help="Ensembles of the stochastic pendulum with parametric white or Ornstein-Uhlenbeck noise "
+    "(Mallick & Marcq 2004): simulate, compare with theory, reproduce the paper.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+console = Console(stderr=True, width=None if sys.stderr.isatty() else 140)
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def fail(message: str, code: int = 2) -> None:
+    """Print one red line and exit."""
+    console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    raise typer.Exit(code)
+
+
+def handles_errors(fn: F) -> F:
+    """Turn the API's ValueError into one line and exit code 2 (traceback with --debug)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return fn(*args, **kwargs)
+        except ValueError as exc:
+            if "--debug" in sys.argv:
+                raise
+            fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+        except KeyboardInterrupt:
+            console.print("[yellow]interrupted[/]")
+            raise typer.Exit(130) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+def parse_times(text: str | None) -> list[float] | None:
+    """'10,100,1000' -> [10.0, 100.0, 1000.0]."""
+    if text is None:
+        return None
+    try:
+        return [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise ValueError(f"times={text!r} is not accepted: a comma-separated list of numbers, e.g. 10,100,1000") from None
+
+
+def parse_theta0(text: str) -> float | str:
+    if text == "uniform":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"theta0={text!r} is not accepted: a number (radians) or 'uniform'") from None
+
+
+class RichProgress:
+    """A Rich progress bar with rate and ETA; implements :class:`stochpend.progress.Progress`."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
+        self._progress: Any = None
+        self._task: Any = None
+
+    def start(self, total: float, description: str) -> None:
+        if not self.enabled:
+            return
+        from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+        self._progress = Progress(
+            TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(),
+            TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=console, transient=True,
+        )
+        self._progress.start()
+        self._task = self._progress.add_task(description, total=total)
+
+    def update(self, done: float) -> None:
+        if self._progress is not None:
+            self._progress.update(self._task, completed=done)
+
+    def finish(self) -> None:
+        if self._progress is not None:
+            self._progress.stop()
+            self._progress = None
+
+
+def _fmt(value: float, se: float | None = None) -> str:
+    """Value with its standard error in the concise notation, e.g. 0.3482(22)."""
+    if value is None or not math.isfinite(value):
+        return "nan"
+    if se is None or not math.isfinite(se) or se <= 0:
+        return f"{value:.5g}"
+    exponent = math.floor(math.log10(se)) - 1  # two significant digits of the error
+    if abs(value) >= 1e6 or (abs(value) < 1e-3 and value != 0):
+        return f"{value:.4e} ± {se:.2g}"
+    decimals = max(0, -exponent)
+    err_digits = round(se / 10.0**exponent)
+    if decimals == 0:
+        return f"{round(value, -exponent if exponent > 0 else 0):.0f}({round(se):.0f})"
+    return f"{value:.{decimals}f}({err_digits})"
+
+
+def summary_table(ds: Any, max_rows: int = 12) -> Table:
+    """A table of the main statistics of a result at up to ``max_rows`` times."""
+    attrs = ds.attrs
+    noise = attrs.get("noise", "ou")
+    D = float(attrs.get("D", 1.0))
+    tau = attrs.get("tau", "none")
+    title = f"stochpend: {noise} noise, D={D:g}" + (f", tau={float(tau):g}" if noise == "ou" else "")
+    title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {attrs.get('seed')}"
+    table = Table(title=title)
+    scaled = "<E2>/(Dt/tau^2)" if noise == "ou" else "<E>/(Dt/4)"
+    for col in ("t", "<E>", "<E2>", scaled, "S", "F", "non-finite"):
+        table.add_column(col, justify="right", no_wrap=True)
+    n = ds.sizes["time"]
+    shown = min(max_rows, n)
+    idx = sorted({round(k * (n - 1) / max(shown - 1, 1)) for k in range(shown)})
+    for i in idx:
+        row = ds.isel(time=i)
+        t = float(row.time)
+        if noise == "ou":
+            norm = D * t / float(tau) ** 2 if t > 0 and D > 0 else float("nan")
+            s_val, s_se = float(row.mean_E2) / norm, float(row.mean_E2_stderr) / norm
+        else:
+            norm = D * t / 4.0 if t > 0 and D > 0 else float("nan")
+            s_val, s_se = float(row.mean_E) / norm, float(row.mean_E_stderr) / norm
+        table.add_row(
+            f"{t:.4g}",
+            _fmt(float(row.mean_E), float(row.mean_E_stderr)),
+            _fmt(float(row.mean_E2), float(row.mean_E2_stderr)),
+            _fmt(s_val, s_se),
+            _fmt(float(row.skewness), float(row.skewness_stderr)),
+            _fmt(float(row.flatness), float(row.flatness_stderr)),
+            str(int(row.nonfinite_paths)),
+        )
+    caption = (
+        f"Values as v(e): e is one standard error in the last digits (jackknife over {int(attrs.get('n_batches', 0))} batches). "
+        f"Wall time {float(attrs.get('wall_time_s', float('nan'))):.3g} s, "
+        f"{float(attrs.get('path_steps', 0)):.3g} path-steps."
+    )
+    table.caption = caption
+    return table
+
+
+@app.command()
+@handles_errors
+def simulate(
+    noise: Annotated[str, typer.Option(help="Noise: 'ou' (Ornstein-Uhlenbeck, eqOU) or 'white' (defbruitblanc).")] = "ou",
+    D: Annotated[float, typer.Option("--D", help="Noise amplitude D >= 0.")] = 1.0,
+    tau: Annotated[float, typer.Option("--tau", help="OU correlation time tau > 0 (ignored for white noise).")] = 1.0,
+    omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency omega >= 0.")] = 1.0,
+    paths: Annotated[int, typer.Option(help="Number of realizations.")] = 10_000,
+    t_max: Annotated[float, typer.Option("--t-max", help="Final time (units of the paper).")] = 1000.0,
+    n_times: Annotated[int, typer.Option("--n-times", help="Number of log-spaced output times in [t_max/1000, t_max].")] = 40,
+    times: Annotated[str | None, typer.Option(help="Explicit output times, comma-separated, e.g. 10,100,1000.")] = None,
+    seed: Annotated[int, typer.Option(help="Seed in [0, 2^64): fixes every number, whatever threads or chunks.")] = 0,
+    theta0: Annotated[str, typer.Option("--theta0", help="Initial angle (radians) or 'uniform' on [-pi, pi).")] = "uniform",
+    Omega0: Annotated[float, typer.Option("--Omega0", help="Initial angular velocity.")] = 0.0,
+    h_max: Annotated[float | None, typer.Option("--h-max", help="Largest time step.")] = None,
+    step_c: Annotated[float | None, typer.Option("--step-c", help="Step control c: h <= c/|Omega| and c/sqrt(|omega^2+xi|); 0 = fixed step.")] = None,
+    hist_bins: Annotated[int | None, typer.Option("--hist-bins", help="Energy histogram bins.")] = None,
+    backend: Annotated[str, typer.Option(help="Where to run: cpu, cuda, or auto (the GPU when usable).")] = "cpu",
+    threads: Annotated[int | None, typer.Option(help="CPU threads (results do not depend on it).")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
+    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+) -> None:
+    """Simulate an ensemble and print the energy statistics (optionally save them as NetCDF)."""
+    from stochpend import io, params
+    from stochpend.simulate import simulate as run_simulation
+
+    if out is not None:
+        io.check_output_path(out, overwrite=overwrite)
+    kwargs: dict[str, Any] = {}
+    if h_max is not None:
+        kwargs["h_max"] = h_max
+    if step_c is not None:
+        kwargs["step_c"] = step_c
+    if hist_bins is not None:
+        kwargs["hist_bins"] = hist_bins
+    # Validate everything before any work (and before the JIT compiles).
+    params.SimulationConfig.build(
+        noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max,
+        times=parse_times(times), n_times=n_times, seed=seed, theta0=parse_theta0(theta0),
+        Omega0=Omega0, **kwargs,
+    )
+    progress = RichProgress(enabled=not quiet and console.is_terminal)
+    ds = run_simulation(
+        noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max, times=parse_times(times),
+        n_times=n_times, seed=seed, theta0=parse_theta0(theta0), Omega0=Omega0, backend=backend,
+        threads=threads, progress=progress, **kwargs,
+    )
+    ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
+    if out is not None:
+        io.to_netcdf(ds, out, overwrite=overwrite)
+    if not quiet:
+        console.print(summary_table(ds))
+        if int(ds.nonfinite_paths[-1]) > 0:
+            console.print(f"[yellow]{int(ds.nonfinite_paths[-1])} paths went non-finite and are excluded.[/]")
+        if out is not None:
+            console.print(f"wrote {out}")
+
+
+@app.command()
+@handles_errors
+def show(
+    path: Annotated[Path, typer.Argument(help="A results file written by 'stochpend simulate --out'.")],
+    rows: Annotated[int, typer.Option(help="Maximum number of rows.")] = 12,
+) -> None:
+    """Print the summary table of a saved run."""
+    from stochpend import io
+
+    ds = io.open_results(path)
+    if "mean_E" not in ds:
+        raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend simulation result (no mean_E)")
+    console.print(summary_table(ds, max_rows=rows))
+
+
+@app.command()
+def info() -> None:
+    """Versions, threads, and which backends are usable here."""
+    import platform
+
+    import numba
+    import numpy
+    import xarray
+
+    from stochpend import __version__
+
+    table = Table(title="stochpend info")
+    table.add_column("item")
+    table.add_column("value")
+    table.add_row("stochpend", __version__)
+    table.add_row("python", platform.python_version())
+    table.add_row("numpy / numba / xarray", f"{numpy.__version__} / {numba.__version__} / {xarray.__version__}")
+    table.add_row("numba threads", f"{numba.config.NUMBA_NUM_THREADS} (layer: {numba.config.THREADING_LAYER})")
+    table.add_row("machine", f"{platform.machine()} {platform.processor()}")
+    console.print(table)
+
+
+def main() -> None:  # pragma: no cover
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,401 @@
+"""Numerical solution of the averaged Best Fokker-Planck Equation, Eq. `avbfpe` (omega = 0).
+
+    dP/dt = (D/4) d/dOmega [ (1 + (tau Omega)^2)^{-1} dP/dOmega ]
+
+The paper only extracts the identity `idquadr` from this equation; here it is solved
+numerically, started from a narrow Gaussian that matches a simulation started at
+``Omega_0 = 0``. See ``docs/theory.md`` for the derivation of every numerical choice. In
+short:
+
+* Scaled variables ``x = tau Omega`` and ``s = D tau^2 t = t/t_c`` remove both parameters:
+  ``dq/ds = (1/4) d/dx[(1 + x^2)^{-1} dq/dx]``, with ``q(x) = 2 P(Omega)/tau`` the density
+  of ``|x|`` on the half line ``x >= 0`` (``P`` is symmetric; ``dq/dx = 0`` at 0).
+* Conservative finite volumes on the mapped grid ``x = A sinh(xi)``, ``xi`` uniform: the
+  cell size is ``A dxi`` near the origin and ``x dxi`` far out, so every width between
+  ``A`` (the initial one) and ``x_max`` is resolved by the same number of cells per
+  e-fold -- the grid follows the growth ``x ~ s^{1/2}`` (early) then ``x ~ s^{1/4}`` (late)
+  without regridding. ``x_max`` is set from ``t_max`` so that the law is below
+  ``exp(-tail_exponent)`` there.
+* The face conductance is chosen so that the discrete identity is exact:
+  ``k_f = x_f / (4 [g(x_{i+1}) - g(x_i)])`` with ``g(x) = x^4/4 + x^2/2``, which is a
+  second-order approximation of ``(1 + x_f^2)^{-1} / (4 (x_{i+1} - x_i))`` and gives
+  ``d/ds sum_i g(x_i) q_i h_i = (1/4) sum_i q_i h_i - q_N x_max/4`` exactly (summation by parts).
+* TR-BDF2 time stepping (one-step, L-stable, second order; both stages are tridiagonal solves
+  with :func:`scipy.linalg.solve_banded`), on log-spaced steps ``s_{n+1}/s_n <= 10^{1/steps_per_decade}``
+  that land exactly on the output times. Each stage is applied in flux (conservative) form, so
+  the mass changes only by round-off.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import xarray as xr
+from numpy.typing import ArrayLike, NDArray
+from scipy.linalg import solve_banded
+
+from stochpend.theory.laws import (
+    BFPE_LONGTIME_MEAN_PREFACTOR,
+    PHI_INF,
+    _check_D,
+    _check_tau,
+    _fail,
+    _scalar,
+)
+
+__all__ = ["solve_bfpe", "BFPEGrid"]
+
+_GAMMA = 2.0 - math.sqrt(2.0)  # TR-BDF2 stage fraction
+
+
+def _g(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The identity weight g(x) = x^4/4 + x^2/2 (scaled (tau^2/4) Omega^4 + Omega^2/2, times tau^2)."""
+    x2 = x * x
+    return 0.25 * x2 * x2 + 0.5 * x2
+
+
+class BFPEGrid:
+    """Finite-volume grid on ``x = tau Omega >= 0`` with the mapping ``x = A sinh(xi)``.
+
+    Parameters
+    ----------
+    n_cells : int
+        Number of cells on the half line.
+    x_inner : float
+        ``A``: below it the grid is uniform (spacing ``A dxi``), above it geometric.
+    x_max : float
+        Outer (zero-flux) boundary.
+    """
+
+    def __init__(self, n_cells: int, x_inner: float, x_max: float) -> None:
+        self.n_cells = int(n_cells)
+        self.x_inner = float(x_inner)
+        self.x_max = float(x_max)
+        self.dxi = math.asinh(x_max / x_inner) / n_cells
+        xi = np.arange(n_cells + 1, dtype=np.float64) * self.dxi
+        faces = x_inner * np.sinh(xi)
+        faces[-1] = x_max
+        self.faces = faces
+        self.centres = 0.5 * (faces[:-1] + faces[1:])
+        self.widths = np.diff(faces)
+        c = self.centres
+        dc = np.diff(c)
+        a, b = c[:-1], c[1:]
+        # g(b) - g(a) factored to avoid cancellation: (b - a)(b + a)[1/2 + (a^2 + b^2)/4]
+        dg = dc * (b + a) * (0.5 + 0.25 * (a * a + b * b))
+        #: conductance of interior faces 1..N-1: flux F_f = -k_f (q_{i+1} - q_i)
+        self.conductance = faces[1:-1] / (4.0 * dg)
+        self.g = _g(c)
+
+    def divergence(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``(K q)_i = F_{i-1/2} - F_{i+1/2}`` (zero flux at both ends): ``h dq/ds = K q``."""
+        flux = np.zeros(self.n_cells + 1)
+        flux[1:-1] = -self.conductance * (q[1:] - q[:-1])
+        return flux[:-1] - flux[1:]
+
+    def banded(self, c_dt: float) -> NDArray[np.float64]:
+        """Banded form of ``H - c_dt K`` (``H = diag(h)``) for :func:`scipy.linalg.solve_banded`."""
+        k = self.conductance
+        ab = np.zeros((3, self.n_cells))
+        diag = self.widths.copy()
+        diag[:-1] += c_dt * k
+        diag[1:] += c_dt * k
+        ab[0, 1:] = -c_dt * k
+        ab[1] = diag
+        ab[2, :-1] = -c_dt * k
+        return ab
+
+    def moment(self, q: NDArray[np.float64], power: int) -> float:
+        """``<x^power>`` by the cell-centre rule ``sum_i x_i^power q_i h_i``."""
+        return float(np.sum(self.centres**power * q * self.widths))
+
+
+def _tr_bdf2_step(grid: BFPEGrid, q: NDArray[np.float64], ds: float) -> NDArray[np.float64]:
+    """One TR-BDF2 step of size ``ds`` for ``h dq/ds = K q``, each stage in flux form."""
+    h = grid.widths
+    c1 = 0.5 * _GAMMA * ds
+    div_n = grid.divergence(q)
+    rhs1 = h * q + c1 * div_n
+    q_g = solve_banded((1, 1), grid.banded(c1), rhs1, check_finite=False)
+    q_g = q + (c1 / h) * (div_n + grid.divergence(q_g))  # conservative re-evaluation
+    a = 1.0 / (_GAMMA * (2.0 - _GAMMA))
+    b = (1.0 - _GAMMA) ** 2 / (_GAMMA * (2.0 - _GAMMA))  # a - b = 1
+    comb = a * q_g - b * q
+    c2 = (1.0 - _GAMMA) / (2.0 - _GAMMA) * ds
+    q_new = solve_banded((1, 1), grid.banded(c2), h * comb, check_finite=False)
+    return comb + (c2 / h) * grid.divergence(q_new)
+
+
+def _step_nodes(s_start: float, s_targets: NDArray[np.float64], ratio: float) -> list[NDArray[np.float64]]:
+    """Geometric sub-steps from ``s_start`` to each target (ratio of consecutive nodes <= ``ratio``)."""
+    out = []
+    a = s_start
+    for b in s_targets:
+        n = max(1, math.ceil(math.log(b / a) / math.log(ratio) - 1e-9))
+        nodes = a * (b / a) ** (np.arange(1, n + 1) / n)
+        nodes[-1] = b
+        out.append(nodes)
+        a = b
+    return out
+
+
+def _integer(name: str, value: Any, accepted: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        else:
+            _fail(name, value, accepted)
+    v = int(value)
+    if v < minimum:
+        _fail(name, value, accepted)
+    return v
+
+
+def solve_bfpe(
+    *,
+    D: float,
+    tau: float,
+    t_max: float,
+    times: ArrayLike | None = None,
+    n_times: int = 40,
+    t0: float | None = None,
+    omega: float = 0.0,
+    n_cells: int = 600,
+    steps_per_decade: int = 100,
+    tail_exponent: float = 200.0,
+    n_Omega: int = 201,
+    u_max: float = 5.0,
+) -> xr.Dataset:
+    """Solve the averaged B.F.P.E., Eq. `avbfpe`, for a start at ``Omega_0 = 0`` (omega = 0).
+
+    Parameters
+    ----------
+    D : float
+        OU noise amplitude, > 0.
+    tau : float
+        OU correlation time, > 0. ``t_c = 1/(D tau^2)`` (Eq. `tpcross`).
+    t_max : float
+        Last time, > 0.
+    times : array_like, optional
+        Output times, strictly increasing, in ``(t0, t_max]``. Default: ``n_times`` log-spaced
+        times from ``1e-3 t_max`` to ``t_max`` (the simulator's default grid).
+    n_times : int, optional
+        Number of default output times (ignored when ``times`` is given).
+    t0 : float, optional
+        Start time. The initial law is the exact short-time Gaussian ``P_{t0}(Omega) =
+        (pi D t0)^{-1/2} exp(-Omega^2/(D t0))`` (variance ``D t0/2``, Eq. `eq:pdfOmegablanc`),
+        i.e. the law at ``t0`` of a start at ``Omega = 0`` up to a relative error
+        ``O(t0/t_c)``. Default: ``min(1e-6 t_c, 1e-3 times[0])``.
+    omega : float, optional
+        Must be 0: the averaged B.F.P.E. is derived for ``omega = 0``.
+    n_cells : int, optional
+        Cells on the half line ``Omega >= 0`` (default 600).
+    steps_per_decade : int, optional
+        Time steps per decade of ``t - `` (log-spaced; default 100).
+    tail_exponent : float, optional
+        The outer boundary is placed where the law is below ``exp(-tail_exponent)`` at
+        ``t_max`` (default 200).
+    n_Omega : int, optional
+        Points of the output law ``P_Omega`` (odd, symmetric about 0; default 201).
+    u_max : float, optional
+        The output law is sampled on ``Omega = u <Omega^2>^{1/2}``, ``u in [-u_max, u_max]``.
+
+    Returns
+    -------
+    xarray.Dataset
+        Coordinate ``time``; variables ``mean_E``, ``mean_E2``, ``mean_E3``, ``mean_E4``
+        (``E = Omega^2/2``), ``skewness`` (``<E^3>/<E^2>^{3/2}``), ``flatness``
+        (``<E^4>/<E^2>^2``), ``mean_Omega2``, ``mean_Omega4``, ``phi``
+        (``<Omega^4>/<Omega^2>^2``, Eq. `deflatness`), ``mass``, ``identity_residual``
+        (relative residual of Eq. `idquadr`), ``identity_lhs``, ``boundary_flux``, and the law
+        ``P_Omega(time, u)`` with the 2-D coordinate ``Omega(time, u) = u
+        <Omega^2>^{1/2}(time)``; attributes hold all parameters and numerical settings.
+
+    Raises
+    ------
+    ValueError
+        One line naming the parameter, its value and what is accepted.
+    """
+    D = _check_D(D, positive=True)
+    tau = _check_tau(tau)
+    om = _scalar("omega", omega, "omega must be 0: the averaged B.F.P.E. (avbfpe) is derived for omega = 0")
+    if om != 0.0:
+        _fail("omega", omega, "omega must be 0: the averaged B.F.P.E. (avbfpe) is derived for omega = 0")
+    t_max = _scalar("t_max", t_max, "t_max must be a finite number > 0")
+    if t_max <= 0:
+        _fail("t_max", t_max, "t_max must be a finite number > 0")
+    n_cells = _integer("n_cells", n_cells, "n_cells must be an integer >= 20", 20)
+    steps_per_decade = _integer("steps_per_decade", steps_per_decade, "steps_per_decade must be an integer >= 2", 2)
+    tail_exponent = _scalar("tail_exponent", tail_exponent, "tail_exponent must be a finite number >= 10")
+    if tail_exponent < 10:
+        _fail("tail_exponent", tail_exponent, "tail_exponent must be a finite number >= 10")
+    n_Omega = _integer("n_Omega", n_Omega, "n_Omega must be an integer >= 3", 3)
+    u_max = _scalar("u_max", u_max, "u_max must be a finite number > 0")
+    if u_max <= 0:
+        _fail("u_max", u_max, "u_max must be a finite number > 0")
+
+    if times is None:
+        n_times = _integer("n_times", n_times, "n_times must be an integer >= 1", 1)
+        grid_t = np.geomspace(t_max * 1e-3, t_max, n_times) if n_times > 1 else np.array([t_max])
+        grid_t[-1] = t_max
+    else:
+        try:
+            grid_t = np.asarray(times, dtype=np.float64).ravel()
+        except (TypeError, ValueError):
+            _fail("times", times, "times must be a list of numbers in (0, t_max]")
+        if grid_t.size == 0 or not np.all(np.isfinite(grid_t)):
+            _fail("times", times, "times must be a non-empty list of finite numbers in (0, t_max]")
+        if np.any(grid_t <= 0) or np.any(grid_t > t_max):
+            _fail("times", times, f"times must lie in (0, t_max] = (0, {t_max}]")
+        if np.any(np.diff(grid_t) <= 0):
+            _fail("times", times, "times must be strictly increasing")
+
+    t_c = 1.0 / (D * tau**2)
+    if t0 is None:
+        t0 = min(1e-6 * t_c, 1e-3 * float(grid_t[0]))
+    else:
+        t0 = _scalar("t0", t0, f"t0 must be a finite number in (0, times[0]) = (0, {grid_t[0]})")
+        if not 0 < t0 < grid_t[0]:
+            _fail("t0", t0, f"t0 must be a finite number in (0, times[0]) = (0, {grid_t[0]})")
+
+    # ---- scaled problem: x = tau Omega, s = t/t_c -------------------------------------------
+    s0 = t0 / t_c
+    s_out = grid_t / t_c
+    s_max = t_max / t_c
+    sigma0 = math.sqrt(s0 / 2.0)  # initial std of x
+    # Far tail: the solution spreads less than both the white law exp(-x^2/s) (coefficient 1)
+    # and the large-x similarity law exp(-x^4/(4 s)) (coefficient x^-2); both exceed
+    # (1 + x^2)^-1. Put the wall where the smaller of the two is below exp(-tail_exponent).
+    x_gauss = math.sqrt(tail_exponent * s_max)
+    x_quart = (4.0 * tail_exponent * s_max) ** 0.25
+    x_max = max(min(x_gauss, x_quart) * 1.25, 40.0 * sigma0)
+    grid = BFPEGrid(n_cells, sigma0, x_max)
+
+    x = grid.centres
+    q = np.exp(-(x**2) / s0)
+    q /= np.sum(q * grid.widths)
+
+    def diagnostics(q: NDArray[np.float64]) -> dict[str, float]:
+        return {
+            "mass": float(np.sum(q * grid.widths)),
+            "m2": grid.moment(q, 2),
+            "m4": grid.moment(q, 4),
+            "m6": grid.moment(q, 6),
+            "m8": grid.moment(q, 8),
+            "M": float(np.sum(grid.g * q * grid.widths)),
+            "edge": float(q[-1] * grid.x_max / 4.0),
+        }
+
+    start = diagnostics(q)
+    ratio = 10.0 ** (1.0 / steps_per_decade)
+    records: list[dict[str, float]] = []
+    laws: list[NDArray[np.float64]] = []
+    boundary_term = 0.0  # integral of q_N x_max/4 ds: the exact defect of the identity
+    s = s0
+    n_steps = 0
+    for nodes in _step_nodes(s0, s_out, ratio):
+        for s_next in nodes:
+            edge_before = q[-1] * grid.x_max / 4.0
+            q = _tr_bdf2_step(grid, q, s_next - s)
+            boundary_term += 0.5 * (edge_before + q[-1] * grid.x_max / 4.0) * (s_next - s)
+            s = s_next
+            n_steps += 1
+        d = diagnostics(q)
+        d["boundary_term"] = boundary_term
+        records.append(d)
+        laws.append(q.copy())
+
+    mass = np.array([r["mass"] for r in records])
+    m2 = np.array([r["m2"] for r in records])
+    m4 = np.array([r["m4"] for r in records])
+    m6 = np.array([r["m6"] for r in records])
+    m8 = np.array([r["m8"] for r in records])
+    Mx = np.array([r["M"] for r in records])
+    growth = (s_out - s0) / 4.0
+    identity_residual = (Mx - start["M"] - growth) / growth
+
+    mean_Omega2 = m2 / tau**2
+    mean_Omega4 = m4 / tau**4
+    mean_E = mean_Omega2 / 2.0
+    mean_E2 = mean_Omega4 / 4.0
+    mean_E3 = m6 / tau**6 / 8.0
+    mean_E4 = m8 / tau**8 / 16.0
+
+    u = np.linspace(-u_max, u_max, n_Omega)
+    sig_x = np.sqrt(m2)
+    P = np.empty((grid_t.size, n_Omega))
+    for i, qi in enumerate(laws):
+        xs = np.abs(u) * sig_x[i]
+        P[i] = 0.5 * tau * np.interp(xs, x, qi, left=qi[0], right=0.0)
+
+    time_attrs = {"long_name": "time t", "units": "paper time units"}
+    ds = xr.Dataset(
+        data_vars={
+            "mean_E": ("time", mean_E, {"long_name": "<E> = <Omega^2>/2 (omega = 0)"}),
+            "mean_E2": ("time", mean_E2, {"long_name": "<E^2> = <Omega^4>/4"}),
+            "mean_E3": ("time", mean_E3, {"long_name": "<E^3> = <Omega^6>/8"}),
+            "mean_E4": ("time", mean_E4, {"long_name": "<E^4> = <Omega^8>/16"}),
+            "skewness": ("time", mean_E3 / mean_E2**1.5, {"long_name": "S = <E^3>/<E^2>^(3/2) (raw moments)"}),
+            "flatness": ("time", mean_E4 / mean_E2**2, {"long_name": "F = <E^4>/<E^2>^2 (raw moments)"}),
+            "mean_Omega2": ("time", mean_Omega2, {"long_name": "<Omega^2>"}),
+            "mean_Omega4": ("time", mean_Omega4, {"long_name": "<Omega^4>"}),
+            "phi": ("time", m4 / m2**2, {"long_name": "phi = <Omega^4>/<Omega^2>^2 (deflatness)"}),
+            "mass": ("time", mass, {"long_name": "integral of P_t(Omega) dOmega"}),
+            "identity_lhs": (
+                "time",
+                Mx / tau**2,
+                {"long_name": "(tau^2/4)<Omega^4> + (1/2)<Omega^2> (idquadr, left side)"},
+            ),
+            "identity_residual": (
+                "time",
+                identity_residual,
+                {
+                    "long_name": "relative residual of idquadr: "
+                    "[lhs(t) - lhs(t0) - D (t - t0)/4] / [D (t - t0)/4]",
+                },
+            ),
+            "boundary_flux": (
+                "time",
+                np.array([r["boundary_term"] for r in records]) / growth,
+                {"long_name": "identity defect due to the outer wall, relative (int q_N x_max/4 ds / growth)"},
+            ),
+            "P_Omega": (
+                ("time", "u"),
+                P,
+                {"long_name": "P_t(Omega) at Omega(time, u)", "units": "1/Omega"},
+            ),
+        },
+        coords={
+            "time": ("time", grid_t, time_attrs),
+            "u": ("u", u, {"long_name": "Omega / <Omega^2>^(1/2)"}),
+            "Omega": (("time", "u"), u[None, :] * np.sqrt(mean_Omega2)[:, None], {"long_name": "Omega = u <Omega^2>^(1/2)"}),
+        },
+        attrs={
+            "equation": "avbfpe: dP/dt = (D/4) d/dOmega[(1 + (tau Omega)^2)^-1 dP/dOmega], omega = 0",
+            "D": D,
+            "tau": tau,
+            "omega": 0.0,
+            "t_max": t_max,
+            "t0": t0,
+            "t_c": t_c,
+            "initial_law": "Gaussian of variance D t0/2 (eq:pdfOmegablanc at t0): start at Omega = 0",
+            "scheme": "finite volumes in x = tau Omega >= 0 on x = A sinh(xi), identity-exact face "
+            "conductance x_f/(4 [g(x_i+1) - g(x_i)]), g = x^4/4 + x^2/2; TR-BDF2 in flux form, "
+            "log-spaced steps",
+            "n_cells": n_cells,
+            "steps_per_decade": steps_per_decade,
+            "n_steps": n_steps,
+            "x_inner": grid.x_inner,
+            "x_max": grid.x_max,
+            "Omega_max": grid.x_max / tau,
+            "dxi": grid.dxi,
+            "tail_exponent": tail_exponent,
+            "mass_error_max": float(np.max(np.abs(mass - 1.0))),
+            "identity_residual_max": float(np.max(np.abs(identity_residual))),
+            "longtime_mean_prefactor": BFPE_LONGTIME_MEAN_PREFACTOR,
+            "longtime_phi": PHI_INF,
+        },
+    )
+    return ds
