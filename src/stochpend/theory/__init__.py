@@ -5,6 +5,7 @@ Equation labels in the docstrings are the ``\\label`` names of Mallick & Marcq (
 ``docs/theory.md`` for the map from each equation to its function.
 """
 
+from stochpend.theory.bfpe import solve_bfpe
 from stochpend.theory.laws import (
     BFPE_LONGTIME_MEAN_PREFACTOR,
     OU1_MEAN_E2_PREFACTOR,
@@ -20,6 +21,7 @@ from stochpend.theory.laws import (
     WHITE_SKEWNESS,
     bfpe_identity_lhs,
     bfpe_identity_rhs,
+    bfpe_longtime_correction,
     bfpe_longtime_mean_E,
     bfpe_longtime_pdf_Omega,
     crossover_time,
@@ -42,7 +44,6 @@ from stochpend.theory.laws import (
     white_pdf_Omega,
     white_skewness,
 )
-from stochpend.theory.bfpe import solve_bfpe
 from stochpend.theory.table import Prediction, format_table, predictions
 
 __all__ = [
@@ -61,6 +62,7 @@ __all__ = [
     "Prediction",
     "bfpe_identity_lhs",
     "bfpe_identity_rhs",
+    "bfpe_longtime_correction",
     "bfpe_longtime_mean_E",
     "bfpe_longtime_pdf_Omega",
     "crossover_time",
