@@ -30,10 +30,9 @@ _PHILOX_M0 = np.uint64(0xD2511F53)
 _PHILOX_M1 = np.uint64(0xCD9E8D57)
 _PHILOX_W0 = np.uint64(0x9E3779B9)
 _PHILOX_W1 = np.uint64(0xBB67AE85)
-_SHIFT5 = np.uint64(5)
 _SHIFT6 = np.uint64(6)
 _TWO_POW_26 = 67108864.0
-_TWO_POW_M53 = 1.0 / 9007199254740992.0
+_TWO_POW_M52 = 1.0 / 4503599627370496.0
 _TWO_PI = 2.0 * math.pi
 
 #: Draw index of the initial angle theta0 (a uniform).
@@ -72,13 +71,14 @@ def philox4x32_10(c0, c1, c2, c3, k0, k1):
 
 @register_jitable
 def uniform_open(a, b):
-    """A float64 uniform on the open interval (0, 1) from two 32-bit words (53 random bits).
+    """A float64 uniform on the open interval (0, 1) from two 32-bit words (52 random bits).
 
-    The value is ``(k + 1/2) / 2**53`` with ``k`` the 53-bit integer made of the high 27 bits of
-    ``a`` and the high 26 bits of ``b``; it is never 0 or 1, so ``log(u)`` is always finite.
+    The value is ``(k + 1/2) / 2**52`` with ``k`` the 52-bit integer made of the high 26 bits of
+    ``a`` and of ``b``. Every such value is exactly representable, the largest is
+    1 - 2**-53 < 1 and the smallest 2**-53 > 0, so ``log(u)`` and ``log(1 - u)`` are finite.
     """
-    k = float(a >> _SHIFT5) * _TWO_POW_26 + float(b >> _SHIFT6)
-    return (k + 0.5) * _TWO_POW_M53
+    k = float(a >> _SHIFT6) * _TWO_POW_26 + float(b >> _SHIFT6)
+    return (k + 0.5) * _TWO_POW_M52
 
 
 @register_jitable

@@ -34,20 +34,35 @@ SCHEME = {
 }
 
 # Taylor coefficients of x - 2 tanh(x/2) = x**3/12 - x**5/120 + 17 x**7/20160 - ...
-_C3 = 1.0 / 12.0
-_C5 = -1.0 / 120.0
-_C7 = 17.0 / 20160.0
-_C9 = -31.0 / 362880.0
-_C11 = 691.0 / 79833600.0
-_C13 = -5461.0 / 6227020800.0
+# (successive coefficients shrink by about 1/pi**2; below x = 0.6 the 12 terms kept leave a
+# relative truncation error < 1e-17).
+_TANH_SERIES = (
+    1.0 / 12.0,
+    -1.0 / 120.0,
+    17.0 / 20160.0,
+    -31.0 / 362880.0,
+    691.0 / 79833600.0,
+    -5461.0 / 6227020800.0,
+    929569.0 / 10461394944000.0,
+    -3202291.0 / 355687428096000.0,
+    221930581.0 / 243290200817664000.0,
+    -4722116521.0 / 51090942171709440000.0,
+    56963745931.0 / 6082827467972935680000.0,
+    -14717667114151.0 / 15511210043330985984000000.0,
+)
+_SERIES_BELOW = 0.6
 
 
 @register_jitable
 def x_minus_2tanh_half(x):
-    """x - 2 tanh(x/2), accurate to round-off for every x >= 0 (series below 0.1)."""
-    if x < 0.1:
+    """x - 2 tanh(x/2) for x >= 0: the series below 0.6 (round-off accurate); above it the
+    direct difference, whose relative error is at most about 12 eps / x**2 (< 1e-14)."""
+    if x < _SERIES_BELOW:
         x2 = x * x
-        return x * x2 * (_C3 + x2 * (_C5 + x2 * (_C7 + x2 * (_C9 + x2 * (_C11 + x2 * _C13)))))
+        acc = 0.0
+        for i in range(len(_TANH_SERIES) - 1, -1, -1):
+            acc = acc * x2 + _TANH_SERIES[i]
+        return acc * x * x2
     return x - 2.0 * math.tanh(0.5 * x)
 
 

@@ -1,0 +1,102 @@
+"""The integrator's pieces, checked against independent formulas (plain-Python calls)."""
+
+from __future__ import annotations
+
+import math
+from decimal import Decimal, getcontext
+
+import numpy as np
+import pytest
+
+from stochpend import physics, schemes
+
+
+def _x_minus_2tanh_half_decimal(x: float) -> float:
+    getcontext().prec = 60
+    X = Decimal(x)
+    e = (-X).exp()
+    return float(X - 2 * (1 - e) / (1 + e))
+
+
+@pytest.mark.parametrize("x", [1e-8, 1e-5, 1e-3, 0.02, 0.1, 0.3, 0.5999, 0.6, 0.6001, 1.0, 3.0, 40.0])
+def test_conditional_variance_function_is_accurate_everywhere(x):
+    exact = _x_minus_2tanh_half_decimal(x)
+    got = schemes.x_minus_2tanh_half(x)
+    eps = np.finfo(float).eps
+    # series: a few ulps; direct difference: the cancellation bound 12 eps / x^2 (x >= 0.6)
+    tol = 4 * eps if x < 0.6 else 2 * 12 * eps / x**2
+    assert abs(got - exact) <= tol * abs(exact), f"x={x}: {got!r} vs {exact!r}"
+    assert schemes.x_minus_2tanh_half(x) == __import__("numba").njit(schemes.x_minus_2tanh_half)(x)
+
+
+@pytest.mark.parametrize("h,tau", [(0.01, 1.0), (0.5, 1.0), (1.0, 0.1), (0.05, 0.01), (3.0, 10.0), (20.0, 0.5)])
+def test_ou_coefficients_reproduce_the_exact_joint_covariance(h, tau):
+    """NOTES.md: var xi' = D(1-a^2)/(2 tau), var I = D[h - 2 tau(1-a) + tau(1-a^2)/2], cov = D(1-a)^2/2."""
+    D = 2.5
+    a, s_xi, m_I, c_I, s_I = schemes.ou_step_coefficients(h, D, tau)
+    e = math.exp(-h / tau)
+    assert a == pytest.approx(e, rel=1e-14)
+    assert m_I == pytest.approx(tau * (1 - e), rel=1e-14)
+    assert s_xi**2 == pytest.approx(D * (1 - e * e) / (2 * tau), rel=1e-13)
+    assert s_xi * c_I == pytest.approx(D * (1 - e) ** 2 / 2, rel=1e-13)
+    var_I = D * (h - 2 * tau * (1 - e) + tau * (1 - e * e) / 2)
+    assert c_I**2 + s_I**2 == pytest.approx(var_I, rel=1e-9 if h / tau > 0.05 else 1e-6)
+
+
+def test_ou_coefficients_tend_to_white_noise_as_tau_vanishes():
+    h, D = 0.1, 1.7
+    _, _, m_I, c_I, s_I = schemes.ou_step_coefficients(h, D, 1e-9)
+    assert c_I**2 + s_I**2 == pytest.approx(D * h, rel=1e-7)
+    assert m_I == pytest.approx(1e-9, rel=1e-6)
+
+
+def test_verlet_is_time_reversible_and_symplectic_at_zero_noise():
+    x, O, h, w2 = 0.7, -0.3, 0.05, 1.3
+    x1, O1 = schemes.verlet_step(x, O, h, w2, 0.0, physics.PENDULUM, 2, physics.COUPLING_FORCE)
+    xb, Ob = schemes.verlet_step(x1, -O1, h, w2, 0.0, physics.PENDULUM, 2, physics.COUPLING_FORCE)
+    assert xb == pytest.approx(x, abs=1e-14) and -Ob == pytest.approx(O, abs=1e-14)
+    # Jacobian determinant 1 (area preserving), by central differences
+    eps = 1e-6
+
+    def f(v):
+        return np.array(schemes.verlet_step(v[0], v[1], h, w2, 0.0, physics.PENDULUM, 2, physics.COUPLING_FORCE))
+
+    J = np.column_stack([(f(np.array([x, O]) + eps * e) - f(np.array([x, O]) - eps * e)) / (2 * eps)
+                         for e in np.eye(2)])
+    assert np.linalg.det(J) == pytest.approx(1.0, abs=1e-8)
+
+
+def test_ito_and_stratonovich_coincide():
+    """The Stratonovich-to-Ito drift correction (1/2) sum_j b_j d_j b_i vanishes.
+
+    State (x, Omega), diffusion b = (0, -G(x)): b_x = 0, so the only derivative that could
+    contribute, d b_Omega / d Omega, multiplies b_Omega and is zero because G does not depend
+    on Omega. Checked numerically for every potential and coupling.
+    """
+    eps = 1e-6
+    for pot, cpl in [(physics.PENDULUM, 0), (physics.HARMONIC, 0), (physics.HARMONIC, 1), (physics.POWER, 0)]:
+        for x, O in [(0.3, 1.1), (-1.2, 4.0), (2.0, -0.5)]:
+            def b(xx, OO):
+                return np.array([0.0, -physics.noise_shape(xx, pot, 2, cpl) + 0.0 * OO])
+
+            db_dx = (b(x + eps, O) - b(x - eps, O)) / (2 * eps)
+            db_dO = (b(x, O + eps) - b(x, O - eps)) / (2 * eps)
+            bx, bO = b(x, O)
+            correction = 0.5 * (bx * db_dx + bO * db_dO)
+            assert np.allclose(correction, 0.0, atol=1e-12), (pot, cpl, x, O, correction)
+
+
+def test_step_size_rules():
+    h_max, c = 0.05, 0.25
+    assert schemes.step_size(0.1, 0.0, 0.0, h_max, c, 1.0, physics.PENDULUM, 2) == h_max
+    assert schemes.step_size(100.0, 0.0, 0.0, h_max, c, 1.0, physics.PENDULUM, 2) == pytest.approx(c / 100.0)
+    assert schemes.step_size(0.0, 399.0, 0.0, h_max, c, 1.0, physics.PENDULUM, 2) == pytest.approx(c / 20.0)
+    assert schemes.step_size(100.0, 399.0, 0.0, h_max, 0.0, 1.0, physics.PENDULUM, 2) == h_max
+
+
+def test_angle_wrapping():
+    for x in (-7.0, -math.pi, 0.0, 3.0, math.pi, 10.0, 1e6):
+        w = physics.wrap_angle(x, physics.PENDULUM)
+        assert -math.pi <= w < math.pi
+        assert math.sin(w) == pytest.approx(math.sin(x), abs=1e-9)
+    assert physics.wrap_angle(10.0, physics.HARMONIC) == 10.0
