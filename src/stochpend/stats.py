@@ -123,9 +123,11 @@ class EnsembleSums:
             value = f(m_all)
             if n_b >= 2:
                 jk = f(m_loo)
-                dev = jk - np.nanmean(jk, axis=0)
-                with np.errstate(invalid="ignore"):
-                    se = np.sqrt((n_b - 1) / n_b * np.nansum(dev * dev, axis=0))
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    # A statistic undefined for the whole ensemble (e.g. S when every E = 0)
+                    # has an undefined error too: NaN propagates, nothing is silently dropped.
+                    dev = jk - jk.mean(axis=0)
+                    se = np.sqrt((n_b - 1) / n_b * np.sum(dev * dev, axis=0))
             else:
                 se = np.full_like(value, np.nan)
             out[name] = (value, se)

@@ -90,11 +90,15 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
         z_even = 0.0
         z_odd = 0.0
         n = 0
+        t_comp = 0.0
         bad = False
         while n < max_steps:
             h = schemes.step_size(Om, xn, xs, h_max, step_c, omega2, potential_code, power_n)
             last = False
-            if tt + h >= t_target:
+            # Land on t_target; a step that would stop within 1e-6 h of it is stretched to it,
+            # so that round-off in t (kept small by compensated summation) never leaves a
+            # sliver step behind.
+            if tt + h * (1.0 + 1e-6) >= t_target:
                 h = t_target - tt
                 last = True
             if noise_code == OU:
@@ -115,7 +119,13 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
                                          power_n, coupling_code)
             kk += _U64(1)
             n += 1
-            tt = t_target if last else tt + h
+            if last:
+                tt = t_target
+            else:  # Kahan-compensated t += h
+                y = h - t_comp
+                t_new = tt + y
+                t_comp = (t_new - tt) - y
+                tt = t_new
             if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)):
                 bad = True
                 break
@@ -138,6 +148,8 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
 def accumulate_batches(x, Omega, status, omega2, potential_code, power_n, coupling_code,
                        batch_size, edges, sums, hist):  # pragma: no cover - compiled
     """Per-batch power sums of E and Omega, and the energy histogram, at one output time.
+
+    A path whose E**4, Omega**4 or G(x) is not finite is marked non-finite here (status 1).
 
     Paths ``[b * batch_size, (b + 1) * batch_size)`` of this chunk form batch b; each batch is
     summed sequentially in path order, so the sums do not depend on the thread count.
@@ -163,6 +175,12 @@ def accumulate_batches(x, Omega, status, omega2, potential_code, power_n, coupli
             E2 = E * E
             O2 = Omega[i] * Omega[i]
             g = physics.noise_shape(x[i], potential_code, power_n, coupling_code)
+            if not (math.isfinite(E2 * E2) and math.isfinite(O2 * O2) and math.isfinite(g)):
+                # The state is finite but its moments overflow: the path has escaped. It is
+                # frozen as non-finite, so it stays excluded at every later time too.
+                status[i] = 1
+                sums[b, S_NONFINITE] += 1.0
+                continue
             sums[b, S_COUNT] += 1.0
             sums[b, S_E1] += E
             sums[b, S_E2] += E2
