@@ -20,7 +20,7 @@ BACKENDS = ("cpu", "auto", "cuda")
 
 #: Default step controls, from the accuracy study in docs/numerics.md.
 DEFAULT_H_MAX = 0.05
-DEFAULT_STEP_C = 0.25
+DEFAULT_STEP_C = 0.1
 DEFAULT_HIST_BINS = 100
 DEFAULT_N_BATCHES = 100
 
