@@ -15,6 +15,7 @@ from typing import Annotated, Any, TypeVar
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 app = typer.Typer(
@@ -32,7 +33,7 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 def fail(message: str, code: int = 2) -> None:
     """Print one red line and exit."""
-    console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
     raise typer.Exit(code)
 
 
@@ -179,6 +180,7 @@ def simulate(
     step_c: Annotated[float | None, typer.Option("--step-c", help="Step control c: h <= c/|Omega| and c/sqrt(|omega^2+xi|); 0 = fixed step.")] = None,
     hist_bins: Annotated[int | None, typer.Option("--hist-bins", help="Energy histogram bins.")] = None,
     backend: Annotated[str, typer.Option(help="Where to run: cpu, cuda, or auto (the GPU when usable).")] = "cpu",
+    precision: Annotated[str, typer.Option(help="float64 (default) or float32 (CUDA backend only).")] = "float64",
     threads: Annotated[int | None, typer.Option(help="CPU threads (results do not depend on it).")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
@@ -208,7 +210,7 @@ def simulate(
     ds = run_simulation(
         noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max, times=parse_times(times),
         n_times=n_times, seed=seed, theta0=parse_theta0(theta0), Omega0=Omega0, backend=backend,
-        threads=threads, progress=progress, **kwargs,
+        threads=threads, progress=progress, precision=precision, **kwargs,
     )
     ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
     if out is not None:

@@ -57,6 +57,7 @@ def simulate(
     threads: int | None = None,
     chunk_paths: int | None = None,
     progress: Progress | None = None,
+    precision: str = "float64",
 ) -> xr.Dataset:
     r"""Simulate an ensemble of stochastic pendulums and return its energy statistics.
 
@@ -104,8 +105,12 @@ def simulate(
     potential, power_n, coupling
         Model beyond the pendulum: "pendulum" (default), "harmonic", or "power" (U = x^2n/2n);
         noise multiplying the force ("force") or the position ("position").
-    backend : {"cpu", "auto"}
-        Where to run.
+    backend : {"cpu", "cuda", "auto"}
+        Where to run: the CPU (Numba, all cores), an NVIDIA GPU (numba-cuda, one thread per
+        path; the same random streams), or the GPU when one is usable.
+    precision : {"float64", "float32"}
+        Arithmetic of the state and the step; float32 is available on the CUDA backend
+        (statistics are always accumulated in float64; see docs/gpu.md for its bias).
     threads : int, optional
         CPU threads (default: all Numba threads). Results do not depend on it.
     chunk_paths : int, optional
@@ -134,6 +139,10 @@ def simulate(
         potential=potential, power_n=power_n, coupling=coupling,
     )
     backend = resolve_backend(backend)
+    if precision not in ("float64", "float32"):
+        raise ValueError(f"precision={precision!r} is not accepted: one of float64, float32")
+    if precision == "float32" and backend != "cuda":
+        raise ValueError("precision='float32' is not accepted with backend='cpu': float32 runs on the CUDA backend")
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
                                 or threads > numba.config.NUMBA_NUM_THREADS):
         raise ValueError(
@@ -142,16 +151,32 @@ def simulate(
     if chunk_paths is not None and (isinstance(chunk_paths, bool) or not isinstance(chunk_paths, int)
                                     or chunk_paths < 1):
         raise ValueError(f"chunk_paths={chunk_paths!r} is not accepted: an integer >= 1")
-    return run(config, backend=backend, threads=threads, chunk_paths=chunk_paths, progress=progress)
+    return run(config, backend=backend, threads=threads, chunk_paths=chunk_paths, progress=progress,
+               precision=precision)
 
 
 def resolve_backend(backend: str) -> str:
-    """Map "auto" to an available backend; refuse unknown names."""
-    if backend in ("cpu", "auto"):
+    """Map "auto" to the GPU when one is usable (else the CPU); refuse an unusable "cuda"."""
+    if backend == "cpu":
         return "cpu"
-    if backend == "cuda":
-        raise ValueError("backend='cuda' is not accepted: the CUDA backend is not available in this build")
-    raise ValueError(f"backend={backend!r} is not accepted: one of cpu, auto, cuda")
+    if backend not in ("auto", "cuda"):
+        raise ValueError(f"backend={backend!r} is not accepted: one of cpu, cuda, auto")
+    try:
+        from stochpend._backends import cuda as _cuda
+    except Exception as exc:  # numba without a CUDA target
+        usable, why = False, f"numba.cuda cannot be imported ({type(exc).__name__})"
+    else:
+        usable, why = _cuda.availability()
+        if usable and backend == "auto" and _cuda._simulator_enabled():
+            usable = False  # never pick the (slow) simulator implicitly
+    if usable:
+        return "cuda"
+    if backend == "auto":
+        return "cpu"
+    raise ValueError(
+        f"backend='cuda' is not accepted: {why}; install the extra with "
+        "pip install 'stochpend[cuda]' on a machine with an NVIDIA GPU, or use backend='cpu'"
+    )
 
 
 def run(
@@ -161,6 +186,7 @@ def run(
     threads: int | None = None,
     chunk_paths: int | None = None,
     progress: Progress | None = None,
+    precision: str = "float64",
 ) -> xr.Dataset:
     """Run a validated configuration and build the Dataset (see :func:`simulate`)."""
     progress = progress or NoProgress()
@@ -169,14 +195,21 @@ def run(
         numba.set_num_threads(threads)
     started = _time.perf_counter()
     try:
-        sums, path_steps = run_batches(
-            config, 0, config.n_batches, chunk_paths=chunk_paths, progress=progress
-        )
+        if backend == "cuda":
+            from stochpend._backends import cuda as _cuda
+
+            sums, path_steps = _cuda.run_batches(config, 0, config.n_batches, chunk_paths=chunk_paths,
+                                                 progress=progress, precision=precision)
+        else:
+            sums, path_steps = run_batches(
+                config, 0, config.n_batches, chunk_paths=chunk_paths, progress=progress
+            )
     finally:
         numba.set_num_threads(previous_threads)
     wall = _time.perf_counter() - started
     attrs = provenance(config, backend=backend, threads=threads or previous_threads,
                        wall_time_s=wall, path_steps=path_steps)
+    attrs["precision"] = precision
     return sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
 
 
@@ -201,6 +234,7 @@ class RunState:
     t: np.ndarray
     k: np.ndarray
     status: np.ndarray
+    t_comp: np.ndarray
     chunk_sums: np.ndarray
     chunk_hist: np.ndarray
     acc: EnsembleSums
@@ -224,14 +258,15 @@ def _new_chunk(config: SimulationConfig, b0: int, b1: int) -> tuple[np.ndarray, 
     t = np.empty(n)
     k = np.empty(n, dtype=np.uint64)
     status = np.empty(n, dtype=np.uint8)
+    t_comp = np.empty(n)
     key0, key1 = _rng.seed_to_key(config.seed)
     cpu.init_paths(
         x, Omega, xi, t, k, status, key0, key1, p0,
         0.0 if config.theta0 is None else config.theta0, config.theta0 is None,
         config.Omega0, 0.0 if config.xi0 is None else config.xi0, config.xi0 is None,
-        config.D, config.tau_or_zero, config.noise_code,
+        config.D, config.tau_or_zero, config.noise_code, t_comp,
     )
-    return x, Omega, xi, t, k, status
+    return x, Omega, xi, t, k, status, t_comp
 
 
 def run_batches(
@@ -291,6 +326,7 @@ def run_batches(
                     state.x, state.Omega, state.xi, state.t, state.k, state.status, t_target,
                     max_steps, config.noise_code, config.D, config.tau_or_zero, omega2,
                     config.h_max, config.step_c, pot, config.power_n, cpl, key0, key1, p0,
+                    state.t_comp,
                 )
                 state.path_steps += steps
                 progress.update(state.done_work + float(np.sum(state.t)))
@@ -312,7 +348,8 @@ def run_batches(
             break
         b0 = state.b1
         b1 = min(b0 + chunk_batches, stop_batch)
-        (state.x, state.Omega, state.xi, state.t, state.k, state.status) = _new_chunk(config, b0, b1)
+        (state.x, state.Omega, state.xi, state.t, state.k, state.status,
+         state.t_comp) = _new_chunk(config, b0, b1)
         state.b0, state.b1, state.j = b0, b1, 0
         state.chunk_sums = np.zeros((b1 - b0, n_times, cpu.N_SUMS))
         state.chunk_hist = np.zeros((n_times, n_cols), dtype=np.int64)

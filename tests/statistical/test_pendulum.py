@@ -52,9 +52,9 @@ def test_ou_process_mean_variance_and_autocorrelation():
     D, tau, h, xi0, n = 1.5, 0.7, 0.3, 2.0, 200_000
     key0, key1 = rng.seed_to_key(SEED)
 
-    def run(t_stop, x, O, xi, t, k, status):
+    def run(t_stop, x, O, xi, t, k, status):  # t_comp: closure
         cpu.advance_paths(x, O, xi, t, k, status, t_stop, 10**9, cpu.OU, D, tau, 0.0, h, 0.0,
-                          physics.HARMONIC, 2, physics.COUPLING_FORCE, key0, key1, 0)
+                          physics.HARMONIC, 2, physics.COUPLING_FORCE, key0, key1, 0, t_comp)
 
     x = np.zeros(n)  # x = 0, Omega = 0 and harmonic: the oscillator stays at rest, xi evolves freely
     O = np.zeros(n)
@@ -62,6 +62,7 @@ def test_ou_process_mean_variance_and_autocorrelation():
     t = np.zeros(n)
     k = np.zeros(n, dtype=np.uint64)
     status = np.zeros(n, dtype=np.uint8)
+    t_comp = np.zeros(n)
     t1 = 2.0 * h
     run(t1, x, O, xi, t, k, status)
     mean_exact = xi0 * math.exp(-t1 / tau)
@@ -153,3 +154,21 @@ def test_histogram_counts_every_finite_path():
     binned = (ds.E_hist.values * mids).sum(axis=1) / ds.E_hist.values.sum(axis=1)
     width = np.diff(edges, axis=1).max(axis=1)
     assert np.all(np.abs(binned - ds.mean_E.values) < width)
+
+
+def test_results_do_not_depend_on_kernel_call_budget():
+    """Segments longer than one kernel call's step budget are split; the clock must not notice."""
+    import importlib
+
+    sim_mod = importlib.import_module("stochpend.simulate")
+    # 200 time units are > 4000 steps a path: several calls of the minimum 1000-step budget
+    kw = dict(noise="ou", D=1.0, tau=0.5, omega=1.0, paths=64, t_max=200.0, times=[200.0], seed=SEED)
+    a = stochpend.simulate(**kw)
+    saved = sim_mod._WORK_PER_CALL
+    try:
+        sim_mod._WORK_PER_CALL = 1  # every call takes the minimum budget: many calls per segment
+        b = stochpend.simulate(**kw)
+    finally:
+        sim_mod._WORK_PER_CALL = saved
+    for v in a.data_vars:
+        assert np.array_equal(a[v].values, b[v].values, equal_nan=True), f"{v} depends on the call budget"

@@ -94,3 +94,18 @@ def test_cli_refuses_existing_out_without_overwrite(tmp_path):
     assert result.exit_code == 2
     assert "exists" in result.output
     assert out.read_bytes() == b"keep me", "an existing file was touched"
+
+
+def test_cuda_refused_with_reason_where_there_is_no_gpu():
+    from stochpend._backends import cuda as cuda_backend
+
+    usable, _ = cuda_backend.availability()
+    if usable:
+        pytest.skip("a usable GPU is present: nothing to refuse")
+    result = CliRunner().invoke(app, ["simulate", "--paths", "10", "--t-max", "1", "--backend", "cuda"])
+    assert result.exit_code == 2
+    lines = [ln for ln in result.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "backend='cuda'" in lines[0] and "stochpend[cuda]" in lines[0], result.output
+    # auto falls back to the CPU
+    ds = stochpend.simulate(paths=10, t_max=0.5, n_times=1, backend="auto")
+    assert ds.attrs["backend"] == "cpu"

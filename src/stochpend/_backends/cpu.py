@@ -20,6 +20,9 @@ import numpy as np
 from numba import prange
 
 from stochpend import physics, rng, schemes
+from stochpend._jitcache import drop_stale_cache
+
+drop_stale_cache(__file__)
 
 WHITE = 0
 OU = 1
@@ -33,7 +36,7 @@ _U64 = np.uint64
 
 @numba.njit(parallel=True, cache=True)
 def init_paths(x, Omega, xi, t, k, status, key0, key1, path0, theta0, uniform_theta0, Omega0, xi0,
-               stationary_xi0, D, tau, noise_code):  # pragma: no cover - compiled
+               stationary_xi0, D, tau, noise_code, t_comp):  # pragma: no cover - compiled
     """Initial conditions of paths path0 .. path0 + len(x) - 1 (draws 0 and 1)."""
     for i in prange(x.shape[0]):
         path = _U64(path0 + i)
@@ -52,6 +55,7 @@ def init_paths(x, Omega, xi, t, k, status, key0, key1, path0, theta0, uniform_th
         else:
             xi[i] = 0.0
         t[i] = 0.0
+        t_comp[i] = 0.0
         k[i] = 0
         status[i] = 0
 
@@ -59,11 +63,13 @@ def init_paths(x, Omega, xi, t, k, status, key0, key1, path0, theta0, uniform_th
 @numba.njit(parallel=True, cache=True)
 def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D, tau, omega2,
                   h_max, step_c, potential_code, power_n, coupling_code, key0, key1,
-                  path0):  # pragma: no cover - compiled
+                  path0, t_comp):  # pragma: no cover - compiled
     """Advance every unfinished path towards ``t_target``, at most ``max_steps`` steps each.
 
     The last step of a path is shortened to land exactly on ``t_target``. A path whose state
-    becomes non-finite gets status 1 and is never advanced again.
+    becomes non-finite gets status 1 and is never advanced again. The clock is a Kahan sum whose
+    compensation term ``t_comp`` is part of the path's state (zeroed on landing), so the result
+    does not depend on how a segment is split into calls.
 
     Returns ``(steps_taken, paths_unfinished)``.
     """
@@ -89,8 +95,8 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
         pair_draw = _U64(0xFFFFFFFFFFFFFFFF)
         z_even = 0.0
         z_odd = 0.0
+        tc = t_comp[i]
         n = 0
-        t_comp = 0.0
         bad = False
         while n < max_steps:
             h = schemes.step_size(Om, xn, xs, h_max, step_c, omega2, potential_code, power_n)
@@ -121,10 +127,11 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
             n += 1
             if last:
                 tt = t_target
+                tc = 0.0
             else:  # Kahan-compensated t += h
-                y = h - t_comp
+                y = h - tc
                 t_new = tt + y
-                t_comp = (t_new - tt) - y
+                tc = (t_new - tt) - y
                 tt = t_new
             if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)):
                 bad = True
@@ -135,6 +142,7 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
         Omega[i] = Om
         xi[i] = xn
         t[i] = tt
+        t_comp[i] = tc
         k[i] = kk
         if bad:
             status[i] = 1

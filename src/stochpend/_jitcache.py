@@ -1,0 +1,37 @@
+"""Keep Numba's on-disk cache honest.
+
+Numba invalidates a cached kernel when the kernel's own source file changes, but not when a
+function it inlines from another module does (the shared ``physics``/``schemes``/``rng``
+functions). Each kernel module calls :func:`drop_stale_cache` at import: it hashes the kernel
+module together with the shared modules and deletes the module's cache files when the hash
+differs from the one recorded beside them, so an edit anywhere recompiles.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+_PACKAGE = Path(__file__).resolve().parent
+SHARED_SOURCES = ("physics.py", "schemes.py", "rng.py", "fastmath.py")
+
+
+def drop_stale_cache(module_file: str) -> None:
+    """Delete ``module_file``'s Numba cache if it or a shared source changed since it was built."""
+    module = Path(module_file).resolve()
+    digest = hashlib.sha256()
+    for path in [module, *(_PACKAGE / name for name in SHARED_SOURCES)]:
+        if path.is_file():
+            digest.update(path.read_bytes())
+    cache_dir = module.parent / "__pycache__"
+    stamp = cache_dir / f"{module.stem}.sources.sha256"
+    try:
+        if stamp.is_file() and stamp.read_text() == digest.hexdigest():
+            return
+        for pattern in (f"{module.stem}.*.nbi", f"{module.stem}.*.nbc"):
+            for stale in cache_dir.glob(pattern):
+                stale.unlink(missing_ok=True)
+        cache_dir.mkdir(exist_ok=True)
+        stamp.write_text(digest.hexdigest())
+    except OSError:  # a read-only install: Numba then compiles in memory or uses its own dir
+        pass
