@@ -266,3 +266,11 @@ def main() -> None:  # pragma: no cover
 
 if __name__ == "__main__":  # pragma: no cover
     main()
+
+
+# -- commands defined beside their subject (they import the helpers above) ---------------------
+from stochpend._cli_theory import bfpe_command, reduced_command, theory_command  # noqa: E402
+
+app.command("theory")(theory_command)
+app.command("bfpe")(bfpe_command)
+app.command("reduced")(reduced_command)

@@ -1,0 +1,198 @@
+"""The ``theory``, ``bfpe`` and ``reduced`` commands (registered in :mod:`stochpend.cli`)::
+
+    from stochpend._cli_theory import bfpe_command, reduced_command, theory_command
+    app.command("theory")(theory_command)
+    app.command("bfpe")(bfpe_command)
+    app.command("reduced")(reduced_command)
+
+Thin layers over :func:`stochpend.theory.predictions`, :func:`stochpend.theory.solve_bfpe` and
+:func:`stochpend.reduced.simulate_reduced`: they validate nothing themselves (the API raises
+one-line ``ValueError``s, turned into one red line and exit code 2 by ``handles_errors``).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.table import Table
+
+from stochpend.cli import _fmt, console, handles_errors, parse_times, summary_table
+
+__all__ = ["bfpe_command", "bfpe_table", "reduced_command", "reduced_table", "theory_command", "theory_table"]
+
+
+def _num(v: float) -> str:
+    if math.isinf(v):
+        return "inf"
+    if math.isnan(v):
+        return "nan"
+    return f"{v:.6g}"
+
+
+def theory_table(rows: list[Any], *, title: str) -> Table:
+    """A rich table of :class:`stochpend.theory.Prediction` rows, one section per regime."""
+    table = Table(title=title, show_lines=False)
+    for col, kw in (("regime", {}), ("quantity", {"no_wrap": True}), ("value", {"justify": "right", "no_wrap": True}),
+                    ("equation", {}), ("valid for", {}), ("note", {})):
+        table.add_column(col, **kw)
+    previous = None
+    for r in rows:
+        if previous is not None and r.regime != previous:
+            table.add_section()
+        table.add_row(r.regime if r.regime != previous else "", r.quantity, _num(r.value), r.equation,
+                      r.validity, r.note)
+        previous = r.regime
+    return table
+
+
+@handles_errors
+def theory_command(
+    noise: Annotated[str, typer.Option(help="Noise: 'ou' (Ornstein-Uhlenbeck, eqOU) or 'white' (defbruitblanc).")] = "ou",
+    D: Annotated[float, typer.Option("--D", help="Noise amplitude D >= 0.")] = 1.0,
+    tau: Annotated[float, typer.Option("--tau", help="OU correlation time tau > 0 (ignored for white noise).")] = 1.0,
+    omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency omega >= 0 (the asymptotic laws do not depend on it).")] = 1.0,
+    t: Annotated[float, typer.Option("--t", help="Time at which the predictions are evaluated, >= 0.")] = 1000.0,
+    bfpe: Annotated[bool, typer.Option("--bfpe", help="Also solve the averaged B.F.P.E. (avbfpe, omega = 0) up to t.")] = False,
+    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+) -> None:
+    """Print the paper's predictions at time t: every regime, its equation and where it is valid."""
+    from stochpend.theory import predictions
+
+    rows = predictions(noise=noise, D=D, tau=tau if noise.lower() != "white" else None, omega=omega, t=t,
+                       bfpe=bfpe)
+    params = f"D={D:g}" + (f", tau={tau:g}" if noise.lower() == "ou" else "") + f", omega={omega:g}"
+    console.print(theory_table(rows, title=f"Predictions at t = {t:g}: {noise.lower()} noise, {params}"))
+
+
+def bfpe_table(ds: Any, max_rows: int = 12) -> Table:
+    """Short table of a :func:`stochpend.theory.solve_bfpe` result."""
+    D = float(ds.attrs["D"])
+    tau = float(ds.attrs["tau"])
+    table = Table(title=f"Averaged B.F.P.E. (avbfpe, omega = 0): D={D:g}, tau={tau:g}, t_c={1 / (D * tau**2):.4g}")
+    for col in ("t", "t/t_c", "<E>", "<E>/(Dt/tau^2)^1/2", "<E2>/(Dt/tau^2)", "phi", "S", "F", "identity res."):
+        table.add_column(col, justify="right", no_wrap=True)
+    n = ds.sizes["time"]
+    shown = min(max_rows, n)
+    idx = sorted({round(k * (n - 1) / max(shown - 1, 1)) for k in range(shown)})
+    for i in idx:
+        r = ds.isel(time=i)
+        t = float(r.time)
+        x = D * t / tau**2
+        table.add_row(
+            f"{t:.4g}", f"{D * tau**2 * t:.4g}", _num(float(r.mean_E)), _num(float(r.mean_E) / math.sqrt(x)),
+            _num(float(r.mean_E2) / x), _num(float(r.phi)), _num(float(r.skewness)), _num(float(r.flatness)),
+            f"{float(r.identity_residual):.1e}",
+        )
+    from stochpend.theory import laws
+
+    table.caption = (
+        f"t >> t_c limits (second-order averaging): {laws.OU2_MEAN_PREFACTOR:.6f}, {laws.OU2_MEAN_E2_PREFACTOR:g}, "
+        f"phi {laws.PHI_INF:.6f}, S {laws.OU2_SKEWNESS:.6f}, F {laws.OU2_FLATNESS:g}."
+    )
+    return table
+
+
+@handles_errors
+def bfpe_command(
+    D: Annotated[float, typer.Option("--D", help="OU noise amplitude D > 0.")] = 1.0,
+    tau: Annotated[float, typer.Option("--tau", help="OU correlation time tau > 0.")] = 0.1,
+    t_max: Annotated[float, typer.Option("--t-max", help="Last time, > 0.")] = 1e5,
+    n_times: Annotated[int, typer.Option("--n-times", help="Number of log-spaced output times in [t_max/1000, t_max].")] = 40,
+    n_cells: Annotated[int, typer.Option("--n-cells", help="Finite-volume cells on the half line Omega >= 0.")] = 1000,
+    steps_per_decade: Annotated[int, typer.Option("--steps-per-decade", help="Time steps per decade of t.")] = 100,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the solution as NetCDF (atomically).")] = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No table.")] = False,
+    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+) -> None:
+    """Solve the averaged Best Fokker-Planck Equation (avbfpe, omega = 0) from Omega = 0."""
+    from stochpend import io
+    from stochpend.theory import solve_bfpe
+
+    if out is not None:
+        io.check_output_path(out, overwrite=overwrite)
+    ds = solve_bfpe(D=D, tau=tau, t_max=t_max, n_times=n_times, n_cells=n_cells,
+                    steps_per_decade=steps_per_decade)
+    ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
+    if out is not None:
+        io.to_netcdf(ds, out, overwrite=overwrite)
+    if not quiet:
+        console.print(bfpe_table(ds))
+        if out is not None:
+            console.print(f"wrote {out}")
+
+
+def reduced_table(ds: Any) -> Table:
+    """The final-time moments of a reduced run next to the closed forms."""
+    from stochpend.theory import laws
+
+    order = ds.attrs["order"]
+    D, tau = float(ds.attrs["D"]), float(ds.attrs["tau"])
+    r = ds.isel(time=-1)
+    t = float(r.time)
+    x = D * t / tau**2
+    if order == "first":
+        m = [laws.ou1_moment_E(k, 1.0, D=1.0, tau=1.0) for k in (1, 2, 3, 4)]
+        ref = (m[0], m[1], m[2] / m[1] ** 1.5, m[3] / m[1] ** 2, "PDFav1 (from E0 = 0)")
+    elif order in ("second", "asymptotic"):
+        ref = (laws.OU2_MEAN_PREFACTOR, laws.OU2_MEAN_E2_PREFACTOR, laws.OU2_SKEWNESS, laws.OU2_FLATNESS,
+               "eq:pdfEcolor (from E0 = 0" + ("" if order == "asymptotic" else "; t >> t_c") + ")")
+    else:
+        ref = (math.nan, math.nan, math.nan, math.nan, "E = E0")
+    table = Table(title=f"Reduced dynamics, {order} order, at t = {t:.4g}")
+    for col in ("quantity", "simulated", "closed form"):
+        table.add_column(col, justify="right", no_wrap=True)
+    sq = math.sqrt(x) if x > 0 else math.nan
+    table.add_row("<E>/(Dt/tau^2)^1/2", _fmt(float(r.mean_E) / sq, float(r.mean_E_stderr) / sq), _num(ref[0]))
+    table.add_row("<E2>/(Dt/tau^2)", _fmt(float(r.mean_E2) / x, float(r.mean_E2_stderr) / x), _num(ref[1]))
+    table.add_row("S", _fmt(float(r.skewness), float(r.skewness_stderr)), _num(ref[2]))
+    table.add_row("F", _fmt(float(r.flatness), float(r.flatness_stderr)), _num(ref[3]))
+    table.caption = f"model: {ds.attrs['equations']}; closed form: {ref[4]}"
+    return table
+
+
+@handles_errors
+def reduced_command(
+    order: Annotated[str, typer.Option(help="zeroth (average0), first (average1), second (average2 + ZOU) or asymptotic (average2eta).")] = "asymptotic",
+    D: Annotated[float, typer.Option("--D", help="OU noise amplitude D > 0.")] = 1.0,
+    tau: Annotated[float, typer.Option("--tau", help="OU correlation time tau > 0.")] = 1.0,
+    omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency omega >= 0 (enters the second order only).")] = 1.0,
+    paths: Annotated[int, typer.Option(help="Number of realizations.")] = 10_000,
+    t_max: Annotated[float, typer.Option("--t-max", help="Final time.")] = 1000.0,
+    n_times: Annotated[int, typer.Option("--n-times", help="Number of log-spaced output times in [t_max/1000, t_max].")] = 40,
+    times: Annotated[str | None, typer.Option(help="Explicit output times, comma-separated, e.g. 10,100,1000.")] = None,
+    seed: Annotated[int, typer.Option(help="Seed in [0, 2^64) (the reduced dynamics have their own Philox stream).")] = 0,
+    E0: Annotated[float, typer.Option("--E0", help="Initial energy E0 >= 0.")] = 0.0,
+    h_max: Annotated[float | None, typer.Option("--h-max", help="Second-order time step (default 0.05 tau).")] = None,
+    threads: Annotated[int | None, typer.Option(help="CPU threads (results do not depend on it).")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No table.")] = False,
+    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+) -> None:
+    """Simulate the reduced (averaged) energy dynamics and compare with the closed forms."""
+    from stochpend import io
+    from stochpend.reduced import ReducedConfig, simulate_reduced
+
+    if out is not None:
+        io.check_output_path(out, overwrite=overwrite)
+    kwargs: dict[str, Any] = {
+        "D": D, "tau": tau, "omega": omega, "paths": paths, "t_max": t_max, "times": parse_times(times),
+        "n_times": n_times, "seed": seed, "E0": E0, "h_max": h_max,
+    }
+    ReducedConfig.build(order, **kwargs)  # validate before the JIT compiles
+    ds = simulate_reduced(order, threads=threads, **kwargs)
+    ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
+    if out is not None:
+        io.to_netcdf(ds, out, overwrite=overwrite)
+    if not quiet:
+        console.print(summary_table(ds))
+        console.print(reduced_table(ds))
+        if int(ds.nonfinite_paths[-1]) > 0:
+            console.print(f"[yellow]{int(ds.nonfinite_paths[-1])} paths went non-finite and are excluded.[/]")
+        if out is not None:
+            console.print(f"wrote {out}")
