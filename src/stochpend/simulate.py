@@ -13,7 +13,7 @@ import xarray as xr
 
 from stochpend import __version__, physics, schemes
 from stochpend import rng as _rng
-from stochpend._backends import cpu
+from stochpend._backends import cpu, cpu_fast
 from stochpend.params import (
     DEFAULT_H_MAX,
     DEFAULT_HIST_BINS,
@@ -322,7 +322,7 @@ def run_batches(
         while state.j < n_times:
             t_target = float(times[state.j])
             while True:
-                steps, unfinished = cpu.advance_paths(
+                steps, unfinished = cpu_fast.advance_paths(
                     state.x, state.Omega, state.xi, state.t, state.k, state.status, t_target,
                     max_steps, config.noise_code, config.D, config.tau_or_zero, omega2,
                     config.h_max, config.step_c, pot, config.power_n, cpl, key0, key1, p0,

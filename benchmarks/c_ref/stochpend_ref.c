@@ -1,0 +1,301 @@
+/*
+ * C reference of stochpend's fixed-step OU scheme: the practical floor for the benchmark.
+ *
+ * It reproduces, number for number, what stochpend's CPU kernels (init_paths + advance_paths
+ * in src/stochpend/_backends/cpu.py) do for the pendulum with OU noise at a fixed step:
+ *
+ *   - the same Philox4x32-10 stream: key = (seed mod 2^32, seed >> 32),
+ *     counter = (n mod 2^32, n >> 32, path mod 2^32, path >> 32); draw 0 gives theta0,
+ *     draw 1 the stationary xi0, draw k + 2 the two normals of step k (rng.py);
+ *   - the same uniform on (0, 1) (rng.uniform_open, 52 bits) and the same Box-Muller transform;
+ *   - the same exact OU update (schemes.ou_step_coefficients), recomputed only when h changes;
+ *   - the same drift-kick-drift step (schemes.verlet_step) and angle wrap (physics.wrap_angle);
+ *   - the same time bookkeeping: the last step lands exactly on t_target (a step ending within
+ *     1e-6 h of it is stretched), t += h with Kahan compensation.
+ *
+ * Two loop orders, same numbers:
+ *   sp_run_scalar: one path at a time, all its steps (what the Numba kernel does), OpenMP over
+ *                  paths;
+ *   sp_run_simd:   blocks of SP_BLOCK paths advanced in lockstep, the lane loop marked
+ *                  `omp simd`, so that gcc vectorizes Philox (32x32->64 multiplies) and, under
+ *                  -ffast-math, calls glibc's libmvec for log/sin/cos. OpenMP over blocks.
+ *
+ * Compiled by benchmarks/c_ref/__init__.py either with the benchmark flags
+ * (-O3 -march=native -ffast-math -fopenmp: FMA contraction, libmvec, reciprocal division, so the
+ * numbers agree with stochpend to round-off per step, not bit for bit) or in "exact" mode
+ * (-O3 -march=native -fopenmp -ffp-contract=off -fno-fast-math: scalar glibc libm, IEEE
+ * arithmetic in the same order as Numba's, so the numbers are bit-identical).
+ */
+#include <math.h>
+#include <stdint.h>
+#include <omp.h>
+
+#define SP_BLOCK 16
+
+static const double SP_PI = 3.141592653589793;
+static const double SP_TWO_PI = 6.283185307179586;
+
+/* ---- Philox4x32-10 ------------------------------------------------------------------------ */
+/* Scalars only (no arrays) and fully unrolled rounds, so that gcc can vectorize across paths. */
+static inline void philox4x32_10(uint32_t *c0, uint32_t *c1, uint32_t *c2, uint32_t *c3,
+                                 uint32_t k0, uint32_t k1)
+{
+    uint32_t a0 = *c0, a1 = *c1, a2 = *c2, a3 = *c3;
+#pragma GCC unroll 10
+    for (int r = 0; r < 10; ++r) {
+        uint64_t p0 = (uint64_t)0xD2511F53u * (uint64_t)a0;
+        uint64_t p1 = (uint64_t)0xCD9E8D57u * (uint64_t)a2;
+        uint32_t n0 = (uint32_t)(p1 >> 32) ^ a1 ^ k0;
+        uint32_t n2 = (uint32_t)(p0 >> 32) ^ a3 ^ k1;
+        a0 = n0; a1 = (uint32_t)p1; a2 = n2; a3 = (uint32_t)p0;
+        k0 += 0x9E3779B9u;
+        k1 += 0xBB67AE85u;
+    }
+    *c0 = a0; *c1 = a1; *c2 = a2; *c3 = a3;
+}
+
+/* rng.uniform_open: (k + 1/2) / 2^52, k the high 26 bits of a and of b. */
+static inline double uniform_open(uint32_t a, uint32_t b)
+{
+    double k = (double)(a >> 6) * 67108864.0 + (double)(b >> 6);
+    return (k + 0.5) * (1.0 / 4503599627370496.0);
+}
+
+static inline void draw_words(uint32_t out[4], uint32_t k0, uint32_t k1, uint64_t path, uint64_t n)
+{
+    uint32_t c0 = (uint32_t)n, c1 = (uint32_t)(n >> 32), c2 = (uint32_t)path, c3 = (uint32_t)(path >> 32);
+    philox4x32_10(&c0, &c1, &c2, &c3, k0, k1);
+    out[0] = c0; out[1] = c1; out[2] = c2; out[3] = c3;
+}
+
+/* ---- exact OU coefficients (schemes.ou_step_coefficients) ------------------------------- */
+/* schemes.x_minus_2tanh_half: the Taylor series below 0.6 (Horner, 12 terms), else direct. */
+static const double TANH_SERIES[12] = {
+    1.0 / 12.0,
+    -1.0 / 120.0,
+    17.0 / 20160.0,
+    -31.0 / 362880.0,
+    691.0 / 79833600.0,
+    -5461.0 / 6227020800.0,
+    929569.0 / 10461394944000.0,
+    -3202291.0 / 355687428096000.0,
+    221930581.0 / 243290200817664000.0,
+    -4722116521.0 / 51090942171709440000.0,
+    56963745931.0 / 6082827467972935680000.0,
+    -14717667114151.0 / 15511210043330985984000000.0,
+};
+
+static double x_minus_2tanh_half(double x)
+{
+    if (x < 0.6) {
+        double x2 = x * x;
+        double acc = 0.0;
+        for (int i = 11; i >= 0; --i) acc = acc * x2 + TANH_SERIES[i];
+        return acc * x * x2;
+    }
+    return x - 2.0 * tanh(0.5 * x);
+}
+
+typedef struct { double a, s_xi, m_I, c_I, s_I; } ou_coef;
+
+static ou_coef ou_step_coefficients(double h, double D, double tau)
+{
+    ou_coef c;
+    double x = h / tau;
+    double b = -expm1(-x);
+    c.a = 1.0 - b;
+    double var_xi = D * b * (2.0 - b) / (2.0 * tau);
+    c.s_xi = sqrt(var_xi);
+    double cov = 0.5 * D * b * b;
+    c.c_I = c.s_xi > 0.0 ? cov / c.s_xi : 0.0;
+    c.s_I = sqrt(D * tau * x_minus_2tanh_half(x));
+    c.m_I = tau * b;
+    return c;
+}
+
+/* ---- one path-step: OU noise, Box-Muller, drift-kick-drift, wrap ------------------------- */
+#define SP_STEP(xs, Om, xn, path, kk)                                                          \
+    do {                                                                                        \
+        uint64_t n_ = (kk) + 2u;                                                                \
+        uint32_t w0_ = (uint32_t)n_, w1_ = (uint32_t)(n_ >> 32);                                \
+        uint32_t w2_ = (uint32_t)(path), w3_ = (uint32_t)((uint64_t)(path) >> 32);              \
+        philox4x32_10(&w0_, &w1_, &w2_, &w3_, k0, k1);                                          \
+        double u1_ = uniform_open(w0_, w1_);                                                    \
+        double u2_ = uniform_open(w2_, w3_);                                                    \
+        double r_ = sqrt(-2.0 * log(u1_));                                                      \
+        double ph_ = SP_TWO_PI * u2_;                                                           \
+        double z1_ = r_ * cos(ph_);                                                             \
+        double z2_ = r_ * sin(ph_);                                                             \
+        double I_ = cf.m_I * (xn) + cf.c_I * z1_ + cf.s_I * z2_;                                \
+        (xn) = cf.a * (xn) + cf.s_xi * z1_;                                                     \
+        double xh_ = (xs) + 0.5 * h * (Om);                                                     \
+        double s_ = sin(xh_);                                                                   \
+        double kick_ = omega2 * h * s_;                                                         \
+        kick_ += I_ * s_;                                                                       \
+        (Om) = (Om) - kick_;                                                                    \
+        double xw_ = xh_ + 0.5 * h * (Om);                                                      \
+        (xs) = xw_ - SP_TWO_PI * floor((xw_ + SP_PI) / SP_TWO_PI);                              \
+    } while (0)
+
+/* Time bookkeeping of cpu.advance_paths: the landing rule (a step ending within 1e-6 h of
+   t_target is stretched to it) and Kahan-compensated t += h. Compiled without -ffast-math,
+   which would simplify the compensation away. */
+__attribute__((optimize("no-fast-math"), noinline))
+static int sp_land(double tt, double h, double t_target)
+{
+    return tt + h * (1.0 + 1e-6) >= t_target;
+}
+
+__attribute__((optimize("no-fast-math"), noinline))
+static void sp_advance_time(double *tt, double *comp, double h)
+{
+    double y = h - *comp;
+    double t_new = *tt + y;
+    *comp = (t_new - *tt) - y;
+    *tt = t_new;
+}
+
+/* Initial conditions of stochpend (uniform theta0, Omega0 = 0, stationary xi0). */
+static inline void init_path(double *x, double *Om, double *xi, uint32_t k0, uint32_t k1,
+                             uint64_t path, double D, double tau)
+{
+    uint32_t w[4];
+    draw_words(w, k0, k1, path, 0u);
+    *x = 2.0 * SP_PI * uniform_open(w[0], w[1]) - SP_PI;
+    *Om = 0.0;
+    draw_words(w, k0, k1, path, 1u);
+    double u1 = uniform_open(w[0], w[1]);
+    double u2 = uniform_open(w[2], w[3]);
+    double z = sqrt(-2.0 * log(u1)) * cos(SP_TWO_PI * u2);
+    *xi = sqrt(D / (2.0 * tau)) * z;
+}
+
+/*
+ * Both entry points: paths path0 .. path0 + n - 1, from t = 0 to t_target with step h_max
+ * (the last step shortened to land on t_target); the final states go to x, Om, xi.
+ * Returns the number of steps of each path.
+ */
+long sp_run_scalar(long n, uint64_t path0, uint64_t seed, double D, double tau, double omega2,
+                   double h_max, double t_target, int threads, double *x, double *Om, double *xi)
+{
+    const uint32_t k0 = (uint32_t)seed, k1 = (uint32_t)(seed >> 32);
+    long steps_out = 0;
+    if (threads > 0) omp_set_num_threads(threads);
+#pragma omp parallel for schedule(static) reduction(max : steps_out)
+    for (long i = 0; i < n; ++i) {
+        uint64_t path = path0 + (uint64_t)i;
+        double xs, Om_, xn;
+        init_path(&xs, &Om_, &xn, k0, k1, path, D, tau);
+        double tt = 0.0, t_comp = 0.0, h_cached = -1.0;
+        ou_coef cf = {0, 0, 0, 0, 0};
+        uint64_t kk = 0;
+        for (;;) {
+            double h = h_max;
+            int last = 0;
+            if (sp_land(tt, h, t_target)) { h = t_target - tt; last = 1; }
+            if (h != h_cached) { cf = ou_step_coefficients(h, D, tau); h_cached = h; }
+            SP_STEP(xs, Om_, xn, path, kk);
+            kk += 1;
+            if (last) tt = t_target; else sp_advance_time(&tt, &t_comp, h);
+            if (last) break;
+        }
+        x[i] = xs; Om[i] = Om_; xi[i] = xn;
+        if ((long)kk > steps_out) steps_out = (long)kk;
+    }
+    return steps_out;
+}
+
+long sp_run_simd(long n, uint64_t path0, uint64_t seed, double D, double tau, double omega2,
+                 double h_max, double t_target, int threads, double *x, double *Om, double *xi)
+{
+    const uint32_t k0 = (uint32_t)seed, k1 = (uint32_t)(seed >> 32);
+    long n_blocks = (n + SP_BLOCK - 1) / SP_BLOCK;
+    long steps_out = 0;
+    if (threads > 0) omp_set_num_threads(threads);
+#pragma omp parallel for schedule(static) reduction(max : steps_out)
+    for (long b = 0; b < n_blocks; ++b) {
+        long i0 = b * SP_BLOCK;
+        int m = (int)((n - i0) < SP_BLOCK ? (n - i0) : SP_BLOCK);
+        double bx[SP_BLOCK], bO[SP_BLOCK], bxi[SP_BLOCK];
+        uint32_t bp0[SP_BLOCK], bp1[SP_BLOCK];
+        for (int l = 0; l < SP_BLOCK; ++l) {
+            /* Padding lanes repeat the block's first path; they are not stored. */
+            uint64_t path = path0 + (uint64_t)(i0 + (l < m ? l : 0));
+            bp0[l] = (uint32_t)path;
+            bp1[l] = (uint32_t)(path >> 32);
+            init_path(&bx[l], &bO[l], &bxi[l], k0, k1, path, D, tau);
+        }
+        double tt = 0.0, t_comp = 0.0, h_cached = -1.0;
+        ou_coef cf = {0, 0, 0, 0, 0};
+        uint64_t kk = 0;
+        for (;;) {
+            double h = h_max;
+            int last = 0;
+            if (sp_land(tt, h, t_target)) { h = t_target - tt; last = 1; }
+            if (h != h_cached) { cf = ou_step_coefficients(h, D, tau); h_cached = h; }
+            /* Loop fission: the normals' cos and sin in separate lane loops, so that gcc
+               does not fuse them into sincos (which has no vector variant it can call). */
+            double br[SP_BLOCK], bph[SP_BLOCK], bc[SP_BLOCK], bs[SP_BLOCK];
+            const uint64_t nn = kk + 2u;
+#pragma omp simd
+            for (int l = 0; l < SP_BLOCK; ++l) {
+                uint32_t w0 = (uint32_t)nn, w1 = (uint32_t)(nn >> 32);
+                uint32_t w2 = bp0[l], w3 = bp1[l];
+                philox4x32_10(&w0, &w1, &w2, &w3, k0, k1);
+                double u1 = uniform_open(w0, w1);
+                double u2 = uniform_open(w2, w3);
+                br[l] = sqrt(-2.0 * log(u1));
+                bph[l] = SP_TWO_PI * u2;
+            }
+#pragma omp simd
+            for (int l = 0; l < SP_BLOCK; ++l) bc[l] = cos(bph[l]);
+#pragma omp simd
+            for (int l = 0; l < SP_BLOCK; ++l) bs[l] = sin(bph[l]);
+#pragma omp simd
+            for (int l = 0; l < SP_BLOCK; ++l) {
+                double z1 = br[l] * bc[l];
+                double z2 = br[l] * bs[l];
+                double xn = bxi[l];
+                double I = cf.m_I * xn + cf.c_I * z1 + cf.s_I * z2;
+                bxi[l] = cf.a * xn + cf.s_xi * z1;
+                double Om_ = bO[l];
+                double xh = bx[l] + 0.5 * h * Om_;
+                double s_ = sin(xh);
+                double kick = omega2 * h * s_;
+                kick += I * s_;
+                Om_ = Om_ - kick;
+                bO[l] = Om_;
+                double xw = xh + 0.5 * h * Om_;
+                bx[l] = xw - SP_TWO_PI * floor((xw + SP_PI) / SP_TWO_PI);
+            }
+            kk += 1;
+            if (last) tt = t_target; else sp_advance_time(&tt, &t_comp, h);
+            if (last) break;
+        }
+        for (int l = 0; l < m; ++l) { x[i0 + l] = bx[l]; Om[i0 + l] = bO[l]; xi[i0 + l] = bxi[l]; }
+        if ((long)kk > steps_out) steps_out = (long)kk;
+    }
+    return steps_out;
+}
+
+/* Micro-benchmark helpers for docs/performance.md: n evaluations of one operation. */
+double sp_micro(int op, long n)
+{
+    double acc = 0.0;
+    uint32_t w[4] = {1, 2, 3, 4};
+    double v = 0.3;
+    for (long i = 0; i < n; ++i) {
+        switch (op) {
+        case 0: w[0] += (uint32_t)i; philox4x32_10(&w[0], &w[1], &w[2], &w[3], 7u, 9u); acc += w[1]; break;
+        case 1: acc += log(v + 1e-9 * (double)i); break;
+        case 2: acc += sqrt(v + 1e-9 * (double)i); break;
+        case 3: acc += sin(v + 1e-9 * (double)i); break;
+        case 4: acc += cos(v + 1e-9 * (double)i); break;
+        case 5: acc += floor(v + 1e-9 * (double)i); break;
+        default: break;
+        }
+    }
+    return acc + w[0];
+}
+
+int sp_max_threads(void) { return omp_get_max_threads(); }

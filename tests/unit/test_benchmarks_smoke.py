@@ -1,0 +1,106 @@
+"""The benchmark's references compute what stochpend computes (benchmarks/, issue 5).
+
+Tiny workload: 50 paths (not a multiple of the C reference's 16-path blocks, so its padding
+lanes are exercised), OU noise D = tau = omega = 1, fixed step 0.01 to t = 0.5 (50 steps),
+same seed. Tolerances:
+
+* NumPy with Philox and the C reference built in "exact" mode (no -ffast-math, no FMA
+  contraction) draw the same Philox numbers and do the same IEEE operations in the same order
+  as stochpend, so the final states are equal; <E^2> is compared to 1e-12 relative, which
+  leaves room only for the order of the final summation (stochpend sums per batch) and for an
+  ulp of difference between NumPy's SIMD log/sin/cos and glibc's on other builds.
+* The C reference with the benchmark's flags (-O3 -march=native -ffast-math: FMA contraction,
+  reciprocal division, libmvec log/sin/cos within 4 ulp) differs by a few ulps per step; over
+  50 steps the difference grows by the dynamics' mild stretching, measured here about 1e-15
+  absolute in the states. <E^2> is compared to 1e-10 relative and the states to 1e-10 absolute.
+* NumPy with its own generator (PCG64) gives other numbers, the same law: <E^2> agrees within
+  4 combined standard errors (2000 paths for that one).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from benchmarks import c_ref, numpy_ref  # noqa: E402
+from stochpend import rng  # noqa: E402
+from stochpend._backends import cpu  # noqa: E402
+from stochpend.simulate import simulate  # noqa: E402
+
+PATHS, T, H, SEED = 50, 0.5, 0.01, 7
+D = TAU = OMEGA = 1.0
+
+
+def _stochpend_states(paths=PATHS, t_max=T, seed=SEED):
+    x, Om, xi, t, tc = (np.empty(paths) for _ in range(5))
+    k = np.empty(paths, dtype=np.uint64)
+    st = np.empty(paths, dtype=np.uint8)
+    k0, k1 = rng.seed_to_key(seed)
+    cpu.init_paths(x, Om, xi, t, k, st, k0, k1, 0, 0.0, True, 0.0, 0.0, True, D, TAU, cpu.OU, tc)
+    while True:
+        _, unfinished = cpu.advance_paths(x, Om, xi, t, k, st, t_max, 10**6, cpu.OU, D, TAU,
+                                          OMEGA**2, H, 0.0, 0, 2, 0, k0, k1, 0, tc)
+        if unfinished == 0:
+            return x, Om, xi, int(k[0])
+
+
+def _stochpend_E2(paths=PATHS, t_max=T, seed=SEED):
+    ds = simulate("ou", D=D, tau=TAU, omega=OMEGA, paths=paths, t_max=t_max, times=[t_max],
+                  seed=seed, step_c=0.0, h_max=H, n_batches=min(paths, 100))
+    return float(ds["mean_E2"].values[-1]), float(ds["mean_E2_stderr"].values[-1])
+
+
+def test_numpy_philox_reference_matches_stochpend():
+    x, Om, xi, steps = _stochpend_states()
+    r = numpy_ref.simulate(PATHS, T, H, D=D, tau=TAU, omega=OMEGA, seed=SEED, rng="philox")
+    assert r.steps == steps
+    np.testing.assert_allclose(r.theta, x, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(r.Omega, Om, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(r.xi, xi, rtol=0, atol=1e-12)
+    E2 = float(np.mean(r.energy(OMEGA) ** 2))
+    assert E2 == pytest.approx(_stochpend_E2()[0], rel=1e-12)
+
+
+def test_numpy_own_generator_agrees_statistically():
+    paths = 2000
+    m_sp, se_sp = _stochpend_E2(paths=paths)
+    r = numpy_ref.simulate(paths, T, H, D=D, tau=TAU, omega=OMEGA, seed=SEED, rng="numpy")
+    E2 = r.energy(OMEGA) ** 2
+    m_np, se_np = float(np.mean(E2)), float(np.std(E2, ddof=1) / np.sqrt(paths))
+    assert abs(m_np - m_sp) < 4.0 * np.hypot(se_np, se_sp)
+
+
+needs_gcc = pytest.mark.skipif(c_ref.compiler() is None, reason="gcc not found: no C reference")
+
+
+@needs_gcc
+@pytest.mark.parametrize("variant", ["scalar", "simd"])
+def test_c_reference_exact_build_is_bit_identical(variant):
+    x, Om, xi, steps = _stochpend_states()
+    r = c_ref.run(PATHS, T, H, D=D, tau=TAU, omega=OMEGA, seed=SEED, variant=variant, flavour="exact")
+    assert r.steps == steps
+    np.testing.assert_array_equal(r.x, x)
+    np.testing.assert_array_equal(r.Omega, Om)
+    np.testing.assert_array_equal(r.xi, xi)
+    E2 = float(np.mean(r.energy(OMEGA) ** 2))
+    assert E2 == pytest.approx(_stochpend_E2()[0], rel=1e-12)
+
+
+@needs_gcc
+@pytest.mark.parametrize("variant", ["scalar", "simd"])
+def test_c_reference_fast_math_build_agrees_to_roundoff(variant):
+    x, Om, xi, steps = _stochpend_states()
+    r = c_ref.run(PATHS, T, H, D=D, tau=TAU, omega=OMEGA, seed=SEED, variant=variant, flavour="fast")
+    assert r.steps == steps
+    np.testing.assert_allclose(r.x, x, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(r.Omega, Om, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(r.xi, xi, rtol=0, atol=1e-10)
+    E2 = float(np.mean(r.energy(OMEGA) ** 2))
+    assert E2 == pytest.approx(_stochpend_E2()[0], rel=1e-10)
