@@ -274,3 +274,7 @@ from stochpend._cli_theory import bfpe_command, reduced_command, theory_command 
 app.command("theory")(theory_command)
 app.command("bfpe")(bfpe_command)
 app.command("reduced")(reduced_command)
+
+from stochpend._cli_reproduce import reproduce_command  # noqa: E402
+
+app.command("reproduce")(reproduce_command)

@@ -1,0 +1,146 @@
+"""The ``stochpend reproduce`` command (registered in :mod:`stochpend.cli`).
+
+Kept in its own module so that the command line stays a thin layer over
+:func:`stochpend.reproduce.reproduce`; Rich is imported here and in ``cli`` only.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from stochpend.cli import console, handles_errors
+
+__all__ = ["RichReproduceProgress", "reproduce_command"]
+
+
+class RichReproduceProgress:
+    """Rich bars for :func:`stochpend.reproduce.reproduce`: an overall bar and one per simulation.
+
+    Implements :class:`stochpend.reproduce.ReproduceProgress`; ``log`` prints a line above the
+    bars (one per finished figure). With ``enabled=False`` only the lines are printed.
+    """
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
+        self._progress: Any = None
+        self._overall: Any = None
+
+    def _ensure(self) -> None:
+        if self._progress is None and self.enabled:
+            from rich.progress import (
+                BarColumn,
+                Progress,
+                TaskProgressColumn,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+
+            self._progress = Progress(
+                TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(),
+                TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=console,
+                transient=True,
+            )
+            self._progress.start()
+
+    # overall bar
+    def start(self, total: float, description: str) -> None:
+        self._ensure()
+        if self._progress is not None:
+            self._overall = self._progress.add_task(f"[bold]{description}", total=total)
+
+    def update(self, done: float) -> None:
+        if self._progress is not None and self._overall is not None:
+            self._progress.update(self._overall, completed=done)
+
+    def finish(self) -> None:
+        if self._progress is not None:
+            self._progress.stop()
+            self._progress = None
+            self._overall = None
+
+    # one bar per simulation
+    def simulation(self, description: str) -> Any:
+        return _SimulationBar(self, description)
+
+    def log(self, message: str) -> None:
+        if self._progress is not None:
+            self._progress.console.print(message, highlight=False, soft_wrap=True)
+        else:
+            console.print(message, highlight=False, soft_wrap=True)
+
+
+class _SimulationBar:
+    def __init__(self, owner: RichReproduceProgress, description: str) -> None:
+        self.owner = owner
+        self.description = description
+        self.task: Any = None
+
+    def start(self, total: float, description: str) -> None:
+        self.owner._ensure()
+        if self.owner._progress is not None:
+            self.task = self.owner._progress.add_task(f"  {self.description}", total=total)
+
+    def update(self, done: float) -> None:
+        if self.task is not None and self.owner._progress is not None:
+            self.owner._progress.update(self.task, completed=done)
+
+    def finish(self) -> None:
+        if self.task is not None and self.owner._progress is not None:
+            self.owner._progress.remove_task(self.task)
+        self.task = None
+
+
+@handles_errors
+def reproduce_command(
+    figures: Annotated[list[str] | None, typer.Argument(
+        help="Figures to reproduce: fig1, fig2, fig3, fig4 or all (default all).")] = None,
+    paths: Annotated[int | None, typer.Option(
+        help="Realizations per run (default 10000, as in the paper; 500 with --quick).")] = None,
+    t_max: Annotated[float | None, typer.Option(
+        "--t-max", help="Final time of every run of the chosen figures (default: per run, see docs/reproduction.md; "
+                        "e.g. 'fig4 --t-max 1e5 --paths 1000' shows the tau = 0.01 crossover).")] = None,
+    out: Annotated[Path, typer.Option(
+        "--out", "-o", help="Output directory: runs/*.nc, figN.png/.pdf, tables, report.html.")] = Path("stochpend-reproduce"),
+    quick: Annotated[bool, typer.Option(
+        help="Small ensembles and short times (t_max = 100): a smoke test, not a reproduction.")] = False,
+    force: Annotated[bool, typer.Option(
+        help="Simulate again even when a stored run matches (default: reuse cached NetCDF).")] = False,
+    threads: Annotated[int | None, typer.Option(help="CPU threads (results do not depend on it).")] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars and no tables.")] = False,
+    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+) -> None:
+    """Reproduce the paper's figures: simulate (or reuse), draw PNG/PDF, tabulate, write report.html."""
+    from rich.table import Table
+
+    from stochpend.figures import COLUMNS
+    from stochpend.reproduce import reproduce
+
+    progress = RichProgressOrLines(enabled=not quiet and console.is_terminal, quiet=quiet)
+    result = reproduce(figures or ["all"], paths=paths, t_max=t_max, out=out, quick=quick, force=force,
+                       progress=progress, threads=threads)
+    if quiet:
+        return
+    for f in result.figures.values():
+        table = Table(title=f.title, show_lines=False)
+        for col in COLUMNS:
+            table.add_column(col, overflow="fold")
+        for row in f.rows:
+            table.add_row(*row.cells())
+        console.print(table)
+    console.print(f"wall time {result.wall_time_s:.1f} s; report: {result.report}")
+
+
+class RichProgressOrLines(RichReproduceProgress):
+    """Bars on a terminal; otherwise (or with --quiet) plain lines, or nothing."""
+
+    def __init__(self, enabled: bool, quiet: bool) -> None:
+        super().__init__(enabled)
+        self.quiet = quiet
+
+    def log(self, message: str) -> None:
+        if not self.quiet:
+            super().log(message)

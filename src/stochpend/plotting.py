@@ -1,0 +1,143 @@
+"""Plots of simulation results (matplotlib, imported lazily; never simulates).
+
+Every function takes a result ``Dataset`` from :func:`stochpend.simulate` (or a file opened with
+:func:`stochpend.io.open_results`), draws on ``ax`` (a new Agg figure when ``ax`` is None) and
+returns the ``Axes``. Simulated curves carry a shaded band of ``band`` standard errors
+(default 2, the jackknife errors stored with the run); theory is drawn dotted.
+
+The figures are built on :class:`matplotlib.figure.Figure` with the Agg canvas, never through
+``pyplot``: no global backend or state is touched, and nothing needs a display.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "new_figure",
+    "plot_band",
+    "plot_statistic",
+    "plot_mean_E",
+    "plot_ratio",
+    "plot_skewness_flatness",
+    "plot_theory",
+    "plot_level",
+]
+
+#: Scaled observables: label and normalisation kind (see :func:`stochpend.figures._common.norm_series`).
+RATIOS = {
+    "white": ("mean_E", "Dt", r"$\langle E\rangle/(\mathcal{D}t)$"),
+    "ou_E": ("mean_E", "sqrt(Dt/tau2)", r"$\langle E\rangle/(\mathcal{D}t/\tau^2)^{1/2}$"),
+    "ou_E2": ("mean_E2", "Dt/tau2", r"$\langle E^2\rangle/(\mathcal{D}t/\tau^2)$"),
+}
+
+THEORY_STYLE: dict[str, Any] = {"color": "0.15", "linestyle": ":", "linewidth": 1.3}
+ALT_THEORY_STYLE: dict[str, Any] = {"color": "0.55", "linestyle": "-.", "linewidth": 1.0}
+
+
+def new_figure(figsize: tuple[float, float] = (5.5, 4.2), *, ncols: int = 1) -> tuple[Any, Any]:
+    """A figure on the Agg canvas (no pyplot) and its axes (an array when ``ncols > 1``)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, ncols)
+    return fig, axes
+
+
+def _axes(ax: Any) -> Any:
+    if ax is None:
+        _, ax = new_figure()
+    return ax
+
+
+def plot_band(ax: Any, t: np.ndarray, value: np.ndarray, stderr: np.ndarray, *, band: float = 2.0,
+              label: str | None = None, color: Any = None, **line_kw: Any) -> Any:
+    """A curve with a shaded ``value ± band*stderr`` band; returns the line."""
+    ok = np.isfinite(value)
+    (line,) = ax.plot(t[ok], value[ok], label=label, color=color, **line_kw)
+    if band > 0:
+        se = np.where(np.isfinite(stderr), stderr, 0.0)
+        lo = value - band * se
+        hi = value + band * se
+        if ax.get_yscale() == "log":
+            floor = np.nanmin(value[ok & (value > 0)]) * 1e-3 if np.any(ok & (value > 0)) else 1e-300
+            lo = np.maximum(lo, floor)
+        ax.fill_between(t[ok], lo[ok], hi[ok], color=line.get_color(), alpha=0.22, linewidth=0)
+    return line
+
+
+def plot_statistic(ds: Any, var: str, *, ax: Any = None, kind: str = "one", band: float = 2.0,
+                   label: str | None = None, t_min: float | None = None, **line_kw: Any) -> Any:
+    """Any statistic of ``ds`` (e.g. ``"skewness"``) divided by a normalisation ``kind``.
+
+    ``kind``: "one", "Dt", "Dt/tau2" or "sqrt(Dt/tau2)".
+    """
+    from stochpend.figures._common import scaled
+
+    ax = _axes(ax)
+    t, v, se = scaled(ds, var, kind)
+    if t_min is not None:
+        keep = t >= t_min
+        t, v, se = t[keep], v[keep], se[keep]
+    plot_band(ax, t, v, se, band=band, label=label, **line_kw)
+    ax.set_xlabel("$t$")
+    return ax
+
+
+def plot_mean_E(ds: Any, *, ax: Any = None, band: float = 2.0, label: str | None = None,
+                loglog: bool = False, **line_kw: Any) -> Any:
+    """``<E>`` vs ``t`` with its ±band standard-error band (log-log when ``loglog``)."""
+    ax = _axes(ax)
+    if loglog:
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+    plot_statistic(ds, "mean_E", ax=ax, band=band, label=label, **line_kw)
+    ax.set_ylabel(r"$\langle E\rangle$")
+    return ax
+
+
+def plot_ratio(ds: Any, which: str, *, ax: Any = None, band: float = 2.0, label: str | None = None,
+               t_min: float | None = None, **line_kw: Any) -> Any:
+    """A scaled ratio vs ``t`` (log time axis).
+
+    ``which``: "white" (<E>/(Dt)), "ou_E" (<E>/(Dt/tau^2)^{1/2}) or "ou_E2" (<E^2>/(Dt/tau^2)).
+    """
+    if which not in RATIOS:
+        raise ValueError(f"which={which!r} is not accepted: one of {', '.join(RATIOS)}")
+    var, kind, ylabel = RATIOS[which]
+    ax = _axes(ax)
+    ax.set_xscale("log")
+    plot_statistic(ds, var, ax=ax, kind=kind, band=band, label=label, t_min=t_min, **line_kw)
+    ax.set_ylabel(ylabel)
+    return ax
+
+
+def plot_skewness_flatness(ds: Any, *, ax: Any = None, band: float = 2.0, label: str | None = None,
+                           t_min: float | None = None, color: Any = None) -> Any:
+    """Skewness S (solid) and flatness F (dashed) of E vs ``t`` (raw-moment ratios, log time)."""
+    ax = _axes(ax)
+    ax.set_xscale("log")
+    suffix = f", {label}" if label else ""
+    plot_statistic(ds, "skewness", ax=ax, band=band, label=f"S{suffix}", t_min=t_min, color=color)
+    plot_statistic(ds, "flatness", ax=ax, band=band, label=f"F{suffix}", t_min=t_min, color=color,
+                   linestyle="--")
+    ax.set_ylabel("skewness $S$, flatness $F$")
+    return ax
+
+
+def plot_theory(ax: Any, t: np.ndarray, y: np.ndarray, *, label: str | None = None, **style: Any) -> Any:
+    """A theory curve, dotted by default."""
+    kw = {**THEORY_STYLE, **style}
+    ax.plot(t, y, label=label, **kw)
+    return ax
+
+
+def plot_level(ax: Any, value: float, *, label: str | None = None, **style: Any) -> Any:
+    """A horizontal theory level (dotted by default)."""
+    kw = {**THEORY_STYLE, **style}
+    ax.axhline(value, label=label, **kw)
+    return ax

@@ -1,0 +1,503 @@
+"""Reproduce the paper's figures: run (or reuse) the simulations, draw, tabulate, report.
+
+``reproduce(("fig1", "fig3"), paths=10_000, out="stochpend-reproduce")`` runs the simulations
+named in each caption (:mod:`stochpend.figures`), stores each as NetCDF under ``OUT/runs/``,
+draws each figure as PNG and PDF, writes a table of late-time values against the predictions
+(CSV, Markdown, JSON) and a self-contained HTML report ``OUT/report.html``.
+
+Caching: each run's file name carries a SHA-256 of its parameters (physics, paths, times, seed)
+and of the package version, and the file stores the full hash. A second call with the same
+settings redraws from the stored files without simulating; ``force=True`` simulates again. Runs
+shared by two figures (Fig. 2's (D, tau) = (1, 1) is Fig. 3's omega = 1; Fig. 4's tau = 1 is
+Fig. 3's omega = 0) have the same parameters and seed and are simulated once.
+
+Each run also stores its per-batch sums (``batch_sums``), from which the tables compute
+jackknife errors of late-time fits (see :mod:`stochpend.figures._common`).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import platform
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+import xarray as xr
+
+from stochpend import __version__
+from stochpend.figures import FIGURES
+from stochpend.figures._common import COLUMNS, SUM_COMPONENTS, Row, RunSpec
+from stochpend.progress import NoProgress, Progress
+
+__all__ = [
+    "DEFAULT_PATHS",
+    "QUICK_PATHS",
+    "FigureResult",
+    "ReproduceProgress",
+    "ReproduceResult",
+    "RunRecord",
+    "reproduce",
+]
+
+#: Realizations per run by default (the paper's 10^4).
+DEFAULT_PATHS = 10_000
+#: Realizations per run with ``quick=True``.
+QUICK_PATHS = 500
+
+
+class ReproduceProgress(Protocol):
+    """What :func:`reproduce` reports to: an overall bar, one bar per simulation, and lines.
+
+    ``start``/``update``/``finish`` drive the overall bar (work in path-time units, summed
+    over the runs to simulate); ``simulation(description)`` returns a :class:`Progress` for one
+    simulation; ``log(message)`` receives one line per finished figure. A plain
+    :class:`~stochpend.progress.Progress` is accepted too (it then gets only the overall bar).
+    """
+
+    def start(self, total: float, description: str) -> None: ...
+
+    def update(self, done: float) -> None: ...
+
+    def finish(self) -> None: ...
+
+    def simulation(self, description: str) -> Progress: ...
+
+    def log(self, message: str) -> None: ...
+
+
+@dataclass
+class RunRecord:
+    """One stored simulation and where it came from in this call."""
+
+    key: str
+    spec: RunSpec
+    path: Path
+    cache_key: str
+    status: str  # "simulated", "cached" (read from disk) or "shared" (used by an earlier figure)
+    attrs: dict[str, Any]
+    nonfinite_paths: int
+
+    @property
+    def wall_time_s(self) -> float:
+        try:
+            return float(self.attrs.get("wall_time_s", math.nan))
+        except (TypeError, ValueError):
+            return math.nan
+
+    @property
+    def path_steps(self) -> float:
+        try:
+            return float(self.attrs.get("path_steps", math.nan))
+        except (TypeError, ValueError):
+            return math.nan
+
+
+@dataclass
+class FigureResult:
+    """One figure: its files, caption, table and runs."""
+
+    name: str
+    title: str
+    caption: str
+    png: Path
+    pdf: Path
+    table_csv: Path
+    rows: list[Row]
+    runs: list[RunRecord]
+    wall_time_s: float
+    fit_method: str = ""
+
+
+@dataclass
+class ReproduceResult:
+    """Everything :func:`reproduce` produced."""
+
+    out: Path
+    figures: dict[str, FigureResult]
+    report: Path
+    tables_md: Path
+    results_json: Path
+    wall_time_s: float
+    settings: dict[str, Any]
+    versions: dict[str, str]
+    runs: dict[str, RunRecord] = field(default_factory=dict)
+
+    @property
+    def files(self) -> list[Path]:
+        out = [self.report, self.tables_md, self.results_json]
+        for f in self.figures.values():
+            out += [f.png, f.pdf, f.table_csv]
+        out += [r.path for r in self.runs.values()]
+        return out
+
+
+FIT_METHOD = (
+    "Extrapolation t → ∞: weighted least-squares fit of value(t) = a + b·t^(-p) over the last decade "
+    "of output times (weights 1/stderr²), reporting a. p = 1/2 for coloured noise (corrections of "
+    "relative size (t/t_c)^(-1/2) and ω²/⟨E⟩ ∝ t^(-1/2)), p = 1 for white noise (⟨E⟩ = Dt/4 + const). "
+    "Its error is the delete-one-batch jackknife of the whole fit (refit on each leave-one-batch-out "
+    "ensemble), which accounts for the strong correlation between times of the same paths; the "
+    "least-squares formula would not. 'Other model' is the same fit with the other exponent (p = 1 "
+    "instead of 1/2 or vice versa): the spread between the two is the model uncertainty. Coloured-noise "
+    "fits are made only when the last decade starts after the slowest time scale t* = max(t_c, τ²ω⁴/D). "
+    "Deviations are (value − prediction)/stderr."
+)
+
+
+# ---------------------------------------------------------------------------------------------
+# The entry point
+# ---------------------------------------------------------------------------------------------
+
+
+def reproduce(
+    figures: str | Iterable[str] = ("fig1", "fig2", "fig3", "fig4"),
+    *,
+    paths: int | None = None,
+    t_max: float | None = None,
+    out: str | Path = "stochpend-reproduce",
+    quick: bool = False,
+    force: bool = False,
+    progress: ReproduceProgress | Progress | None = None,
+    threads: int | None = None,
+) -> ReproduceResult:
+    """Run, cache, draw and tabulate the paper's figures and write an HTML report.
+
+    Parameters
+    ----------
+    figures : str or iterable of str
+        Any of "fig1" ... "fig4", or "all".
+    paths : int, optional
+        Realizations per run; default 10^4 (the paper's), or 500 with ``quick``.
+    t_max : float, optional
+        Final time of every run of the selected figures (default: each caption's run has its
+        own, see the figure modules' ``CONFIG`` and ``docs/reproduction.md``).
+    out : path
+        Output directory (created): ``runs/*.nc``, ``figN.png``, ``figN.pdf``,
+        ``figN_table.csv``, ``tables.md``, ``results.json``, ``report.html``.
+    quick : bool
+        Small ensembles and short times (t_max = 100): a smoke test, not a reproduction.
+    force : bool
+        Simulate again even when a stored run matches.
+    progress : ReproduceProgress, optional
+        Receives the overall and per-simulation progress and one line per figure.
+    threads : int, optional
+        CPU threads for the simulations (results do not depend on it).
+
+    Returns
+    -------
+    ReproduceResult
+
+    Raises
+    ------
+    ValueError
+        An unknown figure name or a parameter outside its accepted range (one line).
+    """
+    started = time.perf_counter()
+    names = _figure_names(figures)
+    if paths is None:
+        paths = QUICK_PATHS if quick else DEFAULT_PATHS
+    if isinstance(paths, bool) or not isinstance(paths, (int, np.integer)) or paths < 2:
+        raise ValueError(f"paths={paths!r} is not accepted: an integer >= 2 (the jackknife needs 2 batches)")
+    paths = int(paths)
+    if t_max is not None:
+        try:
+            t_max = float(t_max)
+        except (TypeError, ValueError):
+            raise ValueError(f"t_max={t_max!r} is not accepted: a finite number > 0.1") from None
+        if not math.isfinite(t_max) or t_max <= 0.1:
+            raise ValueError(f"t_max={t_max!r} is not accepted: a finite number > 0.1 (times start at 0.01)")
+    if threads is not None:
+        import numba
+
+        if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
+            raise ValueError(f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"out={str(out)!r} is not accepted: it exists and is not a directory")
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:  # pragma: no cover - matplotlib is in the test extra
+        raise ValueError("matplotlib is not installed: pip install 'stochpend[plot]'") from None
+
+    specs = {name: FIGURES[name].runs(paths, t_max, quick) for name in names}
+    # Validate every run before any work (one-line ValueError naming the parameter).
+    from stochpend.params import SimulationConfig
+
+    for name_specs in specs.values():
+        for s in name_specs:
+            SimulationConfig.build(**s.simulate_kwargs())
+
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "runs").mkdir(exist_ok=True)
+    progress = progress or NoProgress()
+    log = getattr(progress, "log", None) or (lambda message: None)
+
+    # Which runs need simulating (for the overall bar).
+    unique: dict[Path, RunSpec] = {}
+    for name_specs in specs.values():
+        for s in name_specs:
+            unique.setdefault(_run_path(out, s), s)
+    preloaded = {} if force else {p: _load_cached(p, s) for p, s in unique.items()}
+    to_simulate = {p: s for p, s in unique.items() if preloaded.get(p) is None}
+    total_work = float(sum(s.paths * s.t_max for s in to_simulate.values()))
+    progress.start(max(total_work, 1.0), f"reproduce {' '.join(names)}")
+    done_work = 0.0
+
+    loaded: dict[Path, xr.Dataset] = {}
+    records: dict[Path, RunRecord] = {}
+    results: dict[str, FigureResult] = {}
+    try:
+        for name in names:
+            module = FIGURES[name]
+            fig_started = time.perf_counter()
+            datasets: dict[str, xr.Dataset] = {}
+            fig_runs: list[RunRecord] = []
+            for s in specs[name]:
+                path = _run_path(out, s)
+                if path in loaded:
+                    ds = loaded[path]
+                    status = "shared"
+                else:
+                    ds = None if path in to_simulate else preloaded.get(path)
+                    status = "cached"
+                    if ds is None:
+                        sub = _SubProgress(progress, done_work, f"{name} {s.key}")
+                        ds = _simulate(s, progress=sub, threads=threads)
+                        done_work += s.paths * s.t_max
+                        progress.update(done_work)
+                        from stochpend import io
+
+                        io.to_netcdf(ds, path, overwrite=True)
+                        status = "simulated"
+                    loaded[path] = ds
+                rec = RunRecord(s.key, s, path, s.cache_key(__version__), status, dict(ds.attrs),
+                                int(ds["nonfinite_paths"].values[-1]))
+                records.setdefault(path, rec)
+                fig_runs.append(rec)
+                datasets[s.key] = ds
+            results[name] = _draw_and_tabulate(module, out, specs[name], datasets, fig_runs, fig_started)
+            n_sim = sum(r.status == "simulated" for r in fig_runs)
+            log(f"{name}: {len(fig_runs)} runs ({n_sim} simulated, {len(fig_runs) - n_sim} reused), "
+                f"{results[name].wall_time_s:.1f} s -> {results[name].png}")
+    finally:
+        progress.finish()
+
+    result = ReproduceResult(
+        out=out, figures=results, report=out / "report.html", tables_md=out / "tables.md",
+        results_json=out / "results.json", wall_time_s=time.perf_counter() - started,
+        settings={"figures": names, "paths": paths, "t_max": t_max, "quick": quick, "force": force,
+                  "out": str(out)},
+        versions=versions(), runs={r.path.name: r for r in records.values()},
+    )
+    _write_tables_md(result)
+    _write_results_json(result)
+    from stochpend.report import write_report
+
+    write_report(result)
+    return result
+
+
+# ---------------------------------------------------------------------------------------------
+# Pieces
+# ---------------------------------------------------------------------------------------------
+
+
+def _figure_names(figures: str | Iterable[str]) -> list[str]:
+    items = [figures] if isinstance(figures, str) else list(figures)
+    names: list[str] = []
+    for item in items:
+        for part in str(item).replace(",", " ").split():
+            chosen = list(FIGURES) if part == "all" else [part]
+            for c in chosen:
+                if c not in FIGURES:
+                    raise ValueError(f"figure={part!r} is not accepted: one of {', '.join(FIGURES)}, all")
+                if c not in names:
+                    names.append(c)
+    if not names:
+        raise ValueError("figures=[] is not accepted: name at least one of fig1, fig2, fig3, fig4, all")
+    return names
+
+
+def _run_path(out: Path, spec: RunSpec) -> Path:
+    return out / "runs" / f"{spec.key}-n{spec.paths}-T{spec.t_max:g}-{spec.cache_key(__version__)[:12]}.nc"
+
+
+def _load_cached(path: Path, spec: RunSpec) -> xr.Dataset | None:
+    """The stored run if it exists and its stored hash matches the spec; else None."""
+    if not path.is_file():
+        return None
+    from stochpend import io
+
+    try:
+        ds = io.open_results(path)
+    except ValueError:
+        return None
+    if ds.attrs.get("reproduce_cache_key") != spec.cache_key(__version__) or "batch_sums" not in ds:
+        return None
+    return ds
+
+
+class _SubProgress:
+    """One simulation's bar; also advances the overall bar by the simulation's work."""
+
+    def __init__(self, parent: Any, offset: float, description: str) -> None:
+        self.parent = parent
+        self.offset = offset
+        factory = getattr(parent, "simulation", None)
+        self.inner: Progress = factory(description) if factory is not None else NoProgress()
+        self.description = description
+
+    def start(self, total: float, description: str) -> None:
+        self.inner.start(total, self.description)
+
+    def update(self, done: float) -> None:
+        self.inner.update(done)
+        self.parent.update(self.offset + done)
+
+    def finish(self) -> None:
+        self.inner.finish()
+
+
+def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None) -> xr.Dataset:
+    """Simulate one run; the Dataset of :func:`stochpend.simulate` plus ``batch_sums``.
+
+    Mirrors :func:`stochpend.simulate.run` (same configuration, numbers and attributes) but keeps
+    the per-batch sums, which the tables need for jackknife errors of late-time fits.
+    """
+    import numba
+
+    from stochpend.params import SimulationConfig, hist_edges
+    from stochpend.simulate import provenance, run_batches
+
+    config = SimulationConfig.build(**spec.simulate_kwargs())
+    previous = numba.get_num_threads()
+    if threads is not None:
+        numba.set_num_threads(threads)
+    started = time.perf_counter()
+    try:
+        sums, path_steps = run_batches(config, 0, config.n_batches, progress=progress)
+    finally:
+        numba.set_num_threads(previous)
+    wall = time.perf_counter() - started
+    attrs = provenance(config, backend="cpu", threads=threads or previous, wall_time_s=wall, path_steps=path_steps)
+    ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
+    ds["batch_sums"] = (
+        ("batch", "time", "sum_component"),
+        np.asarray(sums.sums, dtype=np.float64),
+        {"long_name": "per-batch power sums (for jackknife errors of derived quantities)",
+         "components": ", ".join(SUM_COMPONENTS)},
+    )
+    ds = ds.assign_coords(sum_component=("sum_component", list(SUM_COMPONENTS)))
+    ds.attrs["reproduce_cache_key"] = spec.cache_key(__version__)
+    ds.attrs["reproduce_run_key"] = spec.key
+    ds.attrs["command_line"] = "stochpend reproduce"
+    return ds
+
+
+def _draw_and_tabulate(module: Any, out: Path, specs: list[RunSpec], datasets: dict[str, xr.Dataset],
+                       fig_runs: list[RunRecord], started: float) -> FigureResult:
+    theory = module.theory(datasets)
+    fig = module.draw(datasets, theory)
+    png = out / f"{module.NAME}.png"
+    pdf = out / f"{module.NAME}.pdf"
+    fig.savefig(png, dpi=150)
+    # The constrained layout is solved (in figure coordinates) by the first save: freeze it, so
+    # that the PDF does not solve it again (half of the drawing time).
+    fig.set_layout_engine("none")
+    fig.savefig(pdf, metadata={"CreationDate": None})
+    rows = module.table(datasets, theory)
+    table_csv = out / f"{module.NAME}_table.csv"
+    with open(table_csv, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(COLUMNS)
+        for r in rows:
+            w.writerow(r.cells())
+    return FigureResult(module.NAME, module.TITLE, module.caption(specs), png, pdf, table_csv, rows,
+                        fig_runs, time.perf_counter() - started, FIT_METHOD)
+
+
+def versions() -> dict[str, str]:
+    """Versions of the package, its dependencies and the machine."""
+    import os
+
+    import matplotlib
+    import numba
+    import scipy
+
+    return {
+        "stochpend": __version__,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "scipy": scipy.__version__,
+        "xarray": xr.__version__,
+        "matplotlib": matplotlib.__version__,
+        "machine": f"{platform.machine()} {platform.processor() or platform.system()}",
+        "cpus": str(os.cpu_count()),
+        "numba threads": str(numba.get_num_threads()),
+    }
+
+
+def markdown_table(rows: list[Row]) -> str:
+    """The rows as a Markdown table (``|`` escaped)."""
+    def esc(s: str) -> str:
+        return s.replace("|", "\\|")
+
+    lines = ["| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+    lines += ["| " + " | ".join(esc(c) for c in r.cells()) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def _write_tables_md(result: ReproduceResult) -> None:
+    parts = [f"# stochpend reproduce: tables\n\nstochpend {__version__}; settings: {result.settings}\n"]
+    for f in result.figures.values():
+        parts.append(f"## {f.title}\n\n{f.caption}\n\n{markdown_table(f.rows)}\n")
+    parts.append(FIT_METHOD + "\n")
+    result.tables_md.write_text("\n".join(parts), encoding="utf-8")
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, Path):
+        return str(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(float(x)) else None
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (str, int, bool)) or x is None:
+        return x
+    return str(x)
+
+
+def _write_results_json(result: ReproduceResult) -> None:
+    doc = {
+        "settings": result.settings,
+        "versions": result.versions,
+        "wall_time_s": result.wall_time_s,
+        "figures": {
+            name: {
+                "title": f.title, "caption": f.caption, "png": f.png.name, "pdf": f.pdf.name,
+                "wall_time_s": f.wall_time_s, "runs": [r.path.name for r in f.runs],
+                "rows": [r.to_dict() for r in f.rows],
+            }
+            for name, f in result.figures.items()
+        },
+        "runs": {
+            name: {"key": r.key, "status": r.status, "seed": r.spec.seed, "paths": r.spec.paths,
+                   "t_max": r.spec.t_max, "wall_time_s": r.wall_time_s, "path_steps": r.path_steps,
+                   "nonfinite_paths": r.nonfinite_paths, "cache_key": r.cache_key}
+            for name, r in result.runs.items()
+        },
+    }
+    result.results_json.write_text(json.dumps(_jsonable(doc), indent=1, ensure_ascii=False), encoding="utf-8")

@@ -1,0 +1,293 @@
+"""`stochpend reproduce`: every file produced, every table cell filled, caching, late-time fits."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+import xarray as xr
+from typer.testing import CliRunner
+
+from stochpend import __version__, cli
+from stochpend._cli_reproduce import reproduce_command
+from stochpend.figures import COLUMNS, FIGURES
+from stochpend.figures._common import Row, extrapolate, fmt_se, leave_one_out
+from stochpend.reproduce import reproduce
+
+#: Tiny runs for the default test suite (the real --quick size is checked in the slow test).
+TINY = {"quick": True, "paths": 40, "t_max": 10.0}
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory):
+    out = tmp_path_factory.mktemp("reproduce")
+    started = time.perf_counter()
+    result = reproduce("all", out=out, **TINY)
+    return result, time.perf_counter() - started
+
+
+def _check_complete(result) -> None:
+    assert list(result.figures) == ["fig1", "fig2", "fig3", "fig4"]
+    for path in result.files:
+        assert path.is_file() and path.stat().st_size > 0, path
+    for name, f in result.figures.items():
+        assert f.png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert f.pdf.read_bytes()[:5] == b"%PDF-"
+        assert f.rows, name
+        for row in f.rows:
+            cells = row.cells()
+            assert len(cells) == len(COLUMNS)
+            assert all(c.strip() for c in cells), (name, cells)
+        assert f.table_csv.read_text(encoding="utf-8").count("\n") == len(f.rows) + 1
+        assert f.caption and str(f.runs[0].spec.paths) in f.caption
+    html = result.report.read_text(encoding="utf-8")
+    assert html.count("data:image/png;base64,") == 4
+    for f in result.figures.values():
+        assert f.title.replace("&", "&amp;") in html
+    assert "<script" not in html and "http://" not in html and "https://" not in html
+
+
+def test_tiny_reproduce_all_produces_every_file_and_fills_every_table(tiny) -> None:
+    result, wall = tiny
+    _check_complete(result)
+    # 16 runs in the captions minus the two shared ones (Fig. 3 with Figs. 2 and 4).
+    assert len(result.runs) == 14
+    statuses = [r.status for f in result.figures.values() for r in f.runs]
+    assert statuses.count("shared") == 2
+    for r in result.runs.values():
+        ds = xr.open_dataset(r.path, engine="h5netcdf")
+        try:
+            assert ds.attrs["reproduce_cache_key"] == r.cache_key
+            assert ds["batch_sums"].shape[0] == int(ds.attrs["n_batches"])
+            assert int(ds.attrs["paths"]) == TINY["paths"]
+        finally:
+            ds.close()
+    assert wall < 90
+
+
+def test_second_call_reuses_the_stored_runs(tiny) -> None:
+    result, _ = tiny
+    mtimes = {p: p.stat().st_mtime_ns for p in (r.path for r in result.runs.values())}
+    # Figs. 3 and 4 (their shared run included) are redrawn from the stored files.
+    again = reproduce(["fig3", "fig4"], out=result.out, **TINY)
+    assert [r.status for r in again.figures["fig3"].runs] == ["cached", "cached"]
+    assert [r.status for r in again.figures["fig4"].runs] == ["cached", "cached", "shared"]
+    assert {p: p.stat().st_mtime_ns for p in mtimes} == mtimes
+    # Same data, same tables.
+    for name, f in again.figures.items():
+        assert [r.cells() for r in f.rows] == [r.cells() for r in result.figures[name].rows]
+    assert again.report.read_text(encoding="utf-8").count("data:image/png;base64,") == 2
+
+
+def test_force_and_changed_parameters_simulate_again(tiny, tmp_path) -> None:
+    result, _ = tiny
+    forced = reproduce("fig1", out=result.out, force=True, **TINY)
+    assert {r.status for r in forced.runs.values()} == {"simulated"}
+    # Same seed and parameters: the same numbers.
+    old = result.figures["fig1"].rows
+    assert [r.cells() for r in old] == [r.cells() for r in forced.figures["fig1"].rows]
+    other = reproduce("fig1", out=result.out, quick=True, paths=42, t_max=10.0)
+    assert {r.status for r in other.runs.values()} == {"simulated"}
+    assert not set(other.runs) & set(result.runs)
+
+
+def test_progress_protocol_gets_bars_and_one_line_per_figure(tmp_path) -> None:
+    events: list[tuple] = []
+
+    class Bar:
+        def __init__(self, name: str) -> None:
+            self.name = name
+
+        def start(self, total: float, description: str) -> None:
+            events.append(("start", self.name, total))
+
+        def update(self, done: float) -> None:
+            events.append(("update", self.name, done))
+
+        def finish(self) -> None:
+            events.append(("finish", self.name))
+
+    class Recorder(Bar):
+        def simulation(self, description: str) -> Bar:
+            return Bar(description)
+
+        def log(self, message: str) -> None:
+            events.append(("log", message))
+
+    reproduce("fig1", out=tmp_path, quick=True, paths=8, t_max=1.0, progress=Recorder("overall"))
+    names = {e[1] for e in events if e[0] == "start"}
+    assert names == {"overall", "fig1 white_D1_omega1", "fig1 white_D1_omega0"}
+    logs = [e[1] for e in events if e[0] == "log"]
+    assert len(logs) == 1 and logs[0].startswith("fig1:") and " s " in logs[0]
+    overall = [e[2] for e in events if e[0] == "update" and e[1] == "overall"]
+    assert overall == sorted(overall) and overall[-1] == pytest.approx(2 * 8 * 1.0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "fragment"),
+    [
+        ({"figures": "fig5"}, "figure='fig5'"),
+        ({"figures": []}, "figures=[]"),
+        ({"paths": 1}, "paths=1"),
+        ({"t_max": -1.0}, "t_max=-1.0"),
+        ({"t_max": float("nan")}, "t_max=nan"),
+        ({"threads": 0}, "threads=0"),
+    ],
+)
+def test_bad_arguments_are_refused_before_any_work(kwargs, fragment, tmp_path) -> None:
+    kwargs.setdefault("figures", "fig1")
+    figures = kwargs.pop("figures")
+    with pytest.raises(ValueError, match=fragment.replace("[", r"\[").replace("]", r"\]")):
+        reproduce(figures, out=tmp_path / "x", **kwargs)
+    assert not (tmp_path / "x").exists()
+
+
+def test_out_must_be_a_directory(tmp_path) -> None:
+    f = tmp_path / "file"
+    f.write_text("x")
+    with pytest.raises(ValueError, match="is not a directory"):
+        reproduce("fig1", out=f, quick=True, paths=8, t_max=1.0)
+
+
+def test_figure_registry_and_default_runs() -> None:
+    assert set(FIGURES) == {"fig1", "fig2", "fig3", "fig4"}
+    sizes = {name: m.runs(10_000, None, False) for name, m in FIGURES.items()}
+    assert [len(v) for v in sizes.values()] == [2, 9, 2, 3]
+    fig2 = {(s.D, s.tau): s for s in sizes["fig2"]}
+    assert {s.omega for s in sizes["fig2"]} == {1.0}
+    fig3 = {s.omega: s for s in sizes["fig3"]}
+    fig4 = {s.tau: s for s in sizes["fig4"]}
+    # Shared runs: identical specs (so one cached file), and every other run has its own seed.
+    assert fig2[(1.0, 1.0)].cache_key(__version__) == fig3[1.0].cache_key(__version__)
+    assert fig4[1.0].cache_key(__version__) == fig3[0.0].cache_key(__version__)
+    assert fig2[(1.0, 0.1)].cache_key(__version__) != fig4[0.1].cache_key(__version__)
+    seeds = {s.seed for v in sizes.values() for s in v}
+    assert len(seeds) == 14
+    assert all(s.paths == 10_000 for v in sizes.values() for s in v)
+    assert {s.t_max for s in FIGURES["fig4"].runs(100, 1e5, False)} == {1e5}
+
+
+def _app():
+    """The CLI with the reproduce command registered (once, whether or not cli.py does it)."""
+    if not any(c.name == "reproduce" for c in cli.app.registered_commands):
+        cli.app.command("reproduce")(reproduce_command)
+    return cli.app
+
+
+def test_cli_reproduce_writes_the_report(tmp_path) -> None:
+    runner = CliRunner()
+    res = runner.invoke(_app(), ["reproduce", "fig4", "--quick", "--paths", "8", "--t-max", "2",
+                                  "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "report.html").is_file() and (tmp_path / "fig4.pdf").is_file()
+    assert "fig4:" in res.output and "report:" in res.output
+    bad = runner.invoke(_app(), ["reproduce", "fig7", "--out", str(tmp_path)])
+    assert bad.exit_code == 2 and "fig7" in bad.output
+
+
+# ---------------------------------------------------------------------------------------------
+# Late-time fits and table rows
+# ---------------------------------------------------------------------------------------------
+
+
+def _synthetic(a: float, b: float, power: float, n_b: int = 50, sigma: float = 0.02, seed: int = 1) -> xr.Dataset:
+    """A run whose batch means of E are a + b t^-power + eps_b (eps_b the same at all times)."""
+    rng = np.random.default_rng(seed)
+    t = np.geomspace(0.01, 1000.0, 61)
+    count = 100.0
+    eps = rng.normal(0.0, sigma, n_b)
+    means = a + b * t[None, :] ** (-power) + eps[:, None]
+    sums = np.zeros((n_b, t.size, 9))
+    sums[..., 0] = count
+    sums[..., 1] = means * count
+    sums[..., 2] = (means**2 + 1.0) * count
+    total = sums.sum(axis=0)
+    mean_E = total[:, 1] / total[:, 0]
+    loo = (total[None] - sums)
+    jk = loo[..., 1] / loo[..., 0]
+    se = np.sqrt((n_b - 1) / n_b * ((jk - jk.mean(axis=0)) ** 2).sum(axis=0))
+    return xr.Dataset(
+        {"mean_E": ("time", mean_E), "mean_E_stderr": ("time", se),
+         "batch_sums": (("batch", "time", "sum_component"), sums)},
+        coords={"time": t}, attrs={"D": 1.0, "tau": 1.0, "omega": 0.0, "noise": "ou"},
+    )
+
+
+def test_leave_one_out_matches_the_stored_jackknife() -> None:
+    ds = _synthetic(0.3, -0.5, 0.5)
+    loo = leave_one_out(ds, "mean_E")
+    n = loo.shape[0]
+    se = np.sqrt((n - 1) / n * ((loo - loo.mean(axis=0)) ** 2).sum(axis=0))
+    np.testing.assert_allclose(se, ds["mean_E_stderr"].values, rtol=1e-10)
+
+
+def test_extrapolation_recovers_the_limit_with_a_jackknife_error_that_sees_correlations() -> None:
+    a, sigma, n_b = 0.338, 0.02, 50
+    pulls, errors = [], []
+    for seed in range(40):
+        ds = _synthetic(a, -0.8, 0.5, n_b=n_b, sigma=sigma, seed=seed)
+        fit = extrapolate(ds, "mean_E", "one", power=0.5, alt_power=1.0)
+        assert fit is not None and fit.n_points == 13 and fit.t_hi == pytest.approx(1000.0)
+        assert fit.error_method.startswith("delete-one-batch jackknife")
+        pulls.append((fit.value - a) / fit.stderr)
+        errors.append(fit.stderr)
+        # The other model does not fit: its limit is off by many of its errors.
+        assert abs(fit.alt_value - a) > abs(fit.value - a)
+    # eps_b is common to all times: the error of the limit is exactly sigma/sqrt(n_b), which the
+    # jackknife of the fit finds (the pulls have unit spread).
+    assert np.median(errors) == pytest.approx(sigma / math.sqrt(n_b), rel=0.25)
+    assert np.std(pulls) == pytest.approx(1.0, abs=0.35)
+
+
+def test_extrapolation_without_batch_sums_falls_back_and_says_so() -> None:
+    ds = _synthetic(0.25, 1.0, 1.0).drop_vars("batch_sums")
+    fit = extrapolate(ds, "mean_E", "one", power=1.0)
+    assert fit is not None and "least-squares" in fit.error_method
+    assert fit.value == pytest.approx(0.25, abs=0.05)
+
+
+def test_row_cells_and_deviations() -> None:
+    row = Row("ω = 1", "S", 1000.0, 2.10, 0.05, "second order", 2.028)
+    assert row.dev_at_t == pytest.approx((2.10 - 2.028) / 0.05)
+    cells = row.cells()
+    assert cells[3] == "2.100(50)" and cells[8] == "+1.4" and all(c.strip() for c in cells)
+    assert math.isnan(row.dev_extrapolated) and cells[9] == "—"
+    assert fmt_se(0.33799, 0.0021) == "0.3380(21)"
+    assert fmt_se(float("nan"), 1.0) == "n/a"
+    assert fmt_se(1234.5, 56.0) == "1234 ± 56" or fmt_se(1234.5, 56.0) == "1235 ± 56"
+
+
+@pytest.mark.slow
+def test_quick_mode_of_all_figures_runs_in_under_two_minutes(tmp_path) -> None:
+    started = time.perf_counter()
+    res = CliRunner().invoke(_app(), ["reproduce", "all", "--quick", "--out", str(tmp_path)])
+    wall = time.perf_counter() - started
+    assert res.exit_code == 0, res.output
+    assert wall < 120, wall
+    from stochpend.io import open_results
+
+    for name in FIGURES:
+        for suffix in (".png", ".pdf", "_table.csv"):
+            assert (tmp_path / f"{name}{suffix}").stat().st_size > 0
+        text = (tmp_path / f"{name}_table.csv").read_text(encoding="utf-8")
+        assert ",," not in text and text.count("\n") > 2
+    runs = sorted((tmp_path / "runs").glob("*.nc"))
+    assert len(runs) == 14
+    assert all(int(open_results(p).attrs["paths"]) == 500 for p in runs)
+    assert (tmp_path / "report.html").stat().st_size > 100_000
+
+
+def test_plotting_functions_draw_on_new_or_given_axes(tiny) -> None:
+    from stochpend import plotting
+
+    result, _ = tiny
+    ds = next(iter(result.runs.values()))
+    ds = xr.open_dataset(ds.path, engine="h5netcdf").load()
+    ax = plotting.plot_mean_E(ds, loglog=True)
+    assert ax.get_xscale() == "log" and len(ax.lines) == 1 and len(ax.collections) == 1
+    ax2 = plotting.plot_skewness_flatness(ds, ax=ax.figure.add_subplot(2, 1, 2), label="x")
+    assert [line.get_label() for line in ax2.lines] == ["S, x", "F, x"]
+    with pytest.raises(ValueError, match="which='nope'"):
+        plotting.plot_ratio(ds, "nope")
