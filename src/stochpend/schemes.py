@@ -127,3 +127,30 @@ def step_size(Omega, xi, x, h_max, c_angle, omega2, potential_code, power_n):
         if stiff * h * h > c_angle * c_angle:
             h = c_angle / math.sqrt(stiff)
     return h
+
+
+#: A step that would stop within this fraction of h before the target is stretched to it.
+LANDING_SLACK = 1e-6
+
+
+@register_jitable
+def landing_step(t, h, t_target):
+    """The step to take from time t: h, or the rest of the way when it lands on ``t_target``.
+
+    A step that would stop within ``LANDING_SLACK * h`` of the target is stretched to it, so
+    that round-off in t never leaves a sliver step. Returns ``(h, last)``.
+    """
+    if t + h * (1.0 + LANDING_SLACK) >= t_target:
+        return t_target - t, True
+    return h, False
+
+
+@register_jitable
+def advance_clock(t, t_comp, h, last, t_target):
+    """The time after a step of h: exactly ``t_target`` on landing (compensation reset), else a
+    Kahan-compensated ``t + h``. ``t_comp`` is part of the path's state. Returns (t, t_comp)."""
+    if last:
+        return t_target, 0.0
+    y = h - t_comp
+    t_new = t + y
+    return t_new, (t_new - t) - y

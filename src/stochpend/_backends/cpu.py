@@ -100,13 +100,7 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
         bad = False
         while n < max_steps:
             h = schemes.step_size(Om, xn, xs, h_max, step_c, omega2, potential_code, power_n)
-            last = False
-            # Land on t_target; a step that would stop within 1e-6 h of it is stretched to it,
-            # so that round-off in t (kept small by compensated summation) never leaves a
-            # sliver step behind.
-            if tt + h * (1.0 + 1e-6) >= t_target:
-                h = t_target - tt
-                last = True
+            h, last = schemes.landing_step(tt, h, t_target)
             if noise_code == OU:
                 z1, z2 = rng.draw_normals(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
                 if h != h_cached:
@@ -125,14 +119,7 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
                                          power_n, coupling_code)
             kk += _U64(1)
             n += 1
-            if last:
-                tt = t_target
-                tc = 0.0
-            else:  # Kahan-compensated t += h
-                y = h - tc
-                t_new = tt + y
-                tc = (t_new - tt) - y
-                tt = t_new
+            tt, tc = schemes.advance_clock(tt, tc, h, last, t_target)
             if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)):
                 bad = True
                 break

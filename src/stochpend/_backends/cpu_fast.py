@@ -109,11 +109,7 @@ def _advance_one(i, x, Omega, xi, t, k, status, t_target, max_steps, D, tau, ome
     tc = t_comp[i]
     bad = False
     while n < max_steps:
-        h = h_max
-        last = False
-        if tt + h * (1.0 + 1e-6) >= t_target:  # cpu.advance_paths' landing rule
-            h = t_target - tt
-            last = True
+        h, last = schemes.landing_step(tt, h_max, t_target)
         c0, c1, c2, c3 = rng.draw_words(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
         u1 = rng.uniform_open(c0, c1)
         u2 = rng.uniform_open(c2, c3)
@@ -136,14 +132,7 @@ def _advance_one(i, x, Omega, xi, t, k, status, t_target, max_steps, D, tau, ome
         xs = x_new - _TWO_PI * math.floor((x_new + math.pi) / _TWO_PI)
         kk += _U64(1)
         n += 1
-        if last:
-            tt = t_target
-            tc = 0.0
-        else:  # Kahan-compensated t += h, as cpu.advance_paths
-            y = h - tc
-            t_new = tt + y
-            tc = (t_new - tt) - y
-            tt = t_new
+        tt, tc = schemes.advance_clock(tt, tc, h, last, t_target)
         if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)):
             bad = True
             break
@@ -214,11 +203,7 @@ def _advance_blocks(x, Omega, xi, t, k, status, t_target, max_steps, D, tau, ome
         tc = tc0
         bad = False
         while n < max_steps:
-            h = h_max
-            last = False
-            if tt + h * (1.0 + 1e-6) >= t_target:  # cpu.advance_paths' landing rule
-                h = t_target - tt
-                last = True
+            h, last = schemes.landing_step(tt, h_max, t_target)
             if h != h_cached:
                 ca, s_xi, m_I, c_I, s_I = schemes.ou_step_coefficients(h, D, tau)
                 h_cached = h
@@ -268,14 +253,7 @@ def _advance_blocks(x, Omega, xi, t, k, status, t_target, max_steps, D, tau, ome
                 bx[l] = x_new - _TWO_PI * math.floor((x_new + math.pi) / _TWO_PI)
             kk += _U64(1)
             n += 1
-            if last:
-                tt = t_target
-                tc = 0.0
-            else:  # Kahan-compensated t += h, as cpu.advance_paths
-                y = h - tc
-                t_new = tt + y
-                tc = (t_new - tt) - y
-                tt = t_new
+            tt, tc = schemes.advance_clock(tt, tc, h, last, t_target)
             finite = True
             for l in range(BLOCK):
                 v = bx[l] + bO[l] + bxi[l]

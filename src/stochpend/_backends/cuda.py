@@ -442,11 +442,7 @@ def _kernels(precision: str) -> types.SimpleNamespace:
             # (float64: exactly the CPU's h; float32: the same step sequence and draws as
             # float64, the dynamics using that step rounded to float32).
             h_clock = h_max if h == h_max_r else np.float64(h)
-            last = False
-            # Land on t_target; a step that would stop within 1e-6 h of it is stretched to it.
-            if tt + h_clock * (1.0 + 1e-6) >= t_target:
-                h_clock = t_target - tt
-                last = True
+            h_clock, last = schemes.landing_step(tt, h_clock, t_target)
             h = real(h_clock)
             if noise_code == _OU:
                 w1, w2 = draw_normals(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
@@ -477,14 +473,7 @@ def _kernels(precision: str) -> types.SimpleNamespace:
             Om = real(Om_new)
             kk += _U64(1)
             n += 1
-            if last:
-                tt = t_target
-                tc = 0.0
-            else:  # Kahan-compensated t += h
-                y = h_clock - tc
-                t_new = tt + y
-                tc = (t_new - tt) - y
-                tt = t_new
+            tt, tc = schemes.advance_clock(tt, tc, h_clock, last, t_target)
             if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)):
                 bad = True
                 break
