@@ -184,6 +184,8 @@ def simulate(
     threads: Annotated[int | None, typer.Option(help="CPU threads (results do not depend on it).")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
+    checkpoint: Annotated[Path | None, typer.Option(help="Save the run's state to this file periodically and on Ctrl-C; continue with 'stochpend resume FILE'.")] = None,
+    checkpoint_every: Annotated[str | None, typer.Option("--checkpoint-every", help="Checkpoint interval, e.g. 30s, 5m, 1h (default 5m; needs --checkpoint).")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
 ) -> None:
@@ -201,20 +203,33 @@ def simulate(
     if hist_bins is not None:
         kwargs["hist_bins"] = hist_bins
     # Validate everything before any work (and before the JIT compiles).
-    params.SimulationConfig.build(
+    config = params.SimulationConfig.build(
         noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max,
         times=parse_times(times), n_times=n_times, seed=seed, theta0=parse_theta0(theta0),
         Omega0=Omega0, **kwargs,
     )
+    if checkpoint_every is not None and checkpoint is None:
+        raise ValueError(f"checkpoint_every={checkpoint_every!r} is not accepted: it needs --checkpoint FILE")
     progress = RichProgress(enabled=not quiet and console.is_terminal)
-    ds = run_simulation(
-        noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max, times=parse_times(times),
-        n_times=n_times, seed=seed, theta0=parse_theta0(theta0), Omega0=Omega0, backend=backend,
-        threads=threads, progress=progress, precision=precision, **kwargs,
-    )
-    ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
-    if out is not None:
-        io.to_netcdf(ds, out, overwrite=overwrite)
+    if checkpoint is not None:
+        from stochpend._cli_scale import parse_duration, simulate_with_checkpoint
+
+        # Checks the checkpoint path before any work; writes --out itself (as 'stochpend
+        # resume' does), then removes the checkpoint; Ctrl-C saves it and exits 130.
+        ds = simulate_with_checkpoint(
+            config, checkpoint_path=checkpoint, every_s=parse_duration(checkpoint_every or "5m"),
+            out=out, overwrite=overwrite, progress=progress, threads=threads, backend=backend,
+            precision=precision,
+        )
+    else:
+        ds = run_simulation(
+            noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max, times=parse_times(times),
+            n_times=n_times, seed=seed, theta0=parse_theta0(theta0), Omega0=Omega0, backend=backend,
+            threads=threads, progress=progress, precision=precision, **kwargs,
+        )
+        ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
+        if out is not None:
+            io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
         console.print(summary_table(ds))
         if int(ds.nonfinite_paths[-1]) > 0:
@@ -258,6 +273,13 @@ def info() -> None:
     table.add_row("numba threads", f"{numba.config.NUMBA_NUM_THREADS} (layer: {numba.config.THREADING_LAYER})")
     table.add_row("machine", f"{platform.machine()} {platform.processor()}")
     console.print(table)
+
+
+# Scale-out commands (stochpend._cli_scale imports this module lazily, so either order works).
+from stochpend._cli_scale import resume_command, sweep_command  # noqa: E402
+
+app.command("sweep")(sweep_command)
+app.command("resume")(resume_command)
 
 
 def main() -> None:  # pragma: no cover

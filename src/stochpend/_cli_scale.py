@@ -1,0 +1,345 @@
+"""Command line for scaling out: ``sweep``, ``resume``, and checkpoints for ``simulate``.
+
+Registered on the main app by :mod:`stochpend.cli`::
+
+    app.command("sweep")(sweep_command)
+    app.command("resume")(resume_command)
+
+``simulate --checkpoint FILE --checkpoint-every 5m`` calls :func:`simulate_with_checkpoint`.
+``python -m stochpend._cli_scale simulate-ckpt ...`` is a small stand-alone runner with the
+same checkpoint options (used by the tests; not a public interface).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import re
+import sys
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.table import Table
+
+__all__ = [
+    "SweepProgressBar",
+    "parse_duration",
+    "resume_command",
+    "simulate_with_checkpoint",
+    "sweep_command",
+    "sweep_table",
+]
+
+
+def _cli() -> Any:
+    """``stochpend.cli``, imported when first needed: cli.py imports this module to register
+    the commands, so this module must not import it at import time (circular import)."""
+    import stochpend.cli
+
+    return stochpend.cli
+
+
+def handles_errors(fn: Any) -> Any:
+    """``stochpend.cli.handles_errors``, applied at call time (see :func:`_cli`)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        return _cli().handles_errors(fn)(*args, **kwargs)
+
+    return wrapper
+
+
+_UNITS = {"ms": 1e-3, "s": 1.0, "sec": 1.0, "m": 60.0, "min": 60.0, "h": 3600.0, "d": 86400.0}
+_NUMBER = r"(?:\d+(?:\.\d*)?|\.\d+)"
+_TOKEN = re.compile(rf"\s*({_NUMBER})\s*(ms|sec|min|s|m|h|d)?\s*")
+
+
+def parse_duration(text: str, name: str = "checkpoint_every") -> float:
+    """'30s', '5m', '1h', '1h30m', '0.2s', '90' (seconds) -> seconds (> 0)."""
+    accepted = "a duration > 0 such as 30s, 5m, 1h or 1h30m (a bare number is seconds)"
+    pos, total, parts = 0, 0.0, 0
+    while pos < len(text):
+        m = _TOKEN.match(text, pos)
+        if m is None or m.end() == pos:
+            raise ValueError(f"{name}={text!r} is not accepted: {accepted}")
+        total += float(m.group(1)) * _UNITS[m.group(2) or "s"]
+        parts += 1
+        pos = m.end()
+    if parts == 0 or not math.isfinite(total) or total <= 0:
+        raise ValueError(f"{name}={text!r} is not accepted: {accepted}")
+    return total
+
+
+# -- checkpoints -----------------------------------------------------------------------------
+def simulate_with_checkpoint(
+    config: Any,
+    *,
+    checkpoint_path: Path,
+    every_s: float,
+    out: Path | None,
+    overwrite: bool,
+    progress: Any,
+    threads: int | None = None,
+    backend: str = "cpu",
+    precision: str = "float64",
+    command_line: str | None = None,
+) -> Any:
+    """Run ``config`` with checkpoints; write ``out``; return the Dataset (for the table).
+
+    Refuses, before any work, an existing checkpoint file (it belongs to an interrupted run:
+    ``stochpend resume`` it), an unwritable ``out``, or a backend other than the CPU (``auto``
+    means the CPU here) or float32. Ctrl-C
+    (SIGTERM) saves the state, prints where and exits with code 130 (143). On success the result is written
+    to ``out`` (with ``command_line`` in its attributes) and the checkpoint file is removed.
+    """
+    from stochpend import checkpoint, io
+
+    if backend not in ("cpu", "auto"):  # auto: the CPU, the backend that checkpoints
+        raise ValueError(f"backend={backend!r} is not accepted with --checkpoint: checkpoints are "
+                         f"implemented for the cpu backend")
+    if precision != "float64":
+        raise ValueError(f"precision={precision!r} is not accepted with --checkpoint: the cpu backend "
+                         f"runs in float64")
+    if out is not None:
+        io.check_output_path(out, overwrite=overwrite)
+    checkpoint.check_checkpoint_path(checkpoint_path, out=out)
+    if command_line is None:
+        command_line = " ".join(["stochpend", *sys.argv[1:]])
+    return _interruptible(
+        checkpoint.run_checkpointed, config, checkpoint_path=checkpoint_path, every_s=every_s,
+        out=out, overwrite=overwrite, threads=threads, progress=progress, command_line=command_line,
+    )
+
+
+def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) -> Any:
+    from stochpend.checkpoint import CheckpointInterrupt
+
+    cli = _cli()
+    progress = kwargs.get("progress")
+    try:
+        return fn(*args, checkpoint_path=checkpoint_path, **kwargs)
+    except CheckpointInterrupt as exc:
+        if progress is not None:
+            progress.finish()
+        cli.console.print(f"[yellow]interrupted:[/] state saved to {exc.path}; continue with: "
+                          f"stochpend resume {exc.path}", highlight=False, soft_wrap=True)
+        raise typer.Exit(exc.exit_code) from None
+    except KeyboardInterrupt:
+        if progress is not None:
+            progress.finish()
+        last = f"; the last checkpoint is {checkpoint_path}" if Path(checkpoint_path).exists() else ""
+        cli.console.print(f"[yellow]interrupted[/] (no new checkpoint){last}", highlight=False, soft_wrap=True)
+        raise typer.Exit(130) from None
+
+
+@handles_errors
+def resume_command(
+    checkpoint: Annotated[Path, typer.Argument(help="A checkpoint written by 'stochpend simulate --checkpoint'.")],
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the result here instead of the original command's --out.")] = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing output file.")] = False,
+    threads: Annotated[int | None, typer.Option(help="CPU threads (results do not depend on it).")] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
+    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+) -> None:
+    """Continue an interrupted 'simulate --checkpoint' run; write its result where it would have."""
+    from stochpend import checkpoint as ck
+    from stochpend import io
+
+    cli = _cli()
+    state = ck.read(checkpoint)  # verifies checksum, version and configuration first
+    target = state.out if out is None else out
+    ow = overwrite or (out is None and state.overwrite)
+    if target is not None:
+        io.check_output_path(target, overwrite=ow)
+    if not quiet:
+        st = state.state
+        done = (st.done_work + float(st.t.sum())) / (state.config.paths * state.config.t_max)
+        cli.console.print(f"resuming {state.command_line or 'run'} from {checkpoint} "
+                          f"({100 * done:.0f}% done)", highlight=False, soft_wrap=True)
+    kwargs: dict[str, Any] = {"out": target, "overwrite": ow}
+    if threads is not None:
+        kwargs["threads"] = threads
+    progress = cli.RichProgress(enabled=not quiet and cli.console.is_terminal)
+    ds = _interruptible(_resume, checkpoint_path=checkpoint, progress=progress, **kwargs)
+    if not quiet:
+        cli.console.print(cli.summary_table(ds))
+        if target is not None:
+            cli.console.print(f"wrote {target}")
+
+
+def _resume(*, checkpoint_path: Path, **kwargs: Any) -> Any:
+    from stochpend.checkpoint import resume
+
+    return resume(checkpoint_path, **kwargs)
+
+
+# -- sweeps ----------------------------------------------------------------------------------
+class SweepProgressBar:
+    """Rich bar for sweeps: tasks done, paths done, elapsed, ETA; prints notes (dashboard).
+
+    Implements :class:`stochpend.progress.Progress` (in paths) plus ``tasks`` and ``note``.
+    """
+
+    def __init__(self, enabled: bool, quiet: bool = False) -> None:
+        self.enabled = enabled
+        self.quiet = quiet
+        self._progress: Any = None
+        self._task: Any = None
+        self._tasks = (0, 0)
+
+    def start(self, total: float, description: str) -> None:
+        if not self.enabled:
+            return
+        from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+        cli = _cli()
+        self._progress = Progress(
+            TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(),
+            TextColumn("tasks {task.fields[tasks]}"), TextColumn("paths {task.completed:.0f}/{task.total:.0f}"),
+            TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=cli.console,
+            transient=True,
+        )
+        self._progress.start()
+        self._task = self._progress.add_task(description, total=total, tasks=f"{self._tasks[0]}/{self._tasks[1]}")
+
+    def update(self, done: float) -> None:
+        if self._progress is not None:
+            self._progress.update(self._task, completed=done)
+
+    def tasks(self, done: int, total: int) -> None:
+        self._tasks = (done, total)
+        if self._progress is not None:
+            self._progress.update(self._task, tasks=f"{done}/{total}")
+
+    def note(self, text: str) -> None:
+        if not self.quiet:
+            _cli().console.print(text, highlight=False, soft_wrap=True)
+
+    def finish(self) -> None:
+        if self._progress is not None:
+            self._progress.stop()
+            self._progress = None
+
+
+def sweep_table(ds: Any) -> Table:
+    """One row per parameter set: the swept values and the statistics at the last time."""
+    from stochpend.sweep import flat_sets
+
+    fmt = _cli()._fmt
+    sets = flat_sets(ds)
+    swept = list(sets[0]["params"]) if sets else []
+    noise = ds.attrs.get("noise")
+    table = Table(title=f"stochpend sweep: {len(sets)} parameter sets"
+                        + (f" ({ds.attrs['description']})" if ds.attrs.get("description") else ""))
+    noises = set(ds["noise"].values.ravel().tolist()) if "noise" in ds.variables else {noise}
+    scaled = {frozenset({"ou"}): "<E2>/(Dt/tau^2)", frozenset({"white"}): "<E>/(Dt/4)"}.get(
+        frozenset(noises), "<E2>/(Dt/tau^2) (ou), <E>/(Dt/4) (white)")
+    for col in (*swept, "t", "<E>", "<E2>", scaled, "S", "F", "non-finite"):
+        table.add_column(col, justify="right", no_wrap=True)
+    for s in sets:
+        row = ds.isel(s["index"]).isel(time=-1)
+        t = float(row["times"] if "times" in row.coords else row["time"])
+        D = float(row["D"]) if "D" in row else float(ds.attrs.get("D", float("nan")))
+        nz = str(row["noise"].item()) if "noise" in row else noise
+        if nz == "ou":
+            tau = float(row["tau"]) if "tau" in row else float(ds.attrs["tau"])
+            norm = D * t / tau**2
+            val, se = float(row.mean_E2) / norm, float(row.mean_E2_stderr) / norm
+        else:
+            norm = D * t / 4.0
+            val, se = float(row.mean_E) / norm, float(row.mean_E_stderr) / norm
+        if not norm > 0:
+            val, se = float("nan"), None
+        table.add_row(
+            *(f"{v:g}" if isinstance(v, float) else str(v) for v in s["params"].values()),
+            f"{t:.4g}", fmt(float(row.mean_E), float(row.mean_E_stderr)),
+            fmt(float(row.mean_E2), float(row.mean_E2_stderr)), fmt(val, se),
+            fmt(float(row.skewness), float(row.skewness_stderr)), fmt(float(row.flatness), float(row.flatness_stderr)),
+            str(int(row.nonfinite_paths)),
+        )
+    table.caption = (f"{ds.attrs.get('sweep_tasks')} tasks on {ds.attrs.get('sweep_engine')} "
+                     f"({ds.attrs.get('sweep_workers')} workers); wall time {float(ds.attrs['wall_time_s']):.3g} s, "
+                     f"{float(ds.attrs['path_steps']):.3g} path-steps.")
+    return table
+
+
+@handles_errors
+def sweep_command(
+    spec: Annotated[Path, typer.Argument(help="The sweep, a TOML file: [base], then [grid] or [[case]] (docs/scale-out.md).")],
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
+    scheduler: Annotated[str | None, typer.Option(help="Where tasks run: default in this process; 'threads' or 'sync' (Dask, no server); 'local' (a Dask LocalCluster); or a scheduler address, e.g. tcp://HOST:8786.")] = None,
+    workers: Annotated[int | None, typer.Option(help="Threads ('threads') or worker processes ('local'); default: the CPU count.")] = None,
+    tasks_per_set: Annotated[int | None, typer.Option("--tasks-per-set", help="Blocks of batches per parameter set (results do not depend on it).")] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
+    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+) -> None:
+    """Run a grid or list of parameter sets (TOML) as one job; save one NetCDF with the swept dims."""
+    from stochpend import io
+    from stochpend.sweep import check_scheduler, load_spec, sweep
+
+    cli = _cli()
+    if out is not None:
+        io.check_output_path(out, overwrite=overwrite)
+    plan = load_spec(spec)  # the whole file is validated before any work
+    check_scheduler(scheduler)
+    if workers is not None and workers < 1:
+        cli.fail(f"workers={workers!r} is not accepted: an integer >= 1")
+    progress = SweepProgressBar(enabled=not quiet and cli.console.is_terminal, quiet=quiet)
+    try:
+        ds = sweep(plan, scheduler=scheduler, workers=workers, progress=progress, tasks_per_set=tasks_per_set)
+    except KeyboardInterrupt:
+        progress.finish()
+        raise
+    ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
+    if out is not None:
+        io.to_netcdf(ds, out, overwrite=overwrite)
+    if not quiet:
+        cli.console.print(sweep_table(ds))
+        if out is not None:
+            cli.console.print(f"wrote {out}")
+
+
+# -- stand-alone runner (tests; the real entry point is `stochpend simulate --checkpoint`) ----
+_runner = typer.Typer(name="stochpend-scale", add_completion=False, pretty_exceptions_enable=False,
+                      no_args_is_help=True)
+_runner.command("sweep")(sweep_command)
+_runner.command("resume")(resume_command)
+
+
+@_runner.command("simulate-ckpt")
+@handles_errors
+def _simulate_ckpt_command(
+    checkpoint: Annotated[Path, typer.Option(help="Checkpoint file.")],
+    checkpoint_every: Annotated[str, typer.Option("--checkpoint-every", help="Interval, e.g. 30s, 5m, 1h.")] = "5m",
+    noise: Annotated[str, typer.Option(help="'ou' or 'white'.")] = "ou",
+    D: Annotated[float, typer.Option("--D", help="Noise amplitude.")] = 1.0,
+    tau: Annotated[float, typer.Option("--tau", help="OU correlation time.")] = 1.0,
+    omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency.")] = 1.0,
+    paths: Annotated[int, typer.Option(help="Number of realizations.")] = 10_000,
+    t_max: Annotated[float, typer.Option("--t-max", help="Final time.")] = 1000.0,
+    n_times: Annotated[int, typer.Option("--n-times", help="Number of output times.")] = 40,
+    seed: Annotated[int, typer.Option(help="Seed.")] = 0,
+    threads: Annotated[int | None, typer.Option(help="CPU threads.")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="NetCDF output.")] = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
+    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+) -> None:
+    """simulate with --checkpoint (a subset of the options of 'stochpend simulate')."""
+    from stochpend.params import SimulationConfig
+
+    cli = _cli()
+    config = SimulationConfig.build(noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max,
+                                    n_times=n_times, seed=seed)
+    every = parse_duration(checkpoint_every)
+    progress = cli.RichProgress(enabled=not quiet and cli.console.is_terminal)
+    ds = simulate_with_checkpoint(config, checkpoint_path=checkpoint, every_s=every, out=out,
+                                  overwrite=overwrite, progress=progress, threads=threads)
+    if not quiet:
+        cli.console.print(cli.summary_table(ds))
+
+
+if __name__ == "__main__":  # pragma: no cover
+    _runner()

@@ -1,0 +1,544 @@
+"""Checkpoint and resume for long single runs.
+
+A checkpoint is the complete :class:`~stochpend.simulate.RunState` between two kernel calls
+(per-path arrays, the sums of the finished output times and chunks), the configuration, the
+package version and where the result goes. Resuming continues ``run_batches`` from that state:
+random numbers are keyed by (seed, global path index, step), so an interrupted and resumed run
+gives the same numbers, to the last bit, as an uninterrupted one.
+
+File format (no pickle; everything little-endian)::
+
+    magic        16 bytes   b"STOCHPEND-CKPT\\x00\\x01"
+    header_len    8 bytes   unsigned 64-bit integer
+    header        header_len bytes of UTF-8 JSON (format, versions, config, config_sha256,
+                  run position, output path, and the table of arrays: name, dtype, shape,
+                  offset, nbytes)
+    payload       the raw bytes of the arrays, one after the other
+    checksum     32 bytes   SHA-256 of everything above
+
+The file is written to a temporary file in the same directory, flushed to disk and renamed
+over the previous checkpoint (``os.replace``), so a crash leaves either the old or the new
+checkpoint, never a mixture. Reading verifies the checksum over the whole file before
+anything is parsed: a truncated or corrupted file is refused, never half-loaded. A checkpoint
+written by another stochpend version or build (the fingerprint of the code that determines
+the numbers, :data:`stochpend.sweep.BUILD`), or whose configuration no longer validates to the
+same hash, is refused with a one-line message (``ValueError``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import signal
+import struct
+import tempfile
+import threading
+import time as _time
+from collections.abc import Iterator
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import numba
+import numpy as np
+import xarray as xr
+
+from stochpend import __version__, io
+from stochpend._backends.cpu import N_SUMS
+from stochpend.params import SimulationConfig, hist_edges
+from stochpend.progress import NoProgress, Progress
+from stochpend.simulate import RunState, provenance, run_batches
+from stochpend.stats import EnsembleSums
+from stochpend.sweep import BUILD
+
+__all__ = [
+    "Checkpoint",
+    "CheckpointInterrupt",
+    "FileCheckpointer",
+    "config_from_json",
+    "config_hash",
+    "config_to_json",
+    "read",
+    "resume",
+    "run_checkpointed",
+    "write",
+]
+
+MAGIC = b"STOCHPEND-CKPT\x00\x01"
+FORMAT = "stochpend-checkpoint"
+FORMAT_VERSION = 1
+_LEN = struct.Struct("<Q")
+_DIGEST = 32
+
+#: RunState's scalar fields (in the header) and its non-per-path arrays; every other field
+#: of RunState is an array with one entry per path of the current chunk, saved as it is, so a
+#: new per-path field (such as ``t_comp``) is checkpointed without a change here.
+_RUN_FIELDS = ("first_batch", "stop_batch", "b0", "b1", "j", "path_steps", "done_work")
+_CHUNK_ARRAYS = {"chunk_sums": "<f8", "chunk_hist": "<i8"}
+_ACC_ARRAYS = {"acc_sums": "<f8", "acc_hist": "<i8", "acc_filled": "|b1"}
+_PATH_ARRAYS = tuple(f.name for f in fields(RunState)
+                     if f.name not in (*_RUN_FIELDS, *_CHUNK_ARRAYS, "acc"))
+#: Dtype kinds a per-path array may have (never object: nothing here can hold a pickle).
+_NUMERIC_KINDS = "biuf"
+
+
+class CheckpointInterrupt(KeyboardInterrupt):
+    """Ctrl-C (or SIGTERM) during a checkpointed run: the state was saved to ``path`` first."""
+
+    def __init__(self, path: Path, signum: int = signal.SIGINT) -> None:
+        super().__init__(f"interrupted; checkpoint written to {path}")
+        self.path = path
+        self.signum = int(signum)
+
+    @property
+    def exit_code(self) -> int:
+        """128 + the signal number: 130 for Ctrl-C, 143 for SIGTERM."""
+        return 128 + self.signum
+
+
+# -- configuration as JSON -------------------------------------------------------------------
+def config_to_json(config: SimulationConfig) -> dict[str, Any]:
+    """Every field of the configuration as plain JSON values (floats round-trip exactly)."""
+    out: dict[str, Any] = {}
+    for f in fields(config):
+        if f.name == "extra":
+            continue
+        v = getattr(config, f.name)
+        out[f.name] = list(v) if isinstance(v, tuple) else v
+    return out
+
+
+def config_from_json(data: dict[str, Any]) -> SimulationConfig:
+    """Rebuild (and so re-validate) a configuration written by :func:`config_to_json`."""
+    kwargs = dict(data)
+    if kwargs.get("theta0") is None:
+        kwargs["theta0"] = "uniform"
+    if kwargs.get("xi0") is None:
+        kwargs["xi0"] = "stationary"
+    return SimulationConfig.build(**kwargs)
+
+
+def config_hash(config: SimulationConfig) -> str:
+    """SHA-256 of the canonical JSON of the configuration."""
+    text = json.dumps(config_to_json(config), sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+# -- the checkpoint object ------------------------------------------------------------------
+@dataclass
+class Checkpoint:
+    """A run's state plus what is needed to finish it as the original command would have."""
+
+    config: SimulationConfig
+    state: RunState
+    out: Path | None = None
+    overwrite: bool = False
+    every_s: float | None = None
+    threads: int | None = None
+    chunk_paths: int | None = None
+    elapsed_s: float = 0.0
+    resumed: int = 0
+    command_line: str | None = None
+    created: str = ""
+    stochpend_version: str = __version__
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def _state_arrays(state: RunState) -> dict[str, np.ndarray]:
+    arrays = {name: np.ascontiguousarray(getattr(state, name)) for name in _PATH_ARRAYS}
+    arrays["chunk_sums"] = np.ascontiguousarray(state.chunk_sums, dtype=_CHUNK_ARRAYS["chunk_sums"])
+    arrays["chunk_hist"] = np.ascontiguousarray(state.chunk_hist, dtype=_CHUNK_ARRAYS["chunk_hist"])
+    arrays["acc_sums"] = np.ascontiguousarray(state.acc.sums, dtype=_ACC_ARRAYS["acc_sums"])
+    arrays["acc_hist"] = np.ascontiguousarray(state.acc.hist, dtype=_ACC_ARRAYS["acc_hist"])
+    arrays["acc_filled"] = np.ascontiguousarray(state.acc.filled, dtype=_ACC_ARRAYS["acc_filled"])
+    for name in _PATH_ARRAYS:
+        a = arrays[name]
+        if a.dtype.kind not in _NUMERIC_KINDS:  # pragma: no cover - a RunState field of another kind
+            raise TypeError(f"RunState.{name} has dtype {a.dtype}: not checkpointable")
+        arrays[name] = a.astype(a.dtype.newbyteorder("<"), copy=False)
+    return arrays
+
+
+def write(path: str | os.PathLike, ckpt: Checkpoint) -> Path:
+    """Write ``ckpt`` to ``path`` atomically (temporary file, fsync, ``os.replace``)."""
+    p = Path(path)
+    arrays = _state_arrays(ckpt.state)
+    table = []
+    offset = 0
+    for name, a in arrays.items():
+        table.append({"name": name, "dtype": a.dtype.str, "shape": list(a.shape), "offset": offset,
+                      "nbytes": a.nbytes})
+        offset += a.nbytes
+    st = ckpt.state
+    header = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "stochpend_version": ckpt.stochpend_version,
+        "stochpend_build": BUILD,
+        "numpy_version": np.__version__,
+        "numba_version": numba.__version__,
+        "created": _time.strftime("%Y-%m-%dT%H:%M:%SZ", _time.gmtime()),
+        "config": config_to_json(ckpt.config),
+        "config_sha256": config_hash(ckpt.config),
+        "run": {
+            "first_batch": int(st.first_batch), "stop_batch": int(st.stop_batch), "b0": int(st.b0),
+            "b1": int(st.b1), "j": int(st.j), "path_steps": int(st.path_steps),
+            "done_work": float(st.done_work),
+        },
+        "out": None if ckpt.out is None else str(ckpt.out),
+        "overwrite": bool(ckpt.overwrite),
+        "every_s": ckpt.every_s,
+        "threads": ckpt.threads,
+        "chunk_paths": ckpt.chunk_paths,
+        "elapsed_s": float(ckpt.elapsed_s),
+        "resumed": int(ckpt.resumed),
+        "command_line": ckpt.command_line,
+        "extra": ckpt.extra,
+        "arrays": table,
+    }
+    head = json.dumps(header, sort_keys=True, allow_nan=False).encode()
+    digest = hashlib.sha256()
+    parent = p.parent if str(p.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            for chunk in (MAGIC, _LEN.pack(len(head)), head):
+                f.write(chunk)
+                digest.update(chunk)
+            for a in arrays.values():
+                buf = memoryview(a.reshape(-1)).cast("B")
+                f.write(buf)
+                digest.update(buf)
+            f.write(digest.digest())
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, p)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    with contextlib.suppress(OSError):  # make the rename itself durable (POSIX)
+        dfd = os.open(parent, os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+    return p
+
+
+def _refuse(path: Path, why: str) -> ValueError:
+    return ValueError(f"checkpoint={str(path)!r} is not accepted: {why}")
+
+
+def read(path: str | os.PathLike) -> Checkpoint:
+    """Read and verify a checkpoint; refuse (``ValueError``, one line) anything doubtful.
+
+    Order: magic, SHA-256 over the whole file (truncation or corruption), format, stochpend
+    version, configuration hash, then the array table against the configuration.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise _refuse(p, "no such file")
+    data = p.read_bytes()
+    if len(data) < len(MAGIC) + _LEN.size + _DIGEST or not data.startswith(MAGIC):
+        if MAGIC.startswith(data[: len(MAGIC)]) and len(data) > 0:
+            raise _refuse(p, "the file is truncated (a partial stochpend checkpoint)")
+        raise _refuse(p, "not a stochpend checkpoint (wrong magic bytes)")
+    body, digest = data[:-_DIGEST], data[-_DIGEST:]
+    if hashlib.sha256(body).digest() != digest:
+        raise _refuse(p, "checksum mismatch: the file is truncated or corrupted")
+    (head_len,) = _LEN.unpack_from(body, len(MAGIC))
+    start = len(MAGIC) + _LEN.size
+    if start + head_len > len(body):
+        raise _refuse(p, "header length beyond the end of the file")
+    try:
+        header = json.loads(body[start:start + head_len].decode())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise _refuse(p, f"unreadable header ({exc})") from None
+    payload = memoryview(body)[start + head_len:]
+    try:
+        return _from_header(p, header, payload)
+    except (KeyError, TypeError, AttributeError) as exc:
+        raise _refuse(p, f"malformed header ({type(exc).__name__}: {exc})") from None
+
+
+def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkpoint:
+    if header.get("format") != FORMAT:
+        raise _refuse(p, f"unknown format {header.get('format')!r}")
+    if header.get("format_version") != FORMAT_VERSION:
+        raise _refuse(p, f"checkpoint format version {header.get('format_version')!r}; "
+                         f"this stochpend reads version {FORMAT_VERSION}")
+    version = header.get("stochpend_version")
+    if version != __version__:
+        raise _refuse(p, f"written by stochpend {version}, this is stochpend {__version__}; "
+                         f"resume it with stochpend {version}")
+    build = header.get("stochpend_build")
+    if build != BUILD:
+        raise _refuse(p, f"written by stochpend {build}, this is stochpend {BUILD}: the code that "
+                         f"determines the numbers differs; resume it with the stochpend that wrote it")
+    try:
+        config = config_from_json(header["config"])
+    except ValueError as exc:
+        raise _refuse(p, f"its configuration no longer validates ({exc})") from None
+    if config_hash(config) != header.get("config_sha256"):
+        raise _refuse(p, "configuration hash mismatch: the stored configuration does not rebuild "
+                         "to the configuration that ran")
+
+    run = header["run"]
+    r = {k: run[k] for k in _RUN_FIELDS}
+    n_times = len(config.times)
+    bs = config.batch_size
+    ok = (0 <= r["first_batch"] <= r["b0"] < r["b1"] <= r["stop_batch"] <= config.n_batches
+          and 0 <= r["j"] <= n_times and r["path_steps"] >= 0)
+    if not ok:
+        raise _refuse(p, f"inconsistent run position {r}")
+    n = min(r["b1"] * bs, config.paths) - r["b0"] * bs
+    n_cols = config.hist_bins + 2
+    shapes: dict[str, tuple[int, ...]] = {name: (n,) for name in _PATH_ARRAYS}
+    shapes.update({
+        "chunk_sums": (r["b1"] - r["b0"], n_times, N_SUMS),
+        "chunk_hist": (n_times, n_cols),
+        "acc_sums": (config.n_batches, n_times, N_SUMS),
+        "acc_hist": (n_times, n_cols),
+        "acc_filled": (config.n_batches,),
+    })
+    fixed = {**_CHUNK_ARRAYS, **_ACC_ARRAYS}
+    arrays: dict[str, np.ndarray] = {}
+    for entry in header["arrays"]:
+        name = entry["name"]
+        if name not in shapes or name in arrays:
+            raise _refuse(p, f"unexpected array {name!r}")
+        try:
+            dtype = np.dtype(entry["dtype"])
+        except TypeError:
+            raise _refuse(p, f"array {name!r} has dtype {entry['dtype']!r}") from None
+        ok_dtype = dtype.str == np.dtype(fixed[name]).str if name in fixed else (
+            dtype.kind in _NUMERIC_KINDS and dtype.byteorder in "<|=")
+        if not ok_dtype or tuple(entry["shape"]) != shapes[name]:
+            expected = np.dtype(fixed[name]).str if name in fixed else "a little-endian number"
+            raise _refuse(p, f"array {name!r} has dtype {entry['dtype']} and shape {tuple(entry['shape'])}, "
+                             f"expected {expected} and {shapes[name]}")
+        off, nbytes = int(entry["offset"]), int(entry["nbytes"])
+        if nbytes != dtype.itemsize * int(np.prod(shapes[name])) or off < 0 or off + nbytes > len(payload):
+            raise _refuse(p, f"array {name!r} lies outside the file")
+        arrays[name] = np.frombuffer(payload[off:off + nbytes], dtype=dtype).reshape(shapes[name]).copy()
+    missing = set(shapes) - set(arrays)
+    if missing:
+        raise _refuse(p, f"missing arrays {sorted(missing)}")
+
+    acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"])
+    scalars = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
+    state = RunState(**scalars, **{name: arrays[name] for name in _PATH_ARRAYS},
+                     chunk_sums=arrays["chunk_sums"], chunk_hist=arrays["chunk_hist"], acc=acc)
+    out = header.get("out")
+    return Checkpoint(
+        config=config, state=state, out=None if out is None else Path(out),
+        overwrite=bool(header.get("overwrite", False)), every_s=header.get("every_s"),
+        threads=header.get("threads"), chunk_paths=header.get("chunk_paths"),
+        elapsed_s=float(header.get("elapsed_s", 0.0)), resumed=int(header.get("resumed", 0)),
+        command_line=header.get("command_line"), created=str(header.get("created", "")),
+        stochpend_version=version, extra=dict(header.get("extra") or {}),
+    )
+
+
+# -- saving during a run ---------------------------------------------------------------------
+class FileCheckpointer:
+    """A :class:`~stochpend.simulate.Checkpointer` that writes the state every ``every_s`` seconds.
+
+    It is also where a deferred Ctrl-C or SIGTERM takes effect: :meth:`request_stop` (called
+    by the signal handler of :func:`run_checkpointed`) makes the next ``maybe_save``, which
+    runs only between kernel calls where the state is consistent, write a checkpoint and raise
+    :class:`CheckpointInterrupt`.
+    """
+
+    def __init__(self, path: str | os.PathLike, every_s: float | None, *, config: SimulationConfig,
+                 out: Path | None = None, overwrite: bool = False, threads: int | None = None,
+                 chunk_paths: int | None = None, command_line: str | None = None,
+                 elapsed_before_s: float = 0.0, resumed: int = 0) -> None:
+        self.path = Path(path)
+        self.every_s = every_s
+        self.config = config
+        self.out = out
+        self.overwrite = overwrite
+        self.threads = threads
+        self.chunk_paths = chunk_paths
+        self.command_line = command_line
+        self.elapsed_before_s = elapsed_before_s
+        self.resumed = resumed
+        self.started = _time.monotonic()
+        self.last_save = self.started
+        self.saves = 0
+        self.stop_requested = False
+        self.stop_signal = int(signal.SIGINT)
+
+    def request_stop(self, signum: int = signal.SIGINT) -> None:
+        self.stop_requested = True
+        self.stop_signal = int(signum)
+
+    def elapsed_s(self) -> float:
+        return self.elapsed_before_s + (_time.monotonic() - self.started)
+
+    def save(self, state: RunState) -> Path:
+        ckpt = Checkpoint(
+            config=self.config, state=state, out=self.out, overwrite=self.overwrite,
+            every_s=self.every_s, threads=self.threads, chunk_paths=self.chunk_paths,
+            elapsed_s=self.elapsed_s(), resumed=self.resumed, command_line=self.command_line,
+        )
+        write(self.path, ckpt)
+        self.saves += 1
+        self.last_save = _time.monotonic()
+        return self.path
+
+    def maybe_save(self, state: RunState) -> None:
+        if self.stop_requested:
+            self.save(state)
+            raise CheckpointInterrupt(self.path, self.stop_signal)
+        if self.every_s is not None and _time.monotonic() - self.last_save >= self.every_s:
+            self.save(state)
+
+
+@contextlib.contextmanager
+def deferred_signals(checkpointer: FileCheckpointer) -> Iterator[None]:
+    """First Ctrl-C or SIGTERM: ask the checkpointer to save and stop at the next kernel boundary.
+
+    A second Ctrl-C raises ``KeyboardInterrupt`` at once (no new checkpoint). A signal that was
+    ignored when the run started (``SIG_IGN``, e.g. SIGINT in a background job) stays ignored.
+    SIGTERM is what a batch system (Slurm) sends before it kills a job at its time limit.
+    Outside the main thread signals cannot be handled, and this does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        if checkpointer.stop_requested and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        checkpointer.request_stop(signum)
+
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            previous[sig] = signal.signal(sig, handler)
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+def check_checkpoint_path(path: str | os.PathLike, *, out: Path | None = None) -> Path:
+    """Refuse, before any work, a checkpoint path that exists or cannot be written."""
+    p = Path(path)
+    if p.exists():
+        raise ValueError(
+            f"checkpoint={str(p)!r} is not accepted: the file exists; continue that run with "
+            f"`stochpend resume {p}`, or delete the file"
+        )
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise ValueError(f"checkpoint={str(p)!r} is not accepted: the directory {str(parent)!r} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise ValueError(f"checkpoint={str(p)!r} is not accepted: the directory {str(parent)!r} is not writable")
+    if out is not None and Path(out).resolve() == p.resolve():
+        raise ValueError(f"checkpoint={str(p)!r} is not accepted: it is the same file as --out")
+    return p
+
+
+def run_checkpointed(
+    config: SimulationConfig,
+    *,
+    checkpoint_path: str | os.PathLike,
+    every_s: float | None,
+    out: str | os.PathLike | None = None,
+    overwrite: bool = False,
+    threads: int | None = None,
+    chunk_paths: int | None = None,
+    progress: Progress | None = None,
+    command_line: str | None = None,
+    checkpointer: FileCheckpointer | None = None,
+    _resume: Checkpoint | None = None,
+) -> xr.Dataset:
+    """Run ``config`` saving checkpoints to ``checkpoint_path``; write ``out``; return the result.
+
+    On Ctrl-C or SIGTERM the state is saved and :class:`CheckpointInterrupt` (a
+    ``KeyboardInterrupt``) is raised; a signal after the last kernel call lets the run finish.
+    On success the result is written to ``out`` (when given) and the checkpoint file is
+    removed. The numbers equal those of :func:`stochpend.simulate.run` exactly.
+    """
+    progress = progress or NoProgress()
+    out_p = None if out is None else Path(out).absolute()
+    if out_p is not None:
+        io.check_output_path(out_p, overwrite=overwrite)
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
+                                or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS):
+        raise ValueError(f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]")
+    if checkpointer is None:
+        checkpointer = FileCheckpointer(
+            checkpoint_path, every_s, config=config, out=out_p, overwrite=overwrite, threads=threads,
+            chunk_paths=chunk_paths, command_line=command_line,
+            elapsed_before_s=0.0 if _resume is None else _resume.elapsed_s,
+            resumed=0 if _resume is None else _resume.resumed + 1,
+        )
+    previous_threads = numba.get_num_threads()
+    if threads is not None:
+        numba.set_num_threads(threads)
+    try:
+        with deferred_signals(checkpointer):
+            if _resume is None:
+                sums, path_steps = run_batches(config, 0, config.n_batches, chunk_paths=chunk_paths,
+                                               progress=progress, checkpointer=checkpointer)
+            else:
+                st = _resume.state
+                sums, path_steps = run_batches(config, st.first_batch, st.stop_batch,
+                                               chunk_paths=chunk_paths, progress=progress,
+                                               checkpointer=checkpointer, resume=st)
+    finally:
+        numba.set_num_threads(previous_threads)
+    attrs = provenance(config, backend="cpu", threads=threads or previous_threads,
+                       wall_time_s=checkpointer.elapsed_s(), path_steps=path_steps)
+    attrs["checkpoint"] = str(checkpointer.path)
+    attrs["checkpoint_every_s"] = "none" if every_s is None else float(every_s)
+    attrs["resumed"] = checkpointer.resumed
+    if command_line:
+        attrs["command_line"] = command_line
+    ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
+    if out_p is not None:
+        io.to_netcdf(ds, out_p, overwrite=overwrite)
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(checkpointer.path)
+    return ds
+
+
+_KEEP = object()
+
+
+def resume(
+    path: str | os.PathLike,
+    *,
+    out: Any = _KEEP,
+    overwrite: bool | None = None,
+    every_s: Any = _KEEP,
+    threads: Any = _KEEP,
+    progress: Progress | None = None,
+) -> xr.Dataset:
+    """Continue the run saved in ``path``; write its result where the original command would have.
+
+    ``out``, ``overwrite``, ``every_s`` and ``threads`` default to those of the original run
+    (``out=None`` writes nothing). Checkpoints keep being written to ``path`` at the same
+    interval; the file is removed once the result is written.
+    """
+    ckpt = read(path)
+    if threads is _KEEP:  # the machine that resumes may have fewer threads
+        threads = None if ckpt.threads is None else min(ckpt.threads, numba.config.NUMBA_NUM_THREADS)
+    out_p = ckpt.out if out is _KEEP else (None if out is None else Path(out))
+    ow = ckpt.overwrite if overwrite is None else overwrite
+    return run_checkpointed(
+        ckpt.config, checkpoint_path=path,
+        every_s=ckpt.every_s if every_s is _KEEP else every_s,
+        out=out_p, overwrite=ow,
+        threads=threads,
+        chunk_paths=ckpt.chunk_paths, progress=progress, command_line=ckpt.command_line,
+        _resume=ckpt,
+    )

@@ -1,0 +1,604 @@
+"""Parameter sweeps: many ensembles described in TOML, run as (parameter set, batches) tasks.
+
+A sweep is a grid (Cartesian product) or a list of cases of :class:`SimulationConfig`
+parameters. Each set's batches are cut into blocks; each block is one task that returns the
+per-batch sums of its batches (:func:`run_block`). Placing those sums back is exact (see
+:mod:`stochpend.stats`) and random numbers are keyed by (seed, global path index), so the
+result does not depend on the engine: in this process, Dask threads, a local cluster or a
+remote one give the same numbers to the last bit.
+
+TOML format (see docs/scale-out.md)::
+
+    description = "Fig. 2"          # optional, stored in the result's attributes
+
+    [base]                          # parameters shared by every set (SimulationConfig.build)
+    noise = "ou"
+    omega = 1.0
+    paths = 2000
+    t_max = 100.0
+
+    [grid]                          # each key a list: the Cartesian product, in this order
+    D = [1, 10, 100]
+    tau = [0.1, 1, 10]
+
+or, instead of ``[grid]``, a list of cases (each overrides ``[base]``)::
+
+    [[case]]
+    D = 1
+    tau = 0.1
+
+    [[case]]
+    D = 10
+    tau = 1
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import itertools
+import json
+import math
+import os
+import time as _time
+import tomllib
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import numba
+import numpy as np
+import xarray as xr
+
+from stochpend import __version__
+from stochpend.params import SimulationConfig, hist_edges
+from stochpend.progress import NoProgress, Progress
+from stochpend.simulate import provenance, run_batches
+from stochpend.stats import EnsembleSums
+
+__all__ = ["BlockResult", "SweepSpec", "Task", "load_spec", "plan_tasks", "run_block", "sweep"]
+
+#: Every parameter a sweep may set: the keywords of SimulationConfig.build.
+PARAMETERS: tuple[str, ...] = tuple(
+    name for name in inspect.signature(SimulationConfig.build).parameters if name != "cls"
+)
+#: Parameters whose value is a list: settable in [base] and [[case]], not a grid axis.
+LIST_PARAMETERS = ("times", "hist_E_max")
+TOP_LEVEL = ("description", "base", "grid", "case")
+#: Attributes that differ between runs of the same numbers (never data variables).
+_RUN_ATTRS = ("backend", "threads", "wall_time_s", "path_steps", "path_steps_per_s", "created")
+SCHEDULER_HELP = "sync, threads, local, or a scheduler address such as tcp://HOST:8786"
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A validated sweep: the configurations in row-major order over ``shape``."""
+
+    kind: str  # "grid" or "case"
+    dims: tuple[str, ...]
+    shape: tuple[int, ...]
+    coords: dict[str, tuple[tuple[str, ...], np.ndarray]]
+    configs: tuple[SimulationConfig, ...]
+    swept: tuple[str, ...]
+    description: str
+    source: str
+    text: str
+
+    @property
+    def n_sets(self) -> int:
+        return len(self.configs)
+
+
+@dataclass(frozen=True)
+class Task:
+    """One unit of work: batches ``b0 .. b1 - 1`` of parameter set ``set_index``."""
+
+    set_index: int
+    b0: int
+    b1: int
+    paths: int
+
+
+@dataclass
+class BlockResult:
+    """What a task returns: the sums of its batches (all a merge needs), and its cost."""
+
+    set_index: int
+    b0: int
+    b1: int
+    sums: np.ndarray  # (b1 - b0, n_times, N_SUMS)
+    hist: np.ndarray  # (n_times, n_bins + 2)
+    path_steps: int
+    paths: int
+    seconds: float
+
+
+#: The modules whose code determines the numbers (add any new kernel module here).
+_NUMBERS_MODULES = ("stochpend.params", "stochpend.physics", "stochpend.rng", "stochpend.schemes",
+                    "stochpend.simulate", "stochpend.stats", "stochpend._backends.cpu",
+                    "stochpend._backends.cpu_fast", "stochpend.fastmath")
+
+
+def _code_fingerprint() -> str:
+    """SHA-256 (12 hex digits) of the modules that determine the numbers, as imported here."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for name in _NUMBERS_MODULES:
+        h.update(Path(importlib.import_module(name).__file__).read_bytes())
+    return h.hexdigest()[:12]
+
+
+#: This process's stochpend: version and code fingerprint. Every worker must have the same.
+BUILD = f"{__version__} (code {_code_fingerprint()})"
+
+
+# -- parsing and validation ------------------------------------------------------------------
+def _fmt_value(v: Any) -> str:
+    return repr(v) if not isinstance(v, list) or len(v) <= 6 else f"[{v[0]!r}, ..., {v[-1]!r}] ({len(v)} values)"
+
+
+def _scalar_ok(v: Any) -> bool:
+    return isinstance(v, (int, float, str)) and not isinstance(v, bool)
+
+
+def _check_params(table: Any, where: str, source: str, *, grid: bool = False) -> dict[str, Any]:
+    if not isinstance(table, Mapping):
+        raise ValueError(f"{source}: {where}={_fmt_value(table)} is not accepted: a table of parameters")
+    out = {}
+    for key, value in table.items():
+        name = f"{where}.{key}"
+        if key not in PARAMETERS:
+            raise ValueError(
+                f"{source}: {name} is not accepted: unknown parameter; accepted: {', '.join(PARAMETERS)}"
+            )
+        if grid:
+            if key in LIST_PARAMETERS:
+                raise ValueError(f"{source}: {name} is not accepted: {key} is a list and cannot be a grid "
+                                 f"axis; set it in [base] or per [[case]]")
+            if not isinstance(value, list) or not value:
+                raise ValueError(f"{source}: {name}={_fmt_value(value)} is not accepted: a grid axis is a "
+                                 f"non-empty list of values, e.g. {key} = [1, 10, 100]")
+            for v in value:
+                if not _scalar_ok(v):
+                    raise ValueError(f"{source}: {name}={_fmt_value(value)} is not accepted: each value must be "
+                                     f"a number or a string, got {v!r}")
+            norm = [float(v) if isinstance(v, (int, float)) else v for v in value]
+            if len(set(map(repr, norm))) != len(norm):
+                raise ValueError(f"{source}: {name}={_fmt_value(value)} is not accepted: repeated values")
+        elif key in LIST_PARAMETERS:
+            if not (_scalar_ok(value) or (isinstance(value, list) and all(_scalar_ok(v) for v in value))):
+                raise ValueError(f"{source}: {name}={_fmt_value(value)} is not accepted: a number or a list of numbers")
+        elif not _scalar_ok(value):
+            hint = " (put lists of values under [grid])" if isinstance(value, list) else ""
+            raise ValueError(f"{source}: {name}={_fmt_value(value)} is not accepted: a single number or string{hint}")
+        out[key] = value
+    return out
+
+
+def _build(params: dict[str, Any], source: str, where: str) -> SimulationConfig:
+    try:
+        return SimulationConfig.build(**params)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {where}: {str(exc).splitlines()[0]}") from None
+
+
+def _coord_value(config: SimulationConfig, key: str, raw: Any) -> Any:
+    """The value a swept parameter took, as stored in a coordinate."""
+    if key == "n_times":
+        return len(config.times)
+    names = {f.name for f in fields(config)}
+    if key in names:
+        v = getattr(config, key)
+        if v is None:
+            return {"theta0": "uniform", "xi0": "stationary", "tau": "none"}.get(key, "none")
+        return v
+    return raw
+
+
+def _coord_array(values: list[Any]) -> np.ndarray:
+    """Numbers (with "none", e.g. tau of white noise, as NaN), or strings if any is a string."""
+    numbers = [v for v in values if v != "none"]
+    if "none" in values and numbers and all(isinstance(v, (int, float)) for v in numbers):
+        return np.asarray([np.nan if v == "none" else float(v) for v in values])
+    if any(isinstance(v, str) for v in values):
+        return np.asarray([str(v) for v in values])
+    return np.asarray(values)
+
+
+def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepSpec) -> SweepSpec:
+    """Parse and validate a sweep (a TOML file or the same structure as a dict).
+
+    Every parameter set is built (and so validated) here, before any work. Refusals are one
+    ``ValueError`` line naming the file and the key.
+    """
+    if isinstance(spec, SweepSpec):
+        return spec
+    if isinstance(spec, Mapping):
+        data = dict(spec)
+        source = "sweep"
+        text = json.dumps(data, sort_keys=True, default=str)
+    else:
+        p = Path(spec)
+        source = p.name
+        if not p.is_file():
+            raise ValueError(f"sweep={str(p)!r} is not accepted: no such file")
+        try:
+            text = p.read_text(encoding="utf-8")
+            data = tomllib.loads(text)
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"sweep={str(p)!r} is not accepted: not UTF-8 text ({exc})") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise ValueError(f"sweep={str(p)!r} is not accepted: invalid TOML ({exc})") from None
+
+    for key in data:
+        if key not in TOP_LEVEL:
+            hint = " (parameters go under [base], [grid] or [[case]])" if key in PARAMETERS else ""
+            raise ValueError(f"{source}: {key} is not accepted: unknown key{hint}; accepted: "
+                             f"{', '.join(TOP_LEVEL)}")
+    description = data.get("description", "")
+    if not isinstance(description, str):
+        raise ValueError(f"{source}: description={description!r} is not accepted: a string")
+    base = _check_params(data.get("base", {}), "base", source)
+    has_grid, has_case = "grid" in data, "case" in data
+    if has_grid == has_case:
+        raise ValueError(f"{source}: a sweep needs exactly one of [grid] (a product of values) or "
+                         f"[[case]] (a list of parameter sets); found {'both' if has_grid else 'neither'}")
+
+    raw_sets: list[dict[str, Any]]
+    coords: dict[str, tuple[tuple[str, ...], np.ndarray]] = {}
+    if has_grid:
+        grid = _check_params(data["grid"], "grid", source, grid=True)
+        if not grid:
+            raise ValueError(f"{source}: grid is not accepted: empty; give at least one parameter with a list of values")
+        for key in grid:
+            if key in base:
+                raise ValueError(f"{source}: grid.{key} is not accepted: {key} is also set in [base]")
+        dims = tuple(grid)
+        shape = tuple(len(v) for v in grid.values())
+        raw_sets = [dict(zip(dims, combo, strict=True)) for combo in itertools.product(*grid.values())]
+        configs = []
+        for params in raw_sets:
+            where = "grid set (" + ", ".join(f"{k}={v!r}" for k, v in params.items()) + ")"
+            configs.append(_build({**base, **params}, source, where))
+        for axis, key in enumerate(dims):
+            stride = int(np.prod(shape[axis + 1:], dtype=np.int64))
+            values = [_coord_value(configs[i * stride], key, grid[key][i]) for i in range(shape[axis])]
+            coords[key] = ((key,), _coord_array(values))
+        kind = "grid"
+        swept = dims
+    else:
+        cases = data["case"]
+        if not isinstance(cases, list) or not cases:
+            raise ValueError(f"{source}: case is not accepted: a non-empty list of tables ([[case]] ...)")
+        raw_sets = [_check_params(c, f"case[{i}]", source) for i, c in enumerate(cases)]
+        configs = [_build({**base, **params}, source, f"case[{i}]") for i, params in enumerate(raw_sets)]
+        dims = ("case",)
+        shape = (len(configs),)
+        keys = []
+        for params in raw_sets:
+            keys += [k for k in params if k not in keys and k not in LIST_PARAMETERS]
+        coords["case"] = (("case",), np.arange(len(configs)))
+        for key in keys:
+            values = [_coord_value(c, key, {**base, **p}.get(key)) for c, p in zip(configs, raw_sets, strict=True)]
+            coords[key] = (("case",), _coord_array(values))
+        kind = "case"
+        swept = tuple(keys)
+
+    seen: dict[str, int] = {}
+    for i, c in enumerate(configs):
+        key = repr(c)  # every field, floats exactly
+        if key in seen:
+            a, b = _set_name(kind, seen[key], raw_sets), _set_name(kind, i, raw_sets)
+            why = " (a swept parameter has no effect there)" if kind == "grid" else ""
+            raise ValueError(f"{source}: {b} is not accepted: it is the same simulation as {a}{why}")
+        seen[key] = i
+    n_times = {len(c.times) for c in configs}
+    if len(n_times) > 1:
+        raise ValueError(f"{source}: n_times is not accepted: it differs between sets ({sorted(n_times)}); "
+                         f"every set must have the same number of output times")
+    bins = {c.hist_bins for c in configs}
+    if len(bins) > 1:
+        raise ValueError(f"{source}: hist_bins is not accepted: it differs between sets ({sorted(bins)}); "
+                         f"every set must have the same number of histogram bins")
+    return SweepSpec(kind=kind, dims=dims, shape=shape, coords=coords, configs=tuple(configs),
+                     swept=tuple(swept), description=description, source=source, text=text)
+
+
+def _set_name(kind: str, i: int, raw_sets: list[dict[str, Any]]) -> str:
+    if kind == "case":
+        return f"case[{i}]"
+    return "grid set (" + ", ".join(f"{k}={v!r}" for k, v in raw_sets[i].items()) + ")"
+
+
+# -- tasks -----------------------------------------------------------------------------------
+def _check_positive_int(name: str, value: Any) -> int | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name}={value!r} is not accepted: an integer >= 1")
+    return int(value)
+
+
+def plan_tasks(spec: SweepSpec, tasks_per_set: int) -> list[Task]:
+    """Cut every set's batches into at most ``tasks_per_set`` contiguous blocks."""
+    tasks = []
+    for i, c in enumerate(spec.configs):
+        n = min(tasks_per_set, c.n_batches)
+        edges = [round(k * c.n_batches / n) for k in range(n + 1)]
+        for b0, b1 in itertools.pairwise(edges):
+            paths = min(b1 * c.batch_size, c.paths) - b0 * c.batch_size
+            tasks.append(Task(i, b0, b1, paths))
+    return tasks
+
+
+def run_block(config: SimulationConfig, set_index: int, b0: int, b1: int, *,
+              numba_threads: int | None = None, expect_version: str | None = None,
+              progress: Progress | None = None) -> BlockResult:
+    """Simulate batches ``b0 .. b1 - 1`` of one set: the function every engine runs."""
+    if expect_version is not None and expect_version != BUILD:
+        raise ValueError(f"a worker runs stochpend {BUILD}, the client stochpend {expect_version}: "
+                         f"install the same stochpend everywhere")
+    started = _time.perf_counter()
+    previous = numba.get_num_threads()
+    if numba_threads is not None:
+        numba.set_num_threads(max(1, min(int(numba_threads), numba.config.NUMBA_NUM_THREADS)))
+    try:
+        acc, path_steps = run_batches(config, b0, b1, progress=progress)
+    finally:
+        numba.set_num_threads(previous)
+    paths = min(b1 * config.batch_size, config.paths) - b0 * config.batch_size
+    return BlockResult(set_index, b0, b1, acc.sums[b0:b1].copy(), acc.hist, int(path_steps), paths,
+                       _time.perf_counter() - started)
+
+
+class _Tracker:
+    """Feeds sweep progress (paths done, tasks done) to a :class:`Progress`.
+
+    ``progress.update`` receives paths; optional duck-typed methods: ``tasks(done, total)``
+    and ``note(text)`` (used by the command line for its task counter and the dashboard).
+    """
+
+    def __init__(self, progress: Progress, total_paths: int, total_tasks: int) -> None:
+        self.progress = progress
+        self.total_paths = total_paths
+        self.total_tasks = total_tasks
+        self.paths_done = 0
+        self.tasks_done = 0
+
+    def start(self) -> None:
+        self.progress.start(float(self.total_paths), "sweep")
+        self._tasks()
+
+    def note(self, text: str) -> None:
+        note = getattr(self.progress, "note", None)
+        if callable(note):
+            note(text)
+
+    def _tasks(self) -> None:
+        fn = getattr(self.progress, "tasks", None)
+        if callable(fn):
+            fn(self.tasks_done, self.total_tasks)
+
+    def partial(self, paths: float) -> None:
+        self.progress.update(self.paths_done + paths)
+
+    def done(self, result: BlockResult) -> None:
+        self.paths_done += result.paths
+        self.tasks_done += 1
+        self._tasks()
+        self.progress.update(float(self.paths_done))
+
+    def finish(self) -> None:
+        self.progress.finish()
+
+
+class _PartialProgress:
+    """Progress of the running task (path-time units) as paths, for the in-process engine."""
+
+    def __init__(self, tracker: _Tracker, t_max: float) -> None:
+        self.tracker = tracker
+        self.t_max = t_max
+
+    def start(self, total: float, description: str) -> None:
+        pass
+
+    def update(self, done: float) -> None:
+        self.tracker.partial(done / self.t_max)
+
+    def finish(self) -> None:
+        pass
+
+
+def _run_inprocess(spec: SweepSpec, tasks: list[Task], tracker: _Tracker,
+                   on_result: Callable[[BlockResult], None]) -> dict[str, Any]:
+    for task in tasks:
+        config = spec.configs[task.set_index]
+        r = run_block(config, task.set_index, task.b0, task.b1,
+                      progress=_PartialProgress(tracker, config.t_max))
+        on_result(r)
+        tracker.done(r)
+    return {"engine": "in-process", "scheduler": "none", "workers": 1}
+
+
+def _dask_backend(scheduler: Any) -> Any:
+    try:
+        backend = importlib.import_module("stochpend._backends.dask")
+    except ImportError:
+        shown = scheduler if isinstance(scheduler, str) else type(scheduler).__name__
+        raise ValueError(f"scheduler={shown!r} requires the `dask` extra: pip install 'stochpend[dask]'") from None
+    return backend
+
+
+def check_scheduler(scheduler: Any) -> None:
+    """Refuse an unknown scheduler, or a Dask one without the extra, before any work."""
+    if scheduler is None:
+        return
+    if isinstance(scheduler, str):
+        if scheduler not in ("sync", "synchronous", "threads", "local") and "://" not in scheduler:
+            raise ValueError(f"scheduler={scheduler!r} is not accepted: one of {SCHEDULER_HELP}")
+    _dask_backend(scheduler)
+
+
+def default_tasks_per_set(spec: SweepSpec, slots: int) -> int:
+    """About 8 tasks per worker thread, at least one a set: sets differ in cost (Fig. 2's
+    dearest set takes a third of the work), so one task a set balances badly."""
+    return max(1, math.ceil(8 * slots / spec.n_sets))
+
+
+# -- the sweep -------------------------------------------------------------------------------
+def sweep(
+    spec: Mapping[str, Any] | str | os.PathLike | SweepSpec,
+    *,
+    scheduler: Any = None,
+    workers: int | None = None,
+    progress: Progress | None = None,
+    tasks_per_set: int | None = None,
+) -> xr.Dataset:
+    """Run every parameter set of a sweep and return one Dataset.
+
+    Parameters
+    ----------
+    spec : path, dict or SweepSpec
+        A TOML file (format in the module docstring and docs/scale-out.md) or the same
+        structure as a dict; validated whole before any work.
+    scheduler : None, str or distributed.Client
+        ``None`` (default): the tasks run one after another in this process, each using all
+        Numba threads; no Dask needed. ``"sync"``/``"threads"``: Dask's embedded schedulers
+        (no server). ``"local"``: a ``distributed.LocalCluster`` of ``workers`` processes with
+        one thread each. ``"tcp://HOST:8786"``: an existing Dask scheduler. A
+        ``distributed.Client`` is used as it is (and left open).
+    workers : int, optional
+        Threads (``"threads"``) or worker processes (``"local"``); default: the CPU count.
+    progress : Progress, optional
+        Receives the paths done (``start(total_paths, ...)``, ``update(paths_done)``).
+    tasks_per_set : int, optional
+        Blocks of batches per set (capped at its ``n_batches``). Default: 1 in process, else
+        about 8 tasks per worker thread in all. The numbers do not depend on it.
+
+    Returns
+    -------
+    xarray.Dataset
+        The variables of :func:`stochpend.simulate` with the swept dimensions first: dims
+        ``(D, tau, time)`` for a grid over D and tau, ``(case, time)`` for cases (the
+        parameters are coordinates along ``case``). ``path_steps`` per set; parameters common
+        to every set are attributes.
+    """
+    spec = load_spec(spec)
+    workers = _check_positive_int("workers", workers)
+    tasks_per_set = _check_positive_int("tasks_per_set", tasks_per_set)
+    check_scheduler(scheduler)
+    started = _time.perf_counter()
+
+    results: list[list[BlockResult]] = [[] for _ in spec.configs]
+
+    def on_result(r: BlockResult) -> None:
+        results[r.set_index].append(r)
+
+    if scheduler is None:
+        tasks = plan_tasks(spec, tasks_per_set or 1)
+        tracker = _Tracker(progress or NoProgress(), sum(t.paths for t in tasks), len(tasks))
+        tracker.start()
+        try:
+            info = _run_inprocess(spec, tasks, tracker, on_result)
+        finally:
+            tracker.finish()
+    else:
+        backend = _dask_backend(scheduler)
+        with backend.connect(scheduler, workers) as engine:
+            tasks = plan_tasks(spec, tasks_per_set or default_tasks_per_set(spec, engine.slots))
+            tracker = _Tracker(progress or NoProgress(), sum(t.paths for t in tasks), len(tasks))
+            if engine.dashboard:
+                tracker.note(f"Dask dashboard: {engine.dashboard}")
+            tracker.start()
+            try:
+                engine.run(spec, tasks, tracker, on_result)
+            finally:
+                tracker.finish()
+            info = engine.info()
+    wall = _time.perf_counter() - started
+    return _assemble(spec, results, info=info, n_tasks=len(tasks), wall_time_s=wall)
+
+
+def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[str, Any], n_tasks: int,
+              wall_time_s: float) -> xr.Dataset:
+    datasets = []
+    per_set_attrs = []
+    path_steps = []
+    compute_s = 0.0
+    for config, rs in zip(spec.configs, results, strict=True):
+        acc = EnsembleSums.empty(config.n_batches, len(config.times), config.hist_bins)
+        steps = 0
+        for r in sorted(rs, key=lambda r: r.b0):
+            acc.add_batches(r.b0, r.sums, r.hist)
+            steps += r.path_steps
+            compute_s += r.seconds
+        if not acc.complete:
+            raise RuntimeError("internal error: a sweep set is missing batches")
+        datasets.append(acc.to_dataset(np.asarray(config.times), hist_edges(config), {}))
+        per_set_attrs.append(provenance(config, backend="cpu", threads=0, wall_time_s=0.0, path_steps=steps))
+        path_steps.append(steps)
+
+    shape = spec.shape
+    first = datasets[0]
+    times = np.stack([np.asarray(c.times) for c in spec.configs])
+    same_times = bool(np.all(times == times[0]))
+    data_vars: dict[str, Any] = {}
+    for name, var in first.data_vars.items():
+        stacked = np.stack([ds[name].values for ds in datasets]).reshape(shape + var.shape)
+        data_vars[name] = (spec.dims + var.dims, stacked, dict(var.attrs))
+    data_vars["path_steps"] = (spec.dims, np.asarray(path_steps, dtype=np.int64).reshape(shape),
+                               {"long_name": "path-steps taken by this parameter set"})
+
+    coords: dict[str, Any] = {k: (d, v) for k, (d, v) in spec.coords.items()}
+    if same_times:
+        coords["time"] = ("time", times[0], dict(first.time.attrs))
+    else:
+        coords["times"] = (spec.dims + ("time",), times.reshape(shape + (times.shape[1],)),
+                           {"long_name": "output times of each parameter set", **first.time.attrs})
+
+    attrs: dict[str, Any] = {"title": "stochpend parameter sweep"}
+    for key, value in per_set_attrs[0].items():
+        if key in _RUN_ATTRS or key in spec.coords:
+            continue
+        values = [a[key] for a in per_set_attrs]
+        if all(v == value for v in values):
+            if key != "title":
+                attrs[key] = value
+        elif key not in data_vars:
+            data_vars[key] = (spec.dims, _coord_array(values).reshape(shape),
+                              {"long_name": f"{key} of each parameter set"})
+    total_steps = int(sum(path_steps))
+    attrs.update({
+        "description": spec.description,
+        "sweep_kind": spec.kind,
+        "sweep_dims": ",".join(spec.dims),
+        "sweep_swept": ",".join(spec.swept),
+        "sweep_source": spec.source,
+        "sweep_spec": spec.text,
+        "sweep_sets": spec.n_sets,
+        "sweep_tasks": n_tasks,
+        "sweep_engine": info.get("engine", ""),
+        "sweep_scheduler": str(info.get("scheduler", "")),
+        "sweep_workers": int(info.get("workers", 0)),
+        "stochpend_build": BUILD,
+        "wall_time_s": wall_time_s,
+        "compute_time_s": compute_s,
+        "path_steps": total_steps,
+        "path_steps_per_s": total_steps / wall_time_s if wall_time_s > 0 else float("nan"),
+        "created": _time.strftime("%Y-%m-%dT%H:%M:%SZ", _time.gmtime()),
+    })
+    return xr.Dataset(data_vars, coords=coords, attrs=attrs)
+
+
+def flat_sets(ds: xr.Dataset) -> Sequence[dict[str, Any]]:
+    """The parameter values of each set of a sweep result, in row-major order (for tables)."""
+    dims = [d for d in ds.attrs.get("sweep_dims", "").split(",") if d]
+    swept = [k for k in ds.attrs.get("sweep_swept", "").split(",") if k]
+    out = []
+    for index in itertools.product(*(range(ds.sizes[d]) for d in dims)):
+        sel = dict(zip(dims, index, strict=True))
+        row = {k: ds[k].isel({d: i for d, i in sel.items() if d in ds[k].dims}).item() for k in swept}
+        out.append({"index": sel, "params": row})
+    return out

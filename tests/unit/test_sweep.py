@@ -1,0 +1,272 @@
+"""Sweeps: TOML validation, the result's layout, and exactness (no Dask needed here)."""
+
+from __future__ import annotations
+
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from stochpend import cli, io
+from stochpend._cli_scale import resume_command, sweep_command
+from stochpend.params import SimulationConfig
+from stochpend.simulate import run
+from stochpend.sweep import BUILD, load_spec, plan_tasks, run_block, sweep
+
+BASE = """
+description = "tiny"
+[base]
+noise = "ou"
+omega = 1.0
+paths = 24
+t_max = 2.0
+n_times = 4
+seed = 11
+n_batches = 6
+"""
+
+GRID = BASE + """
+[grid]
+D = [1, 10]
+tau = [0.1, 1, 10]
+"""
+
+CASES = BASE + """
+[[case]]
+D = 1
+tau = 0.5
+
+[[case]]
+D = 10
+tau = 2
+seed = 3
+
+[[case]]
+noise = "white"
+D = 2
+"""
+
+
+def _write(tmp_path, text, name="sweep.toml"):
+    p = tmp_path / name
+    p.write_text(textwrap.dedent(text))
+    return p
+
+
+def _assert_identical(a, b):
+    assert set(a.data_vars) == set(b.data_vars)
+    for name in a.variables:
+        assert np.array_equal(a[name].values, b[name].values, equal_nan=a[name].dtype.kind == "f"), name
+
+
+@pytest.fixture
+def app():
+    """The main app with the sweep and resume commands registered (as cli.py will)."""
+    names = {c.name for c in cli.app.registered_commands}
+    if "sweep" not in names:
+        cli.app.command("sweep")(sweep_command)
+    if "resume" not in names:
+        cli.app.command("resume")(resume_command)
+    return cli.app
+
+
+def test_grid_layout_and_exactness(tmp_path):
+    ds = sweep(_write(tmp_path, GRID), tasks_per_set=4)
+    assert ds.mean_E.dims == ("D", "tau", "time")
+    assert ds.E_hist.dims[:3] == ("D", "tau", "time")
+    assert ds.sizes["D"] == 2 and ds.sizes["tau"] == 3
+    assert ds.D.values.tolist() == [1.0, 10.0] and ds.tau.values.tolist() == [0.1, 1.0, 10.0]
+    assert ds.path_steps.dims == ("D", "tau")
+    assert ds.attrs["noise"] == "ou" and ds.attrs["paths"] == 24 and "D" not in ds.attrs
+    assert ds.attrs["sweep_tasks"] == 6 * 4 and ds.attrs["description"] == "tiny"
+    # Every set equals the same simulation run on its own, to the last bit.
+    for D in (1, 10):
+        for tau in (0.1, 1, 10):
+            cfg = SimulationConfig.build(noise="ou", omega=1.0, paths=24, t_max=2.0, n_times=4, seed=11,
+                                         n_batches=6, D=D, tau=tau)
+            ref = run(cfg)
+            one = ds.sel(D=float(D), tau=float(tau))
+            for name in ref.data_vars:
+                assert np.array_equal(one[name].values, ref[name].values, equal_nan=True), name
+            assert int(one.path_steps) == ref.attrs["path_steps"]
+
+
+def test_tasks_per_set_does_not_change_numbers(tmp_path):
+    p = _write(tmp_path, GRID)
+    _assert_identical(sweep(p, tasks_per_set=1), sweep(p, tasks_per_set=5))
+
+
+def test_case_list_layout(tmp_path):
+    ds = sweep(_write(tmp_path, CASES), tasks_per_set=2)
+    assert ds.mean_E2.dims == ("case", "time")
+    assert ds.case.values.tolist() == [0, 1, 2]
+    assert ds.D.dims == ("case",) and ds.D.values.tolist() == [1.0, 10.0, 2.0]
+    assert ds.noise.values.tolist() == ["ou", "ou", "white"]
+    assert ds.seed.values.tolist() == [11, 3, 11]
+    assert ds.tau.values[:2].tolist() == [0.5, 2.0] and np.isnan(ds.tau.values[2])
+    ref = run(SimulationConfig.build(noise="white", D=2, omega=1.0, paths=24, t_max=2.0, n_times=4, seed=11,
+                                     n_batches=6))
+    for name in ref.data_vars:
+        assert np.array_equal(ds[name].isel(case=2).values, ref[name].values, equal_nan=True), name
+
+
+def test_dict_spec_and_netcdf_round_trip(tmp_path):
+    spec = {"base": {"paths": 16, "t_max": 1.0, "n_times": 3, "n_batches": 4}, "grid": {"tau": [0.5, 2.0]}}
+    ds = sweep(spec)
+    out = io.to_netcdf(ds, tmp_path / "s.nc")
+    back = io.open_results(out)
+    _assert_identical(ds, back)
+
+
+def test_sets_with_different_output_times(tmp_path):
+    ds = sweep(_write(tmp_path, BASE.replace("t_max = 2.0", "") + "[grid]\nt_max = [1.0, 2.0]\n"))
+    assert "time" not in ds.coords and ds.times.dims == ("t_max", "time")
+    assert ds.times.values[:, -1].tolist() == [1.0, 2.0]
+    back = io.open_results(io.to_netcdf(ds, tmp_path / "s.nc"))
+    _assert_identical(ds, back)
+
+
+def test_plan_tasks_covers_every_batch_once():
+    spec = load_spec({"base": {"paths": 50, "n_batches": 7, "t_max": 1.0}, "grid": {"D": [1, 2]}})
+    for per_set in (1, 3, 7, 100):
+        tasks = plan_tasks(spec, per_set)
+        for i, c in enumerate(spec.configs):
+            mine = sorted((t.b0, t.b1) for t in tasks if t.set_index == i)
+            assert mine[0][0] == 0 and mine[-1][1] == c.n_batches
+            assert all(a[1] == b[0] for a, b in zip(mine, mine[1:], strict=False))
+            assert sum(t.paths for t in tasks if t.set_index == i) == c.paths
+
+
+class Recorder:
+    def __init__(self):
+        self.updates, self.task_counts, self.notes = [], [], []
+
+    def start(self, total, description):
+        self.total = total
+
+    def update(self, done):
+        self.updates.append(done)
+
+    def finish(self):
+        self.finished = True
+
+    def tasks(self, done, total):
+        self.task_counts.append((done, total))
+
+
+def test_progress_reports_paths_and_tasks(tmp_path):
+    rec = Recorder()
+    sweep(_write(tmp_path, GRID), progress=rec, tasks_per_set=2)
+    assert rec.total == 6 * 24 and rec.updates[-1] == 6 * 24
+    assert rec.task_counts[0] == (0, 12) and rec.task_counts[-1] == (12, 12)
+    assert all(b >= a for a, b in zip(rec.updates, rec.updates[1:], strict=False)) and rec.finished
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        (BASE + "[grid]\nDx = [1, 2]\n", "grid.Dx is not accepted: unknown parameter"),
+        (BASE.replace("seed = 11", "sead = 11") + "[grid]\nD = [1, 2]\n", "base.sead is not accepted: unknown parameter"),
+        (BASE + "[[case]]\nD = 1\nfoo = 2\n", "case[0].foo is not accepted: unknown parameter"),
+        ("D = 1\n" + BASE + "[grid]\ntau = [1, 2]\n", "D is not accepted: unknown key (parameters go under"),
+        (BASE + "[grid]\nD = [1, -1]\n", "grid set (D=-1): D=-1.0 is not accepted"),
+        (BASE + "[grid]\ntau = [1, 0]\n", "tau=0.0 is not accepted"),
+        (BASE + "[grid]\nD = 1\n", "grid.D=1 is not accepted: a grid axis is a non-empty list"),
+        (BASE + "[grid]\nD = []\n", "grid.D=[] is not accepted"),
+        (BASE + "[grid]\nD = [1, 1.0]\n", "grid.D=[1, 1.0] is not accepted: repeated values"),
+        (BASE + "[grid]\nD = [[1], [2]]\n", "grid.D=[[1], [2]] is not accepted: each value"),
+        (BASE + "[grid]\ntimes = [[1.0], [2.0]]\n", "grid.times is not accepted: times is a list"),
+        (BASE + "[grid]\nseed = [1, 2]\n", "grid.seed is not accepted: seed is also set in [base]"),
+        (BASE.replace("seed = 11", "seed = [1, 2]") + "[grid]\nD = [1, 2]\n", "base.seed=[1, 2] is not accepted: a single"),
+        (BASE.replace("seed = 11", "seed = true") + "[grid]\nD = [1, 2]\n", "base.seed=True is not accepted"),
+        (BASE + "[grid]\nD = [1, 2]\n[[case]]\nD = 3\n", "exactly one of [grid]"),
+        (BASE, "exactly one of [grid]"),
+        (BASE + "[grid]\n", "grid is not accepted: empty"),
+        (BASE.replace('noise = "ou"', 'noise = "white"') + "[grid]\ntau = [1, 2]\n",
+         "is the same simulation as grid set (tau=1)"),
+        (BASE + "[[case]]\nn_times = 3\n[[case]]\nn_times = 5\n", "n_times is not accepted: it differs"),
+        (BASE + "[[case]]\nhist_bins = 3\n[[case]]\nhist_bins = 5\n", "hist_bins is not accepted: it differs"),
+        (BASE + "[[case]]\nnoise = 'pink'\n", "case[0]: noise='pink' is not accepted"),
+        (BASE + "[grid\nD = [1]\n", "invalid TOML"),
+        ('description = 3\n[grid]\nD = [1, 2]\n', "description=3 is not accepted"),
+    ],
+)
+def test_validation_names_the_key(tmp_path, text, needle):
+    p = _write(tmp_path, text)
+    with pytest.raises(ValueError) as info:
+        load_spec(p)
+    message = str(info.value)
+    assert needle in message, message
+    assert "\n" not in message
+
+
+def test_missing_file_and_bad_arguments(tmp_path):
+    with pytest.raises(ValueError, match="no such file"):
+        sweep(tmp_path / "nope.toml")
+    p = _write(tmp_path, GRID)
+    with pytest.raises(ValueError, match="scheduler='bogus' is not accepted: one of sync, threads, local"):
+        sweep(p, scheduler="bogus")
+    with pytest.raises(ValueError, match="tasks_per_set=0 is not accepted"):
+        sweep(p, tasks_per_set=0)
+    with pytest.raises(ValueError, match="workers=0 is not accepted"):
+        sweep(p, workers=0)
+
+
+@pytest.mark.parametrize("scheduler", ["threads", "local", "tcp://127.0.0.1:8786"])
+def test_missing_dask_extra_is_one_clear_line(tmp_path, monkeypatch, scheduler):
+    import stochpend._backends
+
+    for name in ("dask", "distributed", "stochpend._backends.dask"):
+        monkeypatch.setitem(sys.modules, name, None)
+    monkeypatch.delattr(stochpend._backends, "dask", raising=False)
+    with pytest.raises(ValueError) as info:
+        sweep(_write(tmp_path, GRID), scheduler=scheduler)
+    assert str(info.value) == f"scheduler={scheduler!r} requires the `dask` extra: pip install 'stochpend[dask]'"
+
+
+def test_cli_sweep_writes_netcdf(tmp_path, app):
+    p = _write(tmp_path, GRID)
+    out = tmp_path / "sweep.nc"
+    result = CliRunner().invoke(app, ["sweep", str(p), "--out", str(out), "--tasks-per-set", "3"])
+    assert result.exit_code == 0, result.output
+    assert "stochpend sweep: 6 parameter sets" in result.output and "wrote" in result.output
+    back = io.open_results(out)
+    assert back.mean_E.dims == ("D", "tau", "time")
+    assert back.attrs["command_line"].startswith("stochpend")
+    ref = sweep(p)
+    for name in ref.data_vars:
+        assert np.array_equal(back[name].values, ref[name].values, equal_nan=True), name
+
+
+@pytest.mark.parametrize(
+    ("text", "args", "needle"),
+    [
+        (GRID.replace("tau = [0.1, 1, 10]", "taux = [0.1, 1]"), [], "grid.taux is not accepted"),
+        (GRID.replace("D = [1, 10]", "D = [1, -10]"), [], "D=-10.0 is not accepted"),
+        (GRID, ["--scheduler", "nowhere"], "scheduler='nowhere' is not accepted"),
+        (GRID, ["--workers", "0"], "workers=0 is not accepted"),
+    ],
+)
+def test_cli_refusals_exit_2(tmp_path, app, text, args, needle):
+    p = _write(tmp_path, text)
+    result = CliRunner().invoke(app, ["sweep", str(p), "--quiet", *args])
+    assert result.exit_code == 2, result.output
+    assert needle in result.output
+    assert "Traceback" not in result.output
+
+
+def test_cli_refuses_existing_out_before_work(tmp_path, app):
+    p = _write(tmp_path, GRID)
+    out = tmp_path / "s.nc"
+    out.write_text("x")
+    result = CliRunner().invoke(app, ["sweep", str(p), "--out", str(out)])
+    assert result.exit_code == 2 and "the file exists" in result.output
+
+
+def test_run_block_refuses_another_build():
+    config = SimulationConfig.build(paths=4, t_max=0.1, n_times=1)
+    assert run_block(config, 0, 0, 1, expect_version=BUILD).paths == 1
+    with pytest.raises(ValueError, match=r"a worker runs stochpend .* \(code [0-9a-f]{12}\), the client stochpend 0.0.0"):
+        run_block(config, 0, 0, 1, expect_version="0.0.0 (code 000000000000)")
