@@ -272,6 +272,21 @@ def info() -> None:
     table.add_row("numpy / numba / xarray", f"{numpy.__version__} / {numba.__version__} / {xarray.__version__}")
     table.add_row("numba threads", f"{numba.config.NUMBA_NUM_THREADS} (layer: {numba.config.THREADING_LAYER})")
     table.add_row("machine", f"{platform.machine()} {platform.processor()}")
+    try:
+        from stochpend._backends import cuda as cuda_backend
+
+        usable, why = cuda_backend.availability()
+    except Exception as exc:  # numba without its CUDA target
+        usable, why = False, f"numba.cuda cannot be imported ({type(exc).__name__})"
+    table.add_row("backend cpu", "usable")
+    table.add_row("backend cuda", ("usable: " if usable else "not usable: ") + why)
+    try:
+        import dask
+        import distributed
+
+        table.add_row("dask / distributed", f"{dask.__version__} / {distributed.__version__}")
+    except ImportError:
+        table.add_row("dask / distributed", "not installed (pip install 'stochpend[dask]')")
     console.print(table)
 
 
