@@ -52,8 +52,16 @@ def build(flavour: str = "fast") -> ctypes.CDLL:
         raise RuntimeError("gcc not found: the C reference cannot be built")
     out = Path(tempfile.mkdtemp(prefix="stochpend_cref_")) / "libstochpend_ref.so"
     flags = FLAGS[flavour]
-    cmd = [cc, *flags, "-shared", "-fPIC", "-o", str(out), str(SOURCE), "-lm"]
-    subprocess.run(cmd, check=True, capture_output=True, text=True)
+    # Compile with the flavour's flags but link without -ffast-math: linking with it adds
+    # crtfastmath.o, whose constructor turns on flush-to-zero/denormals-are-zero for the whole
+    # process that loads the library (pytest, the benchmark), silently changing every later
+    # computation with denormals in that process.
+    obj = out.with_suffix(".o")
+    subprocess.run([cc, *flags, "-fPIC", "-c", "-o", str(obj), str(SOURCE)], check=True,
+                   capture_output=True, text=True)
+    link = [f for f in flags if f == "-fopenmp"]
+    subprocess.run([cc, "-shared", *link, "-o", str(out), str(obj), "-lm"], check=True,
+                   capture_output=True, text=True)
     lib = ctypes.CDLL(str(out))
     dptr = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
     for name in ("sp_run_scalar", "sp_run_simd"):

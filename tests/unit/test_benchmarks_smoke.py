@@ -104,3 +104,11 @@ def test_c_reference_fast_math_build_agrees_to_roundoff(variant):
     np.testing.assert_allclose(r.xi, xi, rtol=0, atol=1e-10)
     E2 = float(np.mean(r.energy(OMEGA) ** 2))
     assert E2 == pytest.approx(_stochpend_E2()[0], rel=1e-10)
+
+
+def test_loading_the_fast_math_reference_keeps_denormals():
+    """Linking with -ffast-math would switch on flush-to-zero for the whole test process."""
+    if c_ref.compiler() is None:
+        pytest.skip("gcc not found: the C reference cannot be built")
+    c_ref.build("fast")
+    assert np.spacing(0.0) > 0.0, "denormals are flushed to zero after loading the C reference"
