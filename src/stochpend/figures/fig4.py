@@ -34,7 +34,7 @@ TITLE = "Fig. 4 — OU noise, ω = 0: crossover of ⟨E⟩ from Dt/4 to 0.338 (D
 #: Runs of the caption. Default final times: 10^4 for tau = 1 (t_c = 1; the omega = 0 run of
 #: Fig. 3, shared) and tau = 0.1 (t_c = 100: two decades past the crossover), but only 10^3 for
 #: tau = 0.01: its crossover is at t_c = 10^4, and in the white-like regime a path costs
-#: ~1.9 t^{3/2} steps (2e6 at 10^4, 6e7 at 10^5), so the default shows -- as the paper does --
+#: ~4.7 t^{3/2} steps (5e6 at 10^4, 1.5e8 at 10^5), so the default shows -- as the paper does --
 #: only the slope-1 regime. ``--t-max 1e5`` (with fewer ``--paths``) shows its crossover.
 CONFIG: dict[str, Any] = {
     "noise": "ou",
@@ -73,7 +73,7 @@ def caption(specs: list[RunSpec]) -> str:
         note = (" The run(s) with " + ", ".join(f"τ = {x.tau:g}" for x in short)
                 + " stop before 10 t_c, so the coloured regime is not reached there (for the default "
                   "τ = 0.01 run this is deliberate, as in the paper: t_c = 10⁴ and a path costs "
-                  "~1.9 t^{3/2} steps; pass --t-max 1e5 with fewer --paths to see its crossover).")
+                  "~4.7 t^{3/2} steps; pass --t-max 1e5 with fewer --paths to see its crossover).")
     return (
         f"Stochastic pendulum with Ornstein–Uhlenbeck noise (Eqs. dyncolOmega–OU), ω = {s.omega:g}, "
         f"D = {s.D:g}, {s.paths} realizations each: {parts}; stationary ξ(0), θ(0) uniform, Ω(0) = 0, "
