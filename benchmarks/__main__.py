@@ -495,7 +495,7 @@ def report(res: dict) -> str:
     ls, le = res["load_start"], res["load_end"]
     L.append(f"- load average at start: {ls[0]:.2f} {ls[1]:.2f} {ls[2]:.2f}; at end: "
              f"{le[0]:.2f} {le[1]:.2f} {le[2]:.2f}")
-    if max(ls[0], le[0]) > 1.5:
+    if max(ls[0], le[0]) > 2.5:
         L.append("\n**The machine was shared during this run** (load average well above the 2 cores): "
                  "other processes took CPU time, so the wall-clock rates are lower than on an idle "
                  "machine and vary from row to row. The CPU-time columns (path-steps per CPU-second "
