@@ -22,7 +22,9 @@ import math
 
 from numba.extending import register_jitable
 
-from stochpend import physics
+import numpy as np
+
+from stochpend import physics, rng
 
 #: Integrator metadata, stored in every result's attrs.
 SCHEME = {
@@ -154,3 +156,24 @@ def advance_clock(t, t_comp, h, last, t_target):
     y = h - t_comp
     t_new = t + y
     return t_new, (t_new - t) - y
+
+
+@register_jitable
+def initial_state(key0, key1, path, theta0, uniform_theta0, Omega0, xi0, stationary_xi0, D, tau,
+                  is_ou):
+    """(x, Omega, xi) of a path at t = 0: x uniform on [-pi, pi) from draw ``N_INIT_THETA`` (or
+    ``theta0``), Omega0, and xi from its stationary law N(0, D/(2 tau)) from draw ``N_INIT_XI``
+    (or ``xi0``; 0 for white noise). ``path`` is the global path index (uint64)."""
+    if uniform_theta0:
+        u, _ = rng.draw_uniforms(key0, key1, path, np.uint64(rng.N_INIT_THETA))
+        x = 2.0 * math.pi * u - math.pi
+    else:
+        x = theta0
+    xi = 0.0
+    if is_ou:
+        if stationary_xi0:
+            z, _ = rng.draw_normals(key0, key1, path, np.uint64(rng.N_INIT_XI))
+            xi = math.sqrt(D / (2.0 * tau)) * z
+        else:
+            xi = xi0
+    return x, Omega0, xi

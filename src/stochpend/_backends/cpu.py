@@ -39,21 +39,9 @@ def init_paths(x, Omega, xi, t, k, status, key0, key1, path0, theta0, uniform_th
                stationary_xi0, D, tau, noise_code, t_comp):  # pragma: no cover - compiled
     """Initial conditions of paths path0 .. path0 + len(x) - 1 (draws 0 and 1)."""
     for i in prange(x.shape[0]):
-        path = _U64(path0 + i)
-        if uniform_theta0:
-            u, _ = rng.draw_uniforms(key0, key1, path, _U64(rng.N_INIT_THETA))
-            x[i] = 2.0 * math.pi * u - math.pi
-        else:
-            x[i] = theta0
-        Omega[i] = Omega0
-        if noise_code == OU:
-            if stationary_xi0:
-                z, _ = rng.draw_normals(key0, key1, path, _U64(rng.N_INIT_XI))
-                xi[i] = math.sqrt(D / (2.0 * tau)) * z
-            else:
-                xi[i] = xi0
-        else:
-            xi[i] = 0.0
+        x[i], Omega[i], xi[i] = schemes.initial_state(
+            key0, key1, _U64(path0 + i), theta0, uniform_theta0, Omega0, xi0, stationary_xi0, D,
+            tau, noise_code == OU)
         t[i] = 0.0
         t_comp[i] = 0.0
         k[i] = 0

@@ -377,21 +377,11 @@ def _kernels(precision: str) -> types.SimpleNamespace:
         i = cuda.grid(1)
         if i >= x.shape[0]:
             return
-        path = _U64(path0 + i)
-        if uniform_theta0:
-            u, _ = rng.draw_uniforms(key0, key1, path, _U64(rng.N_INIT_THETA))
-            x[i] = 2.0 * math.pi * u - math.pi
-        else:
-            x[i] = theta0
-        Omega[i] = Omega0
-        if noise_code == _OU:
-            if stationary_xi0:
-                z, _ = rng.draw_normals(key0, key1, path, _U64(rng.N_INIT_XI))
-                xi[i] = math.sqrt(D / (2.0 * tau)) * z
-            else:
-                xi[i] = xi0
-        else:
-            xi[i] = 0.0
+        x0, O0, xi_0 = schemes.initial_state(key0, key1, _U64(path0 + i), theta0, uniform_theta0,
+                                             Omega0, xi0, stationary_xi0, D, tau, noise_code == _OU)
+        x[i] = x0
+        Omega[i] = O0
+        xi[i] = xi_0
         t[i] = 0.0
         t_comp[i] = 0.0
         k[i] = 0
