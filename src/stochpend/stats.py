@@ -160,6 +160,18 @@ class EnsembleSums:
         data_vars["E_hist_underflow"] = ("time", self.hist[:, 0])
         data_vars["E_hist_overflow"] = ("time", self.hist[:, -1])
         data_vars["n_finite_paths"] = ("time", self.counts())
+        # Per-batch sums, so that any function of <E(t)> over several times (an exponent fit)
+        # gets a delete-one-batch jackknife error that respects the correlation between times.
+        data_vars["batch_sum_E"] = (
+            ("batch", "time"),
+            self.sums[..., S_E1],
+            {"long_name": "sum of E over the finite paths of each batch"},
+        )
+        data_vars["batch_n_finite"] = (
+            ("batch", "time"),
+            self.sums[..., S_COUNT].astype(np.int64),
+            {"long_name": "finite paths of each batch"},
+        )
         data_vars["nonfinite_paths"] = (
             "time",
             self.nonfinite(),

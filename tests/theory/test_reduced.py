@@ -349,7 +349,9 @@ def test_dataset_has_the_simulator_format(seed: int) -> None:
     ref = simulate(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=20, t_max=0.5, n_times=3, seed=seed)
     ds = simulate_reduced("asymptotic", D=1.0, tau=1.0, paths=200, t_max=0.5, n_times=3, seed=seed)
     assert set(ds.data_vars) == set(ref.data_vars)
-    assert dict(ds.sizes) == {"time": 3, "E_bin": 100, "E_bin_edge": 101}
+    sizes = dict(ds.sizes)
+    assert sizes.pop("batch") == int(ds.attrs["n_batches"])
+    assert sizes == {"time": 3, "E_bin": 100, "E_bin_edge": 101}
     np.testing.assert_allclose(ds.mean_Omega2.values, 2 * ds.mean_E.values, rtol=1e-12)
     np.testing.assert_allclose(ds.mean_Omega4.values, 4 * ds.mean_E2.values, rtol=1e-12)
     assert np.all(np.isnan(ds.mean_sin2theta.values))
