@@ -66,13 +66,16 @@ def cpu_path_states(config: SimulationConfig, n: int) -> dict[str, np.ndarray]:
     k = np.empty(n, dtype=np.uint64)
     status = np.empty(n, dtype=np.uint8)
     t_comp = np.empty(n)
+    xi_aux = np.empty(n)
     key0, key1 = rng.seed_to_key(config.seed)
     cpu.init_paths(x, Omega, xi, t, k, status, key0, key1, 0, 0.0, True, config.Omega0, 0.0, True,
-                   config.D, config.tau_or_zero, config.noise_code, t_comp)
+                   config.D, config.tau_or_zero, config.noise_code, t_comp, xi_aux,
+                   config.omega_noise_or_zero)
     for t_target in config.times:
         while cpu.advance_paths(x, Omega, xi, t, k, status, t_target, 100_000, config.noise_code,
                                 config.D, config.tau_or_zero, config.omega**2, config.h_max,
-                                config.step_c, 0, config.power_n, 0, key0, key1, 0, t_comp)[1]:
+                                config.step_c, 0, config.power_n, 0, key0, key1, 0, t_comp, xi_aux,
+                                config.omega_noise_or_zero)[1]:
             pass
     return dict(x=x, Omega=Omega, xi=xi, t=t, k=k, status=status)
 

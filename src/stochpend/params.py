@@ -15,7 +15,9 @@ import numpy as np
 
 from stochpend import physics
 
-NOISES = ("white", "ou")
+NOISES = ("white", "ou", "dichotomous", "harmonic")
+#: Noises with a correlation time tau.
+COLORED_NOISES = ("ou", "dichotomous", "harmonic")
 BACKENDS = ("cpu", "auto", "cuda")
 
 #: Default step controls, from the accuracy study in docs/numerics.md.
@@ -77,6 +79,7 @@ class SimulationConfig:
     potential: str = "pendulum"
     power_n: int = 2
     coupling: str = "force"
+    omega_noise: float | None = None  # harmonic noise: its oscillator's frequency W
     extra: dict = field(default_factory=dict)
 
     # -- derived, cheap -------------------------------------------------------------------
@@ -85,12 +88,25 @@ class SimulationConfig:
         return NOISES.index(self.noise)
 
     @property
+    def potential_code(self) -> int:
+        """The built-in potential's code; a user model's kernels ignore it (0)."""
+        return physics.POTENTIALS.get(self.potential, 0)
+
+    @property
+    def coupling_code(self) -> int:
+        return physics.COUPLINGS[self.coupling]
+
+    @property
     def batch_size(self) -> int:
         return -(-self.paths // self.n_batches)
 
     @property
     def tau_or_zero(self) -> float:
         return 0.0 if self.tau is None else self.tau
+
+    @property
+    def omega_noise_or_zero(self) -> float:
+        return 0.0 if self.omega_noise is None else self.omega_noise
 
     def to_attrs(self) -> dict[str, Any]:
         """Flat attributes for NetCDF (None becomes the string "none" or "uniform")."""
@@ -101,6 +117,7 @@ class SimulationConfig:
         d["tau"] = "none" if self.tau is None else self.tau
         d["theta0"] = "uniform" if self.theta0 is None else self.theta0
         d["xi0"] = "stationary" if self.xi0 is None else self.xi0
+        d["omega_noise"] = "none" if self.omega_noise is None else self.omega_noise
         return d
 
     @classmethod
@@ -127,6 +144,7 @@ class SimulationConfig:
         potential: str = "pendulum",
         power_n: int = 2,
         coupling: str = "force",
+        omega_noise: float | None = None,
     ) -> SimulationConfig:
         """Validate every argument and return the frozen configuration."""
         if noise not in NOISES:
@@ -134,19 +152,30 @@ class SimulationConfig:
         D = _finite("D", D, "D must be a finite number >= 0 (the noise amplitude)")
         if D < 0:
             _fail("D", D, "D must be a finite number >= 0 (the noise amplitude)")
-        if noise == "ou":
+        if noise in COLORED_NOISES:
             if tau is None:
-                _fail("tau", tau, "OU noise needs tau, a finite number > 0 (its correlation time)")
-            tau = _finite("tau", tau, "tau must be a finite number > 0 (the OU correlation time)")
+                _fail("tau", tau, f"{noise} noise needs tau, a finite number > 0 (its correlation time)")
+            tau = _finite("tau", tau, "tau must be a finite number > 0 (the noise correlation time)")
             if tau <= 0:
                 _fail(
                     "tau",
                     tau,
-                    "tau must be a finite number > 0 (the OU correlation time); "
+                    "tau must be a finite number > 0 (the noise correlation time); "
                     "use noise='white' for the tau -> 0 limit",
                 )
         else:
             tau = None
+        if noise == "harmonic":
+            if omega_noise is None:
+                omega_noise = 2.0 / tau  # critical damping: gamma = W**2 tau = 2 W
+            omega_noise = _finite(
+                "omega_noise", omega_noise,
+                "omega_noise must be a finite number > 0 (the harmonic noise's frequency W)")
+            if omega_noise <= 0:
+                _fail("omega_noise", omega_noise,
+                      "omega_noise must be a finite number > 0 (the harmonic noise's frequency W)")
+        elif omega_noise is not None:
+            _fail("omega_noise", omega_noise, "omega_noise applies to noise='harmonic' only")
         omega = _finite("omega", omega, "omega must be a finite number >= 0 (the pendulum frequency)")
         if omega < 0:
             _fail("omega", omega, "omega must be a finite number >= 0 (the pendulum frequency)")
@@ -191,9 +220,16 @@ class SimulationConfig:
             xi0_v = None
         else:
             xi0_v = _finite("xi0", xi0, "xi0 must be a finite number or 'stationary'")
+            if noise == "dichotomous" and xi0_v == 0.0:
+                _fail("xi0", xi0, "dichotomous noise starts at +a or -a: give 'stationary' or a "
+                      "nonzero number whose sign picks the state")
 
-        if potential not in physics.POTENTIALS:
-            _fail("potential", potential, f"one of {', '.join(physics.POTENTIALS)}")
+        from stochpend import models
+
+        user_model = models.get(potential) if isinstance(potential, str) else None
+        if potential not in physics.POTENTIALS and user_model is None:
+            _fail("potential", potential, f"one of {', '.join(physics.POTENTIALS)}, or a model "
+                  "registered with stochpend.models.register")
         if coupling not in physics.COUPLINGS:
             _fail("coupling", coupling, f"one of {', '.join(physics.COUPLINGS)}")
         power_n = _integer("power_n", power_n, "power_n must be an integer >= 1", 1)
@@ -204,11 +240,18 @@ class SimulationConfig:
                 "the pendulum's angle is periodic, so its noise can only multiply the force "
                 "(coupling='force')",
             )
-        pot = physics.POTENTIALS[potential]
+        if user_model is not None and user_model.periodic and coupling == "position":
+            _fail("coupling", coupling, f"model {potential!r} is periodic, so its noise can only "
+                  "multiply a periodic function (coupling='force')")
         cpl = physics.COUPLINGS[coupling]
         if theta0_v is not None and Omega0 == 0.0:
-            g = physics.noise_shape(theta0_v, pot, power_n, cpl)
-            f = physics.force_shape(theta0_v, pot, power_n)
+            if user_model is not None:
+                g = user_model.G(theta0_v, coupling)
+                f = float(user_model.force(theta0_v))
+            else:
+                pot = physics.POTENTIALS[potential]
+                g = physics.noise_shape(theta0_v, pot, power_n, cpl)
+                f = physics.force_shape(theta0_v, pot, power_n)
             at_rest = abs(g) < 1e-12 and abs(f) < 1e-12
             if at_rest:
                 _fail(
@@ -257,6 +300,7 @@ class SimulationConfig:
             potential=potential,
             power_n=power_n,
             coupling=coupling,
+            omega_noise=omega_noise,
         )
 
 
@@ -282,7 +326,13 @@ def hist_edges(config: SimulationConfig) -> np.ndarray:
     Edges are uniform in sqrt(E - E_min), E_min = -omega**2 for the pendulum, so that the
     bins are narrow near the bottom of the range, where the law diverges like E**(-1/2).
     """
-    e_min = -(config.omega**2) if config.potential == "pendulum" else 0.0
+    from stochpend import models
+
+    user_model = models.get(config.potential)
+    if user_model is not None:
+        e_min = config.omega**2 * user_model.energy_floor()
+    else:
+        e_min = -(config.omega**2) if config.potential == "pendulum" else 0.0
     u = np.linspace(0.0, 1.0, config.hist_bins + 1) ** 2
     e_max = np.asarray(config.hist_E_max)[:, None]
     return e_min + (e_max - e_min) * u[None, :]

@@ -96,6 +96,125 @@ def ou_step_coefficients(h, D, tau):
     return a, s_xi, tau * b, c_I, s_I
 
 
+# -- the noises -------------------------------------------------------------------------------
+#: Noise codes (the index in ``params.NOISES``).
+NOISE_WHITE = 0
+NOISE_OU = 1
+NOISE_DICHOTOMOUS = 2
+NOISE_HARMONIC = 3
+
+
+@register_jitable
+def dichotomous_amplitude(D, tau):
+    """a = sqrt(D/(2 tau)): the telegraph noise +-a flipping at rate 1/(2 tau) then has the OU
+    correlation <xi(t) xi(0)> = a**2 exp(-|t|/tau) = D/(2 tau) exp(-|t|/tau) (Eq. `correlationOU`)."""
+    return math.sqrt(D / (2.0 * tau))
+
+
+@register_jitable
+def dichotomous_waiting_time(u, tau):
+    """Time to the next flip from a uniform u in (0, 1): exponential with rate 1/(2 tau)."""
+    return -2.0 * tau * math.log(u)
+
+
+@register_jitable
+def _mm3(a, b):
+    """Product of two 3x3 matrices stored row-major in 9-tuples."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
+    return (a0 * b0 + a1 * b3 + a2 * b6, a0 * b1 + a1 * b4 + a2 * b7, a0 * b2 + a1 * b5 + a2 * b8,
+            a3 * b0 + a4 * b3 + a5 * b6, a3 * b1 + a4 * b4 + a5 * b7, a3 * b2 + a4 * b5 + a5 * b8,
+            a6 * b0 + a7 * b3 + a8 * b6, a6 * b1 + a7 * b4 + a8 * b7, a6 * b2 + a7 * b5 + a8 * b8)
+
+
+@register_jitable
+def _mt3(a):
+    """Transpose of a 3x3 matrix stored row-major in a 9-tuple."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
+    return (a0, a3, a6, a1, a4, a7, a2, a5, a8)
+
+
+@register_jitable
+def _madd3(a, b, c):
+    """a + c b for 3x3 matrices in 9-tuples."""
+    return (a[0] + c * b[0], a[1] + c * b[1], a[2] + c * b[2], a[3] + c * b[3], a[4] + c * b[4],
+            a[5] + c * b[5], a[6] + c * b[6], a[7] + c * b[7], a[8] + c * b[8])
+
+
+@register_jitable
+def _mscale3(a, c):
+    """c a for a 3x3 matrix in a 9-tuple."""
+    return (c * a[0], c * a[1], c * a[2], c * a[3], c * a[4], c * a[5], c * a[6], c * a[7],
+            c * a[8])
+
+
+#: Terms of the Taylor series of the harmonic-noise propagator at the reduced step (norm of
+#: s A at most 1/2): the first term left out is below 2**-17 / 17! ~ 2e-20 relative.
+_HARMONIC_TAYLOR_TERMS = 17
+
+
+@register_jitable
+def harmonic_step_coefficients(h, D, tau, omega_noise):
+    """Exact update over a step h of the harmonic noise and of its integral (Eq. in docs/numerics.md).
+
+    The noise obeys xi'' + gamma xi' + W**2 xi = W**2 sqrt(D) zeta(t) (zeta: unit white noise),
+    W = ``omega_noise``, gamma = W**2 tau, so that its spectrum D W**4 / ((W**2 - nu**2)**2 +
+    gamma**2 nu**2) equals D at nu = 0 (like the OU noise) and falls as nu**-4. The vector
+    X = (xi, eta = xi', I = integral of xi since the start of the step) is linear,
+    dX = A X dt + b dW with A = [[0, 1, 0], [-W**2, -gamma, 0], [1, 0, 0]], b = (0, W**2 sqrt(D), 0),
+    so X(h) = Phi X(0) + L z exactly, Phi = exp(A h), L L^T = Q = int_0^h exp(A u) b b^T exp(A^T u) du,
+    z three independent standard normals.
+
+    Phi and Q are computed by scaling and squaring: their Taylor series at s = h / 2**m (norm of
+    s A at most 1/2), then m doublings Q <- Q + Phi Q Phi^T, Phi <- Phi Phi, which add
+    positive-definite terms only, so the small entries (var xi ~ h**3, var I ~ h**5) keep their
+    relative accuracy at any h.
+
+    Returns ``(p11, p12, p21, p22, p31, p32, l11, l21, l22, l31, l32, l33)``: xi' = p11 xi +
+    p12 eta + l11 z1, eta' = p21 xi + p22 eta + l21 z1 + l22 z2, I = p31 xi + p32 eta + l31 z1 +
+    l32 z2 + l33 z3.
+    """
+    W2 = omega_noise * omega_noise
+    gamma = W2 * tau
+    norm = 1.0 + W2 + gamma  # bounds the infinity norm of A
+    m = 0
+    s = h
+    while s * norm > 0.5:
+        s *= 0.5
+        m += 1
+    sA = (0.0, s, 0.0, -W2 * s, -gamma * s, 0.0, s, 0.0, 0.0)
+    sAT = _mt3(sA)
+    phi = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+    term = phi
+    # P_1 = b b^T s; P_{k+1} = (sA P_k + P_k sA^T) / (k + 1); Q(s) = sum of P_k.
+    sigma2 = W2 * W2 * D
+    P = (0.0, 0.0, 0.0, 0.0, sigma2 * s, 0.0, 0.0, 0.0, 0.0)
+    Q = P
+    for k in range(1, _HARMONIC_TAYLOR_TERMS + 1):
+        term = _mscale3(_mm3(term, sA), 1.0 / k)  # (sA)**k / k!
+        phi = _madd3(phi, term, 1.0)
+        P = _mscale3(_madd3(_mm3(sA, P), _mm3(P, sAT), 1.0), 1.0 / (k + 1))
+        Q = _madd3(Q, P, 1.0)
+    for _ in range(m):
+        Q = _madd3(Q, _mm3(_mm3(phi, Q), _mt3(phi)), 1.0)
+        phi = _mm3(phi, phi)
+    q11 = Q[0]
+    q21 = Q[3]
+    q22 = Q[4]
+    q31 = Q[6]
+    q32 = Q[7]
+    q33 = Q[8]
+    l11 = math.sqrt(q11) if q11 > 0.0 else 0.0
+    l21 = q21 / l11 if l11 > 0.0 else 0.0
+    r22 = q22 - l21 * l21
+    l22 = math.sqrt(r22) if r22 > 0.0 else 0.0
+    l31 = q31 / l11 if l11 > 0.0 else 0.0
+    l32 = (q32 - l31 * l21) / l22 if l22 > 0.0 else 0.0
+    r33 = q33 - l31 * l31 - l32 * l32
+    l33 = math.sqrt(r33) if r33 > 0.0 else 0.0
+    return phi[0], phi[1], phi[3], phi[4], phi[6], phi[7], l11, l21, l22, l31, l32, l33
+
+
 @register_jitable
 def verlet_step(x, Omega, h, omega2, noise_integral, potential_code, power_n, coupling_code):
     """One drift-kick-drift step; the kick uses the noise integral over the whole step.
@@ -112,12 +231,14 @@ def verlet_step(x, Omega, h, omega2, noise_integral, potential_code, power_n, co
 
 
 @register_jitable
-def step_size(Omega, xi, x, h_max, c_angle, omega2, potential_code, power_n):
-    """Per-path step h = min(h_max, c/|Omega|, c/sqrt(|omega**2 + xi| |U''(x)|)).
+def step_size(Omega, xi, x, h_max, c_angle, omega2, potential_code, power_n, coupling_code):
+    """Per-path step h = min(h_max, c/|Omega|, c/sqrt(k)), k the local stiffness.
 
-    The first bound resolves the rotation (the angle moves by at most c per step), the second
-    the instantaneous oscillation (c radians of phase per step). Both use only the state at the
-    start of the step, so the choice does not look into the future of the noise.
+    The first bound resolves the rotation (x moves by at most c per step), the second the
+    instantaneous oscillation (c radians of phase per step): k = |omega**2 + xi| |U''(x)|
+    when the noise multiplies the force, |omega**2 U''(x) + xi| when it multiplies x (the
+    linearized force in each case; |U''| is bounded by 1 for the pendulum). Both use only the
+    state at the start of the step, so the choice does not look into the future of the noise.
     ``c_angle <= 0`` means a fixed step h_max.
     """
     h = h_max
@@ -125,10 +246,21 @@ def step_size(Omega, xi, x, h_max, c_angle, omega2, potential_code, power_n):
         speed = abs(Omega)
         if speed * h > c_angle:
             h = c_angle / speed
-        stiff = abs(omega2 + xi) * physics.curvature(x, potential_code, power_n)
+        curv = physics.curvature(x, potential_code, power_n)
+        if coupling_code == physics.COUPLING_POSITION:
+            stiff = abs(omega2 * curv + xi)
+        else:
+            stiff = abs(omega2 + xi) * curv
         if stiff * h * h > c_angle * c_angle:
             h = c_angle / math.sqrt(stiff)
     return h
+
+
+#: A path whose step control asks for a step below this fraction of h_max has escaped: it is
+#: running away (|Omega| or its frequency beyond 1e9 c/h_max, e.g. a finite-time blow-up that
+#: the shrinking steps would otherwise follow forever). It is frozen and counted with the
+#: non-finite paths, never averaged.
+ESCAPE_STEP_FRACTION = 1e-9
 
 
 #: A step that would stop within this fraction of h before the target is stretched to it.
@@ -160,20 +292,48 @@ def advance_clock(t, t_comp, h, last, t_target):
 
 @register_jitable
 def initial_state(key0, key1, path, theta0, uniform_theta0, Omega0, xi0, stationary_xi0, D, tau,
-                  is_ou):
-    """(x, Omega, xi) of a path at t = 0: x uniform on [-pi, pi) from draw ``N_INIT_THETA`` (or
-    ``theta0``), Omega0, and xi from its stationary law N(0, D/(2 tau)) from draw ``N_INIT_XI``
-    (or ``xi0``; 0 for white noise). ``path`` is the global path index (uint64)."""
+                  noise_code, omega_noise):
+    """(x, Omega, xi, xi_aux) of a path at t = 0. ``path`` is the global path index (uint64).
+
+    x is uniform on [-pi, pi) from draw ``N_INIT_THETA`` (or ``theta0``); Omega is Omega0. The
+    noise starts in its stationary law from draw ``N_INIT_XI`` unless ``stationary_xi0`` is
+    false:
+
+    * white: xi = 0 (unused);
+    * OU: xi ~ N(0, D/(2 tau)) (or ``xi0``);
+    * dichotomous: xi = +a or -a with probability 1/2 (or a with the sign of ``xi0``), and
+      ``xi_aux`` = the time of the first switch, exponential with rate 1/(2 tau) (memoryless:
+      the stationary law of the time to the next switch);
+    * harmonic: (xi, xi_aux = dxi/dt) ~ N(0, D/(2 tau)) x N(0, W**2 D/(2 tau)) independent,
+      W = ``omega_noise`` (or ``(xi0, 0)``).
+    """
     if uniform_theta0:
         u, _ = rng.draw_uniforms(key0, key1, path, np.uint64(rng.N_INIT_THETA))
         x = 2.0 * math.pi * u - math.pi
     else:
         x = theta0
     xi = 0.0
-    if is_ou:
+    xi_aux = 0.0
+    if noise_code == NOISE_OU:
         if stationary_xi0:
             z, _ = rng.draw_normals(key0, key1, path, np.uint64(rng.N_INIT_XI))
             xi = math.sqrt(D / (2.0 * tau)) * z
         else:
             xi = xi0
-    return x, Omega0, xi
+    elif noise_code == NOISE_DICHOTOMOUS:
+        a = dichotomous_amplitude(D, tau)
+        u_sign, u_wait = rng.draw_uniforms(key0, key1, path, np.uint64(rng.N_INIT_XI))
+        if stationary_xi0:
+            xi = a if u_sign < 0.5 else -a
+        else:
+            xi = a if xi0 > 0.0 else -a
+        xi_aux = dichotomous_waiting_time(u_wait, tau)
+    elif noise_code == NOISE_HARMONIC:
+        if stationary_xi0:
+            z1, z2 = rng.draw_normals(key0, key1, path, np.uint64(rng.N_INIT_XI))
+            s = math.sqrt(D / (2.0 * tau))
+            xi = s * z1
+            xi_aux = omega_noise * s * z2
+        else:
+            xi = xi0
+    return x, Omega0, xi, xi_aux

@@ -53,6 +53,7 @@ def simulate(
     potential: str = "pendulum",
     power_n: int = 2,
     coupling: str = "force",
+    omega_noise: float | None = None,
     backend: str = "cpu",
     threads: int | None = None,
     chunk_paths: int | None = None,
@@ -64,16 +65,23 @@ def simulate(
     Integrates :math:`\dot\Omega = -(\omega^2 + \xi)\sin\theta`, :math:`\dot\theta = \Omega`
     (Eqs. `dynOmega`, `dyntheta`) for ``paths`` independent realizations and accumulates the
     statistics at the output times on the fly (memory O(paths), independent of the steps).
+    Other oscillators: ``potential``/``coupling`` below.
 
     Parameters
     ----------
-    noise : {"ou", "white"}
-        Ornstein-Uhlenbeck noise (Eq. `eqOU`, stationary variance D/(2 tau)) or white noise
-        (Eq. `defbruitblanc`, <xi xi'> = D delta).
+    noise : {"ou", "white", "dichotomous", "harmonic"}
+        Ornstein-Uhlenbeck noise (Eq. `eqOU`, stationary variance D/(2 tau)), white noise
+        (Eq. `defbruitblanc`, <xi xi'> = D delta), dichotomous (telegraph) noise +-sqrt(D/(2 tau))
+        flipping at rate 1/(2 tau) (the OU correlation D/(2 tau) exp(-|t|/tau)), or harmonic
+        noise xi'' + W^2 tau xi' + W^2 xi = W^2 sqrt(D) white (spectrum D W^4/((W^2 - nu^2)^2 +
+        W^4 tau^2 nu^2), variance D/(2 tau)). Every noise has spectral density D at zero
+        frequency (docs/models.md).
     D : float
         Noise amplitude, >= 0.
     tau : float
-        OU correlation time, > 0 (ignored for white noise).
+        Correlation time of the colored noises, > 0 (ignored for white noise).
+    omega_noise : float, optional
+        Harmonic noise only: its frequency W (default 2/tau, critical damping).
     omega : float
         Pendulum frequency, >= 0.
     paths : int
@@ -136,11 +144,17 @@ def simulate(
         noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max, times=times,
         n_times=n_times, seed=seed, theta0=theta0, Omega0=Omega0, xi0=xi0, h_max=h_max,
         step_c=step_c, hist_bins=hist_bins, hist_E_max=hist_E_max, n_batches=n_batches,
-        potential=potential, power_n=power_n, coupling=coupling,
+        potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
     )
     backend = resolve_backend(backend)
     if precision not in ("float64", "float32"):
         raise ValueError(f"precision={precision!r} is not accepted: one of float64, float32")
+    if precision == "float32" and config.potential not in physics.POTENTIALS:
+        raise ValueError(f"precision='float32' is not accepted with potential={config.potential!r}: "
+                         "user-defined models run in float64")
+    if precision == "float32" and config.noise in ("dichotomous", "harmonic"):
+        raise ValueError(f"precision='float32' is not accepted with noise={config.noise!r}: "
+                         "the dichotomous and harmonic noises run in float64")
     if precision == "float32" and backend != "cuda":
         raise ValueError("precision='float32' is not accepted with backend='cpu': float32 runs on the CUDA backend")
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
@@ -196,8 +210,11 @@ def run(
     started = _time.perf_counter()
     try:
         if backend == "cuda":
+            from stochpend import models
             from stochpend._backends import cuda as _cuda
 
+            if config.potential not in physics.POTENTIALS:
+                _cuda = models.kernels(config.potential, "cuda")
             sums, path_steps = _cuda.run_batches(config, 0, config.n_batches, chunk_paths=chunk_paths,
                                                  progress=progress, precision=precision)
         else:
@@ -235,6 +252,7 @@ class RunState:
     k: np.ndarray
     status: np.ndarray
     t_comp: np.ndarray
+    xi_aux: np.ndarray
     chunk_sums: np.ndarray
     chunk_hist: np.ndarray
     acc: EnsembleSums
@@ -248,6 +266,19 @@ class Checkpointer(Protocol):
     def maybe_save(self, state: RunState) -> None: ...
 
 
+def cpu_kernels(config: SimulationConfig) -> tuple[Any, Any, Any]:
+    """``(init_paths, advance_paths, accumulate_batches)`` for the configuration's model: the
+    built-in kernels (cached on disk), or a registered user model's (``stochpend.models``)."""
+    from stochpend import models
+
+    if config.potential not in physics.POTENTIALS:
+        # models.kernels refuses a name this process has not registered (e.g. on a Dask
+        # worker): never fall back to a built-in potential.
+        module = models.kernels(config.potential, "cpu")
+        return module.init_paths, module.advance_paths, module.accumulate_batches
+    return cpu.init_paths, cpu_fast.advance_paths, cpu.accumulate_batches
+
+
 def _new_chunk(config: SimulationConfig, b0: int, b1: int) -> tuple[np.ndarray, ...]:
     bs = config.batch_size
     p0 = b0 * bs
@@ -259,14 +290,17 @@ def _new_chunk(config: SimulationConfig, b0: int, b1: int) -> tuple[np.ndarray, 
     k = np.empty(n, dtype=np.uint64)
     status = np.empty(n, dtype=np.uint8)
     t_comp = np.empty(n)
+    xi_aux = np.empty(n)
     key0, key1 = _rng.seed_to_key(config.seed)
-    cpu.init_paths(
+    init_paths, _, _ = cpu_kernels(config)
+    init_paths(
         x, Omega, xi, t, k, status, key0, key1, p0,
         0.0 if config.theta0 is None else config.theta0, config.theta0 is None,
         config.Omega0, 0.0 if config.xi0 is None else config.xi0, config.xi0 is None,
-        config.D, config.tau_or_zero, config.noise_code, t_comp,
+        config.D, config.tau_or_zero, config.noise_code, t_comp, xi_aux,
+        config.omega_noise_or_zero,
     )
-    return x, Omega, xi, t, k, status, t_comp
+    return x, Omega, xi, t, k, status, t_comp, xi_aux
 
 
 def run_batches(
@@ -294,8 +328,9 @@ def run_batches(
     n_times = times.size
     n_cols = config.hist_bins + 2
     key0, key1 = _rng.seed_to_key(config.seed)
-    pot = physics.POTENTIALS[config.potential]
-    cpl = physics.COUPLINGS[config.coupling]
+    pot = config.potential_code
+    cpl = config.coupling_code
+    _, advance_paths, accumulate_batches = cpu_kernels(config)
     omega2 = config.omega**2
     total_paths = min(stop_batch * bs, config.paths) - first_batch * bs
     progress.start(total_paths * config.t_max, "simulating")
@@ -322,11 +357,11 @@ def run_batches(
         while state.j < n_times:
             t_target = float(times[state.j])
             while True:
-                steps, unfinished = cpu_fast.advance_paths(
+                steps, unfinished = advance_paths(
                     state.x, state.Omega, state.xi, state.t, state.k, state.status, t_target,
                     max_steps, config.noise_code, config.D, config.tau_or_zero, omega2,
                     config.h_max, config.step_c, pot, config.power_n, cpl, key0, key1, p0,
-                    state.t_comp,
+                    state.t_comp, state.xi_aux, config.omega_noise_or_zero,
                 )
                 state.path_steps += steps
                 progress.update(state.done_work + float(np.sum(state.t)))
@@ -335,7 +370,7 @@ def run_batches(
                 if checkpointer is not None:
                     checkpointer.maybe_save(state)
             nb = state.b1 - state.b0
-            cpu.accumulate_batches(state.x, state.Omega, state.status, omega2, pot,
+            accumulate_batches(state.x, state.Omega, state.status, omega2, pot,
                                    config.power_n, cpl, bs, edges[state.j],
                                    state.chunk_sums[:, state.j, :], hist[:nb])
             state.chunk_hist[state.j] = hist[:nb].sum(axis=0)
@@ -349,7 +384,7 @@ def run_batches(
         b0 = state.b1
         b1 = min(b0 + chunk_batches, stop_batch)
         (state.x, state.Omega, state.xi, state.t, state.k, state.status,
-         state.t_comp) = _new_chunk(config, b0, b1)
+         state.t_comp, state.xi_aux) = _new_chunk(config, b0, b1)
         state.b0, state.b1, state.j = b0, b1, 0
         state.chunk_sums = np.zeros((b1 - b0, n_times, cpu.N_SUMS))
         state.chunk_hist = np.zeros((n_times, n_cols), dtype=np.int64)
@@ -364,6 +399,12 @@ def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_tim
     """Attributes stored with every result: enough to reproduce it."""
     attrs: dict[str, Any] = {"title": "stochpend ensemble simulation"}
     attrs.update(config.to_attrs())
+    from stochpend import models
+
+    user_model = models.get(config.potential)
+    if user_model is not None:
+        attrs["model"] = f"user-defined ({user_model.description or 'stochpend.models.Model'})"
+        attrs["model_source"] = user_model.source()
     attrs.update({f"scheme_{k}": v for k, v in schemes.SCHEME.items()})
     attrs.update(
         {

@@ -117,7 +117,7 @@ class BlockResult:
 #: The modules whose code determines the numbers (add any new kernel module here).
 _NUMBERS_MODULES = ("stochpend.params", "stochpend.physics", "stochpend.rng", "stochpend.schemes",
                     "stochpend.simulate", "stochpend.stats", "stochpend._backends.cpu",
-                    "stochpend._backends.cpu_fast", "stochpend.fastmath")
+                    "stochpend._backends.cpu_fast", "stochpend.fastmath", "stochpend.models")
 
 
 def _code_fingerprint() -> str:

@@ -54,7 +54,8 @@ def test_ou_process_mean_variance_and_autocorrelation():
 
     def run(t_stop, x, O, xi, t, k, status):  # t_comp: closure
         cpu.advance_paths(x, O, xi, t, k, status, t_stop, 10**9, cpu.OU, D, tau, 0.0, h, 0.0,
-                          physics.HARMONIC, 2, physics.COUPLING_FORCE, key0, key1, 0, t_comp)
+                          physics.HARMONIC, 2, physics.COUPLING_FORCE, key0, key1, 0, t_comp,
+                          np.zeros(n), 0.0)
 
     x = np.zeros(n)  # x = 0, Omega = 0 and harmonic: the oscillator stays at rest, xi evolves freely
     O = np.zeros(n)

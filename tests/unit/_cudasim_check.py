@@ -48,10 +48,20 @@ def main(spec_path: str, out_path: str) -> None:
         "availability_ok": np.array(ok),
         "availability_reason": np.array(reason),
     }
+    from stochpend import models
+
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import _user_models
+
+    _user_models.register_all()
+    generic_backend = backend
     for case in cases:
         name = case["name"]
         started = time.perf_counter()
         config = SimulationConfig.build(**case["config"])
+        # A user-defined model runs on its own copy of the CUDA backend (stochpend.models).
+        backend = (models.kernels(config.potential, "cuda") if models.get(config.potential)
+                   else generic_backend)
         default_launch = (backend._WORK_PER_LAUNCH, backend._MIN_STEPS_PER_LAUNCH)
         if case.get("launch"):
             backend._WORK_PER_LAUNCH, backend._MIN_STEPS_PER_LAUNCH = case["launch"]

@@ -43,10 +43,11 @@ def _stochpend_states(paths=PATHS, t_max=T, seed=SEED):
     k = np.empty(paths, dtype=np.uint64)
     st = np.empty(paths, dtype=np.uint8)
     k0, k1 = rng.seed_to_key(seed)
-    cpu.init_paths(x, Om, xi, t, k, st, k0, k1, 0, 0.0, True, 0.0, 0.0, True, D, TAU, cpu.OU, tc)
+    cpu.init_paths(x, Om, xi, t, k, st, k0, k1, 0, 0.0, True, 0.0, 0.0, True, D, TAU, cpu.OU, tc,
+                   np.zeros(x.size), 0.0)
     while True:
         _, unfinished = cpu.advance_paths(x, Om, xi, t, k, st, t_max, 10**6, cpu.OU, D, TAU,
-                                          OMEGA**2, H, 0.0, 0, 2, 0, k0, k1, 0, tc)
+                                          OMEGA**2, H, 0.0, 0, 2, 0, k0, k1, 0, tc, np.zeros(x.size), 0.0)
         if unfinished == 0:
             return x, Om, xi, int(k[0])
 

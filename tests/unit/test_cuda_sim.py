@@ -24,7 +24,10 @@ from stochpend import rng
 from stochpend._backends import cpu
 from stochpend._backends import cuda as gpu
 from stochpend.params import SimulationConfig
-from stochpend.simulate import run_batches
+from stochpend.simulate import cpu_kernels, run_batches
+from tests.unit._user_models import register_all
+
+register_all()
 
 pytestmark = pytest.mark.gpu
 
@@ -72,6 +75,21 @@ CASES = [
     dict(name="f32_white", config=dict(noise="white", D=1.0, omega=0.0, h_max=0.125,
                                        step_c=0.0, **_COMMON),
          first_batch=0, stop_batch=4, chunk_paths=48, check_paths=6, float32=True),
+]
+CASES += [
+    # The dichotomous noise: steps cut at the flips, a flip draw on the step that ends on one.
+    dict(name="dichotomous", config=dict(noise="dichotomous", D=1.0, tau=0.3, omega=1.0,
+                                         h_max=0.1, step_c=0.25, **_COMMON),
+         first_batch=0, stop_batch=4, chunk_paths=24, check_paths=6),
+    # The harmonic noise: exact 3x3 update, two draws a step; underdamped W.
+    dict(name="harmonic_noise", config=dict(noise="harmonic", D=1.0, tau=1.0, omega_noise=1.5,
+                                            omega=1.0, h_max=0.1, step_c=0.25, **_COMMON),
+         first_batch=0, stop_batch=4, chunk_paths=48, check_paths=6),
+    # A user-defined model (tests/unit/_user_models.py) with position coupling and OU noise.
+    dict(name="user_model", config=dict(noise="ou", D=1.0, tau=1.0, omega=1.0, h_max=0.1,
+                                        step_c=0.25, potential="double-well",
+                                        coupling="position", **_COMMON),
+         first_batch=0, stop_batch=4, chunk_paths=24, check_paths=6),
 ]
 CASE_NAMES = [case["name"] for case in CASES]
 F64_CASES = CASE_NAMES  # every case checks float64 against the CPU
@@ -121,21 +139,25 @@ def _config(name: str) -> SimulationConfig:
 
 def _cpu_states(config: SimulationConfig, n: int) -> dict[str, np.ndarray]:
     """Paths 0..n-1 through every output time with the CPU kernels (as in run_batches)."""
+    init_paths, advance_paths, _ = cpu_kernels(config)
     x, Omega, xi, t = (np.empty(n) for _ in range(4))
     k = np.empty(n, dtype=np.uint64)
     status = np.empty(n, dtype=np.uint8)
     t_comp = np.empty(n)
+    xi_aux = np.empty(n)
     key0, key1 = rng.seed_to_key(config.seed)
-    cpu.init_paths(x, Omega, xi, t, k, status, key0, key1, 0,
+    init_paths(x, Omega, xi, t, k, status, key0, key1, 0,
                    0.0 if config.theta0 is None else config.theta0, config.theta0 is None,
                    config.Omega0, 0.0 if config.xi0 is None else config.xi0, config.xi0 is None,
-                   config.D, config.tau_or_zero, config.noise_code, t_comp)
-    pot = {"pendulum": 0, "harmonic": 1, "power": 2}[config.potential]
-    cpl = {"force": 0, "position": 1}[config.coupling]
+                   config.D, config.tau_or_zero, config.noise_code, t_comp, xi_aux,
+                   config.omega_noise_or_zero)
+    pot = config.potential_code
+    cpl = config.coupling_code
     for t_target in config.times:
-        while cpu.advance_paths(x, Omega, xi, t, k, status, t_target, 1000, config.noise_code,
+        while advance_paths(x, Omega, xi, t, k, status, t_target, 1000, config.noise_code,
                                 config.D, config.tau_or_zero, config.omega**2, config.h_max,
-                                config.step_c, pot, config.power_n, cpl, key0, key1, 0, t_comp)[1]:
+                                config.step_c, pot, config.power_n, cpl, key0, key1, 0, t_comp, xi_aux,
+                                config.omega_noise_or_zero)[1]:
             pass
     return dict(x=x, Omega=Omega, xi=xi, t=t, k=k, status=status)
 
@@ -264,7 +286,7 @@ def test_float32_variants_compute_in_float32():
     @numba.njit
     def step(x, Om, h, omega2, noise, xi, D, tau, key0, key1):
         x1, Om1 = verlet_step(x, Om, h, omega2, noise, 0, 2, 0)
-        hh = step_size(Om1, xi, x1, h, f(0.25), omega2, 0, 2)
+        hh = step_size(Om1, xi, x1, h, f(0.25), omega2, 0, 2, 0)
         a, s_xi, m_I, c_I, s_I = ou_step_coefficients(hh, D, tau)
         z1, z2 = draw_normals(key0, key1, np.uint64(3), np.uint64(5))
         return x1, Om1, hh, a, s_xi, m_I, c_I, s_I, z1, z2
@@ -277,7 +299,7 @@ def test_float32_variants_compute_in_float32():
     from stochpend import schemes
 
     x1, Om1 = schemes.verlet_step(3.1, 2.5, 0.05, 1.0, 0.01, 0, 2, 0)
-    hh = schemes.step_size(Om1, 0.4, x1, 0.05, 0.25, 1.0, 0, 2)
+    hh = schemes.step_size(Om1, 0.4, x1, 0.05, 0.25, 1.0, 0, 2, 0)
     ref = (x1, Om1, hh, *schemes.ou_step_coefficients(hh, 1.0, 1.0),
            *rng.draw_normals(key0, key1, np.uint64(3), np.uint64(5)))
     np.testing.assert_allclose(np.array(out, dtype=np.float64), ref, rtol=2e-6)

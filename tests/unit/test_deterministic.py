@@ -22,7 +22,8 @@ def _one_path(theta0: float, Omega0: float, t_end: float, h: float, max_steps: i
     status = np.zeros(1, dtype=np.uint8)
     key0, key1 = rng.seed_to_key(0)
     cpu.advance_paths(x, O, xi, t, k, status, t_end, max_steps, cpu.OU, 0.0, 1.0, 1.0, h, 0.0,
-                      physics.PENDULUM, 2, physics.COUPLING_FORCE, key0, key1, 0, np.zeros(1))
+                      physics.PENDULUM, 2, physics.COUPLING_FORCE, key0, key1, 0, np.zeros(1),
+                      np.zeros(1), 0.0)
     return float(x[0]), float(O[0]), int(k[0])
 
 

@@ -100,13 +100,13 @@ def _run(kernel, paths, t_max, max_steps, seed=5, h=0.01, freeze=None, path0=0):
     st = np.empty(paths, dtype=np.uint8)
     k0, k1 = rng.seed_to_key(seed)
     cpu.init_paths(x, Om, xi, t, k, st, k0, k1, path0, 0.0, True, 0.0, 0.0, True, 1.0, 1.0, cpu.OU,
-                   tc)
+                   tc, np.zeros(x.size), 0.0)
     if freeze is not None:
         st[freeze] = 1
     calls = []
     while True:
         s, u = kernel(x, Om, xi, t, k, st, t_max, max_steps, cpu.OU, 1.0, 1.0, 1.0, h, 0.0, 0, 2, 0,
-                      k0, k1, path0, tc)
+                      k0, k1, path0, tc, np.zeros(x.size), 0.0)
         calls.append((s, u))
         if u == 0:
             return x, Om, xi, t, k, st, calls, tc
@@ -158,9 +158,9 @@ def test_fast_kernel_falls_back_outside_its_case():
             st = np.empty(paths, dtype=np.uint8)
             k0, k1 = rng.seed_to_key(9)
             cpu.init_paths(x, Om, xi, t, k, st, k0, k1, 0, 0.0, True, 0.0, 0.0, True, 1.0, 1.0, noise,
-                           tc)
+                           tc, np.zeros(x.size), 0.0)
             r = kernel(x, Om, xi, t, k, st, 1.0, 10**6, noise, 1.0, 1.0, 1.0, 0.05, step_c, 0, 2, 0,
-                       k0, k1, 0, tc)
+                       k0, k1, 0, tc, np.zeros(x.size), 0.0)
             out.append((r, x.copy(), Om.copy()))
         assert out[0][0] == out[1][0]
         np.testing.assert_array_equal(out[0][1], out[1][1])

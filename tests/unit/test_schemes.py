@@ -88,10 +88,10 @@ def test_ito_and_stratonovich_coincide():
 
 def test_step_size_rules():
     h_max, c = 0.05, 0.25
-    assert schemes.step_size(0.1, 0.0, 0.0, h_max, c, 1.0, physics.PENDULUM, 2) == h_max
-    assert schemes.step_size(100.0, 0.0, 0.0, h_max, c, 1.0, physics.PENDULUM, 2) == pytest.approx(c / 100.0)
-    assert schemes.step_size(0.0, 399.0, 0.0, h_max, c, 1.0, physics.PENDULUM, 2) == pytest.approx(c / 20.0)
-    assert schemes.step_size(100.0, 399.0, 0.0, h_max, 0.0, 1.0, physics.PENDULUM, 2) == h_max
+    assert schemes.step_size(0.1, 0.0, 0.0, h_max, c, 1.0, physics.PENDULUM, 2, 0) == h_max
+    assert schemes.step_size(100.0, 0.0, 0.0, h_max, c, 1.0, physics.PENDULUM, 2, 0) == pytest.approx(c / 100.0)
+    assert schemes.step_size(0.0, 399.0, 0.0, h_max, c, 1.0, physics.PENDULUM, 2, 0) == pytest.approx(c / 20.0)
+    assert schemes.step_size(100.0, 399.0, 0.0, h_max, 0.0, 1.0, physics.PENDULUM, 2, 0) == h_max
 
 
 def test_angle_wrapping():
@@ -100,3 +100,29 @@ def test_angle_wrapping():
         assert -math.pi <= w < math.pi
         assert math.sin(w) == pytest.approx(math.sin(x), abs=1e-9)
     assert physics.wrap_angle(10.0, physics.HARMONIC) == 10.0
+
+
+def test_step_size_stiffness_follows_the_coupling():
+    """Force coupling: k = |omega**2 + xi| |U''|; position coupling: k = |omega**2 U'' + xi|
+    (the linearized force of each model)."""
+    c, h_max, x, xi = 0.1, 1.0, 2.0, 30.0  # quartic: U'' = 3 x**2 = 12
+    force = schemes.step_size(0.0, xi, x, h_max, c, 1.0, physics.POWER, 2, physics.COUPLING_FORCE)
+    position = schemes.step_size(0.0, xi, x, h_max, c, 1.0, physics.POWER, 2,
+                                 physics.COUPLING_POSITION)
+    assert force == pytest.approx(c / math.sqrt(31.0 * 12.0))
+    assert position == pytest.approx(c / math.sqrt(12.0 + 30.0))
+
+
+def test_runaway_paths_are_frozen_and_counted():
+    """The quartic oscillator with the noise on the force blows up in finite time
+    (docs/scaling.md). The shrinking adaptive steps would follow a runaway path forever; the
+    escape rule (step below ESCAPE_STEP_FRACTION h_max) freezes it, so the run ends and the
+    path is counted as non-finite, never averaged."""
+    import stochpend
+
+    ds = stochpend.simulate(noise="white", D=1.0, potential="power", power_n=2, coupling="force",
+                            paths=200, t_max=3.0, times=[0.5, 3.0], seed=4, n_batches=4)
+    nonfinite = ds.nonfinite_paths.values
+    assert nonfinite[-1] > 10
+    assert int(ds.n_finite_paths[-1]) + nonfinite[-1] == 200
+    assert np.isfinite(ds.mean_E.values).all()

@@ -5,10 +5,13 @@ shared scalar functions of ``physics``, ``schemes`` and ``rng``. They trust thei
 (validated in ``params``), allocate nothing inside the path loops and call no Python.
 
 Each path's state lives in arrays of length n_paths: position ``x`` (the angle theta for the
-pendulum), ``Omega``, the OU noise ``xi``, the time ``t``, the number of steps taken ``k``
-and a ``status`` (0: finite, 1: went non-finite and frozen). The random numbers of step k of
-global path p are Philox draw N_FIRST_STEP + k (OU: both normals) or N_FIRST_STEP + k // 2
-(white: one normal of the pair, alternately), so they depend on (seed, p, k) only.
+pendulum), ``Omega``, the noise ``xi``, its auxiliary variable ``xi_aux`` (harmonic noise: its
+derivative; dichotomous noise: the time of the next flip), the time ``t``, the number of steps
+taken ``k`` and a ``status`` (0: finite, 1: went non-finite and frozen). The random numbers of
+step k of global path p are Philox draw N_FIRST_STEP + k (OU: both normals; dichotomous: a
+uniform for the next waiting time, on a step that ends on a flip), N_FIRST_STEP + k // 2
+(white: one normal of the pair, alternately) or N_FIRST_STEP + 2k and 2k + 1 (harmonic: three
+normals), so they depend on (seed, p, k) only.
 """
 
 from __future__ import annotations
@@ -24,8 +27,10 @@ from stochpend._jitcache import drop_stale_cache
 
 drop_stale_cache(__file__)
 
-WHITE = 0
-OU = 1
+WHITE = schemes.NOISE_WHITE
+OU = schemes.NOISE_OU
+DICHOTOMOUS = schemes.NOISE_DICHOTOMOUS
+HARMONIC = schemes.NOISE_HARMONIC
 
 #: Columns of the per-batch sums.
 S_COUNT, S_E1, S_E2, S_E3, S_E4, S_OMEGA2, S_OMEGA4, S_G2, S_NONFINITE = range(9)
@@ -36,12 +41,13 @@ _U64 = np.uint64
 
 @numba.njit(parallel=True, cache=True)
 def init_paths(x, Omega, xi, t, k, status, key0, key1, path0, theta0, uniform_theta0, Omega0, xi0,
-               stationary_xi0, D, tau, noise_code, t_comp):  # pragma: no cover - compiled
+               stationary_xi0, D, tau, noise_code, t_comp, xi_aux,
+               omega_noise):  # pragma: no cover - compiled
     """Initial conditions of paths path0 .. path0 + len(x) - 1 (draws 0 and 1)."""
     for i in prange(x.shape[0]):
-        x[i], Omega[i], xi[i] = schemes.initial_state(
+        x[i], Omega[i], xi[i], xi_aux[i] = schemes.initial_state(
             key0, key1, _U64(path0 + i), theta0, uniform_theta0, Omega0, xi0, stationary_xi0, D,
-            tau, noise_code == OU)
+            tau, noise_code, omega_noise)
         t[i] = 0.0
         t_comp[i] = 0.0
         k[i] = 0
@@ -51,10 +57,12 @@ def init_paths(x, Omega, xi, t, k, status, key0, key1, path0, theta0, uniform_th
 @numba.njit(parallel=True, cache=True)
 def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D, tau, omega2,
                   h_max, step_c, potential_code, power_n, coupling_code, key0, key1,
-                  path0, t_comp):  # pragma: no cover - compiled
+                  path0, t_comp, xi_aux, omega_noise):  # pragma: no cover - compiled
     """Advance every unfinished path towards ``t_target``, at most ``max_steps`` steps each.
 
-    The last step of a path is shortened to land exactly on ``t_target``. A path whose state
+    The last step of a path is shortened to land exactly on ``t_target``; with dichotomous
+    noise a step is also cut at each flip (the dynamics between flips is deterministic, with the
+    constant noise folded into the kick). A path whose state
     becomes non-finite gets status 1 and is never advanced again. The clock is a Kahan sum whose
     compensation term ``t_comp`` is part of the path's state (zeroed on landing), so the result
     does not depend on how a segment is split into calls.
@@ -71,15 +79,18 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
         xs = x[i]
         Om = Omega[i]
         xn = xi[i]
+        xa = xi_aux[i]
         tt = t[i]
         kk = k[i]
-        # OU coefficients are cached while the step is unchanged (h = h_max most of the time).
+        # Noise coefficients are cached while the step is unchanged (h = h_max most of the time).
         h_cached = -1.0
         a = 0.0
         s_xi = 0.0
         m_I = 0.0
         c_I = 0.0
         s_I = 0.0
+        p11 = p12 = p21 = p22 = p31 = p32 = 0.0
+        l11 = l21 = l22 = l31 = l32 = l33 = 0.0
         pair_draw = _U64(0xFFFFFFFFFFFFFFFF)
         z_even = 0.0
         z_odd = 0.0
@@ -87,8 +98,20 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
         n = 0
         bad = False
         while n < max_steps:
-            h = schemes.step_size(Om, xn, xs, h_max, step_c, omega2, potential_code, power_n)
-            h, last = schemes.landing_step(tt, h, t_target)
+            h = schemes.step_size(Om, xn, xs, h_max, step_c, omega2, potential_code, power_n,
+                                  coupling_code)
+            if h < schemes.ESCAPE_STEP_FRACTION * h_max:
+                bad = True  # running away (see ESCAPE_STEP_FRACTION)
+                break
+            flip = False
+            if noise_code == DICHOTOMOUS and xa <= t_target:
+                # The next flip comes first: the step ends on it (and on t_target if equal).
+                h, flip = schemes.landing_step(tt, h, xa)
+                t_land = xa
+                last = flip and xa == t_target
+            else:
+                h, last = schemes.landing_step(tt, h, t_target)
+                t_land = t_target
             if noise_code == OU:
                 z1, z2 = rng.draw_normals(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
                 if h != h_cached:
@@ -96,19 +119,37 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
                     h_cached = h
                 noise_integral = m_I * xn + c_I * z1 + s_I * z2
                 xn = a * xn + s_xi * z1
-            else:
+            elif noise_code == WHITE:
                 d = _U64(rng.N_FIRST_STEP) + (kk >> _U64(1))
                 if d != pair_draw:
                     z_even, z_odd = rng.draw_normals(key0, key1, path, d)
                     pair_draw = d
                 z = z_even if (kk & _U64(1)) == 0 else z_odd
                 noise_integral = math.sqrt(D * h) * z
+            elif noise_code == DICHOTOMOUS:
+                noise_integral = xn * h
+            else:
+                d = _U64(rng.N_FIRST_STEP) + (kk << _U64(1))
+                z1, z2 = rng.draw_normals(key0, key1, path, d)
+                z3, _ = rng.draw_normals(key0, key1, path, d + _U64(1))
+                if h != h_cached:
+                    (p11, p12, p21, p22, p31, p32, l11, l21, l22, l31, l32,
+                     l33) = schemes.harmonic_step_coefficients(h, D, tau, omega_noise)
+                    h_cached = h
+                noise_integral = p31 * xn + p32 * xa + l31 * z1 + l32 * z2 + l33 * z3
+                xn, xa = (p11 * xn + p12 * xa + l11 * z1,
+                          p21 * xn + p22 * xa + l21 * z1 + l22 * z2)
             xs, Om = schemes.verlet_step(xs, Om, h, omega2, noise_integral, potential_code,
                                          power_n, coupling_code)
+            if flip:
+                u, _ = rng.draw_uniforms(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
+                xn = -xn
+                xa = xa + schemes.dichotomous_waiting_time(u, tau)
             kk += _U64(1)
             n += 1
-            tt, tc = schemes.advance_clock(tt, tc, h, last, t_target)
-            if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)):
+            tt, tc = schemes.advance_clock(tt, tc, h, flip or last, t_land)
+            if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)
+                    and math.isfinite(xa)):
                 bad = True
                 break
             if last:
@@ -116,6 +157,7 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
         x[i] = xs
         Omega[i] = Om
         xi[i] = xn
+        xi_aux[i] = xa
         t[i] = tt
         t_comp[i] = tc
         k[i] = kk

@@ -74,7 +74,7 @@ def round_keys(key0, key1):
 
 def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D, tau, omega2,
                   h_max, step_c, potential_code, power_n, coupling_code, key0, key1, path0,
-                  t_comp):
+                  t_comp, xi_aux, omega_noise):
     """Drop-in for ``cpu.advance_paths``; the SIMD kernel for fixed-step OU pendulum runs."""
     if (step_c <= 0.0 and noise_code == cpu.OU and potential_code == physics.PENDULUM
             and coupling_code == physics.COUPLING_FORCE and tau > 0.0):
@@ -82,7 +82,7 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
                                h_max, key0, key1, path0, t_comp)
     return cpu.advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D, tau,
                              omega2, h_max, step_c, potential_code, power_n, coupling_code, key0,
-                             key1, path0, t_comp)
+                             key1, path0, t_comp, xi_aux, omega_noise)
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -78,6 +78,11 @@ _MIN_STEPS_PER_LAUNCH = 1000
 
 _U64 = np.uint64
 _OU = cpu.OU
+_ESCAPE = schemes.ESCAPE_STEP_FRACTION
+_WHITE = cpu.WHITE
+_DICHOTOMOUS = cpu.DICHOTOMOUS
+#: Noises whose state and step run in float64 only.
+FLOAT64_ONLY_NOISES = ("dichotomous", "harmonic")
 _N_VALUES = 7  # E, E^2, E^3, E^4, Omega^2, Omega^4, G^2: the summed values of a path
 
 
@@ -129,9 +134,12 @@ def _simulator_enabled() -> bool:
     return bool(numba_config.ENABLE_CUDASIM)
 
 
-def _require(precision: str) -> None:
+def _require(precision: str, config: SimulationConfig | None = None) -> None:
     if precision not in PRECISIONS:
         raise ValueError(f"precision={precision!r} is not accepted: one of {', '.join(PRECISIONS)}")
+    if precision == "float32" and config is not None and config.noise in FLOAT64_ONLY_NOISES:
+        raise ValueError(f"precision='float32' is not accepted with noise={config.noise!r}: "
+                         "the dichotomous and harmonic noises run in float64")
     ok, why = availability()
     if not ok:
         raise RuntimeError(f"backend='cuda' is not usable here: {why}")
@@ -371,17 +379,20 @@ def _kernels(precision: str) -> types.SimpleNamespace:
 
     @cuda.jit
     def init_kernel(x, Omega, xi, t, k, status, key0, key1, path0, theta0, uniform_theta0,
-                    Omega0, xi0, stationary_xi0, D, tau, noise_code, t_comp):  # pragma: no cover
+                    Omega0, xi0, stationary_xi0, D, tau, noise_code, t_comp, xi_aux,
+                    omega_noise):  # pragma: no cover
         """``cpu.init_paths`` for one path per thread (initial values computed in float64);
         also zeroes the clock's compensation term ``t_comp``."""
         i = cuda.grid(1)
         if i >= x.shape[0]:
             return
-        x0, O0, xi_0 = schemes.initial_state(key0, key1, _U64(path0 + i), theta0, uniform_theta0,
-                                             Omega0, xi0, stationary_xi0, D, tau, noise_code == _OU)
+        x0, O0, xi_0, xa_0 = schemes.initial_state(key0, key1, _U64(path0 + i), theta0,
+                                                   uniform_theta0, Omega0, xi0, stationary_xi0,
+                                                   D, tau, noise_code, omega_noise)
         x[i] = x0
         Omega[i] = O0
         xi[i] = xi_0
+        xi_aux[i] = xa_0
         t[i] = 0.0
         t_comp[i] = 0.0
         k[i] = 0
@@ -390,7 +401,7 @@ def _kernels(precision: str) -> types.SimpleNamespace:
     @cuda.jit
     def advance_kernel(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D, tau,
                        omega2, h_max, step_c, potential_code, power_n, coupling_code, key0, key1,
-                       path0, unfinished, t_comp):  # pragma: no cover - device
+                       path0, unfinished, t_comp, xi_aux, omega_noise):  # pragma: no cover
         """``cpu.advance_paths`` for one path per thread; sets ``unfinished[0] = 1`` if the
         path stopped short of ``t_target`` (step budget spent).
 
@@ -412,9 +423,12 @@ def _kernels(precision: str) -> types.SimpleNamespace:
         xs = x[i]
         Om = Omega[i]
         xn = xi[i]
+        xa = xi_aux[i]
         tt = t[i]
         tc = t_comp[i]
         kk = k[i]
+        p11 = p12 = p21 = p22 = p31 = p32 = 0.0
+        l11 = l21 = l22 = l31 = l32 = l33 = 0.0
         h_cached = real(-1.0)
         a = real(0.0)
         s_xi = real(0.0)
@@ -427,12 +441,24 @@ def _kernels(precision: str) -> types.SimpleNamespace:
         n = 0
         bad = False
         while n < max_steps:
-            h = real(step_size(Om, xn, xs, h_max_r, c_r, omega2_r, potential_code, power_n))
+            h = real(step_size(Om, xn, xs, h_max_r, c_r, omega2_r, potential_code, power_n,
+                               coupling_code))
+            if h < _ESCAPE * h_max_r:
+                bad = True  # running away (see schemes.ESCAPE_STEP_FRACTION)
+                break
             # The clock runs in float64 with the float64 h_max when the step is the largest one
             # (float64: exactly the CPU's h; float32: the same step sequence and draws as
             # float64, the dynamics using that step rounded to float32).
             h_clock = h_max if h == h_max_r else np.float64(h)
-            h_clock, last = schemes.landing_step(tt, h_clock, t_target)
+            flip = False
+            if noise_code == _DICHOTOMOUS and xa <= t_target:
+                # The next flip comes first: the step ends on it (and on t_target if equal).
+                h_clock, flip = schemes.landing_step(tt, h_clock, xa)
+                t_land = np.float64(xa)
+                last = flip and xa == t_target
+            else:
+                h_clock, last = schemes.landing_step(tt, h_clock, t_target)
+                t_land = t_target
             h = real(h_clock)
             if noise_code == _OU:
                 w1, w2 = draw_normals(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
@@ -448,7 +474,7 @@ def _kernels(precision: str) -> types.SimpleNamespace:
                     h_cached = h
                 noise_integral = m_I * xn + c_I * z1 + s_I * z2
                 xn = a * xn + s_xi * z1
-            else:
+            elif noise_code == _WHITE:
                 d = _U64(rng.N_FIRST_STEP) + (kk >> _U64(1))
                 if d != pair_draw:
                     w1, w2 = draw_normals(key0, key1, path, d)
@@ -457,14 +483,32 @@ def _kernels(precision: str) -> types.SimpleNamespace:
                     pair_draw = d
                 z = z_even if (kk & _U64(1)) == 0 else z_odd
                 noise_integral = real(math.sqrt(D_r * h) * z)
+            elif noise_code == _DICHOTOMOUS:  # float64 only (refused in float32)
+                noise_integral = real(xn * h)
+            else:  # harmonic, float64 only
+                d = _U64(rng.N_FIRST_STEP) + (kk << _U64(1))
+                w1, w2 = rng.draw_normals(key0, key1, path, d)
+                w3, _ = rng.draw_normals(key0, key1, path, d + _U64(1))
+                if h != h_cached:
+                    (p11, p12, p21, p22, p31, p32, l11, l21, l22, l31, l32,
+                     l33) = schemes.harmonic_step_coefficients(h, D, tau, omega_noise)
+                    h_cached = h
+                noise_integral = real(p31 * xn + p32 * xa + l31 * w1 + l32 * w2 + l33 * w3)
+                xn, xa = (real(p11 * xn + p12 * xa + l11 * w1),
+                          real(p21 * xn + p22 * xa + l21 * w1 + l22 * w2))
             x_new, Om_new = verlet_step(xs, Om, h, omega2_r, noise_integral, potential_code,
                                         power_n, coupling_code)
             xs = real(x_new)
             Om = real(Om_new)
+            if flip:
+                u, _ = rng.draw_uniforms(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
+                xn = real(-xn)
+                xa = real(xa + schemes.dichotomous_waiting_time(u, tau))
             kk += _U64(1)
             n += 1
-            tt, tc = schemes.advance_clock(tt, tc, h_clock, last, t_target)
-            if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)):
+            tt, tc = schemes.advance_clock(tt, tc, h_clock, flip or last, t_land)
+            if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)
+                    and math.isfinite(xa)):
                 bad = True
                 break
             if last:
@@ -472,6 +516,7 @@ def _kernels(precision: str) -> types.SimpleNamespace:
         x[i] = xs
         Omega[i] = Om
         xi[i] = xn
+        xi_aux[i] = xa
         t[i] = tt
         t_comp[i] = tc
         k[i] = kk
@@ -603,6 +648,7 @@ class _Chunk:
         self.xi = cuda.device_array(capacity, dtype=real)
         self.t = cuda.device_array(capacity, dtype=np.float64)
         self.t_comp = cuda.device_array(capacity, dtype=np.float64)
+        self.xi_aux = cuda.device_array(capacity, dtype=real)
         self.k = cuda.device_array(capacity, dtype=np.uint64)
         self.status = cuda.device_array(capacity, dtype=np.uint8)
         self.flag = cuda.device_array(1, dtype=np.int32)
@@ -623,7 +669,8 @@ class _Chunk:
             *self.views(), self.key0, self.key1, p0,
             0.0 if c.theta0 is None else c.theta0, c.theta0 is None,
             c.Omega0, 0.0 if c.xi0 is None else c.xi0, c.xi0 is None,
-            c.D, c.tau_or_zero, c.noise_code, self.t_comp[:n],
+            c.D, c.tau_or_zero, c.noise_code, self.t_comp[:n], self.xi_aux[:n],
+            c.omega_noise_or_zero,
         )
 
     def advance(self, t_target: float, max_steps: int) -> bool:
@@ -632,9 +679,9 @@ class _Chunk:
         self.flag.copy_to_device(self._zero_flag)
         self.kernels.advance[_blocks(self.n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
             *self.views(), t_target, max_steps, c.noise_code, c.D, c.tau_or_zero, c.omega**2,
-            c.h_max, c.step_c, physics.POTENTIALS[c.potential], c.power_n,
-            physics.COUPLINGS[c.coupling], self.key0, self.key1, self.p0, self.flag,
-            self.t_comp[: self.n],
+            c.h_max, c.step_c, c.potential_code, c.power_n,
+            c.coupling_code, self.key0, self.key1, self.p0, self.flag,
+            self.t_comp[: self.n], self.xi_aux[: self.n], c.omega_noise_or_zero,
         )
         return int(self.flag.copy_to_host()[0]) == 0
 
@@ -654,7 +701,7 @@ class _Chunk:
 def _default_chunk_paths(precision: str) -> int:
     if _simulator_enabled():
         return DEFAULT_CHUNK_PATHS
-    per_path = 3 * np.dtype(precision).itemsize + 8 + 8 + 8 + 1  # x, Omega, xi; t, t_comp, k; status
+    per_path = 4 * np.dtype(precision).itemsize + 8 + 8 + 8 + 1  # x, Omega, xi, xi_aux; t, t_comp, k; status
     free, _ = cuda.current_context().get_memory_info()
     return int(max(1, min(DEFAULT_CHUNK_PATHS, free // (2 * per_path))))
 
@@ -680,7 +727,7 @@ def run_batches(
     Raises ``ValueError`` for a bad precision or batch range, ``RuntimeError`` (one line, from
     :func:`availability`) when CUDA cannot run here.
     """
-    _require(precision)
+    _require(precision, config)
     if not (0 <= first_batch < stop_batch <= config.n_batches):
         raise ValueError(
             f"batches {first_batch}..{stop_batch} are not accepted: need 0 <= first_batch < "
@@ -700,8 +747,8 @@ def _run_batches(config: SimulationConfig, first_batch: int, stop_batch: int,
     n_times = times.size
     n_cols = config.hist_bins + 2
     omega2 = config.omega**2
-    pot = physics.POTENTIALS[config.potential]
-    cpl = physics.COUPLINGS[config.coupling]
+    pot = config.potential_code
+    cpl = config.coupling_code
     total_paths = min(stop_batch * bs, config.paths) - first_batch * bs
     progress.start(total_paths * config.t_max, "simulating")
 
@@ -754,7 +801,7 @@ def path_states(
     ``xi`` (of the precision's dtype), ``t``, ``k`` (steps taken) and ``status``. For
     path-by-path comparisons with the CPU kernels.
     """
-    _require(precision)
+    _require(precision, config)
     if not (0 <= first_path and 1 <= n_paths and first_path + n_paths <= config.paths):
         raise ValueError(f"paths {first_path}..{first_path + n_paths - 1} are not in the ensemble")
     with _quiet():
