@@ -1,5 +1,6 @@
 """The paper's theory as code: closed forms (:mod:`.laws`), the averaged B.F.P.E. solver
-(:mod:`.bfpe`) and the table of predictions (:mod:`.table`).
+(:mod:`.bfpe`), the table of predictions (:mod:`.table`), and the long-time growth laws of the
+other oscillators and noises (:mod:`.scaling`, docs/scaling.md).
 
 Equation labels in the docstrings are the ``\\label`` names of Mallick & Marcq (2004); see
 ``docs/theory.md`` for the map from each equation to its function.
@@ -44,9 +45,19 @@ from stochpend.theory.laws import (
     white_pdf_Omega,
     white_skewness,
 )
+from stochpend.theory.scaling import (
+    ScalingPrediction,
+    harmonic_growth_rate,
+    predicted_exponent,
+    spectral_density,
+)
 from stochpend.theory.table import Prediction, format_table, predictions
 
 __all__ = [
+    "ScalingPrediction",
+    "harmonic_growth_rate",
+    "predicted_exponent",
+    "spectral_density",
     "BFPE_LONGTIME_MEAN_PREFACTOR",
     "OU1_MEAN_E2_PREFACTOR",
     "OU1_MEAN_PREFACTOR",
