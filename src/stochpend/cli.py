@@ -126,7 +126,13 @@ def summary_table(ds: Any, max_rows: int = 12) -> Table:
     noise = attrs.get("noise", "ou")
     D = float(attrs.get("D", 1.0))
     tau = attrs.get("tau", "none")
-    title = f"stochpend: {noise} noise, D={D:g}" + (f", tau={float(tau):g}" if noise == "ou" else "")
+    potential = attrs.get("potential", "pendulum")
+    model = potential if potential != "power" else f"U = x^{2 * int(attrs.get('power_n', 2))}/{2 * int(attrs.get('power_n', 2))}"
+    if potential != "pendulum":
+        model += f" ({attrs.get('coupling', 'force')} coupling)"
+    title = f"stochpend: {model}, {noise} noise, D={D:g}" + (f", tau={float(tau):g}" if tau != "none" else "")
+    if attrs.get("omega_noise", "none") != "none":
+        title += f", W={float(attrs['omega_noise']):g}"
     title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {attrs.get('seed')}"
     table = Table(title=title)
     scaled = "<E2>/(Dt/tau^2)" if noise == "ou" else "<E>/(Dt/4)"
@@ -165,10 +171,14 @@ def summary_table(ds: Any, max_rows: int = 12) -> Table:
 @app.command()
 @handles_errors
 def simulate(
-    noise: Annotated[str, typer.Option(help="Noise: 'ou' (Ornstein-Uhlenbeck, eqOU) or 'white' (defbruitblanc).")] = "ou",
-    D: Annotated[float, typer.Option("--D", help="Noise amplitude D >= 0.")] = 1.0,
-    tau: Annotated[float, typer.Option("--tau", help="OU correlation time tau > 0 (ignored for white noise).")] = 1.0,
-    omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency omega >= 0.")] = 1.0,
+    noise: Annotated[str, typer.Option(help="Noise: 'ou' (Ornstein-Uhlenbeck, eqOU), 'white' (defbruitblanc), 'dichotomous' (telegraph +-sqrt(D/2tau), same correlation as OU) or 'harmonic' (spectrum ~ nu^-4); docs/models.md.")] = "ou",
+    D: Annotated[float, typer.Option("--D", help="Noise amplitude D >= 0 (every noise has spectral density D at zero frequency).")] = 1.0,
+    tau: Annotated[float, typer.Option("--tau", help="Correlation time tau > 0 of the colored noises (ignored for white noise).")] = 1.0,
+    omega_noise: Annotated[float | None, typer.Option("--omega-noise", help="Harmonic noise only: its oscillator frequency W (default 2/tau, critical damping).")] = None,
+    omega: Annotated[float, typer.Option("--omega", help="Oscillator frequency omega >= 0.")] = 1.0,
+    potential: Annotated[str, typer.Option(help="Oscillator: 'pendulum' (U = -cos x), 'harmonic' (x^2/2) or 'power' (x^2n/2n, see --n).")] = "pendulum",
+    n: Annotated[int, typer.Option("--n", help="Exponent n of the power potential U = x^2n/2n (n >= 1).")] = 2,
+    coupling: Annotated[str, typer.Option(help="The noise multiplies the force U'(x) ('force', the pendulum's) or x ('position', the random-frequency oscillator).")] = "force",
     paths: Annotated[int, typer.Option(help="Number of realizations.")] = 10_000,
     t_max: Annotated[float, typer.Option("--t-max", help="Final time (units of the paper).")] = 1000.0,
     n_times: Annotated[int, typer.Option("--n-times", help="Number of log-spaced output times in [t_max/1000, t_max].")] = 40,
@@ -203,6 +213,7 @@ def simulate(
     if hist_bins is not None:
         kwargs["hist_bins"] = hist_bins
     # Validate everything before any work (and before the JIT compiles).
+    kwargs.update(potential=potential, power_n=n, coupling=coupling, omega_noise=omega_noise)
     config = params.SimulationConfig.build(
         noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max,
         times=parse_times(times), n_times=n_times, seed=seed, theta0=parse_theta0(theta0),
@@ -233,7 +244,12 @@ def simulate(
     if not quiet:
         console.print(summary_table(ds))
         if int(ds.nonfinite_paths[-1]) > 0:
-            console.print(f"[yellow]{int(ds.nonfinite_paths[-1])} paths went non-finite and are excluded.[/]")
+            console.print(f"[yellow]{int(ds.nonfinite_paths[-1])} paths went non-finite (or ran away) and are excluded.[/]")
+        from stochpend.exponents import diagnose_growth
+
+        growth = diagnose_growth(ds, detail=True)
+        if growth.startswith(("finite-time blow-up", "exponential")):
+            console.print(f"[yellow]growth of <E>: {growth}[/]")
         if out is not None:
             console.print(f"wrote {out}")
 

@@ -73,7 +73,29 @@ BAD_CLI = [
     (["--theta0", "0"], "theta0=0.0"),
     (["--theta0", "north"], "theta0='north'"),
     (["--out", "/nonexistent-dir/x.nc"], "out="),
+    (["--potential", "cubic"], "potential='cubic'"),
+    (["--coupling", "velocity"], "coupling='velocity'"),
+    (["--coupling", "position"], "coupling='position'"),  # the pendulum's angle is periodic
+    (["--potential", "power", "--n", "0"], "power_n=0"),
+    (["--noise", "ou", "--omega-noise", "2"], "omega_noise=2.0"),
+    (["--noise", "harmonic", "--omega-noise", "0"], "omega_noise=0.0"),
+    (["--noise", "dichotomous", "--tau", "-1"], "tau=-1.0"),
 ]
+
+
+def test_cli_runs_the_other_models_and_says_when_they_blow_up():
+    """The new flags reach the simulation, the table's title names the model, and a blow-up is
+    diagnosed in one line."""
+    runner = CliRunner()
+    ok = runner.invoke(app, ["simulate", "--paths", "20", "--t-max", "2", "--n-times", "3",
+                             "--noise", "harmonic", "--omega-noise", "1.5", "--potential", "power",
+                             "--n", "2", "--coupling", "position"])
+    assert ok.exit_code == 0, ok.output
+    assert "U = x^4/4 (position coupling), harmonic noise" in ok.output and "W=1.5" in ok.output
+    boom = runner.invoke(app, ["simulate", "--paths", "200", "--t-max", "3", "--n-times", "4",
+                               "--noise", "white", "--potential", "power", "--coupling", "force"])
+    assert boom.exit_code == 0, boom.output
+    assert "growth of <E>: finite-time blow-up" in boom.output
 
 
 @pytest.mark.parametrize("args,needle", BAD_CLI)
