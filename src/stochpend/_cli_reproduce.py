@@ -97,7 +97,7 @@ class _SimulationBar:
 @handles_errors
 def reproduce_command(
     figures: Annotated[list[str] | None, typer.Argument(
-        help="Figures to reproduce: fig1, fig2, fig3, fig4 or all (default all).")] = None,
+        help="Figures to reproduce: fig1, fig2, fig3, fig4, exponents (the scaling-exponent table, docs/scaling.md) or all (default all).")] = None,
     paths: Annotated[int | None, typer.Option(
         help="Realizations per run (default 10000, as in the paper; 500 with --quick).")] = None,
     t_max: Annotated[float | None, typer.Option(

@@ -171,7 +171,7 @@ def reproduce(
     Parameters
     ----------
     figures : str or iterable of str
-        Any of "fig1" ... "fig4", or "all".
+        Any of "fig1" ... "fig4", "exponents" (the scaling-exponent table), or "all".
     paths : int, optional
         Realizations per run; default 10^4 (the paper's), or 500 with ``quick``.
     t_max : float, optional
@@ -320,7 +320,7 @@ def _figure_names(figures: str | Iterable[str]) -> list[str]:
                 if c not in names:
                     names.append(c)
     if not names:
-        raise ValueError("figures=[] is not accepted: name at least one of fig1, fig2, fig3, fig4, all")
+        raise ValueError("figures=[] is not accepted: name at least one of fig1, fig2, fig3, fig4, exponents, all")
     return names
 
 
@@ -396,6 +396,7 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None) 
     ds = ds.assign_coords(sum_component=("sum_component", list(SUM_COMPONENTS)))
     ds.attrs["reproduce_cache_key"] = spec.cache_key(__version__)
     ds.attrs["reproduce_run_key"] = spec.key
+    ds.attrs["reproduce_label"] = spec.label
     ds.attrs["command_line"] = "stochpend reproduce"
     return ds
 

@@ -29,7 +29,7 @@ def tiny(tmp_path_factory: pytest.TempPathFactory):
 
 
 def _check_complete(result) -> None:
-    assert list(result.figures) == ["fig1", "fig2", "fig3", "fig4"]
+    assert list(result.figures) == ["fig1", "fig2", "fig3", "fig4", "exponents"]
     for path in result.files:
         assert path.is_file() and path.stat().st_size > 0, path
     for name, f in result.figures.items():
@@ -43,7 +43,7 @@ def _check_complete(result) -> None:
         assert f.table_csv.read_text(encoding="utf-8").count("\n") == len(f.rows) + 1
         assert f.caption and str(f.runs[0].spec.paths) in f.caption
     html = result.report.read_text(encoding="utf-8")
-    assert html.count("data:image/png;base64,") == 4
+    assert html.count("data:image/png;base64,") == 5
     for f in result.figures.values():
         assert f.title.replace("&", "&amp;") in html
     assert "<script" not in html and "http://" not in html and "https://" not in html
@@ -52,8 +52,9 @@ def _check_complete(result) -> None:
 def test_tiny_reproduce_all_produces_every_file_and_fills_every_table(tiny) -> None:
     result, wall = tiny
     _check_complete(result)
-    # 16 runs in the captions minus the two shared ones (Fig. 3 with Figs. 2 and 4).
-    assert len(result.runs) == 14
+    # 16 runs in the captions minus the two shared ones (Fig. 3 with Figs. 2 and 4), and the
+    # nine runs of the exponent table.
+    assert len(result.runs) == 14 + 9
     statuses = [r.status for f in result.figures.values() for r in f.runs]
     assert statuses.count("shared") == 2
     for r in result.runs.values():
@@ -62,6 +63,7 @@ def test_tiny_reproduce_all_produces_every_file_and_fills_every_table(tiny) -> N
             assert ds.attrs["reproduce_cache_key"] == r.cache_key
             assert ds["batch_sums"].shape[0] == int(ds.attrs["n_batches"])
             assert int(ds.attrs["paths"]) == TINY["paths"]
+            assert ds["batch_sum_E"].shape[0] == int(ds.attrs["n_batches"])
         finally:
             ds.close()
     assert wall < 90
@@ -152,9 +154,12 @@ def test_out_must_be_a_directory(tmp_path) -> None:
 
 
 def test_figure_registry_and_default_runs() -> None:
-    assert set(FIGURES) == {"fig1", "fig2", "fig3", "fig4"}
-    sizes = {name: m.runs(10_000, None, False) for name, m in FIGURES.items()}
+    assert set(FIGURES) == {"fig1", "fig2", "fig3", "fig4", "exponents"}
+    sizes = {name: m.runs(10_000, None, False) for name, m in FIGURES.items() if name != "exponents"}
     assert [len(v) for v in sizes.values()] == [2, 9, 2, 3]
+    exponent_runs = FIGURES["exponents"].runs(10_000, None, False)
+    assert len(exponent_runs) == 9 and len({s.seed for s in exponent_runs}) == 9
+    assert not {s.seed for s in exponent_runs} & {s.seed for v in sizes.values() for s in v}
     fig2 = {(s.D, s.tau): s for s in sizes["fig2"]}
     assert {s.omega for s in sizes["fig2"]} == {1.0}
     fig3 = {s.omega: s for s in sizes["fig3"]}

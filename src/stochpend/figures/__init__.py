@@ -1,4 +1,5 @@
-"""The paper's four figures: what each caption runs, how it is drawn, and its table.
+"""The paper's four figures, and the exponent table beyond it: what each runs, how it is drawn,
+and its table.
 
 Each module in :data:`FIGURES` provides
 
@@ -17,10 +18,12 @@ from __future__ import annotations
 
 from types import ModuleType
 
-from stochpend.figures import fig1, fig2, fig3, fig4
+from stochpend.figures import exponents, fig1, fig2, fig3, fig4
 from stochpend.figures._common import COLUMNS, Fit, Row, RunSpec
 
 #: Figure name -> module.
-FIGURES: dict[str, ModuleType] = {"fig1": fig1, "fig2": fig2, "fig3": fig3, "fig4": fig4}
+FIGURES: dict[str, ModuleType] = {
+    "fig1": fig1, "fig2": fig2, "fig3": fig3, "fig4": fig4, "exponents": exponents,
+}
 
 __all__ = ["COLUMNS", "FIGURES", "Fit", "Row", "RunSpec"]

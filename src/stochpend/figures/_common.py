@@ -67,6 +67,14 @@ class RunSpec:
     paths: int
     t_min: float = T_MIN
     per_decade: int = PER_DECADE
+    # Beyond the paper's pendulum (the exponent table): the model and the noise's W.
+    potential: str = "pendulum"
+    power_n: int = 2
+    coupling: str = "force"
+    omega_noise: float | None = None
+    # Step controls when the defaults are not fine enough for the model (None: the defaults).
+    h_max: float | None = None
+    step_c: float | None = None
 
     def times(self) -> np.ndarray:
         """Log-spaced output times from ``t_min`` to ``t_max`` (``per_decade`` a decade)."""
@@ -89,6 +97,12 @@ class RunSpec:
             "seed": int(self.seed),
             "theta0": "uniform",
             "Omega0": 0.0,
+            "potential": self.potential,
+            "power_n": int(self.power_n),
+            "coupling": self.coupling,
+            "omega_noise": None if self.omega_noise is None else float(self.omega_noise),
+            **({} if self.h_max is None else {"h_max": float(self.h_max)}),
+            **({} if self.step_c is None else {"step_c": float(self.step_c)}),
         }
 
     def cache_key(self, version: str) -> str:
