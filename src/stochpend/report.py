@@ -133,6 +133,11 @@ def build_report(result: Any) -> str:
         f"{result.wall_time_s:.1f} s; the runs' own simulation times add up to {_sim_total(result):.0f} s "
         f"({_steps_total(result):.3g} path-steps), whether simulated now or read from the cache.</p>",
     ]
+    if "exponents" in result.figures:
+        parts.append("<p>Beyond the paper, the last section compares the measured long-time growth of ⟨E⟩ "
+                     "with the predicted law for the pendulum with four noises and for the harmonic and "
+                     "quartic oscillators (derivations: docs/scaling.md; models: docs/models.md). Its runs "
+                     "have their own sizes, given in its caption.</p>")
     if settings.get("quick"):
         parts.append('<p class="banner"><b>Quick mode</b>: small ensembles and short times — a smoke '
                      "test of the pipeline, not a reproduction. The tables are filled but the late-time "

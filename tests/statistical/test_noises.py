@@ -181,3 +181,28 @@ def test_stationary_initial_noise_laws():
     waits = np.array([schemes.initial_state(key0, key1, np.uint64(p), 0.0, False, 0.0, 0.0, True,
                                             D, tau, cpu.DICHOTOMOUS, 0.0)[3] for p in range(2000)])
     assert abs(waits.mean() - 2 * tau) / (waits.std(ddof=1) / math.sqrt(waits.size)) < Z_TOL
+
+
+@pytest.mark.parametrize("noise", ["dichotomous", "harmonic"])
+def test_new_noises_do_not_depend_on_chunks_threads_or_kernel_call_splits(noise):
+    """The extra noise state (flip time, xi') travels with the path: chunking, thread count
+    and the kernel's step budget per call change no number."""
+    import importlib
+
+    import stochpend
+
+    sim = importlib.import_module("stochpend.simulate")  # the module (the package exports the function)
+
+    kw = dict(noise=noise, D=1.0, tau=0.5, paths=300, t_max=200.0, n_times=5, seed=SEED,
+              n_batches=6)
+    ref = stochpend.simulate(**kw)
+    other = stochpend.simulate(**kw, chunk_paths=100, threads=1)
+    saved = sim._WORK_PER_CALL
+    sim._WORK_PER_CALL = 1  # every call stops after 1000 steps: segments split into many calls
+    try:
+        split = stochpend.simulate(**kw)
+    finally:
+        sim._WORK_PER_CALL = saved
+    for ds in (other, split):
+        for name in ("mean_E", "mean_E4", "E_hist", "batch_sum_E"):
+            np.testing.assert_array_equal(ref[name].values, ds[name].values, err_msg=name)

@@ -79,7 +79,7 @@ def test_report_renders_in_headless_chromium(report, tmp_path) -> None:
     assert match, f"no checks in the dumped DOM (exit {proc.returncode}): {proc.stderr[-2000:]}"
     checks = json.loads(html.unescape(match.group(1)))
 
-    assert checks["images"] == 4 == text.count("data:image/png;base64,")
+    assert checks["images"] == 5 == text.count("data:image/png;base64,")  # 4 figures + exponents
     assert checks["bad_images"] == []
     assert all(w > 500 for w in checks["widths"]), checks["widths"]
     assert checks["tables"] == text.count("<table>")
