@@ -232,21 +232,37 @@ def verlet_step(x, Omega, h, omega2, noise_integral, potential_code, power_n, co
 
 @register_jitable
 def step_size(Omega, xi, x, h_max, c_angle, omega2, potential_code, power_n, coupling_code):
-    """Per-path step h = min(h_max, c/|Omega|, c/sqrt(k)), k the local stiffness.
+    """Per-path step h = min(h_max, c/v, c/sqrt(k)), v a speed and k a stiffness.
 
-    The first bound resolves the rotation (x moves by at most c per step), the second the
-    instantaneous oscillation (c radians of phase per step): k = |omega**2 + xi| |U''(x)|
-    when the noise multiplies the force, |omega**2 U''(x) + xi| when it multiplies x (the
-    linearized force in each case; |U''| is bounded by 1 for the pendulum). Both use only the
-    state at the start of the step, so the choice does not look into the future of the noise.
-    ``c_angle <= 0`` means a fixed step h_max.
+    The first bound resolves the motion (x moves by at most c per step), the second the
+    oscillation (c radians of phase per step): k = |omega**2 + xi| |U''| when the noise
+    multiplies the force, |omega**2 U'' + xi| when it multiplies x (the linearized force in
+    each case; |U''| is bounded by 1 for the pendulum).
+
+    Pendulum (and user models): v = |Omega| and U'' at x, the instantaneous values. Harmonic
+    and power potentials: v and U'' at the extremes of the current orbit (v = sqrt(Omega**2 +
+    2 omega**2 U(x)), U'' at the amplitude A, A**(2n)/(2n) = U(x) + Omega**2/(2 omega**2)),
+    which are constant along a deterministic orbit. An oscillator's speed runs from 0 to its
+    maximum twice a period, and a step that follows it makes Stormer-Verlet lose its
+    symplecticity: the energy then drifts secularly (measured: the quartic with OU noise on x
+    heated to 2.6 times the converged <E> at t = 10**4). A step set by the orbit varies only as
+    the noise changes the energy. Both bounds use only the state at the start of the step, so
+    the choice does not look into the future of the noise. ``c_angle <= 0``: fixed step h_max.
     """
     h = h_max
     if c_angle > 0.0:
-        speed = abs(Omega)
+        if potential_code != physics.PENDULUM and omega2 > 0.0:
+            u_max = physics.potential(x, potential_code, power_n) + 0.5 * Omega * Omega / omega2
+            speed = math.sqrt(2.0 * omega2 * u_max)
+            if potential_code == physics.POWER:
+                curv = (2 * power_n - 1) * (2 * power_n * u_max) ** ((power_n - 1) / power_n)
+            else:
+                curv = 1.0
+        else:
+            speed = abs(Omega)
+            curv = physics.curvature(x, potential_code, power_n)
         if speed * h > c_angle:
             h = c_angle / speed
-        curv = physics.curvature(x, potential_code, power_n)
         if coupling_code == physics.COUPLING_POSITION:
             stiff = abs(omega2 * curv + xi)
         else:

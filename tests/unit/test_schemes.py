@@ -126,3 +126,23 @@ def test_runaway_paths_are_frozen_and_counted():
     assert nonfinite[-1] > 10
     assert int(ds.n_finite_paths[-1]) + nonfinite[-1] == 200
     assert np.isfinite(ds.mean_E.values).all()
+
+
+def test_step_of_an_oscillator_is_constant_along_its_orbit():
+    """Harmonic and power potentials: the step depends on the orbit (energy), not on where on
+    it the path is, so Stormer-Verlet stays symplectic between noise kicks; the pendulum keeps
+    the instantaneous rule of the accuracy study."""
+    c, h_max, omega2, E = 0.1, 1.0, 1.0, 50.0
+    for pot in (physics.HARMONIC, physics.POWER):
+        steps = []
+        for x in (0.0, 0.7, 1.9, 2.5):
+            U = physics.potential(x, pot, 2)
+            if U > E:
+                continue
+            Omega = math.sqrt(2.0 * (E - omega2 * U))
+            steps.append(schemes.step_size(Omega, 0.0, x, h_max, c, omega2, pot, 2,
+                                           physics.COUPLING_POSITION))
+        assert len(steps) >= 3 and max(steps) == pytest.approx(min(steps), rel=1e-12), (pot, steps)
+    a = schemes.step_size(3.0, 0.0, 0.0, h_max, c, omega2, physics.PENDULUM, 2, 0)
+    b = schemes.step_size(1.0, 0.0, 2.0, h_max, c, omega2, physics.PENDULUM, 2, 0)
+    assert a == pytest.approx(c / 3.0) and b == pytest.approx(c / 1.0)

@@ -39,15 +39,15 @@ CASES: list[dict[str, Any]] = [
     dict(key="pendulum_harmonic_noise", label="pendulum, harmonic noise", noise="harmonic",
          tau=1.0, t_max=1e4, paths=4000, seed=804, kind="power"),
     dict(key="quartic_position_white", label="quartic x⁴/4, noise on x, white", noise="white",
-         tau=None, t_max=1e3, paths=4000, seed=805, kind="power", potential="power",
+         tau=None, t_max=3e3, paths=2000, seed=805, kind="power", potential="power",
          coupling="position"),
     dict(key="quartic_position_ou", label="quartic x⁴/4, noise on x, OU", noise="ou", tau=1.0,
          t_max=1e4, paths=4000, seed=806, kind="power", potential="power", coupling="position"),
     dict(key="quartic_force_white", label="quartic x⁴/4, noise on force, white", noise="white",
-         tau=None, t_max=10.0, paths=4000, seed=807, kind="blow-up", potential="power",
+         tau=None, t_max=10.0, paths=2000, seed=807, kind="blow-up", potential="power",
          coupling="force"),
     dict(key="quartic_force_ou", label="quartic x⁴/4, noise on force, OU", noise="ou", tau=1.0,
-         t_max=100.0, paths=4000, seed=808, kind="blow-up", potential="power", coupling="force"),
+         t_max=30.0, paths=2000, seed=808, kind="blow-up", potential="power", coupling="force"),
     # The sample mean of an exponentially growing, ever more skewed E under-represents the rare
     # large paths once log E spreads by more than ~log(paths): a short window and many paths.
     dict(key="harmonic_white", label="harmonic x²/2, white", noise="white", tau=None, t_max=10.0,
