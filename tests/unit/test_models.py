@@ -70,10 +70,12 @@ def test_registry_round_trip():
     models.register(m)
     try:
         assert models.get("tmp-harmonic") is m and "tmp-harmonic" in models.names()
+        # Fixed steps: the built-in harmonic oscillator's step control uses its orbit, a user
+        # model's the instantaneous state (docs/models.md).
         ds = stochpend.simulate(noise="ou", potential="tmp-harmonic", paths=50, t_max=2.0,
-                                n_times=2, seed=1, n_batches=2)
+                                n_times=2, seed=1, n_batches=2, step_c=0.0)
         ref = stochpend.simulate(noise="ou", potential="harmonic", paths=50, t_max=2.0,
-                                 n_times=2, seed=1, n_batches=2)
+                                 n_times=2, seed=1, n_batches=2, step_c=0.0)
         np.testing.assert_array_equal(ds.mean_E.values, ref.mean_E.values)
     finally:
         models.unregister("tmp-harmonic")
