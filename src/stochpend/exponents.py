@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 # The labels of diagnose_growth are those of ScalingPrediction.growth, so the two compare directly.
 from stochpend.theory.scaling import GROWTHS
 
-__all__ = ["ExponentFit", "GROWTHS", "diagnose_growth", "fit_exponent", "fit_rate"]
+__all__ = ["ExponentFit", "GROWTHS", "diagnose_growth", "fit_exponent", "fit_rate", "fit_slope"]
 
 
 #: Significance, in jackknife standard errors, for "the log-log slope increases".
@@ -162,7 +162,19 @@ def fit_rate(ds: xr.Dataset, t_min: float, t_max: float) -> ExponentFit:
     return _fit(ds, t_min, t_max, log_time=False)
 
 
-def _fit(ds: xr.Dataset, t_min: float, t_max: float, *, log_time: bool) -> ExponentFit:
+def fit_slope(ds: xr.Dataset, t_min: float, t_max: float) -> ExponentFit:
+    r"""Fit A in <E(t)> ~ E_0 + A t over the output times in [t_min, t_max].
+
+    The least-squares slope of <E> against t (energy per unit time), with the delete-one-batch
+    jackknife error: a linear law with an offset, whose log-log slope reaches 1 only when
+    A t >> E_0. Same arguments, refusals and result as :func:`fit_exponent`, ``exponent``
+    holding A.
+    """
+    return _fit(ds, t_min, t_max, log_time=False, log_E=False)
+
+
+def _fit(ds: xr.Dataset, t_min: float, t_max: float, *, log_time: bool,
+         log_E: bool = True) -> ExponentFit:
     lo = _window_bound("t_min", t_min)
     hi = _window_bound("t_max", t_max)
     if hi <= lo:
@@ -180,8 +192,9 @@ def _fit(ds: xr.Dataset, t_min: float, t_max: float, *, log_time: bool) -> Expon
     mean, loo = _means(sums[:, sel], counts[:, sel])
     _require_positive(mean, loo, t, t_min)
     x = np.log(t) if log_time else t
-    exponent = float(_slopes(x, np.log(mean)))
-    se = _jackknife_se(_slopes(x, np.log(loo)))
+    f = np.log if log_E else np.asarray
+    exponent = float(_slopes(x, f(mean)))
+    se = _jackknife_se(_slopes(x, f(loo)))
     paths = int(ds.attrs.get("paths", int(counts[:, 0].sum())))
     if "nonfinite_paths" in ds:
         nonfinite = int(np.asarray(ds["nonfinite_paths"].values)[sel][-1])
