@@ -288,3 +288,38 @@ def test_fit_rate_recovers_an_exponential_and_refuses_bad_windows():
     assert abs(fit.exponent - 0.3) < 4 * fit.se + 1e-12
     with pytest.raises(ValueError, match=r"^t_min="):
         fit_rate(ds, 19.5, 20.0)
+
+
+def test_quartic_position_heating_rate_matches_beta_functions():
+    """A = (3/8)(D/tau^2) V_1/omega^2, V_1 = Var(x^2/2) on the orbit x^4/4 + Omega^2/2 = 1:
+    with x = sqrt(2) u the time averages are Beta functions, <x^k> = 2^(k/2) B((k+1)/4, 1/2) /
+    B(1/4, 1/2) -- independent of the quadrature in the code."""
+    from scipy.special import beta
+
+    from stochpend.theory.scaling import quartic_position_heating_rate
+
+    m = {k: 2 ** (k / 2) * beta((k + 1) / 4, 0.5) / beta(0.25, 0.5) for k in (2, 4)}
+    v1 = m[4] / 4 - m[2] ** 2 / 4
+    for D, tau, omega in ((1.0, 1.0, 1.0), (0.3, 2.0, 1.7)):
+        expected = 0.375 * D / tau**2 * v1 / omega**2
+        got = quartic_position_heating_rate("ou", D=D, tau=tau, omega=omega)
+        assert got == pytest.approx(expected, rel=1e-9)
+    assert quartic_position_heating_rate("ou", D=1.0, tau=1.0, omega=1.0) == pytest.approx(0.0467, abs=5e-5)
+    with pytest.raises(ValueError, match=r"^noise='white' is not accepted"):
+        quartic_position_heating_rate("white", D=1.0, tau=1.0, omega=1.0)
+
+
+def test_fit_slope_recovers_a_linear_law_with_an_offset():
+    from stochpend.exponents import fit_slope
+
+    rng = np.random.default_rng(5)
+    times = np.geomspace(100.0, 1000.0, 9)
+    n_b, per = 40, 25
+    counts = np.full((n_b, times.size), per)
+    sums = per * (5.0 + 0.05 * times)[None, :] * (1.0 + 0.03 * rng.standard_normal((n_b, times.size)))
+    ds = xr.Dataset(
+        {"batch_sum_E": (("batch", "time"), sums), "batch_n_finite": (("batch", "time"), counts)},
+        coords={"time": times}, attrs={"paths": n_b * per},
+    )
+    fit = fit_slope(ds, 100.0, 1000.0)
+    assert abs(fit.exponent - 0.05) < Z_TOL * fit.se and fit.se < 0.002
