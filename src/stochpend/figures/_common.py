@@ -106,16 +106,21 @@ class RunSpec:
         }
 
     def cache_key(self, version: str) -> str:
-        """SHA-256 of the fully resolved configuration and the package version.
+        """SHA-256 of the fully resolved configuration, the package version and the code.
 
         The resolved configuration includes every default (step controls, histogram, batches),
         so a run stored before a default changed is never reused for the new settings.
         """
         from stochpend.params import SimulationConfig
 
+        from stochpend.sweep import _code_fingerprint
+
         config = SimulationConfig.build(**self.simulate_kwargs())
         resolved = {**config.to_attrs(), "times": list(config.times), "hist_E_max": list(config.hist_E_max)}
-        payload = json.dumps({"run": resolved, "stochpend": version}, sort_keys=True, default=str)
+        # The code that determines the numbers is part of the key: a run made by an older
+        # integrator (same version string, e.g. during development) is never reused.
+        payload = json.dumps({"run": resolved, "stochpend": version, "code": _code_fingerprint()},
+                             sort_keys=True, default=str)
         return hashlib.sha256(payload.encode()).hexdigest()
 
     @property
