@@ -196,3 +196,36 @@ def reduced_command(
             console.print(f"[yellow]{int(ds.nonfinite_paths[-1])} paths went non-finite and are excluded.[/]")
         if out is not None:
             console.print(f"wrote {out}")
+
+
+@handles_errors
+def scaling_command(
+    n: Annotated[int, typer.Option("--n", help="Exponent n of the power potential U = x^2n/2n (n >= 2).")] = 2,
+    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+) -> None:
+    """Print the predicted long-time growth of <E> for every oscillator, coupling and noise
+    (stochpend.theory.scaling; derivations in docs/scaling.md)."""
+    from stochpend.theory.scaling import NOISES, predicted_exponent
+
+    if isinstance(n, bool) or n < 2:
+        raise ValueError(f"n={n!r} is not accepted: an integer >= 2 (n = 1 is the harmonic potential)")
+    models = [("pendulum", "force", "pendulum, U = -cos x"), ("harmonic", "force", "harmonic, U = x^2/2"),
+              ("power", "position", f"U = x^{2 * n}/{2 * n}, noise on x"),
+              ("power", "force", f"U = x^{2 * n}/{2 * n}, noise on the force")]
+    table = Table(title="Predicted growth of <E> at long times (docs/scaling.md)", show_lines=True)
+    table.add_column("oscillator")
+    for noise in NOISES:
+        table.add_column(noise)
+    for potential, coupling, label in models:
+        cells = []
+        for noise in NOISES:
+            p = predicted_exponent(potential, noise, coupling, n)
+            if p.growth == "power":
+                from fractions import Fraction
+
+                f = Fraction(p.exponent).limit_denominator(64)
+                cells.append(f"t^{f}")
+            else:
+                cells.append(p.growth)
+        table.add_row(label, *cells)
+    console.print(table)

@@ -322,9 +322,10 @@ if __name__ == "__main__":  # pragma: no cover
 
 
 # -- commands defined beside their subject (they import the helpers above) ---------------------
-from stochpend._cli_theory import bfpe_command, reduced_command, theory_command  # noqa: E402
+from stochpend._cli_theory import bfpe_command, reduced_command, scaling_command, theory_command  # noqa: E402
 
 app.command("theory")(theory_command)
+app.command("scaling")(scaling_command)
 app.command("bfpe")(bfpe_command)
 app.command("reduced")(reduced_command)
 

@@ -140,3 +140,17 @@ def test_reduced_refuses_existing_output(app, tmp_path) -> None:
     line = _one_error_line(_run(app, ["reduced", "--paths", "10", "--out", str(out)]))
     assert "the file exists" in line
     assert out.read_text() == "x"
+
+
+def test_scaling_command_prints_every_predicted_law_and_refuses_n1():
+    runner = CliRunner()
+    res = runner.invoke(cli.app, ["scaling"], terminal_width=200)
+    assert res.exit_code == 0, res.output
+    for needle in ("t^1/3", "t^1/2", "t^2/3", "t^2", "finite-time blow-up", "exponential"):
+        assert needle in res.output, needle
+    res6 = runner.invoke(cli.app, ["scaling", "--n", "3"], terminal_width=200)
+    assert "x^6/6" in res6.output and "t^3/2" in res6.output  # n/(n-1) for white noise on x
+    bad = runner.invoke(cli.app, ["scaling", "--n", "1"])
+    assert bad.exit_code == 2
+    lines = [ln for ln in bad.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "n=1 is not accepted" in lines[0]
