@@ -53,8 +53,8 @@ def test_tiny_reproduce_all_produces_every_file_and_fills_every_table(tiny) -> N
     result, wall = tiny
     _check_complete(result)
     # 16 runs in the captions minus the two shared ones (Fig. 3 with Figs. 2 and 4), and the
-    # nine runs of the exponent table.
-    assert len(result.runs) == 14 + 9
+    # ten runs of the exponent table.
+    assert len(result.runs) == 14 + 10
     statuses = [r.status for f in result.figures.values() for r in f.runs]
     assert statuses.count("shared") == 2
     for r in result.runs.values():
@@ -160,7 +160,7 @@ def test_figure_registry_and_default_runs() -> None:
     sizes = {name: m.runs(10_000, None, False) for name, m in FIGURES.items() if name != "exponents"}
     assert [len(v) for v in sizes.values()] == [2, 9, 2, 3]
     exponent_runs = FIGURES["exponents"].runs(10_000, None, False)
-    assert len(exponent_runs) == 9 and len({s.seed for s in exponent_runs}) == 9
+    assert len(exponent_runs) == 10 and len({s.seed for s in exponent_runs}) == 10
     assert not {s.seed for s in exponent_runs} & {s.seed for v in sizes.values() for s in v}
     fig2 = {(s.D, s.tau): s for s in sizes["fig2"]}
     assert {s.omega for s in sizes["fig2"]} == {1.0}
@@ -281,7 +281,7 @@ def test_quick_mode_of_all_figures_runs_in_under_two_minutes(tmp_path) -> None:
         text = (tmp_path / f"{name}_table.csv").read_text(encoding="utf-8")
         assert ",," not in text and text.count("\n") > 2
     runs = sorted((tmp_path / "runs").glob("*.nc"))
-    assert len(runs) == 14 + 9
+    assert len(runs) == 14 + 10
     paper = [p for p in runs if not p.name.startswith("exponent_")]
     assert len(paper) == 14 and all(int(open_results(p).attrs["paths"]) == 500 for p in paper)
     assert (tmp_path / "report.html").stat().st_size > 100_000
