@@ -25,7 +25,7 @@ from stochpend.params import (
 from stochpend.progress import NoProgress, Progress
 from stochpend.stats import EnsembleSums
 
-#: Paths advanced together (bounded memory: about 60 bytes a path).
+#: Paths advanced together (bounded memory: 57 bytes a path in the state arrays).
 DEFAULT_CHUNK_PATHS = 1 << 20
 #: Path-steps per kernel call, so that progress is reported every fraction of a second.
 _WORK_PER_CALL = 20_000_000
