@@ -35,30 +35,30 @@ TITLE = "Scaling exponents — pendulum, quartic and harmonic oscillators, four 
 #: the quartic position-coupling runs reach orbit frequencies ~ E^(1/4) >> 1/tau.
 CASES: list[dict[str, Any]] = [
     dict(key="pendulum_white", label="pendulum, white", noise="white", tau=None, t_max=1e3,
-         paths=10_000, seed=801, kind="power"),
+         paths=10_000, seed=801),
     dict(key="pendulum_ou", label="pendulum, OU", noise="ou", tau=1.0, t_max=1e4, paths=10_000,
-         seed=802, kind="power"),
+         seed=802),
     dict(key="pendulum_dichotomous", label="pendulum, dichotomous", noise="dichotomous", tau=1.0,
-         t_max=1e4, paths=10_000, seed=803, kind="power"),
+         t_max=1e4, paths=10_000, seed=803),
     dict(key="pendulum_harmonic_noise", label="pendulum, harmonic noise", noise="harmonic",
-         tau=1.0, t_max=1e4, paths=4000, seed=804, kind="power"),
+         tau=1.0, t_max=1e4, paths=4000, seed=804),
     dict(key="quartic_position_white", label="quartic x⁴/4, noise on x, white", noise="white",
-         tau=None, t_max=3e3, paths=2000, seed=805, kind="power", potential="power",
+         tau=None, t_max=3e3, paths=2000, seed=805, potential="power",
          coupling="position"),
     dict(key="quartic_position_ou", label="quartic x⁴/4, noise on x, OU", noise="ou", tau=1.0,
-         t_max=1e4, paths=4000, seed=806, kind="power", potential="power", coupling="position"),
+         t_max=1e4, paths=4000, seed=806, potential="power", coupling="position"),
     dict(key="quartic_position_harmonic_noise", label="quartic x⁴/4, noise on x, harmonic noise",
-         noise="harmonic", tau=1.0, t_max=1e4, paths=2000, seed=810, kind="power",
+         noise="harmonic", tau=1.0, t_max=1e4, paths=2000, seed=810,
          potential="power", coupling="position"),
     dict(key="quartic_force_white", label="quartic x⁴/4, noise on force, white", noise="white",
-         tau=None, t_max=10.0, paths=2000, seed=807, kind="blow-up", potential="power",
+         tau=None, t_max=10.0, paths=2000, seed=807, potential="power",
          coupling="force"),
     dict(key="quartic_force_ou", label="quartic x⁴/4, noise on force, OU", noise="ou", tau=1.0,
-         t_max=30.0, paths=2000, seed=808, kind="blow-up", potential="power", coupling="force"),
+         t_max=30.0, paths=2000, seed=808, potential="power", coupling="force"),
     # The sample mean of an exponentially growing, ever more skewed E under-represents the rare
     # large paths once log E spreads by more than ~log(paths): a short window and many paths.
     dict(key="harmonic_white", label="harmonic x²/2, white", noise="white", tau=None, t_max=10.0,
-         paths=100_000, seed=809, kind="exponential", potential="harmonic", coupling="force"),
+         paths=100_000, seed=809, potential="harmonic", coupling="force"),
 ]
 QUICK_T_MAX = 30.0  # --quick: a smoke test of the pipeline
 
@@ -91,11 +91,6 @@ def caption(specs: list[RunSpec]) -> str:
         "of paths escaped by t_max (frozen when the step control asks for a step below 1e-9 "
         f"h_max, or non-finite). Predictions: docs/scaling.md. Runs: {lines}."
     )
-
-
-def _case(ds: xr.Dataset) -> dict[str, Any]:
-    key = str(ds.attrs.get("reproduce_run_key", "")).removeprefix("exponent_")
-    return next(c for c in CASES if c["key"] == key)
 
 
 def theory(datasets: dict[str, xr.Dataset]) -> dict[str, Any]:
