@@ -215,6 +215,42 @@ def harmonic_step_coefficients(h, D, tau, omega_noise):
     return phi[0], phi[1], phi[3], phi[4], phi[6], phi[7], l11, l21, l22, l31, l32, l33
 
 
+#: Placeholder coefficients before the first harmonic-noise step (never used for a step).
+HARMONIC_NO_COEFFICIENTS = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@register_jitable
+def harmonic_noise_step(xi, eta, z1, z2, z3, c):
+    """One exact step of the harmonic noise: ``c`` from :func:`harmonic_step_coefficients`,
+    z1..z3 independent standard normals. Returns (integral of xi over the step, xi', eta')."""
+    p11, p12, p21, p22, p31, p32, l11, l21, l22, l31, l32, l33 = c
+    integral = p31 * xi + p32 * eta + l31 * z1 + l32 * z2 + l33 * z3
+    return (integral, p11 * xi + p12 * eta + l11 * z1,
+            p21 * xi + p22 * eta + l21 * z1 + l22 * z2)
+
+
+@register_jitable
+def landing_or_flip(t, h, t_target, next_flip, dichotomous):
+    """The step from time t towards the output time ``t_target`` (:func:`landing_step`), cut at
+    the dichotomous noise's next flip when that comes first or at the same time.
+
+    Returns ``(h, last, flip, t_land)``: ``last`` the step lands on ``t_target``, ``flip`` it
+    lands on the flip, ``t_land`` the time it lands on when either holds (for
+    :func:`advance_clock`).
+    """
+    if dichotomous and next_flip <= t_target:
+        h, flip = landing_step(t, h, next_flip)
+        return h, flip and next_flip == t_target, flip, next_flip
+    h, last = landing_step(t, h, t_target)
+    return h, last, False, t_target
+
+
+@register_jitable
+def dichotomous_flip(xi, next_flip, u, tau):
+    """The telegraph noise at its flip: (-xi, time of the next flip), from a uniform u."""
+    return -xi, next_flip + dichotomous_waiting_time(u, tau)
+
+
 @register_jitable
 def verlet_step(x, Omega, h, omega2, noise_integral, potential_code, power_n, coupling_code):
     """One drift-kick-drift step; the kick uses the noise integral over the whole step.

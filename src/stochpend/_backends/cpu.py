@@ -89,8 +89,7 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
         m_I = 0.0
         c_I = 0.0
         s_I = 0.0
-        p11 = p12 = p21 = p22 = p31 = p32 = 0.0
-        l11 = l21 = l22 = l31 = l32 = l33 = 0.0
+        hc = schemes.HARMONIC_NO_COEFFICIENTS
         pair_draw = _U64(0xFFFFFFFFFFFFFFFF)
         z_even = 0.0
         z_odd = 0.0
@@ -103,15 +102,8 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
             if h < schemes.ESCAPE_STEP_FRACTION * h_max:
                 bad = True  # running away (see ESCAPE_STEP_FRACTION)
                 break
-            flip = False
-            if noise_code == DICHOTOMOUS and xa <= t_target:
-                # The next flip comes first: the step ends on it (and on t_target if equal).
-                h, flip = schemes.landing_step(tt, h, xa)
-                t_land = xa
-                last = flip and xa == t_target
-            else:
-                h, last = schemes.landing_step(tt, h, t_target)
-                t_land = t_target
+            h, last, flip, t_land = schemes.landing_or_flip(tt, h, t_target, xa,
+                                                            noise_code == DICHOTOMOUS)
             if noise_code == OU:
                 z1, z2 = rng.draw_normals(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
                 if h != h_cached:
@@ -133,18 +125,14 @@ def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D
                 z1, z2 = rng.draw_normals(key0, key1, path, d)
                 z3, _ = rng.draw_normals(key0, key1, path, d + _U64(1))
                 if h != h_cached:
-                    (p11, p12, p21, p22, p31, p32, l11, l21, l22, l31, l32,
-                     l33) = schemes.harmonic_step_coefficients(h, D, tau, omega_noise)
+                    hc = schemes.harmonic_step_coefficients(h, D, tau, omega_noise)
                     h_cached = h
-                noise_integral = p31 * xn + p32 * xa + l31 * z1 + l32 * z2 + l33 * z3
-                xn, xa = (p11 * xn + p12 * xa + l11 * z1,
-                          p21 * xn + p22 * xa + l21 * z1 + l22 * z2)
+                noise_integral, xn, xa = schemes.harmonic_noise_step(xn, xa, z1, z2, z3, hc)
             xs, Om = schemes.verlet_step(xs, Om, h, omega2, noise_integral, potential_code,
                                          power_n, coupling_code)
             if flip:
                 u, _ = rng.draw_uniforms(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
-                xn = -xn
-                xa = xa + schemes.dichotomous_waiting_time(u, tau)
+                xn, xa = schemes.dichotomous_flip(xn, xa, u, tau)
             kk += _U64(1)
             n += 1
             tt, tc = schemes.advance_clock(tt, tc, h, flip or last, t_land)

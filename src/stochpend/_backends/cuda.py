@@ -427,8 +427,7 @@ def _kernels(precision: str) -> types.SimpleNamespace:
         tt = t[i]
         tc = t_comp[i]
         kk = k[i]
-        p11 = p12 = p21 = p22 = p31 = p32 = 0.0
-        l11 = l21 = l22 = l31 = l32 = l33 = 0.0
+        hc = schemes.HARMONIC_NO_COEFFICIENTS
         h_cached = real(-1.0)
         a = real(0.0)
         s_xi = real(0.0)
@@ -450,15 +449,8 @@ def _kernels(precision: str) -> types.SimpleNamespace:
             # (float64: exactly the CPU's h; float32: the same step sequence and draws as
             # float64, the dynamics using that step rounded to float32).
             h_clock = h_max if h == h_max_r else np.float64(h)
-            flip = False
-            if noise_code == _DICHOTOMOUS and xa <= t_target:
-                # The next flip comes first: the step ends on it (and on t_target if equal).
-                h_clock, flip = schemes.landing_step(tt, h_clock, xa)
-                t_land = np.float64(xa)
-                last = flip and xa == t_target
-            else:
-                h_clock, last = schemes.landing_step(tt, h_clock, t_target)
-                t_land = t_target
+            h_clock, last, flip, t_land = schemes.landing_or_flip(
+                tt, h_clock, t_target, np.float64(xa), noise_code == _DICHOTOMOUS)
             h = real(h_clock)
             if noise_code == _OU:
                 w1, w2 = draw_normals(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
@@ -490,20 +482,21 @@ def _kernels(precision: str) -> types.SimpleNamespace:
                 w1, w2 = rng.draw_normals(key0, key1, path, d)
                 w3, _ = rng.draw_normals(key0, key1, path, d + _U64(1))
                 if h != h_cached:
-                    (p11, p12, p21, p22, p31, p32, l11, l21, l22, l31, l32,
-                     l33) = schemes.harmonic_step_coefficients(h, D, tau, omega_noise)
+                    hc = schemes.harmonic_step_coefficients(h, D, tau, omega_noise)
                     h_cached = h
-                noise_integral = real(p31 * xn + p32 * xa + l31 * w1 + l32 * w2 + l33 * w3)
-                xn, xa = (real(p11 * xn + p12 * xa + l11 * w1),
-                          real(p21 * xn + p22 * xa + l21 * w1 + l22 * w2))
+                integral, xi_new, xa_new = schemes.harmonic_noise_step(xn, xa, w1, w2, w3, hc)
+                noise_integral = real(integral)
+                xn = real(xi_new)
+                xa = real(xa_new)
             x_new, Om_new = verlet_step(xs, Om, h, omega2_r, noise_integral, potential_code,
                                         power_n, coupling_code)
             xs = real(x_new)
             Om = real(Om_new)
             if flip:
                 u, _ = rng.draw_uniforms(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
-                xn = real(-xn)
-                xa = real(xa + schemes.dichotomous_waiting_time(u, tau))
+                xi_new, xa_new = schemes.dichotomous_flip(xn, xa, u, tau)
+                xn = real(xi_new)
+                xa = real(xa_new)
             kk += _U64(1)
             n += 1
             tt, tc = schemes.advance_clock(tt, tc, h_clock, flip or last, t_land)
