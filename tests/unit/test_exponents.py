@@ -270,22 +270,24 @@ def test_spectra_have_S0_D_and_variance_D_over_2tau(noise):
 
 
 def test_fit_rate_recovers_an_exponential_and_refuses_bad_windows():
-    """<E> = exp(0.3 t) per batch with multiplicative batch noise: the rate comes back within
-    4 jackknife SEs, and the log-time fit of the same data is not the rate."""
+    """<E> = exp(0.3 t) with independent 5 % batch noise at every time: the rate comes back
+    within 4 jackknife SEs, and a rate off by 0.02 would be rejected (the SE is far smaller)."""
     from stochpend.exponents import fit_rate
 
     rng = np.random.default_rng(3)
     times = np.linspace(1.0, 20.0, 20)
     n_b, per = 50, 40
     counts = np.full((n_b, times.size), per)
-    noise = 1.0 + 0.05 * rng.standard_normal((n_b, 1))
+    noise = 1.0 + 0.05 * rng.standard_normal((n_b, times.size))
     sums = per * np.exp(0.3 * times)[None, :] * noise
     ds = xr.Dataset(
         {"batch_sum_E": (("batch", "time"), sums), "batch_n_finite": (("batch", "time"), counts)},
         coords={"time": times}, attrs={"paths": n_b * per},
     )
     fit = fit_rate(ds, 5.0, 20.0)
-    assert abs(fit.exponent - 0.3) < 4 * fit.se + 1e-12
+    assert 0.0 < fit.se < 0.005
+    assert abs(fit.exponent - 0.3) < Z_TOL * fit.se
+    assert abs(fit.exponent - 0.32) > Z_TOL * fit.se
     with pytest.raises(ValueError, match=r"^t_min="):
         fit_rate(ds, 19.5, 20.0)
 

@@ -118,14 +118,29 @@ def test_runaway_paths_are_frozen_and_counted():
     (docs/scaling.md). The shrinking adaptive steps would follow a runaway path forever; the
     escape rule (step below ESCAPE_STEP_FRACTION h_max) freezes it, so the run ends and the
     path is counted as non-finite, never averaged."""
-    import stochpend
+    import json
+    import subprocess
+    import sys
 
-    ds = stochpend.simulate(noise="white", D=1.0, potential="power", power_n=2, coupling="force",
-                            paths=200, t_max=3.0, times=[0.5, 3.0], seed=4, n_batches=4)
-    nonfinite = ds.nonfinite_paths.values
-    assert nonfinite[-1] > 10
-    assert int(ds.n_finite_paths[-1]) + nonfinite[-1] == 200
-    assert np.isfinite(ds.mean_E.values).all()
+    # In a subprocess with a time limit: without the escape rule the run never returns, and
+    # the test must fail rather than hang the suite.
+    code = (
+        "import json, stochpend\n"
+        "ds = stochpend.simulate(noise='white', D=1.0, potential='power', power_n=2, "
+        "coupling='force', paths=200, t_max=3.0, times=[0.5, 3.0], seed=4, n_batches=4)\n"
+        "print(json.dumps({'nonfinite': ds.nonfinite_paths.values.tolist(), "
+        "'finite': ds.n_finite_paths.values.tolist(), 'mean_E': ds.mean_E.values.tolist()}))\n"
+    )
+    try:
+        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                              timeout=300, check=False)
+    except subprocess.TimeoutExpired:
+        pytest.fail("a run with blowing-up paths did not return within 300 s")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["nonfinite"][-1] > 10
+    assert out["finite"][-1] + out["nonfinite"][-1] == 200
+    assert np.isfinite(out["mean_E"]).all()
 
 
 def test_step_of_an_oscillator_is_constant_along_its_orbit():
