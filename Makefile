@@ -31,3 +31,22 @@ reproduce: $(STAMP)
 
 clean:
 	rm -rf $(VENV) build dist .pytest_cache
+
+# CUDA registers and spills per kernel for sm_90, compiled offline (no GPU): a separate venv with
+# numba-cuda and ptxas (benchmarks/cuda-tools.txt).  make cuda-registers CUDA_ARGS="--lto --out x.md"
+CUDA_VENV := .venv-cuda
+CUDA_PY := $(CUDA_VENV)/bin/python
+CUDA_STAMP := $(CUDA_VENV)/.installed
+CUDA_ARGS ?=
+
+.PHONY: cuda-registers
+
+$(CUDA_STAMP): benchmarks/cuda-tools.txt pyproject.toml constraints.txt
+	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (set PYTHON=...)"; exit 2; }
+	test -x $(CUDA_PY) || $(PYTHON) -m venv $(CUDA_VENV)
+	$(CUDA_PY) -m pip install -q -c constraints.txt -r benchmarks/cuda-tools.txt \
+		$$($(CUDA_PY) -c 'import tomllib; print(" ".join(tomllib.load(open("pyproject.toml", "rb"))["project"]["dependencies"]))')
+	touch $(CUDA_STAMP)
+
+cuda-registers: $(CUDA_STAMP)
+	PYTHONPATH=src $(CUDA_PY) benchmarks/cuda_registers.py $(CUDA_ARGS)

@@ -63,14 +63,9 @@ def _worker_stochpend(spec):
 
     from stochpend.simulate import simulate
 
-    mode = spec["mode"]  # "fixed", "adaptive" or "fast"
-    if mode == "fast":
-        try:
-            from stochpend._backends import cpu, cpu_fast
-        except ImportError as exc:
-            return {"available": False, "reason": f"{type(exc).__name__}: {exc}"}
-        # The wiring the fast kernel is meant for: a drop-in for cpu.advance_paths.
-        cpu.advance_paths = cpu_fast.advance_paths
+    # "fixed" and "fast": the fixed-step run, which the runner gives the SIMD lock-step driver
+    # (stochpend._backends.cpu.spec_for); "adaptive": the default step control.
+    mode = spec["mode"]
     threads = spec.get("threads")
     paths, t_max = spec["paths"], spec["t_max"]
     kw = dict(noise="ou", D=D, tau=TAU, omega=OMEGA, seed=SEED, threads=threads)
@@ -153,10 +148,6 @@ def _worker_jit(spec):
     t_entry = time.monotonic()
     from stochpend.simulate import simulate
 
-    if spec.get("fast"):
-        from stochpend._backends import cpu, cpu_fast
-
-        cpu.advance_paths = cpu_fast.advance_paths
     t_import = time.monotonic()
     kw = dict(noise="ou", D=D, tau=TAU, omega=OMEGA, paths=1000, t_max=1.0, times=[1.0], seed=SEED,
               step_c=0.0, h_max=H)

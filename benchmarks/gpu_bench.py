@@ -33,11 +33,11 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT / "src") not in sys.path:
     sys.path.insert(0, str(ROOT / "src"))
 
-from stochpend import __version__, rng  # noqa: E402
+from stochpend import __version__  # noqa: E402
 from stochpend._backends import cpu  # noqa: E402
 from stochpend._backends import cuda as gpu  # noqa: E402
 from stochpend.params import SimulationConfig  # noqa: E402
-from stochpend.simulate import run_batches as cpu_run_batches  # noqa: E402
+from stochpend.runner import run_batches as cpu_run_batches  # noqa: E402
 
 H = 0.01
 SEED = 2024
@@ -62,22 +62,12 @@ def make_config(paths: int, steps: int, batches: int = N_BATCHES) -> SimulationC
 
 def cpu_path_states(config: SimulationConfig, n: int) -> dict[str, np.ndarray]:
     """Paths 0..n-1 through every output time with the CPU kernels (as run_batches does)."""
-    x, Omega, xi, t = (np.empty(n) for _ in range(4))
-    k = np.empty(n, dtype=np.uint64)
-    status = np.empty(n, dtype=np.uint8)
-    t_comp = np.empty(n)
-    xi_aux = np.empty(n)
-    key0, key1 = rng.seed_to_key(config.seed)
-    cpu.init_paths(x, Omega, xi, t, k, status, key0, key1, 0, 0.0, True, config.Omega0, 0.0, True,
-                   config.D, config.tau_or_zero, config.noise_code, t_comp, xi_aux,
-                   config.omega_noise_or_zero)
+    engine = cpu.Engine(config, cpu.spec_for(config), n, 1)
+    engine.start(0, n, 1)
     for t_target in config.times:
-        while cpu.advance_paths(x, Omega, xi, t, k, status, t_target, 100_000, config.noise_code,
-                                config.D, config.tau_or_zero, config.omega**2, config.h_max,
-                                config.step_c, 0, config.power_n, 0, key0, key1, 0, t_comp, xi_aux,
-                                config.omega_noise_or_zero)[1]:
+        while not engine.advance(float(t_target), 100_000):
             pass
-    return dict(x=x, Omega=Omega, xi=xi, t=t, k=k, status=status)
+    return {name: engine.arrays()[name] for name in ("x", "Omega", "xi", "t", "k", "status")}
 
 
 def compare(reference, other) -> dict[str, float]:

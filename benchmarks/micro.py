@@ -18,8 +18,8 @@ import time
 import numba
 import numpy as np
 
-from stochpend import fastmath, rng, schemes
-from stochpend._backends import cpu_fast
+from stochpend import fastmath, rng
+from stochpend.noises import ou
 
 N = 1 << 20
 _U64 = np.uint64
@@ -96,8 +96,8 @@ def _philox_scalar(n):
 
 @numba.njit(cache=True, error_model="numpy")
 def _philox_vec(n_blocks, bc2, bc3, buf):
-    # The cpu_fast form: rounds written out, a fixed-size block of lanes per loop.
-    rk0, rk1 = cpu_fast.round_keys(_U64(12345), _U64(678))
+    # The lock-step driver's form: rounds written out, a fixed-size block of lanes per loop.
+    rk0, rk1 = rng.round_keys(_U64(12345), _U64(678))
     for b in range(n_blocks):
         for l in range(bc2.shape[0]):
             c0 = _U64(7)
@@ -133,7 +133,7 @@ def _normals_scalar(n):
 def _ou_coefficients(n):
     acc = 0.0
     for i in range(n):
-        a, s_xi, m_I, c_I, s_I = schemes.ou_step_coefficients(0.01 + 1e-9 * i, 1.0, 1.0)
+        a, s_xi, m_I, c_I, s_I = ou.step_coefficients(0.01 + 1e-9 * i, 1.0, 1.0, 0.0)
         acc += a + s_xi + m_I + c_I + s_I
     return acc
 
@@ -163,7 +163,7 @@ def run() -> list[tuple[str, str, float, str]]:
         per = 1e9 / N
         rows.append(("Philox4x32-10 (10 rounds, 4 words)", "scalar Numba (rng.draw_words)",
                      _best(_philox_scalar, N) * per, "1 per path-step"))
-        rows.append(("Philox4x32-10 (10 rounds, 4 words)", "SIMD Numba (cpu_fast form, 64-lane blocks)",
+        rows.append(("Philox4x32-10 (10 rounds, 4 words)", "SIMD Numba (lock-step driver form, 64-lane blocks)",
                      _best(_philox_vec, N // 64, np.arange(64, dtype=np.uint64), np.zeros(64, np.uint64), np.empty(64)) * per, "1 per path-step"))
         rows.append(("log", "glibc (scalar)", _best(_libm, 0, u) * per, "1 per path-step (Box-Muller)"))
         rows.append(("log", "fastmath.log_pos (SIMD)", _best(_fm_log, u, out) * per, ""))

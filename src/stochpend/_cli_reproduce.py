@@ -110,6 +110,8 @@ def reproduce_command(
     force: Annotated[bool, typer.Option(
         help="Simulate again even when a stored run matches (default: reuse cached NetCDF).")] = False,
     threads: Annotated[int | None, typer.Option(help="CPU threads (results do not depend on it).")] = None,
+    backend: Annotated[str, typer.Option(help="cpu, cuda (an NVIDIA GPU) or auto (the GPU when one is usable).")] = "cpu",
+    precision: Annotated[str, typer.Option(help="float64 or float32 (float32 needs --backend cuda).")] = "float64",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars and no tables.")] = False,
     debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
 ) -> None:
@@ -121,7 +123,7 @@ def reproduce_command(
 
     progress = RichProgressOrLines(enabled=not quiet and console.is_terminal, quiet=quiet)
     result = reproduce(figures or ["all"], paths=paths, t_max=t_max, out=out, quick=quick, force=force,
-                       progress=progress, threads=threads)
+                       progress=progress, threads=threads, backend=backend, precision=precision)
     if quiet:
         return
     for f in result.figures.values():

@@ -88,19 +88,16 @@ def simulate_with_checkpoint(
     """Run ``config`` with checkpoints; write ``out``; return the Dataset (for the table).
 
     Refuses, before any work, an existing checkpoint file (it belongs to an interrupted run:
-    ``stochpend resume`` it), an unwritable ``out``, or a backend other than the CPU (``auto``
-    means the CPU here) or float32. Ctrl-C
+    ``stochpend resume`` it) or an unwritable ``out``. Every backend and precision checkpoints
+    (the checkpoint records them; ``resume`` continues on the same). Ctrl-C
     (SIGTERM) saves the state, prints where and exits with code 130 (143). On success the result is written
     to ``out`` (with ``command_line`` in its attributes) and the checkpoint file is removed.
     """
     from stochpend import checkpoint, io
+    from stochpend.simulate import check_precision, resolve_backend
 
-    if backend not in ("cpu", "auto"):  # auto: the CPU, the backend that checkpoints
-        raise ValueError(f"backend={backend!r} is not accepted with --checkpoint: checkpoints are "
-                         f"implemented for the cpu backend")
-    if precision != "float64":
-        raise ValueError(f"precision={precision!r} is not accepted with --checkpoint: the cpu backend "
-                         f"runs in float64")
+    backend = resolve_backend(backend)
+    check_precision(precision, backend)
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
     checkpoint.check_checkpoint_path(checkpoint_path, out=out)
@@ -109,6 +106,7 @@ def simulate_with_checkpoint(
     return _interruptible(
         checkpoint.run_checkpointed, config, checkpoint_path=checkpoint_path, every_s=every_s,
         out=out, overwrite=overwrite, threads=threads, progress=progress, command_line=command_line,
+        backend=backend, precision=precision,
     )
 
 
@@ -272,6 +270,8 @@ def sweep_command(
     scheduler: Annotated[str | None, typer.Option(help="Where tasks run: default in this process; 'threads' or 'sync' (Dask, no server); 'local' (a Dask LocalCluster); or a scheduler address, e.g. tcp://HOST:8786.")] = None,
     workers: Annotated[int | None, typer.Option(help="Threads ('threads') or worker processes ('local'); default: the CPU count.")] = None,
     tasks_per_set: Annotated[int | None, typer.Option("--tasks-per-set", help="Blocks of batches per parameter set (results do not depend on it).")] = None,
+    backend: Annotated[str, typer.Option(help="Where each block runs: cpu, cuda (the GPU of the process or Dask worker running it) or auto.")] = "cpu",
+    precision: Annotated[str, typer.Option(help="float64 or float32 (float32 needs --backend cuda).")] = "float64",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
 ) -> None:
@@ -284,11 +284,16 @@ def sweep_command(
         io.check_output_path(out, overwrite=overwrite)
     plan = load_spec(spec)  # the whole file is validated before any work
     check_scheduler(scheduler)
+    from stochpend.simulate import check_precision, resolve_backend
+
+    backend = resolve_backend(backend)
+    check_precision(precision, backend)
     if workers is not None and workers < 1:
         cli.fail(f"workers={workers!r} is not accepted: an integer >= 1")
     progress = SweepProgressBar(enabled=not quiet and cli.console.is_terminal, quiet=quiet)
     try:
-        ds = sweep(plan, scheduler=scheduler, workers=workers, progress=progress, tasks_per_set=tasks_per_set)
+        ds = sweep(plan, scheduler=scheduler, workers=workers, progress=progress,
+                   tasks_per_set=tasks_per_set, backend=backend, precision=precision)
     except KeyboardInterrupt:
         progress.finish()
         raise

@@ -1,8 +1,9 @@
 """Keep Numba's on-disk cache honest.
 
 Numba invalidates a cached kernel when the kernel's own source file changes, but not when a
-function it inlines from another module does (the shared ``physics``/``schemes``/``rng``
-functions). Each kernel module calls :func:`drop_stale_cache` at import: it hashes the kernel
+function it inlines from another module does (the integrator, the noises, the oscillators,
+``rng``). Kernels built from closures are also keyed by their closure's pickled functions, but
+a function referred to by module name (``rng.draw_normals``) is pickled by reference only. Each kernel module calls :func:`drop_stale_cache` at import: it hashes the kernel
 module together with the shared modules and deletes the module's cache files when the hash
 differs from the one recorded beside them, so an edit anywhere recompiles.
 """
@@ -13,7 +14,8 @@ import hashlib
 from pathlib import Path
 
 _PACKAGE = Path(__file__).resolve().parent
-SHARED_SOURCES = ("physics.py", "schemes.py", "rng.py", "fastmath.py")
+SHARED_SOURCES = ("integrator.py", "rng.py", "mathlib.py", "fastmath.py", "stats.py",
+                  "noises", "oscillators")
 
 
 def drop_stale_cache(module_file: str) -> None:
@@ -21,8 +23,9 @@ def drop_stale_cache(module_file: str) -> None:
     module = Path(module_file).resolve()
     digest = hashlib.sha256()
     for path in [module, *(_PACKAGE / name for name in SHARED_SOURCES)]:
-        if path.is_file():
-            digest.update(path.read_bytes())
+        for file in sorted(path.glob("*.py")) if path.is_dir() else [path]:
+            if file.is_file():
+                digest.update(file.read_bytes())
     cache_dir = module.parent / "__pycache__"
     stamp = cache_dir / f"{module.stem}.sources.sha256"
     try:

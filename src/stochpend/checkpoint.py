@@ -46,11 +46,11 @@ import numpy as np
 import xarray as xr
 
 from stochpend import __version__, io
-from stochpend._backends.cpu import N_SUMS
 from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
-from stochpend.simulate import RunState, provenance, run_batches
-from stochpend.stats import EnsembleSums
+from stochpend.runner import BACKENDS, RunState, run_batches
+from stochpend.simulate import provenance
+from stochpend.stats import N_SUMS, EnsembleSums
 from stochpend.sweep import BUILD
 
 __all__ = [
@@ -79,7 +79,7 @@ _RUN_FIELDS = ("first_batch", "stop_batch", "b0", "b1", "j", "path_steps", "done
 _CHUNK_ARRAYS = {"chunk_sums": "<f8", "chunk_hist": "<i8"}
 _ACC_ARRAYS = {"acc_sums": "<f8", "acc_hist": "<i8", "acc_filled": "|b1"}
 _PATH_ARRAYS = tuple(f.name for f in fields(RunState)
-                     if f.name not in (*_RUN_FIELDS, *_CHUNK_ARRAYS, "acc"))
+                     if f.name not in (*_RUN_FIELDS, *_CHUNK_ARRAYS, "acc", "backend", "precision"))
 #: Dtype kinds a per-path array may have (never object: nothing here can hold a pickle).
 _NUMERIC_KINDS = "biuf"
 
@@ -147,6 +147,7 @@ class Checkpoint:
 
 
 def _state_arrays(state: RunState) -> dict[str, np.ndarray]:
+    state.pull()  # a GPU run's chunk lives on the device
     arrays = {name: np.ascontiguousarray(getattr(state, name)) for name in _PATH_ARRAYS}
     arrays["chunk_sums"] = np.ascontiguousarray(state.chunk_sums, dtype=_CHUNK_ARRAYS["chunk_sums"])
     arrays["chunk_hist"] = np.ascontiguousarray(state.chunk_hist, dtype=_CHUNK_ARRAYS["chunk_hist"])
@@ -187,6 +188,8 @@ def write(path: str | os.PathLike, ckpt: Checkpoint) -> Path:
             "b1": int(st.b1), "j": int(st.j), "path_steps": int(st.path_steps),
             "done_work": float(st.done_work),
         },
+        "backend": st.backend,
+        "precision": st.precision,
         "out": None if ckpt.out is None else str(ckpt.out),
         "overwrite": bool(ckpt.overwrite),
         "every_s": ckpt.every_s,
@@ -330,8 +333,13 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
 
     acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"])
     scalars = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
+    backend = header.get("backend", "cpu")
+    precision = header.get("precision", "float64")
+    if backend not in BACKENDS or precision not in ("float64", "float32"):
+        raise _refuse(p, f"unknown backend {backend!r} or precision {precision!r}")
     state = RunState(**scalars, **{name: arrays[name] for name in _PATH_ARRAYS},
-                     chunk_sums=arrays["chunk_sums"], chunk_hist=arrays["chunk_hist"], acc=acc)
+                     chunk_sums=arrays["chunk_sums"], chunk_hist=arrays["chunk_hist"], acc=acc,
+                     backend=backend, precision=precision)
     out = header.get("out")
     return Checkpoint(
         config=config, state=state, out=None if out is None else Path(out),
@@ -458,6 +466,8 @@ def run_checkpointed(
     progress: Progress | None = None,
     command_line: str | None = None,
     checkpointer: FileCheckpointer | None = None,
+    backend: str = "cpu",
+    precision: str = "float64",
     _resume: Checkpoint | None = None,
 ) -> xr.Dataset:
     """Run ``config`` saving checkpoints to ``checkpoint_path``; write ``out``; return the result.
@@ -465,7 +475,8 @@ def run_checkpointed(
     On Ctrl-C or SIGTERM the state is saved and :class:`CheckpointInterrupt` (a
     ``KeyboardInterrupt``) is raised; a signal after the last kernel call lets the run finish.
     On success the result is written to ``out`` (when given) and the checkpoint file is
-    removed. The numbers equal those of :func:`stochpend.simulate.run` exactly.
+    removed. The numbers equal those of :func:`stochpend.simulate.run` on the same ``backend``
+    and ``precision`` exactly; a resumed run continues on the backend and precision it ran on.
     """
     progress = progress or NoProgress()
     out_p = None if out is None else Path(out).absolute()
@@ -487,17 +498,21 @@ def run_checkpointed(
     try:
         with deferred_signals(checkpointer):
             if _resume is None:
-                sums, path_steps = run_batches(config, 0, config.n_batches, chunk_paths=chunk_paths,
+                sums, path_steps = run_batches(config, 0, config.n_batches, backend=backend,
+                                               precision=precision, chunk_paths=chunk_paths,
                                                progress=progress, checkpointer=checkpointer)
             else:
                 st = _resume.state
+                backend, precision = st.backend, st.precision
                 sums, path_steps = run_batches(config, st.first_batch, st.stop_batch,
+                                               backend=backend, precision=precision,
                                                chunk_paths=chunk_paths, progress=progress,
                                                checkpointer=checkpointer, resume=st)
     finally:
         numba.set_num_threads(previous_threads)
-    attrs = provenance(config, backend="cpu", threads=threads or previous_threads,
+    attrs = provenance(config, backend=backend, threads=threads or previous_threads,
                        wall_time_s=checkpointer.elapsed_s(), path_steps=path_steps)
+    attrs["precision"] = precision
     attrs["checkpoint"] = str(checkpointer.path)
     attrs["checkpoint_every_s"] = "none" if every_s is None else float(every_s)
     attrs["resumed"] = checkpointer.resumed

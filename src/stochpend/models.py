@@ -1,7 +1,7 @@
 """Oscillators a user defines in Python, run by the same kernels as the built-in ones.
 
 A model is four plain scalar functions of the coordinate x (floats in, a float out), of the
-kind ``stochpend.physics`` defines for the built-in potentials:
+kind the built-in oscillators define (:mod:`stochpend.oscillators`):
 
 * ``potential(x)``: U(x); the energy is E = Omega**2/2 + omega**2 U(x);
 * ``force(x)``: U'(x); the deterministic force is -omega**2 U'(x);
@@ -13,13 +13,15 @@ kind ``stochpend.physics`` defines for the built-in potentials:
 They must be compilable by Numba in nopython mode (``math`` functions, arithmetic,
 conditionals; no Python objects), which also makes them CUDA device functions.
 
-How it works, and why it is the same code: the kernels (``_backends/cpu.py``,
-``_backends/cuda.py``) and the integrator (``schemes.py``) call the physics only through the
-module-level name ``physics``. For a registered model their source is compiled once more with
-that name bound to a namespace of the user's functions instead of ``stochpend.physics``:
-nothing else changes, so the noise updates, the random streams, the step control, the
-statistics and the outputs are those of the built-in models. These copies are compiled in
-memory (not cached on disk): the first run of a model in a process pays the compilation.
+How it works, and why it is the same code: a model is an oscillator like the built-in ones
+(:class:`stochpend.oscillators.Oscillator`, :attr:`Model.oscillator`): its functions are
+wrapped as ``register_jitable`` device functions, and the integrator
+(:mod:`stochpend.integrator`) compiles its one step loop for (this oscillator, the noise, the
+precision), on the CPU and on CUDA. The noise updates, the random streams, the step control,
+the statistics and the outputs are therefore those of the built-in models. In float32 kernels
+the user's functions compute in float64 (a Python float literal is float64 in Numba) and their
+results are rounded to float32. These kernels are compiled in memory (not cached on disk):
+the first run of a model in a process pays the compilation.
 
 Example (docs/models.md)::
 
@@ -38,23 +40,21 @@ Example (docs/models.md)::
 
 from __future__ import annotations
 
-import ast
 import functools
 import inspect
 import math
-import types
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numba.extending import register_jitable
 
-from stochpend import physics
+from stochpend.oscillators.base import Oscillator, OscillatorKernel
 
 __all__ = ["Model", "get", "names", "register", "unregister"]
 
 #: The built-in potentials' names (a model may not take one).
-BUILTIN = tuple(physics.POTENTIALS)
+BUILTIN = ("pendulum", "harmonic", "power")
 
 _REGISTRY: dict[str, Model] = {}
 
@@ -130,6 +130,48 @@ class Model:
                 parts.append(f"{attr}: source unavailable")
         return "\n".join(parts)
 
+    @functools.cached_property
+    def oscillator(self) -> Oscillator:
+        """This model as an :class:`~stochpend.oscillators.Oscillator` (what kernels run)."""
+        return Oscillator(name=self.name, build=functools.partial(_build, self),
+                          description=self.description or "user-defined model",
+                          periodic=bool(self.periodic), energy_floor=lambda n: self.energy_floor())
+
+
+def _build(model: Model, real, mathlib) -> OscillatorKernel:
+    """The model's device functions: the user's functions, results rounded to ``real``."""
+    U = register_jitable(model.potential)
+    dU = register_jitable(model.force)
+    d2U = register_jitable(model.curvature)
+    G = register_jitable(model.noise_shape) if model.noise_shape is not None else dU
+    periodic = bool(model.periodic)
+    pi = real(math.pi)
+    two_pi = real(2.0 * math.pi)
+
+    @register_jitable
+    def potential(x, n):
+        return real(U(x))
+
+    @register_jitable
+    def force(x, n):
+        return real(dU(x))
+
+    @register_jitable
+    def noise_shape(x, n):
+        return real(G(x))
+
+    @register_jitable
+    def step_scales(x, Omega, omega2, n):
+        return abs(Omega), real(abs(d2U(x)))
+
+    @register_jitable
+    def wrap(x):
+        if periodic:
+            return x - two_pi * real(math.floor((x + pi) / two_pi))
+        return x
+
+    return OscillatorKernel(potential, force, noise_shape, step_scales, wrap)
+
 
 def register(model: Model) -> Model:
     """Make ``model`` available as ``potential=model.name`` everywhere (replaces one of the
@@ -137,13 +179,11 @@ def register(model: Model) -> Model:
     if not isinstance(model, Model):
         raise ValueError(f"model={model!r} is not accepted: a stochpend.models.Model")
     _REGISTRY[model.name] = model
-    _kernel_module.cache_clear()
     return model
 
 
 def unregister(name: str) -> None:
     _REGISTRY.pop(name, None)
-    _kernel_module.cache_clear()
 
 
 def names() -> tuple[str, ...]:
@@ -152,113 +192,3 @@ def names() -> tuple[str, ...]:
 
 def get(name: str) -> Model | None:
     return _REGISTRY.get(name)
-
-
-# -- the physics namespace of a model ---------------------------------------------------------
-def physics_namespace(model: Model) -> types.ModuleType:
-    """An object with ``stochpend.physics``'s interface whose functions are the model's.
-
-    Each function has the built-in signature (the potential and coupling codes are passed
-    through and ignored, except the position coupling), registered with ``register_jitable``
-    so that the kernels inline it on the CPU and on the GPU alike.
-    """
-    U = register_jitable(model.potential)
-    dU = register_jitable(model.force)
-    d2U = register_jitable(model.curvature)
-    G = register_jitable(model.noise_shape) if model.noise_shape is not None else dU
-    periodic = bool(model.periodic)
-    position = physics.COUPLING_POSITION
-
-    @register_jitable
-    def potential(x, potential_code, power_n):
-        return U(x)
-
-    @register_jitable
-    def force_shape(x, potential_code, power_n):
-        return dU(x)
-
-    @register_jitable
-    def curvature(x, potential_code, power_n):
-        return abs(d2U(x))
-
-    @register_jitable
-    def noise_shape(x, potential_code, power_n, coupling_code):
-        if coupling_code == position:
-            return x
-        return G(x)
-
-    @register_jitable
-    def energy(x, Omega, omega2, potential_code, power_n):
-        return 0.5 * Omega * Omega + omega2 * U(x)
-
-    @register_jitable
-    def wrap_angle(x, potential_code):
-        if periodic:
-            return x - 2.0 * math.pi * math.floor((x + math.pi) / (2.0 * math.pi))
-        return x
-
-    # A module object, because Numba resolves ``physics.f`` only on modules.
-    namespace = types.ModuleType(f"stochpend._model_{model.name}_physics")
-    for name in dir(physics):
-        if name.isupper():
-            setattr(namespace, name, getattr(physics, name))
-    for f in (potential, force_shape, curvature, noise_shape, energy, wrap_angle):
-        setattr(namespace, f.__name__, f)
-    return namespace
-
-
-class _NoDiskCache(ast.NodeTransformer):
-    """``cache=True`` -> ``cache=False``, and drop the ``drop_stale_cache(__file__)`` call: the
-    copies live in memory only."""
-
-    def visit_keyword(self, node: ast.keyword) -> ast.keyword:
-        if node.arg == "cache":
-            node.value = ast.Constant(False)
-        return node
-
-    def visit_Expr(self, node: ast.Expr) -> ast.AST | None:
-        call = node.value
-        if isinstance(call, ast.Call) and getattr(call.func, "id", "") == "drop_stale_cache":
-            return None
-        return node
-
-
-def _recompiled(module: types.ModuleType, name: str, bindings: dict) -> types.ModuleType:
-    """A copy of ``module`` compiled from its source, with module globals ``bindings``
-    (e.g. ``physics``) replaced after its imports ran; Numba compiles lazily, so the kernels
-    see the replacements."""
-    tree = _NoDiskCache().visit(ast.parse(inspect.getsource(module)))
-    copy = types.ModuleType(name)
-    copy.__dict__["__file__"] = module.__file__
-    exec(compile(ast.fix_missing_locations(tree), f"<stochpend model copy of {module.__name__}>",
-                 "exec"), copy.__dict__)
-    copy.__dict__.update(bindings)
-    return copy
-
-
-@functools.lru_cache(maxsize=None)
-def _kernel_module(name: str, backend: str) -> types.ModuleType:
-    """The kernels of model ``name`` for ``backend`` ("cpu" or "cuda")."""
-    from stochpend import schemes
-
-    model = _REGISTRY[name]
-    user_physics = physics_namespace(model)
-    user_schemes = _recompiled(schemes, f"stochpend._model_{name}_schemes", {"physics": user_physics})
-    if backend == "cpu":
-        from stochpend._backends import cpu
-
-        return _recompiled(cpu, f"stochpend._model_{name}_cpu",
-                           {"physics": user_physics, "schemes": user_schemes})
-    from stochpend._backends import cuda
-
-    return _recompiled(cuda, f"stochpend._model_{name}_cuda",
-                       {"physics": user_physics, "schemes": user_schemes})
-
-
-def kernels(name: str, backend: str = "cpu") -> types.ModuleType:
-    """The kernel module (same interface as ``stochpend._backends.cpu`` or ``.cuda``) running
-    model ``name``."""
-    if name not in _REGISTRY:
-        raise ValueError(f"potential={name!r} is not accepted: no model of that name is registered "
-                         "in this process (stochpend.models.register)")
-    return _kernel_module(name, backend)

@@ -13,11 +13,13 @@ from typing import Any
 
 import numpy as np
 
-from stochpend import physics
+from stochpend import noises as _noises
+from stochpend import oscillators as _oscillators
 
-NOISES = ("white", "ou", "dichotomous", "harmonic")
-#: Noises with a correlation time tau.
-COLORED_NOISES = ("ou", "dichotomous", "harmonic")
+#: The built-in noises (a registered noise is accepted too: ``stochpend.noises.register``).
+NOISES = tuple(noise.name for noise in _noises.BUILTIN)
+#: Built-in noises with a correlation time tau.
+COLORED_NOISES = tuple(noise.name for noise in _noises.BUILTIN if noise.colored)
 BACKENDS = ("cpu", "auto", "cuda")
 
 #: Default step controls, from the accuracy study in docs/numerics.md.
@@ -84,19 +86,6 @@ class SimulationConfig:
 
     # -- derived, cheap -------------------------------------------------------------------
     @property
-    def noise_code(self) -> int:
-        return NOISES.index(self.noise)
-
-    @property
-    def potential_code(self) -> int:
-        """The built-in potential's code; a user model's kernels ignore it (0)."""
-        return physics.POTENTIALS.get(self.potential, 0)
-
-    @property
-    def coupling_code(self) -> int:
-        return physics.COUPLINGS[self.coupling]
-
-    @property
     def batch_size(self) -> int:
         return -(-self.paths // self.n_batches)
 
@@ -147,12 +136,13 @@ class SimulationConfig:
         omega_noise: float | None = None,
     ) -> SimulationConfig:
         """Validate every argument and return the frozen configuration."""
-        if noise not in NOISES:
-            _fail("noise", noise, f"one of {', '.join(NOISES)}")
+        noise_piece = _noises.get(noise)
+        if noise_piece is None:
+            _fail("noise", noise, f"one of {', '.join(_noises.names())}")
         D = _finite("D", D, "D must be a finite number >= 0 (the noise amplitude)")
         if D < 0:
             _fail("D", D, "D must be a finite number >= 0 (the noise amplitude)")
-        if noise in COLORED_NOISES:
+        if noise_piece.colored:
             if tau is None:
                 _fail("tau", tau, f"{noise} noise needs tau, a finite number > 0 (its correlation time)")
             tau = _finite("tau", tau, "tau must be a finite number > 0 (the noise correlation time)")
@@ -165,9 +155,9 @@ class SimulationConfig:
                 )
         else:
             tau = None
-        if noise == "harmonic":
+        if noise_piece.uses_omega_noise:
             if omega_noise is None:
-                omega_noise = 2.0 / tau  # critical damping: gamma = W**2 tau = 2 W
+                omega_noise = noise_piece.default_omega_noise(tau)
             omega_noise = _finite(
                 "omega_noise", omega_noise,
                 "omega_noise must be a finite number > 0 (the harmonic noise's frequency W)")
@@ -175,7 +165,9 @@ class SimulationConfig:
                 _fail("omega_noise", omega_noise,
                       "omega_noise must be a finite number > 0 (the harmonic noise's frequency W)")
         elif omega_noise is not None:
-            _fail("omega_noise", omega_noise, "omega_noise applies to noise='harmonic' only")
+            users = [n for n in _noises.names() if _noises.get(n).uses_omega_noise]
+            _fail("omega_noise", omega_noise,
+                  f"omega_noise applies to noise={' or '.join(repr(n) for n in users)} only")
         omega = _finite("omega", omega, "omega must be a finite number >= 0 (the pendulum frequency)")
         if omega < 0:
             _fail("omega", omega, "omega must be a finite number >= 0 (the pendulum frequency)")
@@ -220,38 +212,26 @@ class SimulationConfig:
             xi0_v = None
         else:
             xi0_v = _finite("xi0", xi0, "xi0 must be a finite number or 'stationary'")
-            if noise == "dichotomous" and xi0_v == 0.0:
-                _fail("xi0", xi0, "dichotomous noise starts at +a or -a: give 'stationary' or a "
-                      "nonzero number whose sign picks the state")
+            if noise_piece.check_xi0 is not None:
+                noise_piece.check_xi0(xi0_v)
 
-        from stochpend import models
-
-        user_model = models.get(potential) if isinstance(potential, str) else None
-        if potential not in physics.POTENTIALS and user_model is None:
-            _fail("potential", potential, f"one of {', '.join(physics.POTENTIALS)}, or a model "
+        oscillator = _oscillators.get(potential)
+        if oscillator is None:
+            _fail("potential", potential, f"one of {', '.join(_oscillators.names())}, or a model "
                   "registered with stochpend.models.register")
-        if coupling not in physics.COUPLINGS:
-            _fail("coupling", coupling, f"one of {', '.join(physics.COUPLINGS)}")
+        if coupling not in _oscillators.COUPLINGS:
+            _fail("coupling", coupling, f"one of {', '.join(_oscillators.COUPLINGS)}")
         power_n = _integer("power_n", power_n, "power_n must be an integer >= 1", 1)
-        if potential == "pendulum" and coupling == "position":
-            _fail(
-                "coupling",
-                coupling,
-                "the pendulum's angle is periodic, so its noise can only multiply the force "
-                "(coupling='force')",
-            )
-        if user_model is not None and user_model.periodic and coupling == "position":
+        if oscillator.periodic and coupling == "position":
+            if oscillator.builtin:
+                _fail("coupling", coupling, f"the {potential}'s angle is periodic, so its noise can "
+                      "only multiply the force (coupling='force')")
             _fail("coupling", coupling, f"model {potential!r} is periodic, so its noise can only "
                   "multiply a periodic function (coupling='force')")
-        cpl = physics.COUPLINGS[coupling]
         if theta0_v is not None and Omega0 == 0.0:
-            if user_model is not None:
-                g = user_model.G(theta0_v, coupling)
-                f = float(user_model.force(theta0_v))
-            else:
-                pot = physics.POTENTIALS[potential]
-                g = physics.noise_shape(theta0_v, pot, power_n, cpl)
-                f = physics.force_shape(theta0_v, pot, power_n)
+            functions = oscillator.functions
+            f = float(functions.force(theta0_v, power_n))
+            g = theta0_v if coupling == "position" else float(functions.noise_shape(theta0_v, power_n))
             at_rest = abs(g) < 1e-12 and abs(f) < 1e-12
             if at_rest:
                 _fail(
@@ -326,13 +306,7 @@ def hist_edges(config: SimulationConfig) -> np.ndarray:
     Edges are uniform in sqrt(E - E_min), E_min = -omega**2 for the pendulum, so that the
     bins are narrow near the bottom of the range, where the law diverges like E**(-1/2).
     """
-    from stochpend import models
-
-    user_model = models.get(config.potential)
-    if user_model is not None:
-        e_min = config.omega**2 * user_model.energy_floor()
-    else:
-        e_min = -(config.omega**2) if config.potential == "pendulum" else 0.0
+    e_min = config.omega**2 * _oscillators.get(config.potential).energy_floor(config.power_n)
     u = np.linspace(0.0, 1.0, config.hist_bins + 1) ** 2
     e_max = np.asarray(config.hist_E_max)[:, None]
     return e_min + (e_max - e_min) * u[None, :]

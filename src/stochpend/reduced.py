@@ -46,7 +46,7 @@ drift is negative the process would cross 0; it is kept at X >= 0 by the Skorokh
 (minimal) reflection, i.e. held at 0 until the drift turns positive. Each step of length h
 freezes the drift at its step average
 ``b = sigma**2 - (omega**2 I + J)/(2 tau h)``, with ``I`` the exact integral of xi over the
-step (drawn jointly with xi_{n+1}, :func:`stochpend.schemes.ou_step_coefficients`) and
+step (drawn jointly with xi_{n+1}, :func:`stochpend.noises.ou.step_coefficients`) and
 ``J = h (xi_n**2 + xi_{n+1}**2)/2`` (trapezoid; unbiased for stationary xi); the X step is
 then the exact squared-Bessel transition of dimension ``delta = b/sigma**2`` above. The
 error is the freezing of the drift within a step (O(h/tau)); E_2 never goes through 0 and no
@@ -91,7 +91,8 @@ import xarray as xr
 from numba import prange
 from numba.extending import register_jitable
 
-from stochpend import __version__, rng, schemes
+from stochpend import __version__, rng
+from stochpend.noises import ou as _ou
 from stochpend._backends.cpu import (
     N_SUMS,
     S_COUNT,
@@ -640,7 +641,7 @@ def _run_chunk(config: ReducedConfig, p0: int, n: int, sums: np.ndarray | None,
                 path_steps += n
             elif order == "second":
                 h = float(h_steps[j])
-                a, s_xi, m_I, c_I, s_I = schemes.ou_step_coefficients(h, config.D, config.tau)
+                a, s_xi, m_I, c_I, s_I = _ou.step_coefficients(h, config.D, config.tau, 0.0)
                 _advance_second(state, xi, status, int(n_steps[j]), h, int(k0_steps[j]), sigma2,
                                 config.tau, config.omega**2, a, s_xi, m_I, c_I, s_I, key0, key1, p0)
                 path_steps += n * int(n_steps[j])

@@ -165,6 +165,8 @@ def reproduce(
     force: bool = False,
     progress: ReproduceProgress | Progress | None = None,
     threads: int | None = None,
+    backend: str = "cpu",
+    precision: str = "float64",
 ) -> ReproduceResult:
     """Run, cache, draw and tabulate the paper's figures and write an HTML report.
 
@@ -188,6 +190,11 @@ def reproduce(
         Receives the overall and per-simulation progress and one line per figure.
     threads : int, optional
         CPU threads for the simulations (results do not depend on it).
+    backend : {"cpu", "cuda", "auto"}
+        Where the simulations run (``stochpend.simulate``'s meaning); "auto" picks the GPU when
+        one is usable. Stored runs are reused only for the same backend and precision.
+    precision : {"float64", "float32"}
+        float32 needs the CUDA backend.
 
     Returns
     -------
@@ -217,6 +224,11 @@ def reproduce(
 
         if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
             raise ValueError(f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]")
+    from stochpend.simulate import check_precision, resolve_backend
+
+    backend = resolve_backend(backend)
+    check_precision(precision, backend)
+    where = (backend, precision)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"out={str(out)!r} is not accepted: it exists and is not a directory")
@@ -242,8 +254,8 @@ def reproduce(
     unique: dict[Path, RunSpec] = {}
     for name_specs in specs.values():
         for s in name_specs:
-            unique.setdefault(_run_path(out, s), s)
-    preloaded = {} if force else {p: _load_cached(p, s) for p, s in unique.items()}
+            unique.setdefault(_run_path(out, s, where), s)
+    preloaded = {} if force else {p: _load_cached(p, s, where) for p, s in unique.items()}
     to_simulate = {p: s for p, s in unique.items() if preloaded.get(p) is None}
     total_work = float(sum(s.paths * s.t_max for s in to_simulate.values()))
     progress.start(max(total_work, 1.0), f"reproduce {' '.join(names)}")
@@ -259,7 +271,7 @@ def reproduce(
             datasets: dict[str, xr.Dataset] = {}
             fig_runs: list[RunRecord] = []
             for s in specs[name]:
-                path = _run_path(out, s)
+                path = _run_path(out, s, where)
                 if path in loaded:
                     ds = loaded[path]
                     status = "shared"
@@ -268,7 +280,7 @@ def reproduce(
                     status = "cached"
                     if ds is None:
                         sub = _SubProgress(progress, done_work, f"{name} {s.key}")
-                        ds = _simulate(s, progress=sub, threads=threads)
+                        ds = _simulate(s, progress=sub, threads=threads, where=where)
                         done_work += s.paths * s.t_max
                         progress.update(done_work)
                         from stochpend import io
@@ -276,7 +288,7 @@ def reproduce(
                         io.to_netcdf(ds, path, overwrite=True)
                         status = "simulated"
                     loaded[path] = ds
-                rec = RunRecord(s.key, s, path, s.cache_key(__version__), status, dict(ds.attrs),
+                rec = RunRecord(s.key, s, path, s.cache_key(__version__, *where), status, dict(ds.attrs),
                                 int(ds["nonfinite_paths"].values[-1]))
                 records.setdefault(path, rec)
                 fig_runs.append(rec)
@@ -292,7 +304,7 @@ def reproduce(
         out=out, figures=results, report=out / "report.html", tables_md=out / "tables.md",
         results_json=out / "results.json", wall_time_s=time.perf_counter() - started,
         settings={"figures": names, "paths": paths, "t_max": t_max, "quick": quick, "force": force,
-                  "out": str(out)},
+                  "out": str(out), "backend": backend, "precision": precision},
         versions=versions(), runs={r.path.name: r for r in records.values()},
     )
     _write_tables_md(result)
@@ -324,11 +336,11 @@ def _figure_names(figures: str | Iterable[str]) -> list[str]:
     return names
 
 
-def _run_path(out: Path, spec: RunSpec) -> Path:
-    return out / "runs" / f"{spec.key}-n{spec.paths}-T{spec.t_max:g}-{spec.cache_key(__version__)[:12]}.nc"
+def _run_path(out: Path, spec: RunSpec, where: tuple[str, str] = ("cpu", "float64")) -> Path:
+    return out / "runs" / f"{spec.key}-n{spec.paths}-T{spec.t_max:g}-{spec.cache_key(__version__, *where)[:12]}.nc"
 
 
-def _load_cached(path: Path, spec: RunSpec) -> xr.Dataset | None:
+def _load_cached(path: Path, spec: RunSpec, where: tuple[str, str] = ("cpu", "float64")) -> xr.Dataset | None:
     """The stored run if it exists and its stored hash matches the spec; else None."""
     if not path.is_file():
         return None
@@ -338,7 +350,7 @@ def _load_cached(path: Path, spec: RunSpec) -> xr.Dataset | None:
         ds = io.open_results(path)
     except ValueError:
         return None
-    if ds.attrs.get("reproduce_cache_key") != spec.cache_key(__version__) or "batch_sums" not in ds:
+    if ds.attrs.get("reproduce_cache_key") != spec.cache_key(__version__, *where) or "batch_sums" not in ds:
         return None
     return ds
 
@@ -364,7 +376,8 @@ class _SubProgress:
         self.inner.finish()
 
 
-def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None) -> xr.Dataset:
+def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None,
+              where: tuple[str, str] = ("cpu", "float64")) -> xr.Dataset:
     """Simulate one run; the Dataset of :func:`stochpend.simulate` plus ``batch_sums``.
 
     Mirrors :func:`stochpend.simulate.run` (same configuration, numbers and attributes) but keeps
@@ -373,7 +386,8 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None) 
     import numba
 
     from stochpend.params import SimulationConfig, hist_edges
-    from stochpend.simulate import provenance, run_batches
+    from stochpend.runner import run_batches
+    from stochpend.simulate import provenance
 
     config = SimulationConfig.build(**spec.simulate_kwargs())
     previous = numba.get_num_threads()
@@ -381,11 +395,14 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None) 
         numba.set_num_threads(threads)
     started = time.perf_counter()
     try:
-        sums, path_steps = run_batches(config, 0, config.n_batches, progress=progress)
+        sums, path_steps = run_batches(config, 0, config.n_batches, backend=where[0],
+                                       precision=where[1], progress=progress)
     finally:
         numba.set_num_threads(previous)
     wall = time.perf_counter() - started
-    attrs = provenance(config, backend="cpu", threads=threads or previous, wall_time_s=wall, path_steps=path_steps)
+    attrs = provenance(config, backend=where[0], threads=threads or previous, wall_time_s=wall,
+                       path_steps=path_steps)
+    attrs["precision"] = where[1]
     ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
     ds["batch_sums"] = (
         ("batch", "time", "sum_component"),
@@ -394,7 +411,7 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None) 
          "components": ", ".join(SUM_COMPONENTS)},
     )
     ds = ds.assign_coords(sum_component=("sum_component", list(SUM_COMPONENTS)))
-    ds.attrs["reproduce_cache_key"] = spec.cache_key(__version__)
+    ds.attrs["reproduce_cache_key"] = spec.cache_key(__version__, *where)
     ds.attrs["reproduce_run_key"] = spec.key
     ds.attrs["reproduce_label"] = spec.label
     ds.attrs["command_line"] = "stochpend reproduce"

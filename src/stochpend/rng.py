@@ -111,6 +111,63 @@ def draw_uniforms(key0, key1, path, n):
     return uniform_open(r0, r1), uniform_open(r2, r3)
 
 
+def normals_with(mathlib):
+    """:func:`draw_normals` whose Box-Muller uses ``mathlib``'s log and sincos
+    (:mod:`stochpend.mathlib`); the C library's gives :func:`draw_normals` itself."""
+    if mathlib.name == "libm":
+        return draw_normals
+    log = mathlib.log
+    sincos = mathlib.sincos
+
+    @register_jitable
+    def normals(key0, key1, path, n):
+        r0, r1, r2, r3 = draw_words(key0, key1, path, n)
+        r = math.sqrt(-2.0 * log(uniform_open(r0, r1)))
+        s, c = sincos(_TWO_PI * uniform_open(r2, r3))
+        return r * c, r * s
+
+    return normals
+
+
+#: r * W0 and r * W1 for the rounds r = 0..9 (uint64: no mix of signed and unsigned operands).
+_W0_MULTIPLES = tuple(np.uint64(r * 0x9E3779B9) for r in range(10))
+_W1_MULTIPLES = tuple(np.uint64(r * 0xBB67AE85) for r in range(10))
+
+
+@register_jitable
+def round_keys(key0, key1):
+    """The ten Philox round keys, two 10-tuples of uint64 (round r: key + r W mod 2**32, the
+    keys :func:`philox4x32_10` steps through): the same for every path of a seed, so a
+    lock-step driver computes them once per call."""
+    k0 = (key0, (key0 + _W0_MULTIPLES[1]) & _MASK32, (key0 + _W0_MULTIPLES[2]) & _MASK32,
+          (key0 + _W0_MULTIPLES[3]) & _MASK32, (key0 + _W0_MULTIPLES[4]) & _MASK32,
+          (key0 + _W0_MULTIPLES[5]) & _MASK32, (key0 + _W0_MULTIPLES[6]) & _MASK32,
+          (key0 + _W0_MULTIPLES[7]) & _MASK32, (key0 + _W0_MULTIPLES[8]) & _MASK32,
+          (key0 + _W0_MULTIPLES[9]) & _MASK32)
+    k1 = (key1, (key1 + _W1_MULTIPLES[1]) & _MASK32, (key1 + _W1_MULTIPLES[2]) & _MASK32,
+          (key1 + _W1_MULTIPLES[3]) & _MASK32, (key1 + _W1_MULTIPLES[4]) & _MASK32,
+          (key1 + _W1_MULTIPLES[5]) & _MASK32, (key1 + _W1_MULTIPLES[6]) & _MASK32,
+          (key1 + _W1_MULTIPLES[7]) & _MASK32, (key1 + _W1_MULTIPLES[8]) & _MASK32,
+          (key1 + _W1_MULTIPLES[9]) & _MASK32)
+    return k0, k1
+
+
+@register_jitable
+def philox4x32_10_keyed(c0, c1, c2, c3, rk0, rk1):
+    """:func:`philox4x32_10` with its round keys given (:func:`round_keys`), the ten rounds
+    written out: a loop left to LLVM keeps a lane loop around it from vectorizing."""
+    c0, c1, c2, c3 = philox_round(c0, c1, c2, c3, rk0[0], rk1[0])
+    c0, c1, c2, c3 = philox_round(c0, c1, c2, c3, rk0[1], rk1[1])
+    c0, c1, c2, c3 = philox_round(c0, c1, c2, c3, rk0[2], rk1[2])
+    c0, c1, c2, c3 = philox_round(c0, c1, c2, c3, rk0[3], rk1[3])
+    c0, c1, c2, c3 = philox_round(c0, c1, c2, c3, rk0[4], rk1[4])
+    c0, c1, c2, c3 = philox_round(c0, c1, c2, c3, rk0[5], rk1[5])
+    c0, c1, c2, c3 = philox_round(c0, c1, c2, c3, rk0[6], rk1[6])
+    c0, c1, c2, c3 = philox_round(c0, c1, c2, c3, rk0[7], rk1[7])
+    c0, c1, c2, c3 = philox_round(c0, c1, c2, c3, rk0[8], rk1[8])
+    return philox_round(c0, c1, c2, c3, rk0[9], rk1[9])
+
+
 def seed_to_key(seed: int) -> tuple[np.uint64, np.uint64]:
     """Split a seed in [0, 2**64) into the Philox key words."""
     seed = int(seed)

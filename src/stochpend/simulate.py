@@ -4,16 +4,13 @@ from __future__ import annotations
 
 import platform
 import time as _time
-from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import __version__, physics, schemes
-from stochpend import rng as _rng
-from stochpend._backends import cpu, cpu_fast
+from stochpend import __version__, integrator, models, runner
 from stochpend.params import (
     DEFAULT_H_MAX,
     DEFAULT_HIST_BINS,
@@ -23,12 +20,6 @@ from stochpend.params import (
     hist_edges,
 )
 from stochpend.progress import NoProgress, Progress
-from stochpend.stats import EnsembleSums
-
-#: Paths advanced together (bounded memory: 57 bytes a path in the state arrays).
-DEFAULT_CHUNK_PATHS = 1 << 20
-#: Path-steps per kernel call, so that progress is reported every fraction of a second.
-_WORK_PER_CALL = 20_000_000
 
 
 def simulate(
@@ -147,16 +138,7 @@ def simulate(
         potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
     )
     backend = resolve_backend(backend)
-    if precision not in ("float64", "float32"):
-        raise ValueError(f"precision={precision!r} is not accepted: one of float64, float32")
-    if precision == "float32" and config.potential not in physics.POTENTIALS:
-        raise ValueError(f"precision='float32' is not accepted with potential={config.potential!r}: "
-                         "user-defined models run in float64")
-    if precision == "float32" and config.noise in ("dichotomous", "harmonic"):
-        raise ValueError(f"precision='float32' is not accepted with noise={config.noise!r}: "
-                         "the dichotomous and harmonic noises run in float64")
-    if precision == "float32" and backend != "cuda":
-        raise ValueError("precision='float32' is not accepted with backend='cpu': float32 runs on the CUDA backend")
+    check_precision(precision, backend)
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
                                 or threads > numba.config.NUMBA_NUM_THREADS):
         raise ValueError(
@@ -167,6 +149,14 @@ def simulate(
         raise ValueError(f"chunk_paths={chunk_paths!r} is not accepted: an integer >= 1")
     return run(config, backend=backend, threads=threads, chunk_paths=chunk_paths, progress=progress,
                precision=precision)
+
+
+def check_precision(precision: str, backend: str) -> None:
+    """Refuse an unknown precision, or float32 anywhere but the CUDA backend."""
+    if precision not in integrator.PRECISIONS:
+        raise ValueError(f"precision={precision!r} is not accepted: one of float64, float32")
+    if precision == "float32" and backend != "cuda":
+        raise ValueError("precision='float32' is not accepted with backend='cpu': float32 runs on the CUDA backend")
 
 
 def resolve_backend(backend: str) -> str:
@@ -209,18 +199,9 @@ def run(
         numba.set_num_threads(threads)
     started = _time.perf_counter()
     try:
-        if backend == "cuda":
-            from stochpend import models
-            from stochpend._backends import cuda as _cuda
-
-            if config.potential not in physics.POTENTIALS:
-                _cuda = models.kernels(config.potential, "cuda")
-            sums, path_steps = _cuda.run_batches(config, 0, config.n_batches, chunk_paths=chunk_paths,
-                                                 progress=progress, precision=precision)
-        else:
-            sums, path_steps = run_batches(
-                config, 0, config.n_batches, chunk_paths=chunk_paths, progress=progress
-            )
+        sums, path_steps = runner.run_batches(config, 0, config.n_batches, backend=backend,
+                                              precision=precision, chunk_paths=chunk_paths,
+                                              progress=progress)
     finally:
         numba.set_num_threads(previous_threads)
     wall = _time.perf_counter() - started
@@ -230,182 +211,16 @@ def run(
     return sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
 
 
-@dataclass
-class RunState:
-    """Everything needed to continue ``run_batches`` exactly where it stopped.
-
-    The run is at chunk ``[b0, b1)`` (batch indices), has accumulated the output times before
-    ``j`` for that chunk, and holds the per-path state arrays of the chunk. ``acc`` holds the
-    finished chunks (and the finished times of this chunk in ``chunk_sums``/``chunk_hist``).
-    A checkpoint is this object written to disk (``stochpend.checkpoint``).
-    """
-
-    first_batch: int
-    stop_batch: int
-    b0: int
-    b1: int
-    j: int
-    x: np.ndarray
-    Omega: np.ndarray
-    xi: np.ndarray
-    t: np.ndarray
-    k: np.ndarray
-    status: np.ndarray
-    t_comp: np.ndarray
-    xi_aux: np.ndarray
-    chunk_sums: np.ndarray
-    chunk_hist: np.ndarray
-    acc: EnsembleSums
-    path_steps: int
-    done_work: float
-
-
-class Checkpointer(Protocol):
-    """Called between kernel calls with the live state; may write it to disk."""
-
-    def maybe_save(self, state: RunState) -> None: ...
-
-
-def cpu_kernels(config: SimulationConfig) -> tuple[Any, Any, Any]:
-    """``(init_paths, advance_paths, accumulate_batches)`` for the configuration's model: the
-    built-in kernels (cached on disk), or a registered user model's (``stochpend.models``)."""
-    from stochpend import models
-
-    if config.potential not in physics.POTENTIALS:
-        # models.kernels refuses a name this process has not registered (e.g. on a Dask
-        # worker): never fall back to a built-in potential.
-        module = models.kernels(config.potential, "cpu")
-        return module.init_paths, module.advance_paths, module.accumulate_batches
-    return cpu.init_paths, cpu_fast.advance_paths, cpu.accumulate_batches
-
-
-def _new_chunk(config: SimulationConfig, b0: int, b1: int) -> tuple[np.ndarray, ...]:
-    bs = config.batch_size
-    p0 = b0 * bs
-    n = min(b1 * bs, config.paths) - p0
-    x = np.empty(n)
-    Omega = np.empty(n)
-    xi = np.empty(n)
-    t = np.empty(n)
-    k = np.empty(n, dtype=np.uint64)
-    status = np.empty(n, dtype=np.uint8)
-    t_comp = np.empty(n)
-    xi_aux = np.empty(n)
-    key0, key1 = _rng.seed_to_key(config.seed)
-    init_paths, _, _ = cpu_kernels(config)
-    init_paths(
-        x, Omega, xi, t, k, status, key0, key1, p0,
-        0.0 if config.theta0 is None else config.theta0, config.theta0 is None,
-        config.Omega0, 0.0 if config.xi0 is None else config.xi0, config.xi0 is None,
-        config.D, config.tau_or_zero, config.noise_code, t_comp, xi_aux,
-        config.omega_noise_or_zero,
-    )
-    return x, Omega, xi, t, k, status, t_comp, xi_aux
-
-
-def run_batches(
-    config: SimulationConfig,
-    first_batch: int,
-    stop_batch: int,
-    *,
-    chunk_paths: int | None = None,
-    progress: Progress | None = None,
-    checkpointer: Checkpointer | None = None,
-    resume: RunState | None = None,
-) -> tuple[EnsembleSums, int]:
-    """Simulate batches ``first_batch .. stop_batch - 1`` and return their sums.
-
-    This is the unit of work that Dask tasks and checkpointed runs are made of: the numbers
-    depend only on the configuration and the batch indices (never on ``chunk_paths``, the
-    thread count, or an interruption and ``resume``).
-
-    Returns ``(sums, path_steps)``; only the batches in range are filled in ``sums``.
-    """
-    progress = progress or NoProgress()
-    times = np.asarray(config.times)
-    edges = hist_edges(config)
-    bs = config.batch_size
-    n_times = times.size
-    n_cols = config.hist_bins + 2
-    key0, key1 = _rng.seed_to_key(config.seed)
-    pot = config.potential_code
-    cpl = config.coupling_code
-    _, advance_paths, accumulate_batches = cpu_kernels(config)
-    omega2 = config.omega**2
-    total_paths = min(stop_batch * bs, config.paths) - first_batch * bs
-    progress.start(total_paths * config.t_max, "simulating")
-
-    if resume is None:
-        chunk_batches = max(1, (chunk_paths or DEFAULT_CHUNK_PATHS) // bs)
-        b1 = min(first_batch + chunk_batches, stop_batch)
-        state = RunState(
-            first_batch, stop_batch, first_batch, b1, 0, *_new_chunk(config, first_batch, b1),
-            chunk_sums=np.zeros((b1 - first_batch, n_times, cpu.N_SUMS)),
-            chunk_hist=np.zeros((n_times, n_cols), dtype=np.int64),
-            acc=EnsembleSums.empty(config.n_batches, n_times, config.hist_bins),
-            path_steps=0, done_work=0.0,
-        )
-    else:
-        state = resume
-        chunk_batches = state.b1 - state.b0
-    hist = np.empty((chunk_batches, n_cols), dtype=np.int64)
-
-    while True:
-        p0 = state.b0 * bs
-        n = state.x.shape[0]
-        max_steps = max(1000, _WORK_PER_CALL // max(n, 1))
-        while state.j < n_times:
-            t_target = float(times[state.j])
-            while True:
-                steps, unfinished = advance_paths(
-                    state.x, state.Omega, state.xi, state.t, state.k, state.status, t_target,
-                    max_steps, config.noise_code, config.D, config.tau_or_zero, omega2,
-                    config.h_max, config.step_c, pot, config.power_n, cpl, key0, key1, p0,
-                    state.t_comp, state.xi_aux, config.omega_noise_or_zero,
-                )
-                state.path_steps += steps
-                progress.update(state.done_work + float(np.sum(state.t)))
-                if unfinished == 0:
-                    break
-                if checkpointer is not None:
-                    checkpointer.maybe_save(state)
-            nb = state.b1 - state.b0
-            accumulate_batches(state.x, state.Omega, state.status, omega2, pot,
-                                   config.power_n, cpl, bs, edges[state.j],
-                                   state.chunk_sums[:, state.j, :], hist[:nb])
-            state.chunk_hist[state.j] = hist[:nb].sum(axis=0)
-            state.j += 1
-            if checkpointer is not None:
-                checkpointer.maybe_save(state)
-        state.acc.add_batches(state.b0, state.chunk_sums, state.chunk_hist)
-        state.done_work += n * config.t_max
-        if state.b1 >= stop_batch:
-            break
-        b0 = state.b1
-        b1 = min(b0 + chunk_batches, stop_batch)
-        (state.x, state.Omega, state.xi, state.t, state.k, state.status,
-         state.t_comp, state.xi_aux) = _new_chunk(config, b0, b1)
-        state.b0, state.b1, state.j = b0, b1, 0
-        state.chunk_sums = np.zeros((b1 - b0, n_times, cpu.N_SUMS))
-        state.chunk_hist = np.zeros((n_times, n_cols), dtype=np.int64)
-        if checkpointer is not None:
-            checkpointer.maybe_save(state)
-    progress.finish()
-    return state.acc, state.path_steps
-
-
 def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_time_s: float,
                path_steps: int) -> dict[str, Any]:
     """Attributes stored with every result: enough to reproduce it."""
     attrs: dict[str, Any] = {"title": "stochpend ensemble simulation"}
     attrs.update(config.to_attrs())
-    from stochpend import models
-
     user_model = models.get(config.potential)
     if user_model is not None:
         attrs["model"] = f"user-defined ({user_model.description or 'stochpend.models.Model'})"
         attrs["model_source"] = user_model.source()
-    attrs.update({f"scheme_{k}": v for k, v in schemes.SCHEME.items()})
+    attrs.update({f"scheme_{k}": v for k, v in integrator.SCHEME.items()})
     attrs.update(
         {
             "rng": "Philox4x32-10, key = seed, counter = (draw, global path index)",

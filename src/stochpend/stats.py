@@ -19,20 +19,11 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from stochpend._backends.cpu import (
-    N_SUMS,
-    S_COUNT,
-    S_E1,
-    S_E2,
-    S_E3,
-    S_E4,
-    S_G2,
-    S_NONFINITE,
-    S_OMEGA2,
-    S_OMEGA4,
-)
+__all__ = ["EnsembleSums", "N_SUMS", "STATISTICS"]
 
-__all__ = ["EnsembleSums", "STATISTICS"]
+#: Columns of the per-batch sums that every backend fills (``sums[batch, time, column]``).
+S_COUNT, S_E1, S_E2, S_E3, S_E4, S_OMEGA2, S_OMEGA4, S_G2, S_NONFINITE = range(9)
+N_SUMS = 9
 
 
 def _ratio(num: np.ndarray, den: np.ndarray) -> np.ndarray:

@@ -54,7 +54,8 @@ import xarray as xr
 from stochpend import __version__
 from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
-from stochpend.simulate import provenance, run_batches
+from stochpend.runner import run_batches
+from stochpend.simulate import provenance
 from stochpend.stats import EnsembleSums
 
 __all__ = ["BlockResult", "SweepSpec", "Task", "load_spec", "plan_tasks", "run_block", "sweep"]
@@ -114,19 +115,24 @@ class BlockResult:
     seconds: float
 
 
-#: The modules whose code determines the numbers (add any new kernel module here).
-_NUMBERS_MODULES = ("stochpend.params", "stochpend.physics", "stochpend.rng", "stochpend.schemes",
-                    "stochpend.simulate", "stochpend.stats", "stochpend._backends.cpu",
-                    "stochpend._backends.cpu_fast", "stochpend.fastmath", "stochpend.models")
+#: The sources that determine the numbers (files and folders of the package; every file of a
+#: folder counts, so a new noise or oscillator is covered).
+_NUMBERS_SOURCES = ("params.py", "rng.py", "mathlib.py", "fastmath.py", "integrator.py",
+                    "runner.py", "simulate.py", "stats.py", "models.py", "_backends/cpu.py",
+                    "_backends/cuda.py", "noises", "oscillators")
 
 
 def _code_fingerprint() -> str:
-    """SHA-256 (12 hex digits) of the modules that determine the numbers, as imported here."""
+    """SHA-256 (12 hex digits) of the sources that determine the numbers, as installed here."""
     import hashlib
 
+    package = Path(__file__).resolve().parent
     h = hashlib.sha256()
-    for name in _NUMBERS_MODULES:
-        h.update(Path(importlib.import_module(name).__file__).read_bytes())
+    for name in _NUMBERS_SOURCES:
+        path = package / name
+        for file in sorted(path.glob("*.py")) if path.is_dir() else [path]:
+            h.update(file.relative_to(package).as_posix().encode())
+            h.update(file.read_bytes())
     return h.hexdigest()[:12]
 
 
@@ -335,8 +341,10 @@ def plan_tasks(spec: SweepSpec, tasks_per_set: int) -> list[Task]:
 
 def run_block(config: SimulationConfig, set_index: int, b0: int, b1: int, *,
               numba_threads: int | None = None, expect_version: str | None = None,
-              progress: Progress | None = None) -> BlockResult:
-    """Simulate batches ``b0 .. b1 - 1`` of one set: the function every engine runs."""
+              progress: Progress | None = None, backend: str = "cpu",
+              precision: str = "float64") -> BlockResult:
+    """Simulate batches ``b0 .. b1 - 1`` of one set on ``backend``: the function every engine
+    runs (a Dask worker that owns a GPU runs its blocks with ``backend="cuda"``)."""
     if expect_version is not None and expect_version != BUILD:
         raise ValueError(f"a worker runs stochpend {BUILD}, the client stochpend {expect_version}: "
                          f"install the same stochpend everywhere")
@@ -345,7 +353,8 @@ def run_block(config: SimulationConfig, set_index: int, b0: int, b1: int, *,
     if numba_threads is not None:
         numba.set_num_threads(max(1, min(int(numba_threads), numba.config.NUMBA_NUM_THREADS)))
     try:
-        acc, path_steps = run_batches(config, b0, b1, progress=progress)
+        acc, path_steps = run_batches(config, b0, b1, backend=backend, precision=precision,
+                                      progress=progress)
     finally:
         numba.set_num_threads(previous)
     paths = min(b1 * config.batch_size, config.paths) - b0 * config.batch_size
@@ -412,11 +421,13 @@ class _PartialProgress:
 
 
 def _run_inprocess(spec: SweepSpec, tasks: list[Task], tracker: _Tracker,
-                   on_result: Callable[[BlockResult], None]) -> dict[str, Any]:
+                   on_result: Callable[[BlockResult], None], backend: str,
+                   precision: str) -> dict[str, Any]:
     for task in tasks:
         config = spec.configs[task.set_index]
         r = run_block(config, task.set_index, task.b0, task.b1,
-                      progress=_PartialProgress(tracker, config.t_max))
+                      progress=_PartialProgress(tracker, config.t_max), backend=backend,
+                      precision=precision)
         on_result(r)
         tracker.done(r)
     return {"engine": "in-process", "scheduler": "none", "workers": 1}
@@ -455,6 +466,8 @@ def sweep(
     workers: int | None = None,
     progress: Progress | None = None,
     tasks_per_set: int | None = None,
+    backend: str = "cpu",
+    precision: str = "float64",
 ) -> xr.Dataset:
     """Run every parameter set of a sweep and return one Dataset.
 
@@ -476,6 +489,11 @@ def sweep(
     tasks_per_set : int, optional
         Blocks of batches per set (capped at its ``n_batches``). Default: 1 in process, else
         about 8 tasks per worker thread in all. The numbers do not depend on it.
+    backend : {"cpu", "cuda", "auto"}
+        Where each block runs: the CPU, or the GPU of the process that runs it (in process, or
+        on Dask workers that each own a GPU); "auto" picks the GPU when this process has one.
+    precision : {"float64", "float32"}
+        float32 needs ``backend="cuda"``.
 
     Returns
     -------
@@ -485,7 +503,11 @@ def sweep(
         parameters are coordinates along ``case``). ``path_steps`` per set; parameters common
         to every set are attributes.
     """
+    from stochpend.simulate import check_precision, resolve_backend
+
     spec = load_spec(spec)
+    backend = resolve_backend(backend)
+    check_precision(precision, backend)
     workers = _check_positive_int("workers", workers)
     tasks_per_set = _check_positive_int("tasks_per_set", tasks_per_set)
     check_scheduler(scheduler)
@@ -501,23 +523,23 @@ def sweep(
         tracker = _Tracker(progress or NoProgress(), sum(t.paths for t in tasks), len(tasks))
         tracker.start()
         try:
-            info = _run_inprocess(spec, tasks, tracker, on_result)
+            info = _run_inprocess(spec, tasks, tracker, on_result, backend, precision)
         finally:
             tracker.finish()
     else:
-        backend = _dask_backend(scheduler)
-        with backend.connect(scheduler, workers) as engine:
+        with _dask_backend(scheduler).connect(scheduler, workers) as engine:
             tasks = plan_tasks(spec, tasks_per_set or default_tasks_per_set(spec, engine.slots))
             tracker = _Tracker(progress or NoProgress(), sum(t.paths for t in tasks), len(tasks))
             if engine.dashboard:
                 tracker.note(f"Dask dashboard: {engine.dashboard}")
             tracker.start()
             try:
-                engine.run(spec, tasks, tracker, on_result)
+                engine.run(spec, tasks, tracker, on_result, backend=backend, precision=precision)
             finally:
                 tracker.finish()
             info = engine.info()
     wall = _time.perf_counter() - started
+    info = {**info, "backend": backend, "precision": precision}
     return _assemble(spec, results, info=info, n_tasks=len(tasks), wall_time_s=wall)
 
 
@@ -537,7 +559,8 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
         if not acc.complete:
             raise RuntimeError("internal error: a sweep set is missing batches")
         datasets.append(acc.to_dataset(np.asarray(config.times), hist_edges(config), {}))
-        per_set_attrs.append(provenance(config, backend="cpu", threads=0, wall_time_s=0.0, path_steps=steps))
+        per_set_attrs.append(provenance(config, backend=info.get("backend", "cpu"), threads=0,
+                                        wall_time_s=0.0, path_steps=steps))
         path_steps.append(steps)
 
     shape = spec.shape
@@ -582,6 +605,8 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
         "sweep_engine": info.get("engine", ""),
         "sweep_scheduler": str(info.get("scheduler", "")),
         "sweep_workers": int(info.get("workers", 0)),
+        "backend": info.get("backend", "cpu"),
+        "precision": info.get("precision", "float64"),
         "stochpend_build": BUILD,
         "wall_time_s": wall_time_s,
         "compute_time_s": compute_s,

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from stochpend import physics, rng, schemes
-from stochpend._backends import cpu
+from stochpend import integrator, rng
+from stochpend.noises import harmonic
+from tests._kernels import Paths, kernels
 
 from tests.conftest import SEED, Z_TOL
 
@@ -23,23 +24,17 @@ DT = 0.1
 N_GRID = 128
 
 
-def sample_noise(noise_code, D, tau, omega_noise, h_max=0.05, step_c=0.0):
+def sample_noise(noise, D, tau, omega_noise, h_max=0.05, step_c=0.0):
     """xi at t = DT, 2 DT, ..., N_GRID DT for N_PATHS stationary paths: shape (N_GRID, N_PATHS)."""
-    n = N_PATHS
-    x, O, xi, t, tc, xa = (np.empty(n) for _ in range(6))
-    k = np.empty(n, dtype=np.uint64)
-    status = np.empty(n, dtype=np.uint8)
-    key0, key1 = rng.seed_to_key(SEED)
-    cpu.init_paths(x, O, xi, t, k, status, key0, key1, 0, 0.0, False, 0.0, 0.0, True, D, tau,
-                   noise_code, tc, xa, omega_noise)
-    x[:] = 0.0
-    out = np.empty((N_GRID, n))
+    kern = kernels(noise, "harmonic", adaptive=step_c > 0)
+    p = Paths(N_PATHS).init(kern, SEED, theta0=0.0, D=D, tau=tau, W=omega_noise)
+    p.x[:] = 0.0
+    out = np.empty((N_GRID, N_PATHS))
     for j in range(N_GRID):
-        cpu.advance_paths(x, O, xi, t, k, status, (j + 1) * DT, 10**9, noise_code, D, tau, 1.0,
-                          h_max, step_c, physics.HARMONIC, 2, physics.COUPLING_FORCE, key0, key1,
-                          0, tc, xa, omega_noise)
-        out[j] = xi
-    assert np.all(status == 0) and np.all(x == 0.0) and np.all(O == 0.0)
+        p.advance(kern, (j + 1) * DT, 10**9, SEED, D=D, tau=tau, W=omega_noise, h_max=h_max,
+                  step_c=step_c)
+        out[j] = p.xi
+    assert np.all(p.status == 0) and np.all(p.x == 0.0) and np.all(p.Omega == 0.0)
     return out
 
 
@@ -94,7 +89,7 @@ def check_spectrum(samples, correlation):
 def test_dichotomous_noise_values_correlation_and_spectrum():
     D, tau = 1.3, 0.4
     a = math.sqrt(D / (2 * tau))
-    samples = sample_noise(cpu.DICHOTOMOUS, D, tau, 0.0)
+    samples = sample_noise("dichotomous", D, tau, 0.0)
     # Two values only, +-a, equally likely.
     assert np.all(np.abs(samples) == a)
     frac = np.mean(samples[50] > 0)
@@ -109,7 +104,7 @@ def test_dichotomous_noise_does_not_depend_on_the_step_in_law():
     """The flips cut the steps, so a step of 0.5 (longer than the mean time between flips,
     2 tau = 0.6) samples the same telegraph process."""
     D, tau = 1.0, 0.3
-    samples = sample_noise(cpu.DICHOTOMOUS, D, tau, 0.0, h_max=0.5)
+    samples = sample_noise("dichotomous", D, tau, 0.0, h_max=0.5)
     check_correlation(samples, lambda s: ou_correlation(s, D, tau))
 
 
@@ -117,7 +112,7 @@ def test_dichotomous_noise_does_not_depend_on_the_step_in_law():
 def test_harmonic_noise_correlation_and_spectrum(W):
     D, tau = 0.8, 0.5
     W = 2.0 / tau if W is None else W
-    samples = sample_noise(cpu.HARMONIC, D, tau, W)
+    samples = sample_noise("harmonic", D, tau, W)
     corr = lambda s: harmonic_correlation(s, D, tau, W)  # noqa: E731
     sq = check_correlation(samples, corr)
     # The variance is D/(2 tau), the OU noise's, whatever W.
@@ -130,7 +125,7 @@ def test_harmonic_noise_does_not_depend_on_the_step_in_law():
     """The update is exact, so a step of 0.5 and one of 0.01 sample the same process (here:
     same correlation function, checked against the exact one, with a step 50 times larger)."""
     D, tau, W = 1.0, 1.0, 1.5
-    samples = sample_noise(cpu.HARMONIC, D, tau, W, h_max=0.5)
+    samples = sample_noise("harmonic", D, tau, W, h_max=0.5)
     check_correlation(samples, lambda s: harmonic_correlation(s, D, tau, W))
 
 
@@ -159,7 +154,7 @@ def _exact_harmonic_update(h, D, tau, W):
 def test_harmonic_step_coefficients_are_exact(h, D, tau, W):
     """Propagator and covariance agree with quadrature to round-off, even at h = 1e-4 where
     var xi ~ h**3 and var I ~ h**5 (a Van Loan block exponential loses 5 digits there)."""
-    c = schemes.harmonic_step_coefficients(h, D, tau, W)
+    c = harmonic.step_coefficients(h, D, tau, W)
     Phi, Q = _exact_harmonic_update(h, D, tau, W)
     P = np.array([[c[0], c[1]], [c[2], c[3]], [c[4], c[5]]])
     assert np.max(np.abs(P - Phi[:, :2])) < 1e-13 * np.max(np.abs(Phi[:, :2]))
@@ -171,15 +166,17 @@ def test_harmonic_step_coefficients_are_exact(h, D, tau, W):
 def test_stationary_initial_noise_laws():
     key0, key1 = rng.seed_to_key(SEED)
     D, tau, W = 1.0, 0.5, 3.0
-    draws = np.array([schemes.initial_state(key0, key1, np.uint64(p), 0.0, False, 0.0, 0.0, True,
-                                            D, tau, cpu.HARMONIC, W)[2:] for p in range(2000)])
+    init_harmonic = integrator.build(integrator.spec("harmonic")).init_path
+    init_dichotomous = integrator.build(integrator.spec("dichotomous")).init_path
+    draws = np.array([init_harmonic(key0, key1, np.uint64(p), 0.0, False, 0.0, 0.0, True,
+                                    D, tau, W)[2:] for p in range(2000)])
     var = D / (2 * tau)
     for col, v in ((0, var), (1, W * W * var)):
         s = draws[:, col] ** 2
         assert abs(s.mean() - v) / (s.std(ddof=1) / math.sqrt(s.size)) < Z_TOL
     # Dichotomous: the first flip is exponential with mean 2 tau.
-    waits = np.array([schemes.initial_state(key0, key1, np.uint64(p), 0.0, False, 0.0, 0.0, True,
-                                            D, tau, cpu.DICHOTOMOUS, 0.0)[3] for p in range(2000)])
+    waits = np.array([init_dichotomous(key0, key1, np.uint64(p), 0.0, False, 0.0, 0.0, True,
+                                       D, tau, 0.0)[3] for p in range(2000)])
     assert abs(waits.mean() - 2 * tau) / (waits.std(ddof=1) / math.sqrt(waits.size)) < Z_TOL
 
 
@@ -191,18 +188,18 @@ def test_new_noises_do_not_depend_on_chunks_threads_or_kernel_call_splits(noise)
 
     import stochpend
 
-    sim = importlib.import_module("stochpend.simulate")  # the module (the package exports the function)
+    sim = importlib.import_module("stochpend._backends.cpu")  # where the per-call budget lives
 
     kw = dict(noise=noise, D=1.0, tau=0.5, paths=300, t_max=200.0, n_times=5, seed=SEED,
               n_batches=6)
     ref = stochpend.simulate(**kw)
     other = stochpend.simulate(**kw, chunk_paths=100, threads=1)
-    saved = sim._WORK_PER_CALL
-    sim._WORK_PER_CALL = 1  # every call stops after 1000 steps: segments split into many calls
+    saved = sim.WORK_PER_CALL
+    sim.WORK_PER_CALL = 1  # every call stops after 1000 steps: segments split into many calls
     try:
         split = stochpend.simulate(**kw)
     finally:
-        sim._WORK_PER_CALL = saved
+        sim.WORK_PER_CALL = saved
     for ds in (other, split):
         for name in ("mean_E", "mean_E4", "E_hist", "batch_sum_E"):
             np.testing.assert_array_equal(ref[name].values, ds[name].values, err_msg=name)

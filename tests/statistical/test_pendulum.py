@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import stochpend
-from stochpend import physics, rng
-from stochpend._backends import cpu
+from stochpend.noises import ou
+from tests._kernels import Paths, kernels
 from tests.conftest import SEED, Z_TOL
 
 
@@ -50,22 +50,16 @@ def test_white_noise_energy_identity_on_the_ensemble(omega):
 def test_ou_process_mean_variance_and_autocorrelation():
     """The OU noise as the kernel evolves it: exact mean, variance, and correlation at lags h, 5h."""
     D, tau, h, xi0, n = 1.5, 0.7, 0.3, 2.0, 200_000
-    key0, key1 = rng.seed_to_key(SEED)
+    kern = kernels("ou", "harmonic", adaptive=False)
+    p = Paths(n)  # x = 0, Omega = 0 and harmonic: the oscillator stays at rest, xi evolves freely
+    p.xi[:] = xi0
+    xi, t = p.xi, p.t
 
-    def run(t_stop, x, O, xi, t, k, status):  # t_comp: closure
-        cpu.advance_paths(x, O, xi, t, k, status, t_stop, 10**9, cpu.OU, D, tau, 0.0, h, 0.0,
-                          physics.HARMONIC, 2, physics.COUPLING_FORCE, key0, key1, 0, t_comp,
-                          np.zeros(n), 0.0)
+    def run(t_stop):
+        p.advance(kern, t_stop, 10**9, SEED, D=D, tau=tau, omega2=0.0, h_max=h)
 
-    x = np.zeros(n)  # x = 0, Omega = 0 and harmonic: the oscillator stays at rest, xi evolves freely
-    O = np.zeros(n)
-    xi = np.full(n, xi0)
-    t = np.zeros(n)
-    k = np.zeros(n, dtype=np.uint64)
-    status = np.zeros(n, dtype=np.uint8)
-    t_comp = np.zeros(n)
     t1 = 2.0 * h
-    run(t1, x, O, xi, t, k, status)
+    run(t1)
     mean_exact = xi0 * math.exp(-t1 / tau)
     var_exact = D / (2 * tau) * (1 - math.exp(-2 * t1 / tau))
     z_mean = (xi.mean() - mean_exact) / math.sqrt(var_exact / n)
@@ -75,7 +69,7 @@ def test_ou_process_mean_variance_and_autocorrelation():
     # autocovariance at lags h and 5h: Cov(xi(t1), xi(t1 + L)) = exp(-L/tau) Var(xi(t1))
     start = xi.copy()
     for lag_steps in (1, 4):  # cumulative: lags h and 5h
-        run(t[0] + lag_steps * h, x, O, xi, t, k, status)
+        run(t[0] + lag_steps * h)
         lag = t[0] - t1
         cov = np.mean((start - start.mean()) * (xi - xi.mean()))
         cov_exact = math.exp(-lag / tau) * var_exact
@@ -92,18 +86,16 @@ def test_ou_noise_integral_composes_exactly():
     harmonic potential with omega = 0, x = 1 fixed... instead we accumulate the noise integral
     directly from the coefficient formula, drawing normals from Philox.
     """
-    from stochpend import schemes
-
     D, tau, h, n = 1.0, 0.5, 0.2, 200_000
     rs = np.random.default_rng(SEED)
     xi0 = rs.normal(0.0, math.sqrt(D / (2 * tau)), n)
     # one step of 8h
-    a, s_xi, m_I, c_I, s_I = schemes.ou_step_coefficients(8 * h, D, tau)
+    a, s_xi, m_I, c_I, s_I = ou.step_coefficients(8 * h, D, tau, 0.0)
     z1, z2 = rs.normal(size=n), rs.normal(size=n)
     I_big = m_I * xi0 + c_I * z1 + s_I * z2
     xi_big = a * xi0 + s_xi * z1
     # eight steps of h
-    a, s_xi, m_I, c_I, s_I = schemes.ou_step_coefficients(h, D, tau)
+    a, s_xi, m_I, c_I, s_I = ou.step_coefficients(h, D, tau, 0.0)
     xi, I_small = xi0.copy(), np.zeros(n)
     for _ in range(8):
         z1, z2 = rs.normal(size=n), rs.normal(size=n)
@@ -161,15 +153,15 @@ def test_results_do_not_depend_on_kernel_call_budget():
     """Segments longer than one kernel call's step budget are split; the clock must not notice."""
     import importlib
 
-    sim_mod = importlib.import_module("stochpend.simulate")
+    sim_mod = importlib.import_module("stochpend._backends.cpu")
     # 200 time units are > 4000 steps a path: several calls of the minimum 1000-step budget
     kw = dict(noise="ou", D=1.0, tau=0.5, omega=1.0, paths=64, t_max=200.0, times=[200.0], seed=SEED)
     a = stochpend.simulate(**kw)
-    saved = sim_mod._WORK_PER_CALL
+    saved = sim_mod.WORK_PER_CALL
     try:
-        sim_mod._WORK_PER_CALL = 1  # every call takes the minimum budget: many calls per segment
+        sim_mod.WORK_PER_CALL = 1  # every call takes the minimum budget: many calls per segment
         b = stochpend.simulate(**kw)
     finally:
-        sim_mod._WORK_PER_CALL = saved
+        sim_mod.WORK_PER_CALL = saved
     for v in a.data_vars:
         assert np.array_equal(a[v].values, b[v].values, equal_nan=True), f"{v} depends on the call budget"

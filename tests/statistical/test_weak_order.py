@@ -20,7 +20,10 @@ import pytest
 from scipy.linalg import expm
 
 import stochpend
-from stochpend import physics, schemes
+from stochpend import integrator
+
+#: The harmonic oscillator with the noise on the force (G = x): a linear scheme.
+VERLET = integrator.build(integrator.spec("white", "harmonic", "force")).verlet
 from tests.conftest import SEED, Z_TOL
 
 OMEGA, D, X0, T = 1.0, 0.5, 1.0, 4.0
@@ -35,8 +38,7 @@ def exact_second_moments(t: float) -> np.ndarray:
 def _step_matrix(h: float, noise_integral: float) -> np.ndarray:
     cols = []
     for z in (np.array([1.0, 0.0]), np.array([0.0, 1.0])):
-        x, O = schemes.verlet_step(z[0], z[1], h, OMEGA**2, noise_integral, physics.HARMONIC, 2,
-                                   physics.COUPLING_FORCE)
+        x, O = VERLET(z[0], z[1], h, OMEGA**2, noise_integral, 2)
         cols.append([x, O])
     return np.array(cols).T
 

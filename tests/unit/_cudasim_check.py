@@ -48,20 +48,23 @@ def main(spec_path: str, out_path: str) -> None:
         "availability_ok": np.array(ok),
         "availability_reason": np.array(reason),
     }
-    from stochpend import models
-
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     import _user_models
 
     _user_models.register_all()
-    generic_backend = backend
+    import _phase_noise
+
+    _phase_noise.register()
     for case in cases:
         name = case["name"]
+        if case.get("kind") == "checkpoint":
+            out.update(checkpoint_case(case))
+            continue
+        if case.get("kind") == "sweep":
+            out.update(sweep_case(case))
+            continue
         started = time.perf_counter()
         config = SimulationConfig.build(**case["config"])
-        # A user-defined model runs on its own copy of the CUDA backend (stochpend.models).
-        backend = (models.kernels(config.potential, "cuda") if models.get(config.potential)
-                   else generic_backend)
         default_launch = (backend._WORK_PER_LAUNCH, backend._MIN_STEPS_PER_LAUNCH)
         if case.get("launch"):
             backend._WORK_PER_LAUNCH, backend._MIN_STEPS_PER_LAUNCH = case["launch"]
@@ -89,6 +92,74 @@ def main(spec_path: str, out_path: str) -> None:
             backend._WORK_PER_LAUNCH, backend._MIN_STEPS_PER_LAUNCH = default_launch
         out[f"{name}/seconds"] = np.array(time.perf_counter() - started)
     np.savez(out_path, **out)
+
+
+def checkpoint_case(case: dict) -> dict[str, np.ndarray]:
+    """A GPU run interrupted at its ``stop_after``-th checkpoint opportunity (after writing the
+    checkpoint), then resumed, against the same run uninterrupted: Dataset variables saved as
+    "<name>/ref_<var>" and "<name>/resumed_<var>"."""
+    import tempfile
+    from pathlib import Path
+
+    import stochpend
+    from stochpend import checkpoint
+    from stochpend.params import SimulationConfig
+
+    name = case["name"]
+    config = SimulationConfig.build(**case["config"])
+    precision = case.get("precision", "float64")
+    ref = stochpend.simulate(**case["config"], backend="cuda", precision=precision,
+                             chunk_paths=case["chunk_paths"])
+    out: dict[str, np.ndarray] = {}
+    calls = [0]
+
+    class StopAfter(checkpoint.FileCheckpointer):
+        def maybe_save(self, state):
+            calls[0] += 1
+            if calls[0] == case["stop_after"]:
+                self.request_stop()
+            super().maybe_save(state)
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "run.ckpt"
+        cp = StopAfter(path, None, config=config, chunk_paths=case["chunk_paths"])
+        try:
+            checkpoint.run_checkpointed(config, checkpoint_path=path, every_s=None,
+                                        chunk_paths=case["chunk_paths"], checkpointer=cp,
+                                        backend="cuda", precision=precision)
+            interrupted = False
+        except checkpoint.CheckpointInterrupt:
+            interrupted = True
+        saved = checkpoint.read(path)
+        out[f"{name}/interrupted"] = np.array(interrupted)
+        out[f"{name}/saved_backend"] = np.array(saved.state.backend)
+        out[f"{name}/saved_precision"] = np.array(saved.state.precision)
+        out[f"{name}/saved_x_dtype"] = np.array(str(saved.state.x.dtype))
+        out[f"{name}/saved_position"] = np.array([saved.state.b0, saved.state.j])
+        resumed = checkpoint.resume(path, out=None)
+    for var in ("mean_E", "mean_E4", "mean_Omega2", "E_hist", "batch_sum_E", "nonfinite_paths"):
+        out[f"{name}/ref_{var}"] = ref[var].values
+        out[f"{name}/resumed_{var}"] = resumed[var].values
+    out[f"{name}/ref_path_steps"] = np.array(ref.attrs["path_steps"])
+    out[f"{name}/resumed_path_steps"] = np.array(resumed.attrs["path_steps"])
+    out[f"{name}/resumed_backend"] = np.array(resumed.attrs["backend"])
+    return out
+
+
+def sweep_case(case: dict) -> dict[str, np.ndarray]:
+    """A sweep of cases with ``backend="cuda"`` (in process) against each set run alone."""
+    import stochpend
+    from stochpend.sweep import sweep
+
+    name = case["name"]
+    ds = sweep(case["spec"], backend="cuda", tasks_per_set=2)
+    out: dict[str, np.ndarray] = {f"{name}/backend": np.array(ds.attrs.get("backend", ""))}
+    for i, override in enumerate(case["spec"]["case"]):
+        alone = stochpend.simulate(**{**case["spec"]["base"], **override}, backend="cuda")
+        for var in ("mean_E", "E_hist", "batch_sum_E"):
+            out[f"{name}/set{i}_{var}"] = ds[var].values[i]
+            out[f"{name}/alone{i}_{var}"] = alone[var].values
+    return out
 
 
 if __name__ == "__main__":

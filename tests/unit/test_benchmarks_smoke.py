@@ -30,26 +30,20 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from benchmarks import c_ref, numpy_ref  # noqa: E402
-from stochpend import rng  # noqa: E402
-from stochpend._backends import cpu  # noqa: E402
 from stochpend.simulate import simulate  # noqa: E402
+from tests._kernels import Paths, kernels  # noqa: E402
 
 PATHS, T, H, SEED = 50, 0.5, 0.01, 7
 D = TAU = OMEGA = 1.0
 
 
 def _stochpend_states(paths=PATHS, t_max=T, seed=SEED):
-    x, Om, xi, t, tc = (np.empty(paths) for _ in range(5))
-    k = np.empty(paths, dtype=np.uint64)
-    st = np.empty(paths, dtype=np.uint8)
-    k0, k1 = rng.seed_to_key(seed)
-    cpu.init_paths(x, Om, xi, t, k, st, k0, k1, 0, 0.0, True, 0.0, 0.0, True, D, TAU, cpu.OU, tc,
-                   np.zeros(x.size), 0.0)
+    kern = kernels("ou", adaptive=False)  # the C library's math, one path at a time
+    p = Paths(paths).init(kern, seed, D=D, tau=TAU)
     while True:
-        _, unfinished = cpu.advance_paths(x, Om, xi, t, k, st, t_max, 10**6, cpu.OU, D, TAU,
-                                          OMEGA**2, H, 0.0, 0, 2, 0, k0, k1, 0, tc, np.zeros(x.size), 0.0)
+        _, unfinished = p.advance(kern, t_max, 10**6, seed, D=D, tau=TAU, omega2=OMEGA**2, h_max=H)
         if unfinished == 0:
-            return x, Om, xi, int(k[0])
+            return p.x, p.Omega, p.xi, int(p.k[0])
 
 
 def _stochpend_E2(paths=PATHS, t_max=T, seed=SEED):

@@ -20,14 +20,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stochpend import rng
+from stochpend import integrator, rng
 from stochpend._backends import cpu
 from stochpend._backends import cuda as gpu
+from stochpend.mathlib import LIBM
+from stochpend.noises import ou
 from stochpend.params import SimulationConfig
-from stochpend.simulate import cpu_kernels, run_batches
+from stochpend.runner import run_batches
+from stochpend.stats import S_NONFINITE
+from tests._kernels import Paths
+from tests.unit import _phase_noise
 from tests.unit._user_models import register_all
 
 register_all()
+_phase_noise.register()
 
 pytestmark = pytest.mark.gpu
 
@@ -91,6 +97,37 @@ CASES += [
                                         coupling="position", **_COMMON),
          first_batch=0, stop_batch=4, chunk_paths=24, check_paths=6),
 ]
+CASES += [
+    # A noise defined in a test file (tests/unit/_phase_noise.py), registered at run time.
+    dict(name="phase_drive", config=dict(noise="phase-drive", D=1.0, tau=0.5, omega_noise=3.0,
+                                         omega=1.0, h_max=0.1, step_c=0.25, **_COMMON),
+         first_batch=0, stop_batch=4, chunk_paths=24, check_paths=6, float32=True),
+    # float32 for every noise and for a user model: the pieces built for numpy.float32 by the
+    # same factories. Fixed steps, so float32 takes float64's steps (the clock is float64).
+    dict(name="f32_dichotomous", config=dict(noise="dichotomous", D=1.0, tau=0.3, omega=1.0,
+                                             h_max=0.1, step_c=0.0, **_COMMON),
+         first_batch=0, stop_batch=4, chunk_paths=24, check_paths=6, float32=True),
+    dict(name="f32_harmonic_noise", config=dict(noise="harmonic", D=1.0, tau=1.0, omega_noise=1.5,
+                                                omega=1.0, h_max=0.1, step_c=0.0, **_COMMON),
+         first_batch=0, stop_batch=4, chunk_paths=48, check_paths=6, float32=True),
+    dict(name="f32_user_model", config=dict(noise="ou", D=1.0, tau=1.0, omega=1.0, h_max=0.1,
+                                            step_c=0.0, potential="double-well",
+                                            coupling="position", **_COMMON),
+         first_batch=0, stop_batch=4, chunk_paths=24, check_paths=6, float32=True),
+]
+#: Runs through the runner's other features on the GPU (not compared with the CPU).
+EXTRAS = [
+    # Interrupted at the 5th checkpoint opportunity (in the second of two chunks), then resumed.
+    dict(name="ckpt_ou", kind="checkpoint", stop_after=5, chunk_paths=24,
+         config=dict(noise="ou", D=1.0, tau=1.0, omega=1.0, h_max=0.1, step_c=0.25, **_COMMON)),
+    dict(name="ckpt_dichotomous_f32", kind="checkpoint", stop_after=9, chunk_paths=12,
+         precision="float32",
+         config=dict(noise="dichotomous", D=1.0, tau=0.3, omega=1.0, h_max=0.1, step_c=0.25,
+                     **_COMMON)),
+    dict(name="sweep", kind="sweep",
+         spec={"base": dict(noise="ou", tau=1.0, omega=1.0, h_max=0.1, step_c=0.25, **_COMMON),
+               "case": [{"D": 1.0}, {"D": 0.5, "seed": 8}]}),
+]
 CASE_NAMES = [case["name"] for case in CASES]
 F64_CASES = CASE_NAMES  # every case checks float64 against the CPU
 F32_CASES = [case["name"] for case in CASES if case.get("float32")]
@@ -110,7 +147,7 @@ def simulated(tmp_path_factory, cpu_results):
     folder = tmp_path_factory.mktemp("cudasim")
     spec = folder / "spec.json"
     out = folder / "out.npz"
-    spec.write_text(json.dumps(CASES))
+    spec.write_text(json.dumps(CASES + EXTRAS))
     env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1"}
     with subprocess.Popen(
         [sys.executable, str(HELPER), str(spec), str(out)],
@@ -139,38 +176,25 @@ def _config(name: str) -> SimulationConfig:
 
 def _cpu_states(config: SimulationConfig, n: int) -> dict[str, np.ndarray]:
     """Paths 0..n-1 through every output time with the CPU kernels (as in run_batches)."""
-    init_paths, advance_paths, _ = cpu_kernels(config)
-    x, Omega, xi, t = (np.empty(n) for _ in range(4))
-    k = np.empty(n, dtype=np.uint64)
-    status = np.empty(n, dtype=np.uint8)
-    t_comp = np.empty(n)
-    xi_aux = np.empty(n)
-    key0, key1 = rng.seed_to_key(config.seed)
-    init_paths(x, Omega, xi, t, k, status, key0, key1, 0,
-                   0.0 if config.theta0 is None else config.theta0, config.theta0 is None,
-                   config.Omega0, 0.0 if config.xi0 is None else config.xi0, config.xi0 is None,
-                   config.D, config.tau_or_zero, config.noise_code, t_comp, xi_aux,
-                   config.omega_noise_or_zero)
-    pot = config.potential_code
-    cpl = config.coupling_code
+    kern = cpu.kernels(cpu.spec_for(config))
+    p = Paths(n).init(kern, config.seed, theta0=config.theta0, Omega0=config.Omega0, xi0=config.xi0,
+                      D=config.D, tau=config.tau_or_zero, W=config.omega_noise_or_zero)
     for t_target in config.times:
-        while advance_paths(x, Omega, xi, t, k, status, t_target, 1000, config.noise_code,
-                                config.D, config.tau_or_zero, config.omega**2, config.h_max,
-                                config.step_c, pot, config.power_n, cpl, key0, key1, 0, t_comp, xi_aux,
-                                config.omega_noise_or_zero)[1]:
+        while p.advance(kern, t_target, 1000, config.seed, D=config.D, tau=config.tau_or_zero,
+                        W=config.omega_noise_or_zero, omega2=config.omega**2, n=config.power_n,
+                        h_max=config.h_max, step_c=config.step_c)[1]:
             pass
-    return dict(x=x, Omega=Omega, xi=xi, t=t, k=k, status=status)
+    return dict(x=p.x, Omega=p.Omega, xi=p.xi, t=p.t, k=p.k, status=p.status)
 
 
 def _check_cpu_kernels_are_current() -> None:
     """The CPU kernels must compute what the shared functions' current source says.
 
     Numba's on-disk cache (``cache=True``) is invalidated by edits to cpu.py only, not to the
-    rng/physics/schemes functions it inlines, so after such an edit the CPU kernels may run old
-    code. Compare one initial condition and one OU step with the Python functions.
+    integrator, noise and rng functions it inlines, so after such an edit the CPU kernels may
+    run old code (``_jitcache`` guards against it). Compare one initial condition and one OU
+    step with the Python functions.
     """
-    from stochpend import schemes
-
     config = SimulationConfig.build(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=1, t_max=0.1,
                                     times=[0.1], seed=5, h_max=0.1, step_c=0.0, n_batches=2)
     state = _cpu_states(config, 1)
@@ -179,13 +203,14 @@ def _check_cpu_kernels_are_current() -> None:
     z, _ = rng.draw_normals(key0, key1, np.uint64(0), np.uint64(rng.N_INIT_XI))
     x0, xi0 = 2.0 * math.pi * u - math.pi, math.sqrt(1.0 / 2.0) * z
     z1, z2 = rng.draw_normals(key0, key1, np.uint64(0), np.uint64(rng.N_FIRST_STEP))
-    a, s_xi, m_I, c_I, s_I = schemes.ou_step_coefficients(0.1, 1.0, 1.0)
-    x1, Omega1 = schemes.verlet_step(x0, 0.0, 0.1, 1.0, m_I * xi0 + c_I * z1 + s_I * z2, 0, 2, 0)
+    a, s_xi, m_I, c_I, s_I = ou.step_coefficients(0.1, 1.0, 1.0, 0.0)
+    verlet = integrator.build(integrator.spec("ou", adaptive=False)).verlet
+    x1, Omega1 = verlet(x0, 0.0, 0.1, 1.0, m_I * xi0 + c_I * z1 + s_I * z2, 2)
     expected = (x1, Omega1, a * xi0 + s_xi * z1)
     found = (state["x"][0], state["Omega"][0], state["xi"][0])
     if found != expected:
         pytest.fail(
-            f"the CPU kernels do not compute what rng/schemes say (state {found} != {expected}): "
+            f"the CPU kernels do not compute what rng/integrator say (state {found} != {expected}): "
             "most likely a stale Numba cache, which cache=True keys on cpu.py alone; delete "
             "src/stochpend/_backends/__pycache__/*.nbi and *.nbc (or set NUMBA_CACHE_DIR) and rerun"
         )
@@ -232,10 +257,10 @@ def test_final_states_equal_cpu_path_by_path(simulated, cpu_results, name):
 def test_cases_exercise_what_they_claim(simulated, cpu_results):
     """Guards the test data: blow-ups, overflow bin, relaunches and chunks really happen."""
     blowup, _, blowup_states = cpu_results("blowup")
-    assert blowup.sums[..., cpu.S_NONFINITE].sum() > 0
+    assert blowup.sums[..., S_NONFINITE].sum() > 0
     assert not np.all(np.isfinite(blowup_states["x"]))  # went non-finite while stepping
     escape, _, _ = cpu_results("escape")
-    assert np.all(escape.sums[..., cpu.S_NONFINITE].sum(axis=0) == _COMMON["paths"])
+    assert np.all(escape.sums[..., S_NONFINITE].sum(axis=0) == _COMMON["paths"])
     overflow, _, _ = cpu_results("ou_omega0")
     assert overflow.hist[:, -1].sum() > 0
     # Several launches a segment report progress more often than once per output time.
@@ -274,34 +299,37 @@ def test_float32_agrees_with_float64(simulated, name):
                                    rtol=0, atol=1e-4, err_msg=key)
 
 
-def test_float32_variants_compute_in_float32():
-    """The float32 variants are derived from the shared source and type as float32 in Numba."""
+def test_float32_pieces_compute_in_float32():
+    """The float32 Spec's device functions, built by the same factories as float64's (no source
+    rewriting), type as float32 in Numba and agree with float64 to float32 round-off."""
     import numba
 
-    f32 = gpu._float32_variants()
-    verlet_step, step_size = f32.verlet_step, f32.step_size
-    ou_step_coefficients, draw_normals = f32.ou_step_coefficients, f32.draw_normals
+    f32 = integrator.build(integrator.spec("ou", precision="float32"))
+    f64 = integrator.build(integrator.spec("ou"))
+    verlet, step_size = f32.verlet, f32.step_size
+    noise = ou.OU.kernel(np.float32, LIBM)
+    coefficients, draw, update = noise.coefficients, noise.draw, noise.update
     f = np.float32
 
     @numba.njit
-    def step(x, Om, h, omega2, noise, xi, D, tau, key0, key1):
-        x1, Om1 = verlet_step(x, Om, h, omega2, noise, 0, 2, 0)
-        hh = step_size(Om1, xi, x1, h, f(0.25), omega2, 0, 2, 0)
-        a, s_xi, m_I, c_I, s_I = ou_step_coefficients(hh, D, tau)
-        z1, z2 = draw_normals(key0, key1, np.uint64(3), np.uint64(5))
-        return x1, Om1, hh, a, s_xi, m_I, c_I, s_I, z1, z2
+    def step(x, Om, h, omega2, I, xi, D, tau, key0, key1):
+        x1, Om1 = verlet(x, Om, h, omega2, I, 2)
+        hh = step_size(x1, Om1, xi, h, f(0.25), omega2, 2)
+        C = coefficients(hh, D, tau, f(0.0))
+        z, _ = draw(key0, key1, np.uint64(3), np.uint64(3), 0)
+        I2, xi2, _ = update(xi, xi, C, z)
+        return x1, Om1, hh, C[0], C[1], C[2], C[3], C[4], z[0], z[1], I2, xi2
 
     key0, key1 = rng.seed_to_key(11)
     args = (f(3.1), f(2.5), f(0.05), f(1.0), f(0.01), f(0.4), f(1.0), f(1.0), key0, key1)
     out = step(*args)
     signature = step.nopython_signatures[0].return_type
     assert all(str(t) == "float32" for t in signature.types), signature
-    from stochpend import schemes
-
-    x1, Om1 = schemes.verlet_step(3.1, 2.5, 0.05, 1.0, 0.01, 0, 2, 0)
-    hh = schemes.step_size(Om1, 0.4, x1, 0.05, 0.25, 1.0, 0, 2, 0)
-    ref = (x1, Om1, hh, *schemes.ou_step_coefficients(hh, 1.0, 1.0),
-           *rng.draw_normals(key0, key1, np.uint64(3), np.uint64(5)))
+    x1, Om1 = f64.verlet(3.1, 2.5, 0.05, 1.0, 0.01, 2)
+    hh = f64.step_size(x1, Om1, 0.4, 0.05, 0.25, 1.0, 2)
+    C = ou.step_coefficients(hh, 1.0, 1.0, 0.0)
+    z1, z2 = rng.draw_normals(key0, key1, np.uint64(3), np.uint64(rng.N_FIRST_STEP + 3))
+    ref = (x1, Om1, hh, *C, z1, z2, C[2] * 0.4 + C[3] * z1 + C[4] * z2, C[0] * 0.4 + C[1] * z1)
     np.testing.assert_allclose(np.array(out, dtype=np.float64), ref, rtol=2e-6)
 
 
@@ -351,6 +379,32 @@ def test_bad_arguments_are_refused_first():
     config = _config("ou_omega1")
     with pytest.raises(ValueError, match="precision='float16' is not accepted"):
         gpu.run_batches(config, 0, 1, precision="float16")
+
+
+@pytest.mark.parametrize("name", ["ckpt_ou", "ckpt_dichotomous_f32"])
+def test_gpu_checkpoint_then_resume_is_bit_identical(simulated, name):
+    """The GPU run's checkpoint (taken by the shared runner, the device state copied to the
+    host) resumes on the GPU to exactly the uninterrupted run's numbers."""
+    case = next(c for c in EXTRAS if c["name"] == name)
+    assert bool(simulated[f"{name}/interrupted"])
+    assert str(simulated[f"{name}/saved_backend"]) == "cuda"
+    assert str(simulated[f"{name}/saved_precision"]) == case.get("precision", "float64")
+    assert str(simulated[f"{name}/saved_x_dtype"]) == case.get("precision", "float64")
+    b0, j = simulated[f"{name}/saved_position"]
+    assert (b0, j) != (0, 0)  # the interruption came after real work
+    for var in ("mean_E", "mean_E4", "mean_Omega2", "E_hist", "batch_sum_E", "nonfinite_paths"):
+        np.testing.assert_array_equal(simulated[f"{name}/resumed_{var}"],
+                                      simulated[f"{name}/ref_{var}"], err_msg=var)
+    assert int(simulated[f"{name}/resumed_path_steps"]) == int(simulated[f"{name}/ref_path_steps"])
+    assert str(simulated[f"{name}/resumed_backend"]) == "cuda"
+
+
+def test_gpu_sweep_equals_each_set_alone(simulated):
+    assert str(simulated["sweep/backend"]) == "cuda"
+    for i in range(2):
+        for var in ("mean_E", "E_hist", "batch_sum_E"):
+            np.testing.assert_array_equal(simulated[f"sweep/set{i}_{var}"],
+                                          simulated[f"sweep/alone{i}_{var}"], err_msg=var)
 
 
 def test_simulator_reports_itself(simulated):

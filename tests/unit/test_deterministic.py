@@ -9,22 +9,14 @@ import pytest
 from scipy.special import ellipk
 
 import stochpend
-from stochpend import physics, rng
-from stochpend._backends import cpu
+from tests._kernels import Paths, kernels
 
 
 def _one_path(theta0: float, Omega0: float, t_end: float, h: float, max_steps: int = 10**9):
-    x = np.array([theta0])
-    O = np.array([Omega0])
-    xi = np.zeros(1)
-    t = np.zeros(1)
-    k = np.zeros(1, dtype=np.uint64)
-    status = np.zeros(1, dtype=np.uint8)
-    key0, key1 = rng.seed_to_key(0)
-    cpu.advance_paths(x, O, xi, t, k, status, t_end, max_steps, cpu.OU, 0.0, 1.0, 1.0, h, 0.0,
-                      physics.PENDULUM, 2, physics.COUPLING_FORCE, key0, key1, 0, np.zeros(1),
-                      np.zeros(1), 0.0)
-    return float(x[0]), float(O[0]), int(k[0])
+    p = Paths(1)
+    p.x[0], p.Omega[0] = theta0, Omega0
+    p.advance(kernels("ou", adaptive=False), t_end, max_steps, 0, D=0.0, h_max=h)
+    return float(p.x[0]), float(p.Omega[0]), int(p.k[0])
 
 
 @pytest.mark.parametrize("theta_max", [0.3, 1.5, 2.8])

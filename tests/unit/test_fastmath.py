@@ -1,4 +1,4 @@
-"""Branch-free log/sin/cos (stochpend.fastmath) and the SIMD fixed-step kernel (cpu_fast).
+"""Branch-free log/sin/cos (stochpend.fastmath) and the CPU's SIMD lock-step driver.
 
 Errors are measured in ulps of the reference result against glibc's ``log``/``sin``/``cos``
 (what the scalar kernel calls), over the ranges the kernel uses: the Box-Muller uniforms
@@ -16,8 +16,15 @@ import numba
 import numpy as np
 import pytest
 
-from stochpend import fastmath, rng
-from stochpend._backends import cpu, cpu_fast
+from stochpend import fastmath, integrator, rng
+from stochpend._backends import cpu
+from stochpend.params import SimulationConfig
+from tests._kernels import Paths, kernels
+
+#: The fixed-step OU pendulum, with the C library's math (one path at a time) and with the
+#: fast math of the lock-step driver.
+SCALAR = kernels("ou", adaptive=False)
+FAST = kernels("ou", adaptive=False, fast_math=True)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -94,22 +101,16 @@ def test_sincos_matches_sin_and_cos():
     np.testing.assert_array_equal(c, _fast(x, 2))
 
 
-def _run(kernel, paths, t_max, max_steps, seed=5, h=0.01, freeze=None, path0=0):
-    x, Om, xi, t, tc = (np.empty(paths) for _ in range(5))
-    k = np.empty(paths, dtype=np.uint64)
-    st = np.empty(paths, dtype=np.uint8)
-    k0, k1 = rng.seed_to_key(seed)
-    cpu.init_paths(x, Om, xi, t, k, st, k0, k1, path0, 0.0, True, 0.0, 0.0, True, 1.0, 1.0, cpu.OU,
-                   tc, np.zeros(x.size), 0.0)
+def _run(kern, paths, t_max, max_steps, seed=5, h=0.01, freeze=None, path0=0):
+    p = Paths(paths).init(kern, seed, path0=path0)
     if freeze is not None:
-        st[freeze] = 1
+        p.status[freeze] = 1
     calls = []
     while True:
-        s, u = kernel(x, Om, xi, t, k, st, t_max, max_steps, cpu.OU, 1.0, 1.0, 1.0, h, 0.0, 0, 2, 0,
-                      k0, k1, path0, tc, np.zeros(x.size), 0.0)
+        s, u = p.advance(kern, t_max, max_steps, seed, path0=path0, h_max=h)
         calls.append((s, u))
         if u == 0:
-            return x, Om, xi, t, k, st, calls, tc
+            return p.x, p.Omega, p.xi, p.t, p.k, p.status, calls, p.t_comp
 
 
 @pytest.mark.parametrize("paths", [200, 64, 7])
@@ -119,8 +120,8 @@ def test_fast_kernel_agrees_with_the_scalar_kernel(paths):
     200 paths: three full 64-path blocks and a padded one; max_steps = 37 splits the run into
     calls that end mid-way, as simulate() does. Measured difference after 150 steps: < 1e-14.
     """
-    a = _run(cpu.advance_paths, paths, 1.5, 37)
-    b = _run(cpu_fast.advance_paths, paths, 1.5, 37)
+    a = _run(SCALAR, paths, 1.5, 37)
+    b = _run(FAST, paths, 1.5, 37)
     assert a[6] == b[6]  # (steps, unfinished) of every call
     np.testing.assert_array_equal(a[3], b[3])  # t
     np.testing.assert_array_equal(a[4], b[4])  # k
@@ -133,35 +134,46 @@ def test_fast_kernel_agrees_with_the_scalar_kernel(paths):
 def test_fast_kernel_numbers_do_not_depend_on_blocks():
     """A path's numbers are the same in a lockstep block, alone (a frozen neighbour sends its
     block through the one-path code) or in another chunk: bit for bit."""
-    ref = _run(cpu_fast.advance_paths, 200, 1.5, 37)
-    frozen = _run(cpu_fast.advance_paths, 200, 1.5, 37, freeze=[3, 130])
+    ref = _run(FAST, 200, 1.5, 37)
+    frozen = _run(FAST, 200, 1.5, 37, freeze=[3, 130])
     keep = np.ones(200, dtype=bool)
     keep[[3, 130]] = False
     for u, v in zip(ref[:5], frozen[:5]):
         np.testing.assert_array_equal(u[keep], v[keep])
     np.testing.assert_array_equal(frozen[5], ~keep)
     # Paths 0..99 and 100..199 as two chunks (blocks start at path 0 and at path 100).
-    lo = _run(cpu_fast.advance_paths, 100, 1.5, 37)
-    hi = _run(cpu_fast.advance_paths, 100, 1.5, 37, path0=100)
+    lo = _run(FAST, 100, 1.5, 37)
+    hi = _run(FAST, 100, 1.5, 37, path0=100)
     for u, v, w in zip(ref[:5], lo[:5], hi[:5]):
         np.testing.assert_array_equal(u, np.concatenate([v, w]))
 
 
-def test_fast_kernel_falls_back_outside_its_case():
-    """White noise or adaptive steps go to the scalar kernel unchanged."""
-    paths = 50
-    for noise, step_c in ((cpu.WHITE, 0.0), (cpu.OU, 0.25)):
-        out = []
-        for kernel in (cpu.advance_paths, cpu_fast.advance_paths):
-            x, Om, xi, t, tc = (np.empty(paths) for _ in range(5))
-            k = np.empty(paths, dtype=np.uint64)
-            st = np.empty(paths, dtype=np.uint8)
-            k0, k1 = rng.seed_to_key(9)
-            cpu.init_paths(x, Om, xi, t, k, st, k0, k1, 0, 0.0, True, 0.0, 0.0, True, 1.0, 1.0, noise,
-                           tc, np.zeros(x.size), 0.0)
-            r = kernel(x, Om, xi, t, k, st, 1.0, 10**6, noise, 1.0, 1.0, 1.0, 0.05, step_c, 0, 2, 0,
-                       k0, k1, 0, tc, np.zeros(x.size), 0.0)
-            out.append((r, x.copy(), Om.copy()))
-        assert out[0][0] == out[1][0]
-        np.testing.assert_array_equal(out[0][1], out[1][1])
-        np.testing.assert_array_equal(out[0][2], out[1][2])
+def test_fast_kernel_is_used_only_in_its_case():
+    """The runner gives the lock-step fast-math driver the fixed-step OU pendulum with the
+    noise on the force; white noise, adaptive steps or another oscillator run the C library's
+    math one path at a time (their numbers unchanged)."""
+    fast = cpu.spec_for(SimulationConfig.build(noise="ou", step_c=0.0))
+    assert fast.fast_math and integrator.build(fast).lockstep
+    assert cpu.advance_kernel(fast) is FAST.advance
+    for kwargs in (dict(noise="white", step_c=0.0), dict(noise="ou", step_c=0.25),
+                   dict(noise="ou", step_c=0.0, potential="harmonic"),
+                   dict(noise="dichotomous", step_c=0.0)):
+        config = SimulationConfig.build(**kwargs)
+        spec = cpu.spec_for(config)
+        assert spec == integrator.Spec.of(config) and not spec.fast_math, kwargs
+
+
+def test_lockstep_driver_gives_the_fast_one_path_numbers():
+    """The lock-step lanes and the one-path code of the fast-math Spec are the same numbers,
+    bit for bit (the arithmetic is advance_path's, operation for operation)."""
+    steps = integrator.build(FAST.spec)
+    one_path = cpu.kernels(FAST.spec)  # the lock-step driver
+    p = Paths(130).init(one_path, 3)
+    q = Paths(130).init(one_path, 3)
+    q.status[[0, 64, 128]] = 1  # every block leaves lock step: one path at a time
+    p.advance(one_path, 0.7, 10**6, 3, h_max=0.01)
+    q.advance(one_path, 0.7, 10**6, 3, h_max=0.01)
+    keep = q.status == 0
+    for name in ("x", "Omega", "xi", "t", "t_comp", "k"):
+        np.testing.assert_array_equal(getattr(p, name)[keep], getattr(q, name)[keep])
+    assert steps.lockstep

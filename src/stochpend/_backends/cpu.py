@@ -1,210 +1,354 @@
-"""CPU kernels: Numba, parallel over paths, cached on disk.
+"""CPU drivers: the integrator's step loop run by Numba threads, and a SIMD lock-step driver.
 
-The kernels only orchestrate: the physics, the integrator step and the random numbers are the
-shared scalar functions of ``physics``, ``schemes`` and ``rng``. They trust their inputs
-(validated in ``params``), allocate nothing inside the path loops and call no Python.
+The drivers only orchestrate: every step is :mod:`stochpend.integrator`'s, specialised for the
+run's :class:`~stochpend.integrator.Spec` and compiled once per Spec (cached on disk for the
+built-in oscillators and noises). They allocate nothing per step and call no Python.
 
-Each path's state lives in arrays of length n_paths: position ``x`` (the angle theta for the
-pendulum), ``Omega``, the noise ``xi``, its auxiliary variable ``xi_aux`` (harmonic noise: its
-derivative; dichotomous noise: the time of the next flip), the time ``t``, the number of steps
-taken ``k`` and a ``status`` (0: finite, 1: went non-finite and frozen). The random numbers of
-step k of global path p are Philox draw N_FIRST_STEP + k (OU: both normals; dichotomous: a
-uniform for the next waiting time, on a step that ends on a flip), N_FIRST_STEP + k // 2
-(white: one normal of the pair, alternately) or N_FIRST_STEP + 2k and 2k + 1 (harmonic: three
-normals), so they depend on (seed, p, k) only.
+* ``init``: the initial conditions of a range of global paths, one thread per path range;
+* ``advance``: every path towards an output time, ``prange`` over paths, each path its own
+  step control (``Integrator.advance_path``);
+* ``advance`` in **lock step** (fixed step, noises whose step takes one Philox pair: the OU
+  noise): ``BLOCK`` consecutive paths share their time and step count, so each step is two
+  loops over the block's lanes that LLVM vectorizes (``Integrator.advance_lanes``), with the
+  branch-free log/sin/cos of :mod:`stochpend.fastmath`. A block whose paths are not in lock
+  step (a path frozen as non-finite, paths at different times after a resumed checkpoint), and
+  the rest of a block where a path turned non-finite, go one path at a time through the same
+  fast-math Spec's ``advance_path``, so a path's numbers are a function of (seed, path) alone,
+  whatever its block, chunk or thread.
+* ``accumulate``: the per-batch power sums and histogram at one output time, each batch summed
+  sequentially in path order (so the sums do not depend on the thread count).
+
+Each path's state lives in arrays of length n_paths: ``x`` (the angle theta for the pendulum),
+``Omega``, the noise ``xi`` and its auxiliary ``xi_aux``, the time ``t`` and its Kahan
+compensation ``t_comp``, the step count ``k`` and a ``status`` (0: finite, 1: non-finite or
+escaped, frozen).
 """
 
 from __future__ import annotations
 
+import functools
 import math
+from types import SimpleNamespace
 
 import numba
 import numpy as np
 from numba import prange
 
-from stochpend import physics, rng, schemes
+from stochpend import integrator, rng
 from stochpend._jitcache import drop_stale_cache
+from stochpend.integrator import Spec
+from stochpend.noises.ou import OU
+from stochpend.oscillators.pendulum import PENDULUM
+from stochpend.runner import CHUNK_ARRAYS
+from stochpend.stats import (
+    N_SUMS,
+    S_COUNT,
+    S_E1,
+    S_E2,
+    S_E3,
+    S_E4,
+    S_G2,
+    S_NONFINITE,
+    S_OMEGA2,
+    S_OMEGA4,
+)
 
 drop_stale_cache(__file__)
 
-WHITE = schemes.NOISE_WHITE
-OU = schemes.NOISE_OU
-DICHOTOMOUS = schemes.NOISE_DICHOTOMOUS
-HARMONIC = schemes.NOISE_HARMONIC
-
-#: Columns of the per-batch sums.
-S_COUNT, S_E1, S_E2, S_E3, S_E4, S_OMEGA2, S_OMEGA4, S_G2, S_NONFINITE = range(9)
-N_SUMS = 9
+#: Paths per lock-step block (a multiple of the 8 float64 lanes of AVX-512).
+BLOCK = 64
+#: Paths advanced together (bounded memory: 57 bytes a path in the state arrays).
+DEFAULT_CHUNK_PATHS = 1 << 20
+#: Path-steps per kernel call, so that progress is reported every fraction of a second.
+WORK_PER_CALL = 20_000_000
+MIN_STEPS_PER_CALL = 1000
 
 _U64 = np.uint64
 
 
-@numba.njit(parallel=True, cache=True)
-def init_paths(x, Omega, xi, t, k, status, key0, key1, path0, theta0, uniform_theta0, Omega0, xi0,
-               stationary_xi0, D, tau, noise_code, t_comp, xi_aux,
-               omega_noise):  # pragma: no cover - compiled
-    """Initial conditions of paths path0 .. path0 + len(x) - 1 (draws 0 and 1)."""
-    for i in prange(x.shape[0]):
-        x[i], Omega[i], xi[i], xi_aux[i] = schemes.initial_state(
-            key0, key1, _U64(path0 + i), theta0, uniform_theta0, Omega0, xi0, stationary_xi0, D,
-            tau, noise_code, omega_noise)
-        t[i] = 0.0
-        t_comp[i] = 0.0
-        k[i] = 0
-        status[i] = 0
+def spec_for(config, precision: str = "float64") -> Spec:
+    """The Spec the CPU runs ``config`` with.
 
-
-@numba.njit(parallel=True, cache=True)
-def advance_paths(x, Omega, xi, t, k, status, t_target, max_steps, noise_code, D, tau, omega2,
-                  h_max, step_c, potential_code, power_n, coupling_code, key0, key1,
-                  path0, t_comp, xi_aux, omega_noise):  # pragma: no cover - compiled
-    """Advance every unfinished path towards ``t_target``, at most ``max_steps`` steps each.
-
-    The last step of a path is shortened to land exactly on ``t_target``; with dichotomous
-    noise a step is also cut at each flip (the dynamics between flips is deterministic, with the
-    constant noise folded into the kick). A path whose state
-    becomes non-finite gets status 1 and is never advanced again. The clock is a Kahan sum whose
-    compensation term ``t_comp`` is part of the path's state (zeroed on landing), so the result
-    does not depend on how a segment is split into calls.
-
-    Returns ``(steps_taken, paths_unfinished)``.
+    The SIMD lock-step driver (fast-math log/sin/cos) runs the fixed-step OU pendulum with the
+    noise on the force, as it always has; every other model runs the C library's functions.
     """
-    n_paths = x.shape[0]
-    steps_taken = 0
-    unfinished = 0
-    for i in prange(n_paths):
-        if status[i] != 0 or t[i] >= t_target:
-            continue
-        path = _U64(path0 + i)
-        xs = x[i]
-        Om = Omega[i]
-        xn = xi[i]
-        xa = xi_aux[i]
-        tt = t[i]
-        kk = k[i]
-        # Noise coefficients are cached while the step is unchanged (h = h_max most of the time).
-        h_cached = -1.0
-        a = 0.0
-        s_xi = 0.0
-        m_I = 0.0
-        c_I = 0.0
-        s_I = 0.0
-        hc = schemes.HARMONIC_NO_COEFFICIENTS
-        pair_draw = _U64(0xFFFFFFFFFFFFFFFF)
-        z_even = 0.0
-        z_odd = 0.0
-        tc = t_comp[i]
-        n = 0
-        bad = False
-        while n < max_steps:
-            h = schemes.step_size(Om, xn, xs, h_max, step_c, omega2, potential_code, power_n,
-                                  coupling_code)
-            if h < schemes.ESCAPE_STEP_FRACTION * h_max:
-                bad = True  # running away (see ESCAPE_STEP_FRACTION)
-                break
-            h, last, flip, t_land = schemes.landing_or_flip(tt, h, t_target, xa,
-                                                            noise_code == DICHOTOMOUS)
-            if noise_code == OU:
-                z1, z2 = rng.draw_normals(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
-                if h != h_cached:
-                    a, s_xi, m_I, c_I, s_I = schemes.ou_step_coefficients(h, D, tau)
-                    h_cached = h
-                noise_integral = m_I * xn + c_I * z1 + s_I * z2
-                xn = a * xn + s_xi * z1
-            elif noise_code == WHITE:
-                d = _U64(rng.N_FIRST_STEP) + (kk >> _U64(1))
-                if d != pair_draw:
-                    z_even, z_odd = rng.draw_normals(key0, key1, path, d)
-                    pair_draw = d
-                z = z_even if (kk & _U64(1)) == 0 else z_odd
-                noise_integral = math.sqrt(D * h) * z
-            elif noise_code == DICHOTOMOUS:
-                noise_integral = xn * h
-            else:
-                d = _U64(rng.N_FIRST_STEP) + (kk << _U64(1))
-                z1, z2 = rng.draw_normals(key0, key1, path, d)
-                z3, _ = rng.draw_normals(key0, key1, path, d + _U64(1))
-                if h != h_cached:
-                    hc = schemes.harmonic_step_coefficients(h, D, tau, omega_noise)
-                    h_cached = h
-                noise_integral, xn, xa = schemes.harmonic_noise_step(xn, xa, z1, z2, z3, hc)
-            xs, Om = schemes.verlet_step(xs, Om, h, omega2, noise_integral, potential_code,
-                                         power_n, coupling_code)
-            if flip:
-                u, _ = rng.draw_uniforms(key0, key1, path, _U64(rng.N_FIRST_STEP) + kk)
-                xn, xa = schemes.dichotomous_flip(xn, xa, u, tau)
-            kk += _U64(1)
-            n += 1
-            tt, tc = schemes.advance_clock(tt, tc, h, flip or last, t_land)
-            if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)
-                    and math.isfinite(xa)):
-                bad = True
-                break
-            if last:
-                break
-        x[i] = xs
-        Omega[i] = Om
-        xi[i] = xn
-        xi_aux[i] = xa
-        t[i] = tt
-        t_comp[i] = tc
-        k[i] = kk
-        if bad:
-            status[i] = 1
-        steps_taken += n
-        if not bad and tt < t_target:
-            unfinished += 1
-    return steps_taken, unfinished
+    spec = Spec.of(config, precision=precision)
+    if (not spec.adaptive and spec.noise is OU and spec.oscillator is PENDULUM
+            and spec.coupling == "force" and precision == "float64"):
+        spec = Spec.of(config, precision=precision, fast_math=True)
+    return spec
 
 
-@numba.njit(parallel=True, cache=True)
-def accumulate_batches(x, Omega, status, omega2, potential_code, power_n, coupling_code,
-                       batch_size, edges, sums, hist):  # pragma: no cover - compiled
-    """Per-batch power sums of E and Omega, and the energy histogram, at one output time.
+@functools.lru_cache(maxsize=None)
+def init_kernel(spec: Spec):
+    """``init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
+    uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W)``: initial conditions of global
+    paths path0 .. path0 + len(x) - 1 (draws 0 and 1); depends on the noise only."""
+    init_path = integrator.build(Spec(PENDULUM, "force", spec.noise)).init_path
 
-    A path whose E**4, Omega**4 or G(x) is not finite is marked non-finite here (status 1).
+    @numba.njit(parallel=True, cache=spec.noise.builtin)
+    def init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
+             uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W):  # pragma: no cover
+        for i in prange(x.shape[0]):
+            x[i], Omega[i], xi[i], xi_aux[i] = init_path(
+                key0, key1, _U64(path0 + i), theta0, uniform_theta0, Omega0, xi0,
+                stationary_xi0, D, tau, W)
+            t[i] = 0.0
+            t_comp[i] = 0.0
+            k[i] = 0
+            status[i] = 0
 
-    Paths ``[b * batch_size, (b + 1) * batch_size)`` of this chunk form batch b; each batch is
-    summed sequentially in path order, so the sums do not depend on the thread count.
+    return init
 
-    ``sums``: (n_batches, N_SUMS) float64, overwritten. ``hist``: (n_batches, n_bins + 2)
-    int64, overwritten; column 0 counts E below ``edges[0]``, the last column E at or above
-    ``edges[-1]``.
+
+@functools.lru_cache(maxsize=None)
+def advance_kernel(spec: Spec):
+    """``advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
+    path0, D, tau, W, omega2, n, h_max, step_c) -> (steps_taken, paths_unfinished)``: every
+    unfinished path towards ``t_target``, at most ``max_steps`` steps each (the lock-step
+    driver when the Spec allows it; see the module docstring)."""
+    steps = integrator.build(spec)
+    advance_path = steps.advance_path
+    if steps.lockstep and spec.fast_math:
+        return _lockstep_kernel(spec)
+
+    @numba.njit(parallel=True, cache=spec.cacheable)
+    def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
+                path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover - compiled
+        steps_taken = 0
+        unfinished = 0
+        for i in prange(x.shape[0]):
+            s, u = advance_path(i, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target,
+                                max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max,
+                                step_c)
+            steps_taken += s
+            unfinished += u
+        return steps_taken, unfinished
+
+    return advance
+
+
+def _lockstep_kernel(spec: Spec):
+    steps = integrator.build(spec)
+    advance_path = steps.advance_path
+    advance_lanes = steps.advance_lanes
+    real = steps.real
+
+    @numba.njit(parallel=True, cache=spec.cacheable, error_model="numpy")
+    def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
+                path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover - compiled
+        n_paths = x.shape[0]
+        n_blocks = (n_paths + BLOCK - 1) // BLOCK
+        rk0, rk1 = rng.round_keys(key0, key1)  # the same for every path
+        steps_taken = 0
+        unfinished = 0
+        for b in prange(n_blocks):
+            i0 = b * BLOCK
+            m = min(BLOCK, n_paths - i0)
+            t0 = t[i0]
+            k0 = k[i0]
+            tc0 = t_comp[i0]
+            lockstep = True
+            for lane in range(m):
+                if (status[i0 + lane] != 0 or t[i0 + lane] != t0 or k[i0 + lane] != k0
+                        or t_comp[i0 + lane] != tc0):
+                    lockstep = False
+            if not lockstep or t0 >= t_target:
+                for lane in range(m):
+                    s, u = advance_path(i0 + lane, x, Omega, xi, xi_aux, t, t_comp, k, status,
+                                        t_target, max_steps, key0, key1, path0, D, tau, W,
+                                        omega2, n, h_max, step_c)
+                    steps_taken += s
+                    unfinished += u
+                continue
+            bx = np.empty(BLOCK, dtype=real)
+            bO = np.empty(BLOCK, dtype=real)
+            bxi = np.empty(BLOCK, dtype=real)
+            bxa = np.empty(BLOCK, dtype=real)
+            br = np.empty(BLOCK)
+            bph = np.empty(BLOCK)
+            bc2 = np.empty(BLOCK, dtype=np.uint64)
+            bc3 = np.empty(BLOCK, dtype=np.uint64)
+            for lane in range(BLOCK):
+                src = i0 + lane if lane < m else i0  # padding lanes repeat the first path
+                bx[lane] = x[src]
+                bO[lane] = Omega[src]
+                bxi[lane] = xi[src]
+                bxa[lane] = xi_aux[src]
+                p = _U64(path0 + src)
+                bc2[lane] = p & rng._MASK32
+                bc3[lane] = p >> rng._SHIFT32
+            s, tt, tc, kk, finite = advance_lanes(bx, bO, bxi, bxa, bc2, bc3, br, bph, t0, tc0,
+                                                  k0, t_target, max_steps, rk0, rk1, D, tau, W,
+                                                  omega2, n, h_max)
+            for lane in range(m):
+                x[i0 + lane] = bx[lane]
+                Omega[i0 + lane] = bO[lane]
+                xi[i0 + lane] = bxi[lane]
+                xi_aux[i0 + lane] = bxa[lane]
+                t[i0 + lane] = tt
+                t_comp[i0 + lane] = tc
+                k[i0 + lane] = kk
+            steps_taken += s * m
+            if not finite:
+                # A path stops at its first non-finite state: freeze those lanes, and let the
+                # others go on one by one (the same numbers, one path at a time).
+                for lane in range(m):
+                    if not (math.isfinite(bx[lane]) and math.isfinite(bO[lane])
+                            and math.isfinite(bxi[lane])):
+                        status[i0 + lane] = 1
+                for lane in range(m):
+                    s2, u = advance_path(i0 + lane, x, Omega, xi, xi_aux, t, t_comp, k, status,
+                                         t_target, max_steps - s, key0, key1, path0, D, tau, W,
+                                         omega2, n, h_max, step_c)
+                    steps_taken += s2
+                    unfinished += u
+            elif tt < t_target:
+                unfinished += m
+        return steps_taken, unfinished
+
+    return advance
+
+
+@functools.lru_cache(maxsize=None)
+def accumulate_kernel(spec: Spec):
+    """``accumulate(x, Omega, status, omega2, n, batch_size, edges, sums, hist)``: per-batch
+    power sums of E and Omega, and the energy histogram, at one output time (float64 whatever
+    the precision of the state); depends on the oscillator and coupling only.
+
+    A path whose E**4, Omega**4 or G(x) is not finite is marked non-finite here (status 1):
+    the state is finite but its moments overflow, so the path has escaped; it stays excluded
+    at every later time. Paths ``[b * batch_size, (b + 1) * batch_size)`` of the chunk form
+    batch b, summed sequentially in path order. ``sums``: (n_batches, N_SUMS) float64,
+    overwritten. ``hist``: (n_batches, n_bins + 2) int64, overwritten; column 0 counts E below
+    ``edges[0]``, the last column E at or above ``edges[-1]``.
     """
-    n_paths = x.shape[0]
-    n_edges = edges.shape[0]
-    for b in prange(sums.shape[0]):
-        for c in range(sums.shape[1]):
-            sums[b, c] = 0.0
-        for c in range(hist.shape[1]):
-            hist[b, c] = 0
-        start = b * batch_size
-        stop = min(start + batch_size, n_paths)
-        for i in range(start, stop):
-            if status[i] != 0:
-                sums[b, S_NONFINITE] += 1.0
-                continue
-            E = physics.energy(x[i], Omega[i], omega2, potential_code, power_n)
-            E2 = E * E
-            O2 = Omega[i] * Omega[i]
-            g = physics.noise_shape(x[i], potential_code, power_n, coupling_code)
-            if not (math.isfinite(E2 * E2) and math.isfinite(O2 * O2) and math.isfinite(g)):
-                # The state is finite but its moments overflow: the path has escaped. It is
-                # frozen as non-finite, so it stays excluded at every later time too.
-                status[i] = 1
-                sums[b, S_NONFINITE] += 1.0
-                continue
-            sums[b, S_COUNT] += 1.0
-            sums[b, S_E1] += E
-            sums[b, S_E2] += E2
-            sums[b, S_E3] += E2 * E
-            sums[b, S_E4] += E2 * E2
-            sums[b, S_OMEGA2] += O2
-            sums[b, S_OMEGA4] += O2 * O2
-            sums[b, S_G2] += g * g
-            if E < edges[0]:
-                hist[b, 0] += 1
-            elif E >= edges[n_edges - 1]:
-                hist[b, n_edges] += 1
-            else:
-                hist[b, np.searchsorted(edges, E, side="right")] += 1
+    path_values = integrator.build(Spec(spec.oscillator, spec.coupling, OU)).path_values
+
+    @numba.njit(parallel=True, cache=spec.oscillator.builtin)
+    def accumulate(x, Omega, status, omega2, n, batch_size, edges, sums,
+                   hist):  # pragma: no cover - compiled
+        n_paths = x.shape[0]
+        n_edges = edges.shape[0]
+        for b in prange(sums.shape[0]):
+            for c in range(sums.shape[1]):
+                sums[b, c] = 0.0
+            for c in range(hist.shape[1]):
+                hist[b, c] = 0
+            start = b * batch_size
+            stop = min(start + batch_size, n_paths)
+            for i in range(start, stop):
+                if status[i] != 0:
+                    sums[b, S_NONFINITE] += 1.0
+                    continue
+                ok, E, E2, O2, G2 = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, n)
+                if not ok:
+                    status[i] = 1
+                    sums[b, S_NONFINITE] += 1.0
+                    continue
+                sums[b, S_COUNT] += 1.0
+                sums[b, S_E1] += E
+                sums[b, S_E2] += E2
+                sums[b, S_E3] += E2 * E
+                sums[b, S_E4] += E2 * E2
+                sums[b, S_OMEGA2] += O2
+                sums[b, S_OMEGA4] += O2 * O2
+                sums[b, S_G2] += G2
+                if E < edges[0]:
+                    hist[b, 0] += 1
+                elif E >= edges[n_edges - 1]:
+                    hist[b, n_edges] += 1
+                else:
+                    hist[b, np.searchsorted(edges, E, side="right")] += 1
+
+    return accumulate
+
+
+def kernels(spec: Spec) -> SimpleNamespace:
+    """``init``, ``advance`` and ``accumulate`` for ``spec`` (compiled on first call)."""
+    return SimpleNamespace(init=init_kernel(spec), advance=advance_kernel(spec),
+                           accumulate=accumulate_kernel(spec), spec=spec)
+
+
+class Engine:
+    """One chunk of paths in host memory, advanced by the CPU kernels (for ``runner``)."""
+
+    name = "cpu"
+
+    def __init__(self, config, spec: Spec, capacity: int, n_chunk_batches: int) -> None:
+        self.config = config
+        self.spec = spec
+        self.kernels = kernels(spec)
+        self.key0, self.key1 = rng.seed_to_key(config.seed)
+        self.n_times = len(config.times)
+        self.n_cols = config.hist_bins + 2
+        self.hist = np.empty((n_chunk_batches, self.n_cols), dtype=np.int64)
+        self.p0 = 0
+        self.n = 0
+
+    @staticmethod
+    def default_chunk_paths(precision: str) -> int:
+        return DEFAULT_CHUNK_PATHS
+
+    def _allocate(self, n: int, nb: int) -> None:
+        self.x = np.empty(n)
+        self.Omega = np.empty(n)
+        self.xi = np.empty(n)
+        self.xi_aux = np.empty(n)
+        self.t = np.empty(n)
+        self.t_comp = np.empty(n)
+        self.k = np.empty(n, dtype=np.uint64)
+        self.status = np.empty(n, dtype=np.uint8)
+        self.chunk_sums = np.zeros((nb, self.n_times, N_SUMS))
+        self.chunk_hist = np.zeros((self.n_times, self.n_cols), dtype=np.int64)
+
+    def start(self, p0: int, n: int, nb: int) -> None:
+        """Initial conditions of global paths p0 .. p0 + n - 1 (batches: nb)."""
+        c = self.config
+        self.p0, self.n, self.nb = p0, n, nb
+        self._allocate(n, nb)
+        self.kernels.init(self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k,
+                          self.status, self.key0, self.key1, p0,
+                          0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
+                          0.0 if c.xi0 is None else c.xi0, c.xi0 is None, c.D, c.tau_or_zero,
+                          c.omega_noise_or_zero)
+
+    def load(self, p0: int, arrays: dict[str, np.ndarray]) -> None:
+        """Continue a chunk from host arrays (a checkpoint's RunState fields)."""
+        self.p0 = p0
+        self.n = arrays["x"].shape[0]
+        self.nb = arrays["chunk_sums"].shape[0]
+        for name, value in arrays.items():
+            setattr(self, name, value)
+
+    def max_steps(self) -> int:
+        return max(MIN_STEPS_PER_CALL, WORK_PER_CALL // max(self.n, 1))
+
+    def advance(self, t_target: float, max_steps: int) -> bool:
+        c = self.config
+        _, unfinished = self.kernels.advance(
+            self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k, self.status,
+            t_target, max_steps, self.key0, self.key1, self.p0, c.D, c.tau_or_zero,
+            c.omega_noise_or_zero, c.omega**2, c.power_n, c.h_max, c.step_c)
+        return unfinished == 0
+
+    def time_sum(self, t_target: float, done: bool) -> float:
+        return float(np.sum(self.t))
+
+    def accumulate(self, j: int, edges_j: np.ndarray) -> None:
+        c = self.config
+        nb = self.nb
+        self.kernels.accumulate(self.x, self.Omega, self.status, c.omega**2, c.power_n,
+                                c.batch_size, edges_j, self.chunk_sums[:, j, :], self.hist[:nb])
+        self.chunk_hist[j] = self.hist[:nb].sum(axis=0)
+
+    def steps(self) -> int:
+        return int(np.sum(self.k, dtype=np.uint64))
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The chunk's live arrays (no copy): what a checkpoint holds."""
+        return {name: getattr(self, name) for name in CHUNK_ARRAYS}
+
+    def results(self) -> tuple[np.ndarray, np.ndarray]:
+        """The finished chunk's per-batch sums and histogram."""
+        return self.chunk_sums, self.chunk_hist

@@ -65,7 +65,8 @@ class LocalSchedulerEngine:
         return {"engine": f"dask-{self.scheduler}", "scheduler": self.scheduler, "workers": self.workers}
 
     def run(self, spec: SweepSpec, tasks: list[Task], tracker: Any,
-            on_result: Callable[[BlockResult], None]) -> None:
+            on_result: Callable[[BlockResult], None], *, backend: str = "cpu",
+            precision: str = "float64") -> None:
         numba_threads = None
         if self.scheduler == "threads":
             _check_threadsafe_numba()
@@ -73,7 +74,7 @@ class LocalSchedulerEngine:
         calls = [
             dask.delayed(run_block, pure=False)(
                 dask.delayed(spec.configs[t.set_index], traverse=False), t.set_index, t.b0, t.b1,
-                numba_threads=numba_threads,
+                numba_threads=numba_threads, backend=backend, precision=precision,
             )
             for t in tasks
         ]
@@ -90,7 +91,7 @@ class LocalSchedulerEngine:
 def _check_threadsafe_numba() -> None:
     """Concurrent kernels from several threads need the omp or tbb threading layer."""
     from stochpend.params import SimulationConfig
-    from stochpend.simulate import run_batches
+    from stochpend.runner import run_batches
 
     run_batches(SimulationConfig.build(paths=2, t_max=0.1, n_times=1), 0, 2)  # loads the kernels
     layer = numba.threading_layer()
@@ -108,13 +109,15 @@ def _worker_facts() -> dict[str, Any]:
 
 
 def _remote_block(config: Any, set_index: int, b0: int, b1: int, threads_by_host: dict[str, int],
-                  version: str) -> BlockResult:
-    """A task on a distributed worker: pick Numba threads for this host, then run the block."""
+                  version: str, backend: str = "cpu", precision: str = "float64") -> BlockResult:
+    """A task on a distributed worker: pick Numba threads for this host, then run the block
+    (on the worker's own GPU when ``backend="cuda"``: one worker process per GPU)."""
     worker = distributed.get_worker()
     threads = threads_by_host.get(_host(worker.address))
     if threads is None:  # a worker that joined after the sweep started
         threads = max(1, _cpu_count() // max(1, worker.state.nthreads))
-    return run_block(config, set_index, b0, b1, numba_threads=threads, expect_version=version)
+    return run_block(config, set_index, b0, b1, numba_threads=threads, expect_version=version,
+                     backend=backend, precision=precision)
 
 
 class DistributedEngine:
@@ -152,10 +155,11 @@ class DistributedEngine:
         return {"engine": "dask-distributed", "scheduler": self.address, "workers": self.n_workers}
 
     def run(self, spec: SweepSpec, tasks: list[Task], tracker: Any,
-            on_result: Callable[[BlockResult], None]) -> None:
+            on_result: Callable[[BlockResult], None], *, backend: str = "cpu",
+            precision: str = "float64") -> None:
         futures = [
             self.client.submit(_remote_block, spec.configs[t.set_index], t.set_index, t.b0, t.b1,
-                               self.threads_by_host, BUILD, pure=False,
+                               self.threads_by_host, BUILD, backend, precision, pure=False,
                                key=f"stochpend-block-{t.set_index}-{t.b0}-{os.urandom(4).hex()}")
             for t in tasks
         ]

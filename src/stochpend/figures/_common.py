@@ -105,8 +105,10 @@ class RunSpec:
             **({} if self.step_c is None else {"step_c": float(self.step_c)}),
         }
 
-    def cache_key(self, version: str) -> str:
-        """SHA-256 of the fully resolved configuration, the package version and the code.
+    def cache_key(self, version: str, backend: str = "cpu", precision: str = "float64") -> str:
+        """SHA-256 of the fully resolved configuration, the package version, the code, and the
+        backend and precision that ran it (a GPU's float64 differs from the CPU's in the last
+        bits, float32 by more: a run is reused only where it would be made again).
 
         The resolved configuration includes every default (step controls, histogram, batches),
         so a run stored before a default changed is never reused for the new settings.
@@ -119,7 +121,8 @@ class RunSpec:
         resolved = {**config.to_attrs(), "times": list(config.times), "hist_E_max": list(config.hist_E_max)}
         # The code that determines the numbers is part of the key: a run made by an older
         # integrator (same version string, e.g. during development) is never reused.
-        payload = json.dumps({"run": resolved, "stochpend": version, "code": _code_fingerprint()},
+        payload = json.dumps({"run": resolved, "stochpend": version, "code": _code_fingerprint(),
+                              "backend": backend, "precision": precision},
                              sort_keys=True, default=str)
         return hashlib.sha256(payload.encode()).hexdigest()
 

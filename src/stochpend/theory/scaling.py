@@ -1,7 +1,7 @@
 r"""Long-time growth laws of the mean energy: <E> ~ t**nu, exponential, or finite-time blow-up.
 
 The oscillator is dx/dt = Omega, dOmega/dt = -omega**2 U'(x) - xi(t) G(x) (see
-:mod:`stochpend.physics`). The noise enters as a Hamiltonian perturbation xi(t) V(x) with
+:mod:`stochpend.oscillators`). The noise enters as a Hamiltonian perturbation xi(t) V(x) with
 V' = G: V = U for ``coupling="force"``, V = x**2/2 for ``coupling="position"``. Averaging
 over the fast angle of the orbit of energy E gives an energy diffusion (derived, with every
 case, in ``docs/scaling.md``)

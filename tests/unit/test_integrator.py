@@ -1,4 +1,8 @@
-"""The integrator's pieces, checked against independent formulas (plain-Python calls)."""
+"""The integrator's pieces, checked against independent formulas (plain-Python calls).
+
+The device functions of a Spec (``integrator.build``) are ``register_jitable`` closures, so
+Python can call them; they are the code the kernels inline.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +12,14 @@ from decimal import Decimal, getcontext
 import numpy as np
 import pytest
 
-from stochpend import physics, schemes
+import stochpend
+from stochpend import integrator, oscillators
+from stochpend.noises import ou
+from stochpend.params import SimulationConfig
+
+
+def _steps(potential="pendulum", coupling="force"):
+    return integrator.build(integrator.spec("ou", potential, coupling))
 
 
 def _x_minus_2tanh_half_decimal(x: float) -> float:
@@ -21,19 +32,19 @@ def _x_minus_2tanh_half_decimal(x: float) -> float:
 @pytest.mark.parametrize("x", [1e-8, 1e-5, 1e-3, 0.02, 0.1, 0.3, 0.5999, 0.6, 0.6001, 1.0, 3.0, 40.0])
 def test_conditional_variance_function_is_accurate_everywhere(x):
     exact = _x_minus_2tanh_half_decimal(x)
-    got = schemes.x_minus_2tanh_half(x)
+    got = ou.x_minus_2tanh_half(x)
     eps = np.finfo(float).eps
     # series: a few ulps; direct difference: the cancellation bound 12 eps / x^2 (x >= 0.6)
     tol = 4 * eps if x < 0.6 else 2 * 12 * eps / x**2
     assert abs(got - exact) <= tol * abs(exact), f"x={x}: {got!r} vs {exact!r}"
-    assert schemes.x_minus_2tanh_half(x) == __import__("numba").njit(schemes.x_minus_2tanh_half)(x)
+    assert ou.x_minus_2tanh_half(x) == __import__("numba").njit(ou.x_minus_2tanh_half)(x)
 
 
 @pytest.mark.parametrize("h,tau", [(0.01, 1.0), (0.5, 1.0), (1.0, 0.1), (0.05, 0.01), (3.0, 10.0), (20.0, 0.5)])
 def test_ou_coefficients_reproduce_the_exact_joint_covariance(h, tau):
     """NOTES.md: var xi' = D(1-a^2)/(2 tau), var I = D[h - 2 tau(1-a) + tau(1-a^2)/2], cov = D(1-a)^2/2."""
     D = 2.5
-    a, s_xi, m_I, c_I, s_I = schemes.ou_step_coefficients(h, D, tau)
+    a, s_xi, m_I, c_I, s_I = ou.step_coefficients(h, D, tau, 0.0)
     e = math.exp(-h / tau)
     assert a == pytest.approx(e, rel=1e-14)
     assert m_I == pytest.approx(tau * (1 - e), rel=1e-14)
@@ -45,21 +56,22 @@ def test_ou_coefficients_reproduce_the_exact_joint_covariance(h, tau):
 
 def test_ou_coefficients_tend_to_white_noise_as_tau_vanishes():
     h, D = 0.1, 1.7
-    _, _, m_I, c_I, s_I = schemes.ou_step_coefficients(h, D, 1e-9)
+    _, _, m_I, c_I, s_I = ou.step_coefficients(h, D, 1e-9, 0.0)
     assert c_I**2 + s_I**2 == pytest.approx(D * h, rel=1e-7)
     assert m_I == pytest.approx(1e-9, rel=1e-6)
 
 
 def test_verlet_is_time_reversible_and_symplectic_at_zero_noise():
     x, O, h, w2 = 0.7, -0.3, 0.05, 1.3
-    x1, O1 = schemes.verlet_step(x, O, h, w2, 0.0, physics.PENDULUM, 2, physics.COUPLING_FORCE)
-    xb, Ob = schemes.verlet_step(x1, -O1, h, w2, 0.0, physics.PENDULUM, 2, physics.COUPLING_FORCE)
+    verlet = _steps().verlet
+    x1, O1 = verlet(x, O, h, w2, 0.0, 2)
+    xb, Ob = verlet(x1, -O1, h, w2, 0.0, 2)
     assert xb == pytest.approx(x, abs=1e-14) and -Ob == pytest.approx(O, abs=1e-14)
     # Jacobian determinant 1 (area preserving), by central differences
     eps = 1e-6
 
     def f(v):
-        return np.array(schemes.verlet_step(v[0], v[1], h, w2, 0.0, physics.PENDULUM, 2, physics.COUPLING_FORCE))
+        return np.array(verlet(v[0], v[1], h, w2, 0.0, 2))
 
     J = np.column_stack([(f(np.array([x, O]) + eps * e) - f(np.array([x, O]) - eps * e)) / (2 * eps)
                          for e in np.eye(2)])
@@ -74,10 +86,12 @@ def test_ito_and_stratonovich_coincide():
     on Omega. Checked numerically for every potential and coupling.
     """
     eps = 1e-6
-    for pot, cpl in [(physics.PENDULUM, 0), (physics.HARMONIC, 0), (physics.HARMONIC, 1), (physics.POWER, 0)]:
+    for pot, cpl in [("pendulum", "force"), ("harmonic", "force"), ("harmonic", "position"),
+                     ("power", "force")]:
+        G = _steps(pot, cpl).G
         for x, O in [(0.3, 1.1), (-1.2, 4.0), (2.0, -0.5)]:
-            def b(xx, OO):
-                return np.array([0.0, -physics.noise_shape(xx, pot, 2, cpl) + 0.0 * OO])
+            def b(xx, OO, G=G):
+                return np.array([0.0, -G(xx, 2) + 0.0 * OO])
 
             db_dx = (b(x + eps, O) - b(x - eps, O)) / (2 * eps)
             db_dO = (b(x, O + eps) - b(x, O - eps)) / (2 * eps)
@@ -88,27 +102,44 @@ def test_ito_and_stratonovich_coincide():
 
 def test_step_size_rules():
     h_max, c = 0.05, 0.25
-    assert schemes.step_size(0.1, 0.0, 0.0, h_max, c, 1.0, physics.PENDULUM, 2, 0) == h_max
-    assert schemes.step_size(100.0, 0.0, 0.0, h_max, c, 1.0, physics.PENDULUM, 2, 0) == pytest.approx(c / 100.0)
-    assert schemes.step_size(0.0, 399.0, 0.0, h_max, c, 1.0, physics.PENDULUM, 2, 0) == pytest.approx(c / 20.0)
-    assert schemes.step_size(100.0, 399.0, 0.0, h_max, 0.0, 1.0, physics.PENDULUM, 2, 0) == h_max
+    step_size = _steps().step_size  # (x, Omega, xi, h_max, c, omega2, n)
+    assert step_size(0.0, 0.1, 0.0, h_max, c, 1.0, 2) == h_max
+    assert step_size(0.0, 100.0, 0.0, h_max, c, 1.0, 2) == pytest.approx(c / 100.0)
+    assert step_size(0.0, 0.0, 399.0, h_max, c, 1.0, 2) == pytest.approx(c / 20.0)
+
+
+def test_zero_step_c_compiles_the_fixed_step():
+    """step_c = 0 selects the fixed-step Spec (no step control compiled in): every path takes
+    exactly t/h_max steps, however fast it turns or however large the noise."""
+    config = SimulationConfig.build(noise="ou", D=400.0, tau=0.1, paths=50, t_max=2.0, times=[1.0, 2.0],
+                                    h_max=0.05, step_c=0.0, Omega0=100.0, n_batches=2)
+    assert integrator.Spec.of(config).adaptive is False
+    assert integrator.Spec.of(SimulationConfig.build(step_c=0.1)).adaptive is True
+    ds = stochpend.simulate(noise="ou", D=400.0, tau=0.1, paths=50, t_max=2.0, times=[1.0, 2.0],
+                            h_max=0.05, step_c=0.0, Omega0=100.0, n_batches=2)
+    assert ds.attrs["path_steps"] == 50 * 40
 
 
 def test_angle_wrapping():
     for x in (-7.0, -math.pi, 0.0, 3.0, math.pi, 10.0, 1e6):
-        w = physics.wrap_angle(x, physics.PENDULUM)
+        w = oscillators.get("pendulum").functions.wrap(x)
         assert -math.pi <= w < math.pi
         assert math.sin(w) == pytest.approx(math.sin(x), abs=1e-9)
-    assert physics.wrap_angle(10.0, physics.HARMONIC) == 10.0
+    assert oscillators.get("harmonic").functions.wrap(10.0) == 10.0
 
 
 def test_step_size_stiffness_follows_the_coupling():
     """Force coupling: k = |omega**2 + xi| |U''|; position coupling: k = |omega**2 U'' + xi|
     (the linearized force of each model)."""
     c, h_max, x, xi = 0.1, 1.0, 2.0, 30.0  # quartic: U'' = 3 x**2 = 12
-    force = schemes.step_size(0.0, xi, x, h_max, c, 1.0, physics.POWER, 2, physics.COUPLING_FORCE)
-    position = schemes.step_size(0.0, xi, x, h_max, c, 1.0, physics.POWER, 2,
-                                 physics.COUPLING_POSITION)
+    # omega = 0 makes the power oscillator's step control use the instantaneous U''(x)
+    force = _steps("power", "force").step_size(x, 0.0, xi, h_max, c, 0.0, 2)
+    position = _steps("power", "position").step_size(x, 0.0, xi, h_max, c, 0.0, 2)
+    assert force == pytest.approx(c / math.sqrt(30.0 * 12.0))
+    assert position == pytest.approx(c / math.sqrt(30.0))
+    # omega = 1: the orbit's U'' at the amplitude A (A**4/4 = U(2) = 4, so U''(A) = 12 too)
+    force = _steps("power", "force").step_size(x, 0.0, xi, h_max, c, 1.0, 2)
+    position = _steps("power", "position").step_size(x, 0.0, xi, h_max, c, 1.0, 2)
     assert force == pytest.approx(c / math.sqrt(31.0 * 12.0))
     assert position == pytest.approx(c / math.sqrt(12.0 + 30.0))
 
@@ -148,16 +179,17 @@ def test_step_of_an_oscillator_is_constant_along_its_orbit():
     it the path is, so Stormer-Verlet stays symplectic between noise kicks; the pendulum keeps
     the instantaneous rule of the accuracy study."""
     c, h_max, omega2, E = 0.1, 1.0, 1.0, 50.0
-    for pot in (physics.HARMONIC, physics.POWER):
+    for pot in ("harmonic", "power"):
         steps = []
+        step_size = _steps(pot, "position").step_size
         for x in (0.0, 0.7, 1.9, 2.5):
-            U = physics.potential(x, pot, 2)
+            U = oscillators.get(pot).functions.potential(x, 2)
             if U > E:
                 continue
             Omega = math.sqrt(2.0 * (E - omega2 * U))
-            steps.append(schemes.step_size(Omega, 0.0, x, h_max, c, omega2, pot, 2,
-                                           physics.COUPLING_POSITION))
+            steps.append(step_size(x, Omega, 0.0, h_max, c, omega2, 2))
         assert len(steps) >= 3 and max(steps) == pytest.approx(min(steps), rel=1e-12), (pot, steps)
-    a = schemes.step_size(3.0, 0.0, 0.0, h_max, c, omega2, physics.PENDULUM, 2, 0)
-    b = schemes.step_size(1.0, 0.0, 2.0, h_max, c, omega2, physics.PENDULUM, 2, 0)
+    step_size = _steps().step_size
+    a = step_size(0.0, 3.0, 0.0, h_max, c, omega2, 2)
+    b = step_size(2.0, 1.0, 0.0, h_max, c, omega2, 2)
     assert a == pytest.approx(c / 3.0) and b == pytest.approx(c / 1.0)

@@ -1,0 +1,422 @@
+"""Registers, spills and stack of the CUDA kernels for sm_90 (H100), compiled offline: no GPU needed.
+
+Run it in the CUDA tools environment (``make cuda-registers`` creates ``.venv-cuda`` with the
+pinned versions of ``benchmarks/cuda-tools.txt`` and runs this script)::
+
+    make cuda-registers
+    make cuda-registers CUDA_ARGS="--filter float64 --out out/registers.md"
+    PYTHONPATH=src .venv-cuda/bin/python benchmarks/cuda_registers.py [--filter S] [--out FILE]
+        [--lto] [--ref GIT_REF] [--ptx-dir DIR]
+
+What it does, per kernel variant:
+
+1. Numba-cuda compiles the kernel's Python function for the given argument types to PTX for
+   compute capability 9.0 (``cuda.compile_ptx``). Numba-cuda asks the driver for "the current
+   device" when it compiles the device functions a kernel calls; without a driver that lookup
+   is stubbed to report compute capability (9, 0) (``numba.cuda.dispatcher.get_current_device``,
+   docs/gpu.md, "Developer notes"). Nothing else touches the driver, so no GPU and no CUDA
+   driver are needed.
+2. ``ptxas -arch=sm_90 -v`` (from the ``nvidia-cuda-nvcc-cu12`` wheel) assembles the PTX and
+   reports, per kernel (``.entry``): registers per thread, spill stores and loads (bytes per
+   thread, local memory), and the stack frame (bytes per thread).
+3. From the registers alone: how many warps an SM of sm_90 can hold with 128-thread blocks
+   (65536 registers per SM, allocated per warp in units of 256, whole blocks of 4 warps,
+   at most 64 warps), as a share of the 64 warps. Shared memory and the other limits are
+   ignored: this is the register ceiling on occupancy.
+
+The kernels are compiled with the options of their ``@cuda.jit`` dispatcher when one is given
+(fastmath, opt, debug, lineinfo, launch_bounds, max_registers), else with ``@cuda.jit``'s
+defaults (no fastmath, opt=3, no debug info).
+
+``--lto``: link through nvJitLink with link-time optimisation first (LTO-IR from NVVM, then
+PTX from nvJitLink, then ptxas), which is the path a ``@cuda.jit`` kernel takes when it is
+launched and nvJitLink >= 12.3 is installed (numba-cuda's default ``lto``; ``numba-cuda[cu12]``
+installs nvJitLink). Without it, the plain ``compile_ptx`` PTX is measured. The two can differ
+by a few registers; compare numbers only within one mode and one toolkit version.
+
+Which kernels: if ``stochpend._backends.cuda`` has ``kernel_variants()``, the triples
+``(label, kernel, signature)`` it returns (``kernel`` a Python function or a ``@cuda.jit``
+dispatcher; ``signature`` a Numba signature or a tuple of Numba types, as ``compile_ptx``
+accepts). Otherwise the advance kernel of the current backend in float64 and float32, with the
+argument types the host code launches it with.
+
+``--ref GIT_REF`` measures ``src/`` as committed at that revision (exported with ``git
+archive`` into a temporary directory; the working tree is not touched), for a baseline while
+``src/`` is being changed.
+
+Exit status: 0 on success; 2 when numba-cuda or ptxas is missing (``make cuda-registers``
+installs them) or no kernel matches ``--filter``; 1 when a kernel fails to compile.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import importlib.util
+import inspect
+import io
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+import types
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+INSTALL_HINT = "run `make cuda-registers` (creates .venv-cuda with the pinned CUDA tools)"
+
+#: Target: H100 (compute capability 9.0).
+CC = (9, 0)
+ARCH = f"sm_{CC[0]}{CC[1]}"
+#: sm_90 register file and allocation rules (CUDA occupancy calculator).
+REGS_PER_SM = 65536
+REG_ALLOC_UNIT = 256  # registers, allocated per warp
+MAX_WARPS_PER_SM = 64
+MAX_BLOCKS_PER_SM = 32
+WARP_SIZE = 32
+THREADS_PER_BLOCK = 128
+
+#: The current advance kernel's arguments, in order, with the types the host passes (see
+#: ``_Chunk.advance`` in src/stochpend/_backends/cuda.py): device arrays are 1-d C-contiguous;
+#: Python floats are float64, Python ints int64, the Philox keys np.uint64. "real" is the
+#: precision's dtype (x, Omega, xi, xi_aux).
+ADVANCE_ARGS = (
+    ("x", "real[:]"), ("Omega", "real[:]"), ("xi", "real[:]"), ("t", "float64[:]"),
+    ("k", "uint64[:]"), ("status", "uint8[:]"), ("t_target", "float64"), ("max_steps", "int64"),
+    ("noise_code", "int64"), ("D", "float64"), ("tau", "float64"), ("omega2", "float64"),
+    ("h_max", "float64"), ("step_c", "float64"), ("potential_code", "int64"),
+    ("power_n", "int64"), ("coupling_code", "int64"), ("key0", "uint64"), ("key1", "uint64"),
+    ("path0", "int64"), ("unfinished", "int32[:]"), ("t_comp", "float64[:]"),
+    ("xi_aux", "real[:]"), ("omega_noise", "float64"),
+)
+
+
+class ToolMissing(Exception):
+    """numba-cuda or ptxas is not installed (exit status 2)."""
+
+
+@dataclass
+class Variant:
+    label: str
+    py_func: object
+    signature: object
+    options: dict  # compile options (fastmath, opt, debug, lineinfo, launch_bounds, max_registers)
+
+
+@dataclass
+class Usage:
+    registers: int
+    spill_stores: int
+    spill_loads: int
+    stack_frame: int
+    callee_spills: int  # spill bytes (stores + loads) of non-inlined device functions
+
+
+# -- occupancy --------------------------------------------------------------------------------
+def warps_from_registers(registers: int, threads_per_block: int = THREADS_PER_BLOCK) -> int:
+    """Resident warps per sm_90 SM allowed by the register file alone, for whole blocks."""
+    warps_per_block = -(-threads_per_block // WARP_SIZE)
+    per_warp = -(-max(registers, 1) * WARP_SIZE // REG_ALLOC_UNIT) * REG_ALLOC_UNIT
+    blocks = (REGS_PER_SM // per_warp) // warps_per_block
+    blocks = min(blocks, MAX_BLOCKS_PER_SM, MAX_WARPS_PER_SM // warps_per_block)
+    return blocks * warps_per_block
+
+
+# -- tools ------------------------------------------------------------------------------------
+def find_ptxas() -> str:
+    """ptxas of the nvidia-cuda-nvcc wheel of this environment, else the one on PATH."""
+    with contextlib.suppress(ImportError, ValueError):
+        spec = importlib.util.find_spec("nvidia.cuda_nvcc")
+        if spec is not None and spec.submodule_search_locations:
+            for location in spec.submodule_search_locations:
+                candidate = Path(location) / "bin" / "ptxas"
+                if candidate.is_file() and os.access(candidate, os.X_OK):
+                    return str(candidate)
+    found = shutil.which("ptxas")
+    if found:
+        return found
+    raise ToolMissing("ptxas not found (pip package nvidia-cuda-nvcc-cu12)")
+
+
+def tool_version(ptxas: str) -> str:
+    out = subprocess.run([ptxas, "--version"], capture_output=True, text=True).stdout
+    match = re.search(r"release [\d.]+, V([\d.]+)", out)
+    return match.group(1) if match else "?"
+
+
+def load_numba_cuda():
+    """Import NVIDIA's numba-cuda (not Numba's deprecated built-in target) with the stub."""
+    os.environ["NUMBA_ENABLE_CUDASIM"] = "0"
+    try:
+        from numba import cuda
+        import numba.cuda.dispatcher as cuda_dispatcher
+    except Exception as error:  # numba or its CUDA target missing or broken
+        raise ToolMissing(f"numba.cuda cannot be imported ({type(error).__name__}: {error})") from error
+    if getattr(cuda, "implementation", None) != "NVIDIA":
+        raise ToolMissing("numba-cuda is not installed (numba.cuda is Numba's built-in target)")
+    if not hasattr(cuda_dispatcher, "get_current_device"):
+        raise ToolMissing("this numba-cuda has no numba.cuda.dispatcher.get_current_device to stub; "
+                          "use the version pinned in benchmarks/cuda-tools.txt")
+    # Device functions are compiled "for the current device": answer without a driver.
+    cuda_dispatcher.get_current_device = lambda: types.SimpleNamespace(compute_capability=CC)
+    return cuda
+
+
+def package_version(name: str) -> str:
+    from importlib import metadata
+
+    try:
+        return metadata.version(name)
+    except metadata.PackageNotFoundError:
+        return "?"
+
+
+# -- kernels ----------------------------------------------------------------------------------
+_OPTION_KEYS = ("fastmath", "opt", "debug", "lineinfo", "launch_bounds", "max_registers")
+#: @cuda.jit's defaults (opt: NUMBA_OPT, 3 unless set); anything else is noted under the table.
+DEFAULT_OPTIONS = {"fastmath": False, "opt": True, "debug": False, "lineinfo": False,
+                   "launch_bounds": None, "max_registers": None}
+
+
+def as_variant(label: str, kernel: object, signature: object) -> Variant:
+    """A Python function, or a @cuda.jit dispatcher whose compile options are kept."""
+    options: dict = {}
+    py_func = kernel
+    if hasattr(kernel, "py_func") and hasattr(kernel, "targetoptions"):
+        py_func = kernel.py_func
+        target = dict(kernel.targetoptions)
+        options = {key: target[key] for key in _OPTION_KEYS if target.get(key) is not None}
+        if target.get("link"):
+            print(f"note: {label}: files linked with link= are not part of the measurement",
+                  file=sys.stderr)
+    return Variant(label, py_func, signature, options)
+
+
+def current_advance_variants(backend, nt) -> list[Variant]:
+    """The current code's advance kernel, float64 and float32 (no ``kernel_variants``)."""
+    variants = []
+    for precision in ("float64", "float32"):
+        kernel = backend._kernels(precision).advance
+        py_func = getattr(kernel, "py_func", kernel)
+        names = tuple(inspect.signature(py_func).parameters)
+        expected = tuple(name for name, _ in ADVANCE_ARGS)
+        if names != expected:
+            raise RuntimeError(
+                "the advance kernel's arguments are not the ones this script knows "
+                f"({', '.join(names)}); give the backend a kernel_variants() function")
+        real = getattr(nt, precision)
+
+        def numba_type(spec: str):
+            base = spec.removesuffix("[:]")
+            scalar = real if base == "real" else getattr(nt, base)
+            return nt.Array(scalar, 1, "C") if spec.endswith("[:]") else scalar
+
+        signature = tuple(numba_type(spec) for _, spec in ADVANCE_ARGS)
+        variants.append(as_variant(f"advance {precision} (current)", kernel, signature))
+    return variants
+
+
+def kernel_variants(backend, nt) -> list[Variant]:
+    if hasattr(backend, "kernel_variants"):
+        return [as_variant(str(label), kernel, signature)
+                for label, kernel, signature in backend.kernel_variants()]
+    return current_advance_variants(backend, nt)
+
+
+# -- compile and assemble ---------------------------------------------------------------------
+def compile_to_ptx(cuda, variant: Variant, lto: bool) -> str:
+    options = {key: variant.options[key] for key in ("fastmath", "opt", "debug", "lineinfo",
+                                                      "launch_bounds") if key in variant.options}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # performance hints of the typing pass
+        if not lto:
+            ptx, _ = cuda.compile_ptx(variant.py_func, variant.signature, cc=CC, **options)
+            return ptx
+        ltoir, _ = cuda.compile(variant.py_func, variant.signature, cc=CC, device=False,
+                                abi="numba", output="ltoir", **options)
+    from cuda.core import Linker, LinkerOptions, ObjectCode  # nvJitLink, no driver needed
+
+    link_options = LinkerOptions(arch=ARCH, link_time_optimization=True, ptx=True,
+                                 max_register_count=variant.options.get("max_registers"))
+    linked = Linker(ObjectCode.from_ltoir(ltoir, name=variant.label), options=link_options).link("ptx")
+    code = linked.code
+    return code.decode() if isinstance(code, bytes) else code
+
+
+_FRAME = re.compile(r"(\d+) bytes stack frame, (\d+) bytes spill stores, (\d+) bytes spill loads")
+
+
+def parse_ptxas(log: str) -> dict[str, Usage]:
+    """``ptxas -v`` output: the usage of each entry function (kernel), by mangled name."""
+    entries: dict[str, Usage] = {}
+    frames: dict[str, tuple[int, int, int]] = {}
+    current_entry = None
+    current_function = None
+    for line in log.splitlines():
+        if match := re.search(r"Compiling entry function '([^']+)'", line):
+            current_entry = match.group(1)
+            entries[current_entry] = Usage(0, 0, 0, 0, 0)
+        elif match := re.search(r"Function properties for (\S+)", line):
+            current_function = match.group(1)
+        elif (match := _FRAME.search(line)) and current_function is not None:
+            frames[current_function] = tuple(int(v) for v in match.groups())
+            current_function = None
+        elif (match := re.search(r"Used (\d+) registers", line)) and current_entry is not None:
+            entries[current_entry].registers = int(match.group(1))
+    callee_spills = sum(s + l for name, (_, s, l) in frames.items() if name not in entries)
+    for name, usage in entries.items():
+        usage.stack_frame, usage.spill_stores, usage.spill_loads = frames.get(name, (0, 0, 0))
+        usage.callee_spills = callee_spills
+    return entries
+
+
+def assemble(ptxas: str, ptx: str, max_registers: int | None) -> tuple[dict[str, Usage], str]:
+    with tempfile.TemporaryDirectory(prefix="cuda-registers-") as tmp:
+        source = Path(tmp) / "kernel.ptx"
+        source.write_text(ptx)
+        command = [ptxas, f"-arch={ARCH}", "-v", "-o", str(Path(tmp) / "kernel.cubin"), str(source)]
+        if max_registers:
+            command.insert(1, f"-maxrregcount={int(max_registers)}")
+        result = subprocess.run(command, capture_output=True, text=True)
+    log = result.stdout + result.stderr
+    if result.returncode != 0:
+        raise RuntimeError(f"ptxas failed:\n{log}")
+    return parse_ptxas(log), log
+
+
+# -- output -----------------------------------------------------------------------------------
+HEADER = ("| kernel | registers | spill stores (bytes) | spill loads (bytes) | stack frame (bytes) "
+          f"| register limit on occupancy ({THREADS_PER_BLOCK}-thread blocks) |")
+RULE = "|---|---:|---:|---:|---:|---|"
+
+
+def row(label: str, usage: Usage) -> str:
+    warps = warps_from_registers(usage.registers)
+    share = 100.0 * warps / MAX_WARPS_PER_SM
+    return (f"| {label} | {usage.registers} | {usage.spill_stores} | {usage.spill_loads} "
+            f"| {usage.stack_frame} | {warps}/{MAX_WARPS_PER_SM} warps ({share:.1f}%) |")
+
+
+@contextlib.contextmanager
+def source_at(ref: str | None):
+    """Put ``src/`` (of the working tree, or of git revision ``ref``) first on sys.path."""
+    if ref is None:
+        if str(ROOT / "src") not in sys.path:
+            sys.path.insert(0, str(ROOT / "src"))
+        yield f"working tree ({ROOT / 'src'})"
+        return
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", ref, "src"],
+                             capture_output=True)
+    if archive.returncode != 0:
+        raise SystemExit(f"error: git archive {ref} failed: {archive.stderr.decode().strip()}")
+    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", f"{ref}^{{commit}}"],
+                            capture_output=True, text=True).stdout.strip()
+    with tempfile.TemporaryDirectory(prefix="cuda-registers-src-") as tmp:
+        with tarfile.open(fileobj=io.BytesIO(archive.stdout)) as tar:
+            tar.extractall(tmp, filter="data")
+        sys.path.insert(0, str(Path(tmp) / "src"))
+        yield f"git {ref} ({commit})"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", type=Path, help="also write the table (Markdown) to this file")
+    parser.add_argument("--filter", default=None, metavar="SUBSTRING",
+                        help="compile only the kernels whose label contains SUBSTRING")
+    parser.add_argument("--lto", action="store_true",
+                        help="link with nvJitLink LTO first, as a launched @cuda.jit kernel is")
+    parser.add_argument("--ref", default=None, metavar="GIT_REF",
+                        help="measure src/ as committed at GIT_REF instead of the working tree")
+    parser.add_argument("--ptx-dir", type=Path, default=None,
+                        help="also keep each kernel's PTX in this directory")
+    args = parser.parse_args(argv)
+
+    try:
+        cuda = load_numba_cuda()
+        ptxas = find_ptxas()
+        if args.lto:
+            try:
+                importlib.import_module("cuda.core")  # nvJitLink's linker
+            except ImportError as error:
+                raise ToolMissing(f"cuda.core is not installed, --lto needs it ({error})") from error
+    except ToolMissing as error:
+        print(f"error: {error}; {INSTALL_HINT}", file=sys.stderr)
+        return 2
+    from numba import types as nt
+
+    with source_at(args.ref) as source:
+        try:
+            import stochpend._backends.cuda as backend
+        except Exception as error:
+            print(f"error: cannot import stochpend._backends.cuda from {source}: "
+                  f"{type(error).__name__}: {error}", file=sys.stderr)
+            return 1
+
+        variants = kernel_variants(backend, nt)
+        if args.filter is not None:
+            variants = [v for v in variants if args.filter in v.label]
+        if not variants:
+            print(f"error: no kernel label contains {args.filter!r}", file=sys.stderr)
+            return 2
+
+        mode = ("NVVM LTO-IR -> nvJitLink (LTO) -> PTX -> ptxas" if args.lto
+                else "compile_ptx -> ptxas")
+        lines = [
+            f"CUDA kernels for {ARCH} (compiled offline, no GPU): {mode}; source: {source}; "
+            f"numba {package_version('numba')}, numba-cuda {package_version('numba-cuda')}, "
+            f"ptxas {tool_version(ptxas)}"
+            + (f", nvJitLink {package_version('nvidia-nvjitlink-cu12')}" if args.lto else "")
+            + ".",
+            "",
+            HEADER,
+            RULE,
+        ]
+        notes = []
+        failed = False
+        for variant in variants:
+            start = time.perf_counter()
+            try:
+                ptx = compile_to_ptx(cuda, variant, args.lto)
+                compiled = time.perf_counter()
+                entries, _ = assemble(ptxas, ptx, variant.options.get("max_registers"))
+            except Exception as error:
+                failed = True
+                print(f"error: {variant.label}: {type(error).__name__}: {error}", file=sys.stderr)
+                lines.append(f"| {variant.label} | compile failed | | | | |")
+                continue
+            done = time.perf_counter()
+            print(f"{variant.label}: compiled in {compiled - start:.1f} s, ptxas {done - compiled:.1f} s",
+                  file=sys.stderr)
+            if args.ptx_dir is not None:
+                args.ptx_dir.mkdir(parents=True, exist_ok=True)
+                name = re.sub(r"[^A-Za-z0-9._-]+", "_", variant.label).strip("_")
+                (args.ptx_dir / f"{name}.ptx").write_text(ptx)
+            for number, usage in enumerate(entries.values()):
+                label = variant.label if len(entries) == 1 else f"{variant.label} [{number}]"
+                lines.append(row(label, usage))
+                if usage.callee_spills:
+                    notes.append(f"{label}: the non-inlined device functions it calls spill "
+                                 f"{usage.callee_spills} bytes (stores + loads) more.")
+            unusual = {k: v for k, v in variant.options.items() if v != DEFAULT_OPTIONS.get(k)}
+            if unusual:
+                shown = ", ".join(f"{k}={v}" for k, v in sorted(unusual.items()))
+                notes.append(f"{variant.label}: compiled with {shown} (from its @cuda.jit).")
+        if notes:
+            lines += [""] + notes
+    text = "\n".join(lines) + "\n"
+    print(text, end="")
+    if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(text)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

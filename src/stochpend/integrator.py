@@ -1,0 +1,422 @@
+"""The integrator, written once, specialised at compile time (derivation: docs/numerics.md).
+
+One step of length h is a symmetric drift-kick-drift (position Stormer-Verlet) splitting
+
+    x_half      = x_n + (h/2) Omega_n
+    Omega_{n+1} = Omega_n - (omega**2 h U'(x_half) + I_n G(x_half))
+    x_{n+1}     = x_half + (h/2) Omega_{n+1}
+
+where I_n is the exact integral of the noise over the step, drawn jointly with the noise's own
+update (:mod:`stochpend.noises`). At D = 0 the step is the symplectic, time-reversible
+Stormer-Verlet map; with noise the scheme has weak order 2 (measured in tests/statistical).
+
+:func:`build` compiles nothing itself: for one :class:`Spec` -- (oscillator, coupling, noise,
+precision, adaptive or fixed step, math library) -- it returns the ``register_jitable``
+functions that the backends' thin drivers call:
+
+* :func:`Integrator.advance_path`: **the step loop**, for one path between two output times,
+  with the step control, the landing rule, the noise's events, the clock, escape detection and
+  the random-number bookkeeping; the CPU path-parallel driver and the CUDA thread-per-path
+  kernel both call it;
+* :func:`Integrator.advance_lanes`: the same steps for a block of paths that share their time
+  and step count (fixed steps, noises with ``pair_draws``), laid out so that LLVM vectorizes
+  them across the lanes (the CPU SIMD driver);
+* ``init_path`` (initial conditions) and ``path_values`` (what the statistics sum).
+
+Every choice in the Spec is a Python constant captured by these closures, so each combination
+compiles to its own straight-line code: no branch on a noise or model code inside a kernel.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+from numba.extending import register_jitable
+
+from stochpend import noises as _noises
+from stochpend import oscillators as _oscillators
+from stochpend import rng
+from stochpend.mathlib import FAST, LIBM
+from stochpend.noises.base import Noise
+from stochpend.oscillators.base import Oscillator
+
+__all__ = ["SCHEME", "Spec", "build", "landing_step", "advance_clock"]
+
+#: Integrator metadata, stored in every result's attrs.
+SCHEME = {
+    "name": "strang-verlet-exact-noise",
+    "description": "position Stormer-Verlet (drift-kick-drift) with the exact noise integral",
+    "weak_order": 2,
+    "strong_order": 1,
+    "interpretation": "stratonovich (= ito for this model)",
+}
+
+PRECISIONS = ("float64", "float32")
+
+#: A path whose step control asks for a step below this fraction of h_max has escaped: it is
+#: running away (|Omega| or its frequency beyond 1e9 c/h_max, e.g. a finite-time blow-up that
+#: the shrinking steps would otherwise follow forever). It is frozen and counted with the
+#: non-finite paths, never averaged.
+ESCAPE_STEP_FRACTION = 1e-9
+
+#: A step that would stop within this fraction of h before the target is stretched to it.
+LANDING_SLACK = 1e-6
+
+_U64 = np.uint64
+
+
+# -- time bookkeeping (float64 in every precision) --------------------------------------------
+@register_jitable
+def landing_step(t, h, t_target):
+    """The step to take from time t: h, or the rest of the way when it lands on ``t_target``.
+
+    A step that would stop within ``LANDING_SLACK * h`` of the target is stretched to it, so
+    that round-off in t never leaves a sliver step. Returns ``(h, last)``.
+    """
+    if t + h * (1.0 + LANDING_SLACK) >= t_target:
+        return t_target - t, True
+    return h, False
+
+
+@register_jitable
+def landing_or_event(t, h, t_target, t_event):
+    """The step from t towards ``t_target`` (:func:`landing_step`), cut at the noise's next
+    event ``t_event`` when that comes first or at the same time.
+
+    Returns ``(h, last, event, t_land)``: ``last`` the step lands on ``t_target``, ``event`` it
+    lands on the event, ``t_land`` the time it lands on when either holds.
+    """
+    if t_event <= t_target:
+        h, event = landing_step(t, h, t_event)
+        return h, event and t_event == t_target, event, t_event
+    h, last = landing_step(t, h, t_target)
+    return h, last, False, t_target
+
+
+@register_jitable
+def advance_clock(t, t_comp, h, last, t_target):
+    """The time after a step of h: exactly ``t_target`` on landing (compensation reset), else a
+    Kahan-compensated ``t + h``. ``t_comp`` is part of the path's state, so a run's numbers do
+    not depend on how a segment is split into calls. Returns (t, t_comp)."""
+    if last:
+        return t_target, 0.0
+    y = h - t_comp
+    t_new = t + y
+    return t_new, (t_new - t) - y
+
+
+# -- what a kernel is specialised for ------------------------------------------------------------
+@dataclass(frozen=True)
+class Spec:
+    """Everything a compiled kernel is specialised for.
+
+    ``adaptive``: the step control h = min(h_max, c/v, c/sqrt(k)) (``step_c > 0``), else the
+    fixed step h_max. ``fast_math``: the branch-free fdlibm log/sin/cos of
+    :mod:`stochpend.fastmath` (the CPU SIMD driver) instead of the C library's.
+    """
+
+    oscillator: Oscillator
+    coupling: str
+    noise: Noise
+    precision: str = "float64"
+    adaptive: bool = True
+    fast_math: bool = False
+
+    def __post_init__(self) -> None:
+        if self.coupling not in _oscillators.COUPLINGS:
+            raise ValueError(f"coupling={self.coupling!r} is not accepted: one of "
+                             f"{', '.join(_oscillators.COUPLINGS)}")
+        if self.precision not in PRECISIONS:
+            raise ValueError(f"precision={self.precision!r} is not accepted: one of "
+                             f"{', '.join(PRECISIONS)}")
+
+    @classmethod
+    def of(cls, config: Any, *, precision: str = "float64", fast_math: bool = False) -> Spec:
+        """The Spec of a validated :class:`stochpend.params.SimulationConfig`."""
+        oscillator = _oscillators.get(config.potential)
+        noise = _noises.get(config.noise)
+        if oscillator is None or noise is None:  # validated configs never get here
+            raise ValueError(f"potential={config.potential!r}, noise={config.noise!r}: not registered "
+                             "in this process")
+        return cls(oscillator, config.coupling, noise, precision, config.step_c > 0.0, fast_math)
+
+    @property
+    def cacheable(self) -> bool:
+        """Built-in pieces only: a user's functions live in memory, so their kernels too."""
+        return self.oscillator.builtin and self.noise.builtin
+
+    @property
+    def label(self) -> str:
+        step = "adaptive" if self.adaptive else "fixed"
+        math_name = "fast" if self.fast_math else "libm"
+        return (f"{self.oscillator.name}/{self.coupling}/{self.noise.name}/{self.precision}/"
+                f"{step}/{math_name}")
+
+
+# -- the integrator ------------------------------------------------------------------------------
+@functools.lru_cache(maxsize=None)
+def build(spec: Spec) -> SimpleNamespace:
+    """The device functions of ``spec`` (see the module docstring); cached per Spec."""
+    real = np.float32 if spec.precision == "float32" else np.float64
+    mathlib = FAST if spec.fast_math else LIBM
+    osc = spec.oscillator.kernel(real, mathlib)
+    osc64 = spec.oscillator.kernel(np.float64, LIBM)  # statistics: float64 whatever the step
+    nz = spec.noise.kernel(real, mathlib)
+
+    POSITION = spec.coupling == "position"
+    ADAPTIVE = spec.adaptive
+    HAS_EVENTS = spec.noise.has_events
+    half = real(0.5)
+    escape = real(ESCAPE_STEP_FRACTION)
+    two_pi = 2.0 * math.pi
+
+    force = osc.force
+    noise_shape = osc.noise_shape
+    step_scales = osc.step_scales
+    wrap = osc.wrap
+    potential64 = osc64.potential
+    noise_shape64 = osc64.noise_shape
+    noise_init = nz.init
+    load_aux = nz.load_aux
+    coefficients = nz.coefficients
+    scratch0 = nz.scratch0
+    draw = nz.draw
+    update = nz.update
+    next_event = nz.next_event
+    at_event = nz.at_event
+    mathlib_log = mathlib.log
+    mathlib_sincos = mathlib.sincos
+
+    @register_jitable
+    def G(x, n):
+        """What the noise multiplies in dOmega/dt (Eq. `dynOmega`: sin x)."""
+        if POSITION:
+            return x
+        return noise_shape(x, n)
+
+    @register_jitable
+    def step_size(x, Omega, xi, h_max, c, omega2, n):
+        """h = min(h_max, c/v, c/sqrt(k)), v a speed and k a stiffness (docs/numerics.md).
+
+        The first bound resolves the motion (x moves by at most c per step), the second the
+        oscillation (c radians of phase per step): k = |omega**2 + xi| |U''| when the noise
+        multiplies the force, |omega**2 U'' + xi| when it multiplies x. v and U'' are the
+        oscillator's ``step_scales``. Only the state at the start of the step is used, so the
+        choice does not look into the future of the noise.
+        """
+        h = h_max
+        speed, curv = step_scales(x, Omega, omega2, n)
+        if speed * h > c:
+            h = c / speed
+        if POSITION:
+            stiff = abs(omega2 * curv + xi)
+        else:
+            stiff = abs(omega2 + xi) * curv
+        if stiff * h * h > c * c:
+            h = c / math.sqrt(stiff)
+        return h
+
+    @register_jitable
+    def verlet(x, Omega, h, omega2, noise_integral, n):
+        """One drift-kick-drift step; the kick uses the noise integral over the whole step.
+        Returns (x_{n+1}, Omega_{n+1}), a periodic coordinate reduced to [-pi, pi)."""
+        x_half = x + half * h * Omega
+        kick = omega2 * h * force(x_half, n)
+        kick += noise_integral * G(x_half, n)
+        Omega_new = Omega - kick
+        x_new = x_half + half * h * Omega_new
+        return wrap(x_new), Omega_new
+
+    @register_jitable
+    def init_path(key0, key1, path, theta0, uniform_theta0, Omega0, xi0, stationary_xi0, D,
+                  tau, W):
+        """(x, Omega, xi, aux) of global path ``path`` (uint64) at t = 0, in float64: x uniform
+        on [-pi, pi) from draw ``N_INIT_THETA`` (or ``theta0``), Omega0, and the noise's
+        stationary law from draw ``N_INIT_XI`` (or xi0)."""
+        if uniform_theta0:
+            u, _ = rng.draw_uniforms(key0, key1, path, np.uint64(rng.N_INIT_THETA))
+            x = two_pi * u - math.pi
+        else:
+            x = theta0
+        xi, aux = noise_init(key0, key1, path, D, tau, W, xi0, stationary_xi0)
+        return x, Omega0, xi, aux
+
+    @register_jitable
+    def advance_path(i, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0,
+                     key1, path0, D, tau, W, omega2, n, h_max, step_c):
+        """Advance path i of the arrays towards ``t_target``, at most ``max_steps`` steps.
+
+        The last step is shortened to land exactly on ``t_target`` (and, for a noise with
+        events, a step is cut at each event). A path whose state becomes non-finite, or whose
+        step control asks for less than ``ESCAPE_STEP_FRACTION * h_max``, gets status 1 and
+        is never advanced again. The step, the noise and the dynamics run in the Spec's
+        precision; the clock, the landing rule and the step counter in float64/uint64, with
+        the float64 h_max whenever the step is the largest one, so float32 takes the same
+        steps and draws as float64. Returns ``(steps_taken, unfinished)`` (1 if the path
+        stopped short of ``t_target``).
+        """
+        if status[i] != 0 or t[i] >= t_target:
+            return 0, 0
+        D_r = real(D)
+        tau_r = real(tau)
+        W_r = real(W)
+        omega2_r = real(omega2)
+        h_max_r = real(h_max)
+        c_r = real(step_c)
+        path = _U64(path0 + i)
+        xs = x[i]
+        Om = Omega[i]
+        xn = xi[i]
+        xa = load_aux(xi_aux[i])
+        tt = t[i]
+        tc = t_comp[i]
+        kk = k[i]
+        # Everything of the noise's step that depends on h only, cached while h is unchanged
+        # (h = h_max most of the time).
+        h_cached = h_max_r
+        C = coefficients(h_max_r, D_r, tau_r, W_r)
+        S = scratch0()
+        steps = 0
+        bad = False
+        while steps < max_steps:
+            if ADAPTIVE:
+                h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, n)
+                if h < escape * h_max_r:
+                    bad = True  # running away (see ESCAPE_STEP_FRACTION)
+                    break
+            else:
+                h = h_max_r
+            h_clock = h_max if h == h_max_r else np.float64(h)
+            if HAS_EVENTS:
+                h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
+                                                                 next_event(xn, xa))
+            else:
+                h_clock, last = landing_step(tt, h_clock, t_target)
+                event = False
+                t_land = t_target
+            h = real(h_clock)
+            if h != h_cached:
+                C = coefficients(h, D_r, tau_r, W_r)
+                h_cached = h
+            z, S = draw(key0, key1, path, kk, S)
+            noise_integral, xn, xa = update(xn, xa, C, z)
+            xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, n)
+            if HAS_EVENTS and event:
+                xn, xa = at_event(xn, xa, key0, key1, path, kk, D_r, tau_r, W_r)
+            kk += _U64(1)
+            steps += 1
+            tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
+            if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)
+                    and math.isfinite(xa)):
+                bad = True
+                break
+            if last:
+                break
+        x[i] = xs
+        Omega[i] = Om
+        xi[i] = xn
+        xi_aux[i] = xa
+        t[i] = tt
+        t_comp[i] = tc
+        k[i] = kk
+        if bad:
+            status[i] = 1
+        return steps, (1 if (not bad and tt < t_target) else 0)
+
+    @register_jitable
+    def advance_lanes(bx, bO, bxi, bxa, bc2, bc3, br, bph, t0, tc0, k0, t_target, max_steps,
+                      rk0, rk1, D, tau, W, omega2, n, h_max):
+        """The steps of :func:`advance_path` for L lanes in lock step (fixed step, a noise
+        with ``pair_draws``): every lane has the time ``t0``, compensation ``tc0`` and step
+        count ``k0``, so the landing, the clock and the noise coefficients are computed once,
+        and each step is two loops over the lanes with no branch, which LLVM vectorizes:
+
+        1. Philox of draw ``N_FIRST_STEP + k`` for each lane (the round keys ``rk0``, ``rk1``
+           of :func:`stochpend.rng.round_keys`; ``bc2``/``bc3`` the lanes' path words), the
+           Box-Muller radius and phase into ``br``, ``bph``;
+        2. the normals, the noise's update and the drift-kick-drift step.
+
+        The arithmetic is advance_path's, operation for operation. The lanes' state arrays
+        (``bx``, ``bO``, ``bxi``, ``bxa``) are updated in place. Returns ``(steps, t, t_comp,
+        k, finite)``; on a non-finite lane the block stops after that step (``finite`` False)
+        and the caller finishes its paths one by one.
+        """
+        lanes = bx.shape[0]
+        D_r = real(D)
+        tau_r = real(tau)
+        W_r = real(W)
+        omega2_r = real(omega2)
+        h_max_r = real(h_max)
+        tt = t0
+        tc = tc0
+        kk = k0
+        h_cached = h_max_r
+        C = coefficients(h_max_r, D_r, tau_r, W_r)
+        steps = 0
+        finite = True
+        while steps < max_steps:
+            h_clock, last = landing_step(tt, h_max, t_target)
+            h = real(h_clock)
+            if h != h_cached:
+                C = coefficients(h, D_r, tau_r, W_r)
+                h_cached = h
+            d = _U64(rng.N_FIRST_STEP) + kk
+            d0 = d & rng._MASK32
+            d1 = d >> rng._SHIFT32
+            for lane in range(lanes):
+                c0, c1, c2, c3 = rng.philox4x32_10_keyed(d0, d1, bc2[lane], bc3[lane], rk0, rk1)
+                br[lane] = math.sqrt(-2.0 * mathlib_log(rng.uniform_open(c0, c1)))
+                bph[lane] = rng._TWO_PI * rng.uniform_open(c2, c3)
+            for lane in range(lanes):
+                sn, cs = mathlib_sincos(bph[lane])
+                z = (real(br[lane] * cs), real(br[lane] * sn))
+                noise_integral, xn, xa = update(bxi[lane], bxa[lane], C, z)
+                bxi[lane] = xn
+                bxa[lane] = xa
+                bx[lane], bO[lane] = verlet(bx[lane], bO[lane], h, omega2_r, noise_integral, n)
+            kk += _U64(1)
+            steps += 1
+            tt, tc = advance_clock(tt, tc, h_clock, last, t_target)
+            for lane in range(lanes):
+                if not math.isfinite(bx[lane] + bO[lane] + bxi[lane]):
+                    finite = False
+            if not finite or last:
+                break
+        return steps, tt, tc, kk, finite
+
+    @register_jitable
+    def path_values(x, Omega, omega2, n):
+        """(ok, E, E**2, Omega**2, G**2) of a path for the statistics, in float64; ``ok``
+        False when E**4, Omega**4 or G is not finite (the path has escaped)."""
+        E = 0.5 * Omega * Omega + omega2 * potential64(x, n)
+        E2 = E * E
+        O2 = Omega * Omega
+        if POSITION:
+            g = x
+        else:
+            g = noise_shape64(x, n)
+        ok = math.isfinite(E2 * E2) and math.isfinite(O2 * O2) and math.isfinite(g)
+        return ok, E, E2, O2, g * g
+
+    return SimpleNamespace(
+        spec=spec, real=real, G=G, step_size=step_size, verlet=verlet, init_path=init_path,
+        advance_path=advance_path, advance_lanes=advance_lanes, path_values=path_values,
+        lockstep=(not spec.adaptive) and spec.noise.pair_draws and not HAS_EVENTS,
+    )
+
+
+def spec(noise: str = "ou", potential: str = "pendulum", coupling: str = "force", *,
+         precision: str = "float64", adaptive: bool = True, fast_math: bool = False) -> Spec:
+    """A Spec from names (for tests and benchmarks): ``spec("white", "harmonic", adaptive=False)``."""
+    oscillator = _oscillators.get(potential)
+    noise_piece = _noises.get(noise)
+    if oscillator is None:
+        raise ValueError(f"potential={potential!r} is not accepted: not registered")
+    if noise_piece is None:
+        raise ValueError(f"noise={noise!r} is not accepted: not registered")
+    return Spec(oscillator, coupling, noise_piece, precision, adaptive, fast_math)

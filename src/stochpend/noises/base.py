@@ -1,0 +1,123 @@
+"""What a noise is to the integrator: its state, start, exact step and spectral facts.
+
+A noise xi(t) enters the oscillator only through its integral over a step,
+I = int_t^{t+h} xi(s) ds, which the kick of the drift-kick-drift step uses (docs/numerics.md).
+A :class:`Noise` says
+
+* its **state**: ``xi`` and one auxiliary number ``aux`` per path (OU: unused; harmonic
+  noise: dxi/dt; dichotomous: the time of the next flip);
+* how it **starts**: ``init``, the stationary law from Philox draw ``rng.N_INIT_XI`` (or a
+  given xi0);
+* its **exact step**: the joint update of (xi, aux) and the integral I over a step h, from
+  coefficients that depend on h only (``coefficients``, cached by the integrator while h does
+  not change) and the random numbers of the step (``draw``);
+* optional **events**: times at which the noise jumps (the dichotomous flips); the
+  integrator cuts a step at the next event and calls ``at_event`` there;
+* its **spectral facts** (plain Python): stationary variance, correlation C(t), spectral
+  density S(nu), in the conventions of docs/models.md (S(0) = D for every built-in noise).
+
+The device functions are built by ``build(real, mathlib)`` for one precision (``numpy.float64``
+or ``numpy.float32``) and one :class:`stochpend.mathlib.MathLib`; they are ``register_jitable``
+closures over constants of that precision, so the same definition compiles into CPU and CUDA
+kernels in float64 or float32 with no rewriting. They return a :class:`NoiseKernel`.
+
+Parameters reach the device functions as ``(D, tau, W)``: the amplitude, the correlation time
+(0 for white noise) and the harmonic noise's frequency (0 when unused), converted to ``real``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from numba.extending import register_jitable
+
+__all__ = ["Noise", "NoiseKernel", "no_event", "at_no_event", "no_scratch"]
+
+
+# -- defaults for a noise without events or loop-carried draws ----------------------------------
+@register_jitable
+def no_event(xi, aux):
+    """``next_event`` of a noise that never jumps."""
+    return math.inf
+
+
+@register_jitable
+def at_no_event(xi, aux, key0, key1, path, k, D, tau, W):
+    """``at_event`` of a noise that never jumps (never called)."""
+    return xi, aux
+
+
+@register_jitable
+def no_scratch():
+    """``scratch0`` of a noise whose draws carry nothing from one step to the next."""
+    return 0
+
+
+@dataclass(frozen=True)
+class NoiseKernel:
+    """The device functions of a noise for one precision (all ``register_jitable``).
+
+    * ``init(key0, key1, path, D, tau, W, xi0, stationary) -> (xi, aux)``, in float64;
+    * ``load_aux(a) -> aux``: the in-register aux from its float64 storage (a time stays
+      float64; a noise variable becomes ``real``);
+    * ``coefficients(h, D, tau, W) -> C``: everything of the step that depends on h only;
+    * ``scratch0() -> S``: the per-path loop-carried draw cache at the start of a call;
+    * ``draw(key0, key1, path, k, S) -> (z, S)``: the random numbers of step k (a tuple of
+      ``real``), keyed by (seed, path, k) only;
+    * ``update(xi, aux, C, z) -> (I, xi, aux)``: the exact step;
+    * ``next_event(xi, aux) -> t`` (float64; ``inf`` for none) and
+      ``at_event(xi, aux, key0, key1, path, k, D, tau, W) -> (xi, aux)``.
+    """
+
+    init: Callable
+    load_aux: Callable
+    coefficients: Callable
+    scratch0: Callable
+    draw: Callable
+    update: Callable
+    next_event: Callable
+    at_event: Callable
+
+
+@dataclass(frozen=True, eq=False)
+class Noise:
+    """A noise the simulator can run (built-in or a user's: see :func:`stochpend.noises.register`).
+
+    ``name``: what ``noise=`` takes. ``colored``: needs ``tau`` > 0. ``uses_omega_noise``: takes
+    ``omega_noise`` (W; ``default_omega_noise(tau)`` when not given). ``has_events``: the
+    integrator cuts steps at ``next_event``. ``pair_draws``: each step uses exactly the two
+    normals of Philox draw ``N_FIRST_STEP + k`` as ``z = (z1, z2)``, which the CPU lock-step
+    driver can compute for many paths at once. ``builtin``: its kernels may be cached on disk.
+    ``check_xi0(xi0)``: raise ValueError for an initial value the noise cannot take.
+    """
+
+    name: str
+    build: Callable[[Any, Any], NoiseKernel]
+    description: str
+    colored: bool = True
+    uses_omega_noise: bool = False
+    has_events: bool = False
+    pair_draws: bool = False
+    builtin: bool = False
+    default_omega_noise: Callable[[float], float] | None = None
+    check_xi0: Callable[[float], None] | None = None
+    variance: Callable[..., float] | None = None
+    correlation: Callable[..., Any] | None = None
+    spectral_density: Callable[..., Any] | None = None
+    extra: dict = field(default_factory=dict)
+
+    def kernel(self, real: Any, mathlib: Any) -> NoiseKernel:
+        return _kernel(self, real, mathlib)
+
+
+_KERNELS: dict[tuple[int, Any, str], NoiseKernel] = {}
+
+
+def _kernel(noise: Noise, real: Any, mathlib: Any) -> NoiseKernel:
+    key = (id(noise), real, mathlib.name)
+    if key not in _KERNELS:
+        _KERNELS[key] = noise.build(real, mathlib)
+    return _KERNELS[key]

@@ -1,0 +1,53 @@
+"""The x**(2n) oscillators: U(x) = x**(2n)/(2n), G = x**(2n-1), n = ``power_n`` >= 1.
+
+Step control as for the harmonic oscillator (:mod:`.harmonic`): speed and |U''| at the orbit's
+extremes, A**(2n)/(2n) = U(x) + Omega**2/(2 omega**2).
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba.extending import register_jitable
+
+from stochpend.oscillators.base import Oscillator, OscillatorKernel
+
+
+def build(real, mathlib) -> OscillatorKernel:
+    zero = real(0.0)
+    half = real(0.5)
+    two = real(2.0)
+
+    @register_jitable
+    def potential(x, n):
+        return real(x ** (2 * n) / (2 * n))
+
+    @register_jitable
+    def force(x, n):
+        return real(x ** (2 * n - 1))
+
+    @register_jitable
+    def noise_shape(x, n):
+        return real(x ** (2 * n - 1))
+
+    @register_jitable
+    def step_scales(x, Omega, omega2, n):
+        if omega2 > zero:
+            u_max = potential(x, n) + half * Omega * Omega / omega2
+            speed = math.sqrt(two * omega2 * u_max)
+            return speed, real((2 * n - 1) * (2 * n * u_max) ** ((n - 1) / n))
+        return abs(Omega), real((2 * n - 1) * x ** (2 * n - 2))
+
+    @register_jitable
+    def wrap(x):
+        return x
+
+    return OscillatorKernel(potential, force, noise_shape, step_scales, wrap)
+
+
+POWER = Oscillator(
+    name="power",
+    build=build,
+    description="x^(2n) oscillator, U = x^(2n)/(2n)",
+    builtin=True,
+)

@@ -1,0 +1,38 @@
+"""Drive the CPU kernels of a Spec on raw arrays (for tests that look below the runner)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stochpend import integrator, rng
+from stochpend._backends import cpu
+
+
+def kernels(noise="ou", potential="pendulum", coupling="force", *, adaptive=True, fast_math=False):
+    """``cpu.kernels`` of the Spec with these names; the lock-step driver when ``fast_math``."""
+    return cpu.kernels(integrator.spec(noise, potential, coupling, adaptive=adaptive,
+                                       fast_math=fast_math))
+
+
+class Paths:
+    """The state arrays of n paths: x, Omega, xi, xi_aux, t, t_comp, k, status."""
+
+    def __init__(self, n: int):
+        self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp = (np.zeros(n) for _ in range(6))
+        self.k = np.zeros(n, dtype=np.uint64)
+        self.status = np.zeros(n, dtype=np.uint8)
+
+    def arrays(self):
+        return (self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k, self.status)
+
+    def init(self, kern, seed, *, path0=0, theta0=None, Omega0=0.0, xi0=None, D=1.0, tau=1.0, W=0.0):
+        key0, key1 = rng.seed_to_key(seed)
+        kern.init(*self.arrays(), key0, key1, path0, 0.0 if theta0 is None else theta0,
+                  theta0 is None, Omega0, 0.0 if xi0 is None else xi0, xi0 is None, D, tau, W)
+        return self
+
+    def advance(self, kern, t_target, max_steps, seed, *, path0=0, D=1.0, tau=1.0, W=0.0,
+                omega2=1.0, n=2, h_max=0.05, step_c=0.0):
+        key0, key1 = rng.seed_to_key(seed)
+        return kern.advance(*self.arrays(), t_target, max_steps, key0, key1, path0, D, tau, W,
+                            omega2, n, h_max, step_c)
