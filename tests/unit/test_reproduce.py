@@ -138,6 +138,9 @@ def test_progress_protocol_gets_bars_and_one_line_per_figure(tmp_path) -> None:
         ({"t_max": -1.0}, "t_max=-1.0"),
         ({"t_max": float("nan")}, "t_max=nan"),
         ({"threads": 0}, "threads=0"),
+        ({"backend": "tpu"}, "backend='tpu'"),
+        ({"precision": "float16"}, "precision='float16'"),
+        ({"precision": "float32"}, "precision='float32' is not accepted with backend='cpu'"),
     ],
 )
 def test_bad_arguments_are_refused_before_any_work(kwargs, fragment, tmp_path) -> None:
@@ -145,6 +148,45 @@ def test_bad_arguments_are_refused_before_any_work(kwargs, fragment, tmp_path) -
     figures = kwargs.pop("figures")
     with pytest.raises(ValueError, match=fragment.replace("[", r"\[").replace("]", r"\]")):
         reproduce(figures, out=tmp_path / "x", **kwargs)
+    assert not (tmp_path / "x").exists()
+
+
+def test_backend_is_passed_through_and_keys_the_stored_runs(tiny, monkeypatch) -> None:
+    """--backend reaches the runner, and a run stored by one backend or precision is never
+    reused for another (the GPU's float64 differs from the CPU's in the last bits)."""
+    import stochpend.reproduce as rep
+    from stochpend import runner
+
+    result, _ = tiny
+    spec = FIGURES["fig1"].runs(TINY["paths"], TINY["t_max"], True)[0]
+    keys = {spec.cache_key(__version__, b, p) for b, p in
+            (("cpu", "float64"), ("cuda", "float64"), ("cuda", "float32"))}
+    assert len(keys) == 3
+    assert rep._run_path(result.out, spec) != rep._run_path(result.out, spec, ("cuda", "float64"))
+    seen = []
+    real = runner.run_batches
+
+    def spy(*args, **kwargs):
+        seen.append((kwargs["backend"], kwargs["precision"]))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "run_batches", spy)
+    again = reproduce("fig1", out=result.out, backend="auto", **TINY)  # auto: the CPU here
+    assert seen == [] and all(r.status == "cached" for r in again.figures["fig1"].runs)
+    assert again.settings["backend"] == "cpu"
+    reproduce("fig1", out=result.out, force=True, **TINY)
+    assert seen and set(seen) == {("cpu", "float64")}
+
+
+def test_cli_reproduce_on_an_unusable_gpu_is_one_line(tmp_path, monkeypatch) -> None:
+    from stochpend._backends import cuda as gpu
+
+    monkeypatch.setattr(gpu, "availability", lambda: (False, "the CUDA driver reports no GPU"))
+    res = CliRunner().invoke(_app(), ["reproduce", "fig1", "--quick", "--backend", "cuda",
+                                      "--out", str(tmp_path / "x")])
+    assert res.exit_code == 2
+    lines = [line for line in res.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and "backend='cuda' is not accepted" in lines[0], res.output
     assert not (tmp_path / "x").exists()
 
 
