@@ -545,6 +545,14 @@ def resume(
     interval; the file is removed once the result is written.
     """
     ckpt = read(path)
+    if ckpt.state.backend != "cpu":
+        from stochpend.simulate import resolve_backend
+
+        try:  # continue where it ran, or say in one line why not
+            resolve_backend(ckpt.state.backend)
+        except ValueError as exc:
+            raise _refuse(Path(path), f"it ran on backend={ckpt.state.backend!r}, which is not "
+                                      f"usable here ({exc})") from None
     if threads is _KEEP:  # the machine that resumes may have fewer threads
         threads = None if ckpt.threads is None else min(ckpt.threads, numba.config.NUMBA_NUM_THREADS)
     out_p = ckpt.out if out is _KEEP else (None if out is None else Path(out))

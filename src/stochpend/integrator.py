@@ -67,6 +67,10 @@ ESCAPE_STEP_FRACTION = 1e-9
 #: A step that would stop within this fraction of h before the target is stretched to it.
 LANDING_SLACK = 1e-6
 
+#: Paths advanced in lock step by ``advance_lanes`` (a multiple of the 8 float64 lanes of
+#: AVX-512); a compile-time trip count lets LLVM vectorize the lane loops without remainders.
+LANES = 64
+
 _U64 = np.uint64
 
 
@@ -331,7 +335,7 @@ def build(spec: Spec) -> SimpleNamespace:
     @register_jitable
     def advance_lanes(bx, bO, bxi, bxa, bc2, bc3, br, bph, t0, tc0, k0, t_target, max_steps,
                       rk0, rk1, D, tau, W, omega2, n, h_max):
-        """The steps of :func:`advance_path` for L lanes in lock step (fixed step, a noise
+        """The steps of :func:`advance_path` for ``LANES`` lanes in lock step (fixed step, a noise
         with ``pair_draws``): every lane has the time ``t0``, compensation ``tc0`` and step
         count ``k0``, so the landing, the clock and the noise coefficients are computed once,
         and each step is two loops over the lanes with no branch, which LLVM vectorizes:
@@ -346,7 +350,7 @@ def build(spec: Spec) -> SimpleNamespace:
         k, finite)``; on a non-finite lane the block stops after that step (``finite`` False)
         and the caller finishes its paths one by one.
         """
-        lanes = bx.shape[0]
+        lanes = LANES
         D_r = real(D)
         tau_r = real(tau)
         W_r = real(W)

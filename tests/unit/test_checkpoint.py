@@ -208,6 +208,30 @@ def test_other_version_is_refused(good):
     _refused(good, "written by stochpend 0.0.1, this is stochpend")
 
 
+def test_backend_and_precision_are_recorded_and_checked(good, monkeypatch):
+    header, payload = _split(good.read_bytes())
+    assert (header["backend"], header["precision"]) == ("cpu", "float64")
+    header["backend"] = "tpu"
+    _rewrite(good, header, payload)
+    _refused(good, "unknown backend 'tpu'")
+
+
+def test_gpu_checkpoint_without_a_usable_gpu_is_one_line(good, monkeypatch):
+    """A GPU run resumes on the GPU; where none is usable, resume says so in one line."""
+    from stochpend._backends import cuda as gpu
+
+    monkeypatch.setattr(gpu, "availability", lambda: (False, "the CUDA driver reports no GPU"))
+    header, payload = _split(good.read_bytes())
+    header["backend"] = "cuda"
+    _rewrite(good, header, payload)
+    assert ck.read(good).state.backend == "cuda"
+    with pytest.raises(ValueError) as info:
+        ck.resume(good)
+    message = str(info.value)
+    assert message.startswith(f"checkpoint={str(good)!r} is not accepted: it ran on backend='cuda'")
+    assert "the CUDA driver reports no GPU" in message and "\n" not in message
+
+
 def test_other_build_is_refused(good):
     header, payload = _split(good.read_bytes())
     header["stochpend_build"] = header["stochpend_version"] + " (code 000000000000)"

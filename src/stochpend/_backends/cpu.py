@@ -55,8 +55,8 @@ from stochpend.stats import (
 
 drop_stale_cache(__file__)
 
-#: Paths per lock-step block (a multiple of the 8 float64 lanes of AVX-512).
-BLOCK = 64
+#: Paths per lock-step block (the integrator's lane count).
+BLOCK = integrator.LANES
 #: Paths advanced together (bounded memory: 57 bytes a path in the state arrays).
 DEFAULT_CHUNK_PATHS = 1 << 20
 #: Path-steps per kernel call, so that progress is reported every fraction of a second.

@@ -79,7 +79,7 @@ THREADS_PER_BLOCK = 128
 STATS_THREADS = 128
 #: Histograms with at most this many columns (bins + 2) are counted in shared memory per block.
 SHARED_HIST_MAX = 1024
-#: Default paths per chunk (61 bytes a path in float64, 49 in float32); capped at half the
+#: Default paths per chunk (57 bytes a path in float64, 45 in float32); capped at half the
 #: free device memory.
 DEFAULT_CHUNK_PATHS = 1 << 26
 #: Path-steps per launch of the advance kernel (a fraction of a second on a recent GPU), and
