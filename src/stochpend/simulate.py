@@ -11,7 +11,7 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import __version__, physics, schemes
+from stochpend import __version__, physics, resources, schemes
 from stochpend import rng as _rng
 from stochpend._backends import cpu, cpu_fast
 from stochpend.params import (
@@ -59,6 +59,7 @@ def simulate(
     chunk_paths: int | None = None,
     progress: Progress | None = None,
     precision: str = "float64",
+    max_path_steps: float | None = None,
 ) -> xr.Dataset:
     r"""Simulate an ensemble of stochastic pendulums and return its energy statistics.
 
@@ -146,6 +147,7 @@ def simulate(
         step_c=step_c, hist_bins=hist_bins, hist_E_max=hist_E_max, n_batches=n_batches,
         potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
     )
+    resources.check(config, backend=backend, precision=precision, chunk_paths=chunk_paths, max_path_steps=max_path_steps)
     backend = resolve_backend(backend)
     if precision not in ("float64", "float32"):
         raise ValueError(f"precision={precision!r} is not accepted: one of float64, float32")

@@ -1,0 +1,104 @@
+"""stochpend.resources: memory and work estimated, and refused, before any work."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+import stochpend
+from stochpend import resources
+from stochpend.params import SimulationConfig
+
+
+def _config(**kwargs):
+    return SimulationConfig.build(**kwargs)
+
+
+def test_chunk_defaults_match_the_backends():
+    import importlib
+
+    simulate = importlib.import_module("stochpend.simulate")  # the module, not the function
+    assert resources.CPU_CHUNK_PATHS == simulate.DEFAULT_CHUNK_PATHS
+    assert resources.STATE_BYTES_PER_PATH == {"float64": 57, "float32": 41}
+    try:
+        from stochpend._backends import cuda
+    except Exception:  # numba without its CUDA target
+        pytest.skip("numba.cuda cannot be imported")
+    assert resources.CUDA_CHUNK_PATHS == cuda.DEFAULT_CHUNK_PATHS
+
+
+def test_memory_counts_one_chunk_of_state_and_the_per_time_arrays():
+    c = _config(paths=10_000, n_times=40, hist_bins=100, n_batches=100)
+    est = resources.estimate(c)
+    n_cols = 102
+    expected = (10_000 * 57  # state: the whole ensemble fits in one chunk
+                + 2 * 100 * 40 * 9 * 8 + 100 * 40 * 9 * 8  # per-batch sums (+ Dataset) + the chunk's
+                + 2 * 40 * n_cols * 8 + 40 * n_cols * 8 + 100 * n_cols * 8  # histograms
+                + 2 * 40 * 101 * 8)  # edges (+ Dataset)
+    assert est.memory_bytes == expected
+    assert est.min_path_steps == pytest.approx(10_000 * 1000 / 0.05)
+    assert est.seconds > 0 and est.chunk_paths == 10_000
+
+
+def test_huge_ensembles_keep_one_chunk_of_state_in_memory():
+    """The fixed runner never holds more than chunk_paths paths, whatever the batch size."""
+    c = _config(paths=10**15)
+    est = resources.estimate(c)
+    assert est.chunk_paths == 2**20
+    assert est.memory_bytes < 100 * 2**20
+    assert est.min_path_steps == pytest.approx(2e19)
+    small = resources.estimate(c, chunk_paths=1000)
+    assert small.chunk_paths == 1000 and small.memory_bytes < est.memory_bytes
+    gpu = resources.estimate(c, backend="cuda", precision="float32")
+    assert gpu.device_bytes == 2**26 * 41 and gpu.memory_bytes < est.memory_bytes
+
+
+def test_work_limit_refuses_in_one_line_and_can_be_raised():
+    c = _config(paths=10**15)
+    with pytest.raises(ValueError) as info:
+        resources.check(c)
+    msg = str(info.value)
+    assert msg.startswith("paths=1000000000000000 is not accepted: the run needs at least 2e+19 path-steps")
+    assert "max_path_steps" in msg and "\n" not in msg
+    c = _config(paths=100, t_max=1e300)
+    with pytest.raises(ValueError, match=r"^t_max=1e\+300 is not accepted"):
+        resources.check(c)
+    c = _config(paths=10, t_max=1.0, h_max=1e-14)
+    with pytest.raises(ValueError, match=r"^h_max=1e-14 is not accepted"):
+        resources.check(c)
+    assert resources.check(c, max_path_steps=math.inf).min_path_steps == pytest.approx(1e15)
+    for bad in (0, -1.0, math.nan, "many", True):
+        with pytest.raises(ValueError, match=r"^max_path_steps="):
+            resources.check(c, max_path_steps=bad)
+
+
+def test_memory_check_names_the_parameter(monkeypatch):
+    monkeypatch.setattr(resources, "available_memory", lambda: 2**30)
+    with pytest.raises(ValueError) as info:
+        resources.check(_config(hist_bins=10**9))
+    msg = str(info.value)
+    assert msg.startswith("hist_bins=1000000000 is not accepted: the run needs ")
+    assert "TiB of memory" in msg and "1.0 GiB available" in msg and "\n" not in msg
+    with pytest.raises(ValueError, match=r"^n_times=1000000 is not accepted: the run needs"):
+        resources.check(_config(n_times=10**6, n_batches=1000, paths=10**6, t_max=1.0))
+    with pytest.raises(ValueError, match=r"^chunk_paths=100000000 is not accepted"):
+        resources.check(_config(paths=10**9, t_max=1e-3), chunk_paths=10**8)
+
+
+def test_formats():
+    assert resources.format_bytes(1536) == "1.5 KiB"
+    assert resources.format_bytes(80 * 2**40) == "80.0 TiB"
+    assert resources.format_bytes(10**400) == "more than 1e308 B"
+    assert resources.format_seconds(5) == "5 s"
+    assert resources.format_seconds(3 * 3600) == "3 h"
+    assert resources.format_seconds(math.inf) == "forever"
+
+
+def test_api_refuses_before_any_work():
+    with pytest.raises(ValueError, match=r"^paths=1000000000000000 is not accepted"):
+        stochpend.simulate(paths=10**15)
+    with pytest.raises(ValueError, match=r"^max_path_steps=0 is not accepted"):
+        stochpend.simulate(paths=10, t_max=1.0, max_path_steps=0)
+    with pytest.raises(ValueError, match=r"^paths=100 is not accepted"):
+        stochpend.simulate(paths=100, t_max=1.0, n_times=1, max_path_steps=10)
