@@ -11,6 +11,7 @@ from typing import Annotated, Any
 
 import typer
 
+from stochpend._cli_types import integer
 from stochpend.cli import console, handles_errors
 
 __all__ = ["RichReproduceProgress", "reproduce_command"]
@@ -99,7 +100,7 @@ def reproduce_command(
     figures: Annotated[list[str] | None, typer.Argument(
         help="Figures to reproduce: fig1, fig2, fig3, fig4, exponents (the scaling-exponent table, docs/scaling.md) or all (default all).")] = None,
     paths: Annotated[int | None, typer.Option(
-        help="Realizations per run (default 10000, as in the paper; 500 with --quick).")] = None,
+        parser=integer, help="Realizations per run (default 10000, as in the paper; 500 with --quick).")] = None,
     t_max: Annotated[float | None, typer.Option(
         "--t-max", help="Final time of every run of the chosen figures (default: per run, see docs/reproduction.md; "
                         "e.g. 'fig4 --t-max 1e5 --paths 1000' shows the tau = 0.01 crossover).")] = None,
@@ -109,7 +110,7 @@ def reproduce_command(
         help="Small ensembles and short times (t_max = 100): a smoke test, not a reproduction.")] = False,
     force: Annotated[bool, typer.Option(
         help="Simulate again even when a stored run matches (default: reuse cached NetCDF).")] = False,
-    threads: Annotated[int | None, typer.Option(help="CPU threads (results do not depend on it).")] = None,
+    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars and no tables.")] = False,
     debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
 ) -> None:
