@@ -111,6 +111,7 @@ def reproduce_command(
     force: Annotated[bool, typer.Option(
         help="Simulate again even when a stored run matches (default: reuse cached NetCDF).")] = False,
     threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps each, paths x t_max / h_max (default 1e13; inf: no limit).")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars and no tables.")] = False,
     debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
 ) -> None:
@@ -122,7 +123,7 @@ def reproduce_command(
 
     progress = RichProgressOrLines(enabled=not quiet and console.is_terminal, quiet=quiet)
     result = reproduce(figures or ["all"], paths=paths, t_max=t_max, out=out, quick=quick, force=force,
-                       progress=progress, threads=threads)
+                       progress=progress, threads=threads, max_path_steps=max_path_steps)
     if quiet:
         return
     for f in result.figures.values():

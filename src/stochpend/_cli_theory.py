@@ -170,6 +170,7 @@ def reduced_command(
     E0: Annotated[float, typer.Option("--E0", help="Initial energy E0 >= 0.")] = 0.0,
     h_max: Annotated[float | None, typer.Option("--h-max", help="Second-order time step (default 0.05 tau).")] = None,
     threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps (paths x t_max / h_max for the second order, paths x output times otherwise; default 1e13; inf: no limit).")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No table.")] = False,
@@ -191,7 +192,7 @@ def reduced_command(
         "n_times": n_times, "seed": seed, "E0": E0, "h_max": h_max,
     }
     ReducedConfig.build(order, **kwargs)  # validate before the JIT compiles
-    ds = simulate_reduced(order, threads=threads, **kwargs)
+    ds = simulate_reduced(order, threads=threads, max_path_steps=max_path_steps, **kwargs)
     ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
     if out is not None:
         io.to_netcdf(ds, out, overwrite=overwrite)

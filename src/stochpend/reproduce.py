@@ -165,6 +165,7 @@ def reproduce(
     force: bool = False,
     progress: ReproduceProgress | Progress | None = None,
     threads: int | None = None,
+    max_path_steps: float | None = None,
 ) -> ReproduceResult:
     """Run, cache, draw and tabulate the paper's figures and write an HTML report.
 
@@ -188,6 +189,8 @@ def reproduce(
         Receives the overall and per-simulation progress and one line per figure.
     threads : int, optional
         CPU threads for the simulations (results do not depend on it).
+    max_path_steps : float, optional
+        Work limit of each run (:func:`stochpend.resources.check`; default 1e13 path-steps).
 
     Returns
     -------
@@ -227,11 +230,13 @@ def reproduce(
 
     specs = {name: FIGURES[name].runs(paths, t_max, quick) for name in names}
     # Validate every run before any work (one-line ValueError naming the parameter).
+    from stochpend import resources
     from stochpend.params import SimulationConfig
 
     for name_specs in specs.values():
         for s in name_specs:
-            SimulationConfig.build(**s.simulate_kwargs())
+            resources.check(SimulationConfig.build(**s.simulate_kwargs()), max_path_steps=max_path_steps,
+                            threads=threads)
 
     out.mkdir(parents=True, exist_ok=True)
     (out / "runs").mkdir(exist_ok=True)

@@ -28,7 +28,7 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from stochpend.params import DEFAULT_H_MAX, SimulationConfig
+from stochpend.params import DEFAULT_H_MAX, SimulationConfig, short_repr
 
 __all__ = [
     "DEFAULT_MAX_PATH_STEPS",
@@ -36,7 +36,9 @@ __all__ = [
     "Estimate",
     "available_memory",
     "check",
+    "check_reduced",
     "estimate",
+    "estimate_reduced",
     "work_limit",
     "format_bytes",
     "format_seconds",
@@ -148,6 +150,42 @@ def _cores(threads: Any) -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def _memory_parts(*, paths: int, chunk: int, chunk_given: bool, batch_size: int, n_batches: int,
+                  n_times: int, hist_bins: int, bytes_per_path: int) -> list[tuple[str, int, str]]:
+    """(part, bytes, the parameter that makes it large), largest first."""
+    n_cols = hist_bins + 2
+    batches_in_chunk = min(n_batches, max(1, -(-chunk // batch_size)))
+    state = chunk * bytes_per_path
+    sums = n_batches * n_times * N_SUMS * 8
+    chunk_sums = batches_in_chunk * n_times * N_SUMS * 8
+    hist = n_times * n_cols * 8  # the run's total
+    chunk_hist = n_times * n_cols * 8 + batches_in_chunk * n_cols * 8  # the chunk's, and per batch
+    edges = n_times * (hist_bins + 1) * 8
+    # The output Dataset holds about sums + hist + edges again: counted twice below.
+    r_times = n_times / _DEFAULT_N_TIMES
+    hist_name = "hist_bins" if hist_bins / _DEFAULT_HIST_BINS >= r_times else "n_times"
+    sums_name = "n_batches" if n_batches / _DEFAULT_N_BATCHES >= r_times else "n_times"
+    state_name = "chunk_paths" if chunk_given and chunk < paths else "paths"
+    parts = [
+        ("histograms and their edges", 2 * hist + chunk_hist + 2 * edges, hist_name),
+        ("per-batch sums", 2 * sums + chunk_sums, sums_name),
+        ("path state", state, state_name),
+    ]
+    parts.sort(key=lambda p: -p[1])
+    return parts
+
+
+def _rate(cuda: bool, threads: Any) -> tuple[float, str]:
+    if cuda:
+        return GPU_PATH_STEPS_PER_S, "the GPU"
+    cores = _cores(threads)
+    return CPU_PATH_STEPS_PER_S_PER_CORE * cores, f"{cores} CPU core" + ("s" if cores > 1 else "")
+
+
+def _valid_chunk(chunk_paths: Any) -> bool:
+    return isinstance(chunk_paths, int) and not isinstance(chunk_paths, bool) and chunk_paths >= 1
+
+
 def estimate(
     config: SimulationConfig,
     *,
@@ -165,53 +203,56 @@ def estimate(
     cuda = backend == "cuda"
     if precision not in STATE_BYTES_PER_PATH:
         precision = "float64"
-    if isinstance(chunk_paths, bool) or not isinstance(chunk_paths, int) or chunk_paths < 1:
-        chunk_paths = CUDA_CHUNK_PATHS if cuda else CPU_CHUNK_PATHS
-    chunk = min(config.paths, chunk_paths)
-    n_times = len(config.times)
-    n_cols = config.hist_bins + 2
-    bs = config.batch_size
-    batches_in_chunk = min(config.n_batches, max(1, -(-chunk // bs)))
-
-    state = chunk * STATE_BYTES_PER_PATH[precision]
-    sums = config.n_batches * n_times * N_SUMS * 8
-    chunk_sums = batches_in_chunk * n_times * N_SUMS * 8
-    hist = n_times * n_cols * 8  # the run's total
-    chunk_hist = n_times * n_cols * 8 + batches_in_chunk * n_cols * 8  # the chunk's, and per batch
-    edges = n_times * (config.hist_bins + 1) * 8
-    # ... and the output Dataset, about sums + hist + edges again (counted in the parts below)
-
-    # Attribute each part to the parameter that makes it large (relative to its default).
-    times_name = "n_times"
-    r_times = n_times / _DEFAULT_N_TIMES
-    hist_name = "hist_bins" if config.hist_bins / _DEFAULT_HIST_BINS >= r_times else times_name
-    sums_name = "n_batches" if config.n_batches / _DEFAULT_N_BATCHES >= r_times else times_name
-    state_name = "chunk_paths" if chunk == chunk_paths and chunk < config.paths else "paths"
-    parts = [
-        ("histograms and their edges", hist + chunk_hist + edges + hist + edges, hist_name),
-        ("per-batch sums", sums + chunk_sums + sums, sums_name),
-    ]
+    given = _valid_chunk(chunk_paths)
+    chunk = min(config.paths, chunk_paths if given else (CUDA_CHUNK_PATHS if cuda else CPU_CHUNK_PATHS))
+    parts = _memory_parts(paths=config.paths, chunk=chunk, chunk_given=given, batch_size=config.batch_size,
+                          n_batches=config.n_batches, n_times=len(config.times), hist_bins=config.hist_bins,
+                          bytes_per_path=STATE_BYTES_PER_PATH[precision])
     device = 0
-    if cuda:
-        device = state
-    else:
-        parts.append(("path state", state, state_name))
-    parts.sort(key=lambda p: -p[1])
-    memory = sum(p[1] for p in parts)  # = state + sums + chunk_sums + hist + chunk_hist + edges + dataset
-
+    if cuda:  # the state lives on the GPU
+        device = next(b for label, b, _ in parts if label == "path state")
+        parts = [p for p in parts if p[0] != "path state"]
     min_steps = float(config.paths) * config.t_max / config.h_max
-    if not math.isfinite(min_steps):
-        min_steps = math.inf
-    if cuda:
-        rate, workers = GPU_PATH_STEPS_PER_S, "the GPU"
-    else:
-        cores = _cores(threads)
-        rate = CPU_PATH_STEPS_PER_S_PER_CORE * cores
-        workers = f"{cores} CPU core" + ("s" if cores > 1 else "")
+    rate, workers = _rate(cuda, threads)
     return Estimate(
-        memory_bytes=int(memory), min_path_steps=min_steps, seconds=min_steps / rate,
+        memory_bytes=int(sum(p[1] for p in parts)), min_path_steps=min_steps, seconds=min_steps / rate,
         device_bytes=int(device), chunk_paths=int(chunk), backend="cuda" if cuda else "cpu",
         precision=precision, workers=workers, rate=rate, parts=tuple(parts),
+    )
+
+
+#: Per-path state of the reduced dynamics (stochpend.reduced): the energy variable, the status,
+#: the final energies, and xi for the second order.
+REDUCED_BYTES_PER_PATH = 8 + 1 + 8
+REDUCED_CHUNK_PATHS = 1 << 18  # stochpend.reduced.DEFAULT_CHUNK_PATHS
+
+
+def estimate_reduced(config: Any, *, chunk_paths: int | None = None, threads: int | None = None,
+                     keep_energies: bool = False) -> Estimate:
+    """:func:`estimate` for :func:`stochpend.reduced.simulate_reduced` (a ``ReducedConfig``).
+
+    Its runner advances whole batches (a chunk is at least one batch); the work is
+    ``paths * t_max / h_max`` steps for the second order and one exact transition per path and
+    output time for the others. ``keep_energies``: the run also returns every path's final
+    energy (:func:`stochpend.reduced.sample_reduced`, 8 bytes a path).
+    """
+    given = _valid_chunk(chunk_paths)
+    bs = config.batch_size
+    chunk = min(config.paths, max(1, (chunk_paths if given else REDUCED_CHUNK_PATHS) // bs) * bs)
+    per_path = REDUCED_BYTES_PER_PATH + (8 if config.order == "second" else 0)
+    parts = _memory_parts(paths=config.paths, chunk=chunk, chunk_given=given, batch_size=bs,
+                          n_batches=config.n_batches, n_times=len(config.times), hist_bins=config.hist_bins,
+                          bytes_per_path=per_path)
+    if keep_energies:
+        parts = sorted([*parts, ("per-path energies", 8 * config.paths, "paths")], key=lambda p: -p[1])
+    if config.order == "second":
+        min_steps = float(config.paths) * config.t_max / config.h_max
+    else:
+        min_steps = float(config.paths) * len(config.times)
+    rate, workers = _rate(False, threads)
+    return Estimate(
+        memory_bytes=int(sum(p[1] for p in parts)), min_path_steps=min_steps, seconds=min_steps / rate,
+        chunk_paths=int(chunk), workers=workers, rate=rate, parts=tuple(parts),
     )
 
 
@@ -240,6 +281,31 @@ _ADVICE = {
 }
 
 
+def _refuse_memory(est: Estimate, values: dict[str, Any]) -> None:
+    available = available_memory()
+    if available is not None and est.memory_bytes > available:
+        _, _, name = est.parts[0]
+        detail = ", ".join(f"{label} {format_bytes(b)}" for label, b, _ in est.parts)
+        raise ValueError(
+            f"{name}={short_repr(values[name])} is not accepted: the run needs {format_bytes(est.memory_bytes)} "
+            f"of memory ({detail}) and this machine has {format_bytes(available)} available; {_ADVICE[name]}"
+        )
+
+
+def _refuse_work(est: Estimate, limit: float, factors: dict[str, float], values: dict[str, Any],
+                 formula: str, advice: str = "use fewer paths, a shorter t_max or a larger h_max") -> None:
+    if est.min_path_steps <= limit:
+        return
+    name = max(factors, key=lambda k: factors[k])  # the one furthest above its default
+    if factors[name] <= 1.0:  # none is: the limit itself is small; paths is the usual knob
+        name = "paths"
+    raise ValueError(
+        f"{name}={short_repr(values[name])} is not accepted: the run needs at least {est.min_path_steps:.3g} "
+        f"path-steps ({formula}), roughly {format_seconds(est.seconds)} on {est.workers}, above the limit "
+        f"of {limit:.3g}; {advice}, or raise the limit with max_path_steps= (--max-path-steps)"
+    )
+
+
 def check(
     config: SimulationConfig,
     *,
@@ -258,33 +324,35 @@ def check(
     """
     limit = work_limit(max_path_steps)
     est = estimate(config, backend=backend, precision=precision, chunk_paths=chunk_paths, threads=threads)
+    values = {"hist_bins": config.hist_bins, "n_times": len(config.times), "n_batches": config.n_batches,
+              "chunk_paths": est.chunk_paths, "paths": config.paths, "t_max": config.t_max,
+              "h_max": config.h_max}
+    _refuse_memory(est, values)
+    factors = {"paths": config.paths / _DEFAULT_PATHS, "t_max": config.t_max / _DEFAULT_T_MAX,
+               "h_max": DEFAULT_H_MAX / config.h_max}
+    _refuse_work(est, limit, factors, values,
+                 f"paths x t_max / h_max = {config.paths} x {config.t_max:g} / {config.h_max:g}")
+    return est
 
-    available = available_memory()
-    if available is not None and est.memory_bytes > available:
-        label, _, name = est.parts[0]
-        value = {"hist_bins": config.hist_bins, "n_times": len(config.times), "n_batches": config.n_batches,
-                 "chunk_paths": est.chunk_paths, "paths": config.paths}[name]
-        detail = ", ".join(f"{lbl} {format_bytes(b)}" for lbl, b, _ in est.parts)
-        raise ValueError(
-            f"{name}={value!r} is not accepted: the run needs {format_bytes(est.memory_bytes)} of memory "
-            f"({detail}) and this machine has {format_bytes(available)} available; {_ADVICE[name]}"
-        )
 
-    if est.min_path_steps > limit:
-        factors = {
-            "paths": config.paths / _DEFAULT_PATHS,
-            "t_max": config.t_max / _DEFAULT_T_MAX,
-            "h_max": DEFAULT_H_MAX / config.h_max,
-        }
-        name = max(factors, key=lambda k: factors[k])  # the one furthest above its default
-        if factors[name] <= 1.0:  # none is: the limit itself is small; paths is the usual knob
-            name = "paths"
-        value = {"paths": config.paths, "t_max": config.t_max, "h_max": config.h_max}[name]
-        raise ValueError(
-            f"{name}={value!r} is not accepted: the run needs at least {est.min_path_steps:.3g} path-steps "
-            f"(paths x t_max / h_max = {config.paths} x {config.t_max:g} / {config.h_max:g}), roughly "
-            f"{format_seconds(est.seconds)} on {est.workers}, above the limit of {limit:.3g}; use fewer "
-            "paths, a shorter t_max or a larger h_max, or raise the limit with max_path_steps= "
-            "(--max-path-steps)"
-        )
+def check_reduced(config: Any, *, chunk_paths: int | None = None, max_path_steps: float | None = None,
+                  threads: int | None = None, keep_energies: bool = False) -> Estimate:
+    """:func:`check` for the reduced dynamics (a ``stochpend.reduced.ReducedConfig``)."""
+    limit = work_limit(max_path_steps)
+    est = estimate_reduced(config, chunk_paths=chunk_paths, threads=threads, keep_energies=keep_energies)
+    n_times = len(config.times)
+    values = {"hist_bins": config.hist_bins, "n_times": n_times, "n_batches": config.n_batches,
+              "chunk_paths": est.chunk_paths, "paths": config.paths, "t_max": config.t_max,
+              "h_max": config.h_max}
+    _refuse_memory(est, values)
+    if config.order == "second":
+        factors = {"paths": config.paths / _DEFAULT_PATHS, "t_max": config.t_max / _DEFAULT_T_MAX,
+                   "h_max": 0.05 * config.tau / config.h_max}
+        formula = f"paths x t_max / h_max = {config.paths} x {config.t_max:g} / {config.h_max:g}"
+        advice = "use fewer paths, a shorter t_max or a larger h_max"
+    else:
+        factors = {"paths": config.paths / _DEFAULT_PATHS, "n_times": n_times / _DEFAULT_N_TIMES}
+        formula = f"paths x output times = {config.paths} x {n_times}"
+        advice = "use fewer paths or output times"
+    _refuse_work(est, limit, factors, values, formula, advice)
     return est
