@@ -162,9 +162,9 @@ def _memory_parts(*, paths: int, chunk: int, chunk_given: bool, batch_size: int,
     chunk_hist = n_times * n_cols * 8 + batches_in_chunk * n_cols * 8  # the chunk's, and per batch
     edges = n_times * (hist_bins + 1) * 8
     # The output Dataset holds about sums + hist + edges again: counted twice below.
-    r_times = n_times / _DEFAULT_N_TIMES
-    hist_name = "hist_bins" if hist_bins / _DEFAULT_HIST_BINS >= r_times else "n_times"
-    sums_name = "n_batches" if n_batches / _DEFAULT_N_BATCHES >= r_times else "n_times"
+    # x/x_default >= n_times/40, in integers (hist_bins may be any int, even 10**400)
+    hist_name = "hist_bins" if hist_bins * _DEFAULT_N_TIMES >= n_times * _DEFAULT_HIST_BINS else "n_times"
+    sums_name = "n_batches" if n_batches * _DEFAULT_N_TIMES >= n_times * _DEFAULT_N_BATCHES else "n_times"
     state_name = "chunk_paths" if chunk_given and chunk < paths else "paths"
     parts = [
         ("histograms and their edges", 2 * hist + chunk_hist + 2 * edges, hist_name),
