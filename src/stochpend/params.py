@@ -218,7 +218,7 @@ class SimulationConfig:
         if omega < 0 or omega > MAX_OMEGA:
             _fail("omega", omega, omega_accepted)
         paths = _integer("paths", paths, "paths must be an integer in [1, 2**63)", 1, MAX_PATHS)
-        t_max_accepted = f"t_max must be a finite number > 0, in [{MIN_T_MAX:g}, {MAX_T_MAX:g}]"
+        t_max_accepted = f"t_max must be a finite number in [{MIN_T_MAX:g}, {MAX_T_MAX:g}]"
         t_max = _finite("t_max", t_max, t_max_accepted)
         if not MIN_T_MAX <= t_max <= MAX_T_MAX:
             _fail("t_max", t_max, t_max_accepted)
