@@ -102,3 +102,34 @@ def test_api_refuses_before_any_work():
         stochpend.simulate(paths=10, t_max=1.0, max_path_steps=0)
     with pytest.raises(ValueError, match=r"^paths=100 is not accepted"):
         stochpend.simulate(paths=100, t_max=1.0, n_times=1, max_path_steps=10)
+
+
+class _Started(Exception):
+    pass
+
+
+def _start_then_stop(config, *, progress, **kwargs):
+    progress.start(1.0, "simulating")
+    raise _Started
+
+
+@pytest.mark.parametrize("args,long_run", [
+    (["--paths", "1e6", "--t-max", "1000"], True),  # 2e10 path-steps: minutes
+    (["--paths", "10", "--t-max", "1"], False),
+])
+def test_cli_announces_long_runs_even_when_quiet(args, long_run):
+    from unittest import mock
+
+    from typer.testing import CliRunner
+
+    from stochpend.cli import app
+
+    with mock.patch("stochpend.simulate.run", _start_then_stop):
+        result = CliRunner().invoke(app, ["simulate", "--quiet", *args])
+    assert isinstance(result.exception, _Started), result.output
+    lines = [ln for ln in result.output.splitlines() if ln.strip()]
+    if long_run:
+        assert len(lines) == 1 and lines[0].startswith("estimate: at least 2e+10 path-steps"), result.output
+        assert "peak memory" in lines[0]
+    else:
+        assert lines == [], result.output
