@@ -11,6 +11,7 @@ from typing import Annotated, Any
 
 import typer
 
+from stochpend._cli_types import integer
 from stochpend.cli import console, handles_errors
 
 __all__ = ["RichReproduceProgress", "reproduce_command"]
@@ -99,7 +100,7 @@ def reproduce_command(
     figures: Annotated[list[str] | None, typer.Argument(
         help="Figures to reproduce: fig1, fig2, fig3, fig4, exponents (the scaling-exponent table, docs/scaling.md) or all (default all).")] = None,
     paths: Annotated[int | None, typer.Option(
-        help="Realizations per run (default 10000, as in the paper; 500 with --quick).")] = None,
+        parser=integer, help="Realizations per run (default 10000, as in the paper; 500 with --quick).")] = None,
     t_max: Annotated[float | None, typer.Option(
         "--t-max", help="Final time of every run of the chosen figures (default: per run, see docs/reproduction.md; "
                         "e.g. 'fig4 --t-max 1e5 --paths 1000' shows the tau = 0.01 crossover).")] = None,
@@ -109,7 +110,8 @@ def reproduce_command(
         help="Small ensembles and short times (t_max = 100): a smoke test, not a reproduction.")] = False,
     force: Annotated[bool, typer.Option(
         help="Simulate again even when a stored run matches (default: reuse cached NetCDF).")] = False,
-    threads: Annotated[int | None, typer.Option(help="CPU threads (results do not depend on it).")] = None,
+    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps each, paths x t_max / h_max (default 1e13; inf: no limit).")] = None,
     backend: Annotated[str, typer.Option(help="cpu, cuda (an NVIDIA GPU) or auto (the GPU when one is usable).")] = "cpu",
     precision: Annotated[str, typer.Option(help="float64 or float32 (float32 needs --backend cuda).")] = "float64",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars and no tables.")] = False,
@@ -123,7 +125,8 @@ def reproduce_command(
 
     progress = RichProgressOrLines(enabled=not quiet and console.is_terminal, quiet=quiet)
     result = reproduce(figures or ["all"], paths=paths, t_max=t_max, out=out, quick=quick, force=force,
-                       progress=progress, threads=threads, backend=backend, precision=precision)
+                       progress=progress, threads=threads, max_path_steps=max_path_steps,
+                       backend=backend, precision=precision)
     if quiet:
         return
     for f in result.figures.values():

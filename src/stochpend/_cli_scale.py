@@ -22,6 +22,8 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
+from stochpend._cli_types import integer
+
 __all__ = [
     "SweepProgressBar",
     "parse_duration",
@@ -136,7 +138,7 @@ def resume_command(
     checkpoint: Annotated[Path, typer.Argument(help="A checkpoint written by 'stochpend simulate --checkpoint'.")],
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the result here instead of the original command's --out.")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing output file.")] = False,
-    threads: Annotated[int | None, typer.Option(help="CPU threads (results do not depend on it).")] = None,
+    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
 ) -> None:
@@ -268,8 +270,9 @@ def sweep_command(
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
     scheduler: Annotated[str | None, typer.Option(help="Where tasks run: default in this process; 'threads' or 'sync' (Dask, no server); 'local' (a Dask LocalCluster); or a scheduler address, e.g. tcp://HOST:8786.")] = None,
-    workers: Annotated[int | None, typer.Option(help="Threads ('threads') or worker processes ('local'); default: the CPU count.")] = None,
-    tasks_per_set: Annotated[int | None, typer.Option("--tasks-per-set", help="Blocks of batches per parameter set (results do not depend on it).")] = None,
+    workers: Annotated[int | None, typer.Option(parser=integer, help="Threads ('threads') or worker processes ('local'); default: the CPU count.")] = None,
+    tasks_per_set: Annotated[int | None, typer.Option("--tasks-per-set", parser=integer, help="Blocks of batches per parameter set (results do not depend on it).")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse sweeps needing more than this many path-steps in all, the sum of paths x t_max / h_max (default 1e13; inf: no limit).")] = None,
     backend: Annotated[str, typer.Option(help="Where each block runs: cpu, cuda (the GPU of the process or Dask worker running it) or auto.")] = "cpu",
     precision: Annotated[str, typer.Option(help="float64 or float32 (float32 needs --backend cuda).")] = "float64",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
@@ -283,6 +286,7 @@ def sweep_command(
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
     plan = load_spec(spec)  # the whole file is validated before any work
+    _check_resources(plan, spec, max_path_steps)
     check_scheduler(scheduler)
     from stochpend.simulate import check_precision, resolve_backend
 
@@ -306,6 +310,26 @@ def sweep_command(
             cli.console.print(f"wrote {out}")
 
 
+def _check_resources(plan: Any, spec: Path, max_path_steps: float | None) -> None:
+    """Every parameter set must fit in memory, and all together within the work limit."""
+    from stochpend import resources
+
+    limit = resources.work_limit(max_path_steps)
+    n = len(plan.configs)
+    total = 0.0
+    for i, config in enumerate(plan.configs):
+        try:
+            total += resources.check(config, max_path_steps=limit).min_path_steps
+        except ValueError as exc:
+            raise ValueError(f"{exc} (sweep {str(spec)!r}, parameter set {i + 1} of {n})") from None
+    if total > limit:
+        raise ValueError(
+            f"sweep={str(spec)!r} is not accepted: its {n} parameter sets need at least {total:.3g} "
+            f"path-steps in all (the sum of paths x t_max / h_max), above the limit of {limit:.3g}; "
+            "sweep fewer or smaller sets, or raise the limit with --max-path-steps"
+        )
+
+
 # -- stand-alone runner (tests; the real entry point is `stochpend simulate --checkpoint`) ----
 _runner = typer.Typer(name="stochpend-scale", add_completion=False, pretty_exceptions_enable=False,
                       no_args_is_help=True)
@@ -322,11 +346,11 @@ def _simulate_ckpt_command(
     D: Annotated[float, typer.Option("--D", help="Noise amplitude.")] = 1.0,
     tau: Annotated[float, typer.Option("--tau", help="OU correlation time.")] = 1.0,
     omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency.")] = 1.0,
-    paths: Annotated[int, typer.Option(help="Number of realizations.")] = 10_000,
+    paths: Annotated[int, typer.Option(parser=integer, help="Number of realizations.")] = 10_000,
     t_max: Annotated[float, typer.Option("--t-max", help="Final time.")] = 1000.0,
-    n_times: Annotated[int, typer.Option("--n-times", help="Number of output times.")] = 40,
-    seed: Annotated[int, typer.Option(help="Seed.")] = 0,
-    threads: Annotated[int | None, typer.Option(help="CPU threads.")] = None,
+    n_times: Annotated[int, typer.Option("--n-times", parser=integer, help="Number of output times.")] = 40,
+    seed: Annotated[int, typer.Option(parser=integer, help="Seed.")] = 0,
+    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads.")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="NetCDF output.")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,

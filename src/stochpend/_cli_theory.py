@@ -20,6 +20,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
+from stochpend._cli_types import integer
 from stochpend.cli import _fmt, console, handles_errors, parse_times, summary_table
 
 __all__ = ["bfpe_command", "bfpe_table", "reduced_command", "reduced_table", "theory_command", "theory_table"]
@@ -101,9 +102,9 @@ def bfpe_command(
     D: Annotated[float, typer.Option("--D", help="OU noise amplitude D > 0.")] = 1.0,
     tau: Annotated[float, typer.Option("--tau", help="OU correlation time tau > 0.")] = 0.1,
     t_max: Annotated[float, typer.Option("--t-max", help="Last time, > 0.")] = 1e5,
-    n_times: Annotated[int, typer.Option("--n-times", help="Number of log-spaced output times in [t_max/1000, t_max].")] = 40,
-    n_cells: Annotated[int, typer.Option("--n-cells", help="Finite-volume cells on the half line Omega >= 0.")] = 1000,
-    steps_per_decade: Annotated[int, typer.Option("--steps-per-decade", help="Time steps per decade of t.")] = 100,
+    n_times: Annotated[int, typer.Option("--n-times", parser=integer, help="Number of log-spaced output times from t_max/1000 to t_max.")] = 40,
+    n_cells: Annotated[int, typer.Option("--n-cells", parser=integer, help="Finite-volume cells on the half line Omega >= 0.")] = 1000,
+    steps_per_decade: Annotated[int, typer.Option("--steps-per-decade", parser=integer, help="Time steps per decade of t.")] = 100,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the solution as NetCDF (atomically).")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No table.")] = False,
@@ -161,14 +162,15 @@ def reduced_command(
     D: Annotated[float, typer.Option("--D", help="OU noise amplitude D > 0.")] = 1.0,
     tau: Annotated[float, typer.Option("--tau", help="OU correlation time tau > 0.")] = 1.0,
     omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency omega >= 0 (enters the second order only).")] = 1.0,
-    paths: Annotated[int, typer.Option(help="Number of realizations.")] = 10_000,
+    paths: Annotated[int, typer.Option(parser=integer, help="Number of realizations (1e6 is accepted).")] = 10_000,
     t_max: Annotated[float, typer.Option("--t-max", help="Final time.")] = 1000.0,
-    n_times: Annotated[int, typer.Option("--n-times", help="Number of log-spaced output times in [t_max/1000, t_max].")] = 40,
+    n_times: Annotated[int | None, typer.Option("--n-times", parser=integer, help="Number of log-spaced output times from t_max/1000 to t_max (default 40; not with --times).")] = None,
     times: Annotated[str | None, typer.Option(help="Explicit output times, comma-separated, e.g. 10,100,1000.")] = None,
-    seed: Annotated[int, typer.Option(help="Seed in [0, 2^64) (the reduced dynamics have their own Philox stream).")] = 0,
+    seed: Annotated[int, typer.Option(parser=integer, help="Seed in [0, 2^64) (the reduced dynamics have their own Philox stream).")] = 0,
     E0: Annotated[float, typer.Option("--E0", help="Initial energy E0 >= 0.")] = 0.0,
     h_max: Annotated[float | None, typer.Option("--h-max", help="Second-order time step (default 0.05 tau).")] = None,
-    threads: Annotated[int | None, typer.Option(help="CPU threads (results do not depend on it).")] = None,
+    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps (paths x t_max / h_max for the second order, paths x output times otherwise; default 1e13; inf: no limit).")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No table.")] = False,
@@ -180,12 +182,17 @@ def reduced_command(
 
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
+    if times is not None and n_times is not None:
+        raise ValueError(f"n_times={n_times!r} is not accepted with --times: give either --times "
+                         "(explicit output times) or --n-times (log-spaced), not both")
+    if n_times is None:
+        n_times = 40
     kwargs: dict[str, Any] = {
         "D": D, "tau": tau, "omega": omega, "paths": paths, "t_max": t_max, "times": parse_times(times),
         "n_times": n_times, "seed": seed, "E0": E0, "h_max": h_max,
     }
     ReducedConfig.build(order, **kwargs)  # validate before the JIT compiles
-    ds = simulate_reduced(order, threads=threads, **kwargs)
+    ds = simulate_reduced(order, threads=threads, max_path_steps=max_path_steps, **kwargs)
     ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
     if out is not None:
         io.to_netcdf(ds, out, overwrite=overwrite)
@@ -200,7 +207,7 @@ def reduced_command(
 
 @handles_errors
 def scaling_command(
-    n: Annotated[int, typer.Option("--n", help="Exponent n of the power potential U = x^2n/2n (n >= 2).")] = 2,
+    n: Annotated[int, typer.Option("--n", parser=integer, help="Exponent n of the power potential U = x^2n/2n (n >= 2).")] = 2,
     debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
 ) -> None:
     """Print the predicted long-time growth of <E> for every oscillator, coupling and noise

@@ -1,7 +1,9 @@
 """Command line: a thin layer over the Python API (Typer + Rich).
 
 Known errors print one red line on stderr and exit with code 2; ``--debug`` shows the
-traceback. Human output goes to stderr, so that stdout stays clean for pipes.
+traceback. Usage errors (a value the option's type refuses, an unknown option, a missing
+argument) are one such line too. Integer options accept whole numbers in scientific notation
+(``--paths 1e6``). Human output goes to stderr, so that stdout stays clean for pipes.
 """
 
 from __future__ import annotations
@@ -17,15 +19,10 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
+from typer.core import TyperGroup
 
-app = typer.Typer(
-    name="stochpend",
-    help="Ensembles of the stochastic pendulum with parametric white or Ornstein-Uhlenbeck noise "
-    "(Mallick & Marcq 2004): simulate, compare with theory, reproduce the paper.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-)
+from stochpend._cli_types import integer, usage_message
+
 console = Console(stderr=True, width=None if sys.stderr.isatty() else 140)
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -35,6 +32,42 @@ def fail(message: str, code: int = 2) -> None:
     """Print one red line and exit."""
     console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
     raise typer.Exit(code)
+
+
+class OneLineErrorsGroup(TyperGroup):
+    """The app's command group: usage errors become the project's one red line and exit
+    code 2, instead of Typer's usage block and boxed message (``--help`` is unchanged).
+
+    Both hooks are needed: the group's own arguments are parsed in ``make_context``, a
+    subcommand's options in ``invoke``.
+    """
+
+    def make_context(self, *args: Any, **kwargs: Any) -> Any:
+        try:
+            return super().make_context(*args, **kwargs)
+        except typer.TyperException as exc:
+            if type(exc).__name__ == "NoArgsIsHelpError":  # 'stochpend' alone: the help
+                raise
+            fail(usage_message(exc))
+
+    def invoke(self, ctx: Any) -> Any:
+        try:
+            return super().invoke(ctx)
+        except typer.TyperException as exc:
+            if type(exc).__name__ == "NoArgsIsHelpError":
+                raise
+            fail(usage_message(exc))
+
+
+app = typer.Typer(
+    name="stochpend",
+    help="Ensembles of the stochastic pendulum with parametric white or Ornstein-Uhlenbeck noise "
+    "(Mallick & Marcq 2004): simulate, compare with theory, reproduce the paper.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    cls=OneLineErrorsGroup,
+)
 
 
 def handles_errors(fn: F) -> F:
@@ -75,14 +108,22 @@ def parse_theta0(text: str) -> float | str:
 
 
 class RichProgress:
-    """A Rich progress bar with rate and ETA; implements :class:`stochpend.progress.Progress`."""
+    """A Rich progress bar with rate and ETA; implements :class:`stochpend.progress.Progress`.
 
-    def __init__(self, enabled: bool) -> None:
+    ``announce``: a line printed when the run starts (after every check), even when the bar
+    is disabled (--quiet): the estimate of a long run.
+    """
+
+    def __init__(self, enabled: bool, announce: str | None = None) -> None:
         self.enabled = enabled
+        self.announce = announce
         self._progress: Any = None
         self._task: Any = None
 
     def start(self, total: float, description: str) -> None:
+        if self.announce:
+            console.print(self.announce, highlight=False, soft_wrap=True)
+            self.announce = None
         if not self.enabled:
             return
         from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -177,21 +218,22 @@ def simulate(
     omega_noise: Annotated[float | None, typer.Option("--omega-noise", help="Harmonic noise only: its oscillator frequency W (default 2/tau, critical damping).")] = None,
     omega: Annotated[float, typer.Option("--omega", help="Oscillator frequency omega >= 0.")] = 1.0,
     potential: Annotated[str, typer.Option(help="Oscillator: 'pendulum' (U = -cos x), 'harmonic' (x^2/2) or 'power' (x^2n/2n, see --n).")] = "pendulum",
-    n: Annotated[int, typer.Option("--n", help="Exponent n of the power potential U = x^2n/2n (n >= 1).")] = 2,
+    n: Annotated[int, typer.Option("--n", parser=integer, help="Exponent n of the power potential U = x^2n/2n (n >= 1).")] = 2,
     coupling: Annotated[str, typer.Option(help="The noise multiplies the force U'(x) ('force', the pendulum's) or x ('position', the random-frequency oscillator).")] = "force",
-    paths: Annotated[int, typer.Option(help="Number of realizations.")] = 10_000,
+    paths: Annotated[int, typer.Option(parser=integer, help="Number of realizations (1e6 is accepted).")] = 10_000,
     t_max: Annotated[float, typer.Option("--t-max", help="Final time (units of the paper).")] = 1000.0,
-    n_times: Annotated[int, typer.Option("--n-times", help="Number of log-spaced output times in [t_max/1000, t_max].")] = 40,
+    n_times: Annotated[int | None, typer.Option("--n-times", parser=integer, help="Number of log-spaced output times from t_max/1000 to t_max (default 40; not with --times).")] = None,
     times: Annotated[str | None, typer.Option(help="Explicit output times, comma-separated, e.g. 10,100,1000.")] = None,
-    seed: Annotated[int, typer.Option(help="Seed in [0, 2^64): fixes every number, whatever threads or chunks.")] = 0,
+    seed: Annotated[int, typer.Option(parser=integer, help="Seed in [0, 2^64): fixes every number, whatever threads or chunks.")] = 0,
     theta0: Annotated[str, typer.Option("--theta0", help="Initial angle (radians) or 'uniform' on [-pi, pi).")] = "uniform",
     Omega0: Annotated[float, typer.Option("--Omega0", help="Initial angular velocity.")] = 0.0,
     h_max: Annotated[float | None, typer.Option("--h-max", help="Largest time step.")] = None,
     step_c: Annotated[float | None, typer.Option("--step-c", help="Step control c: h <= c/|Omega| and c/sqrt(|omega^2+xi|); 0 = fixed step.")] = None,
-    hist_bins: Annotated[int | None, typer.Option("--hist-bins", help="Energy histogram bins.")] = None,
+    hist_bins: Annotated[int | None, typer.Option("--hist-bins", parser=integer, help="Energy histogram bins.")] = None,
     backend: Annotated[str, typer.Option(help="Where to run: cpu, cuda, or auto (the GPU when usable).")] = "cpu",
     precision: Annotated[str, typer.Option(help="float64 (default) or float32 (CUDA backend only).")] = "float64",
-    threads: Annotated[int | None, typer.Option(help="CPU threads (results do not depend on it).")] = None,
+    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps, paths x t_max / h_max (default 1e13, hours on a GPU; inf: no limit).")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
     checkpoint: Annotated[Path | None, typer.Option(help="Save the run's state to this file periodically and on Ctrl-C; continue with 'stochpend resume FILE'.")] = None,
@@ -200,11 +242,16 @@ def simulate(
     debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
 ) -> None:
     """Simulate an ensemble and print the energy statistics (optionally save them as NetCDF)."""
-    from stochpend import io, params
+    from stochpend import io, params, resources
     from stochpend.simulate import simulate as run_simulation
 
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
+    if times is not None and n_times is not None:
+        raise ValueError(f"n_times={n_times!r} is not accepted with --times: give either --times "
+                         "(explicit output times) or --n-times (log-spaced), not both")
+    if n_times is None:
+        n_times = 40
     kwargs: dict[str, Any] = {}
     if h_max is not None:
         kwargs["h_max"] = h_max
@@ -221,7 +268,12 @@ def simulate(
     )
     if checkpoint_every is not None and checkpoint is None:
         raise ValueError(f"checkpoint_every={checkpoint_every!r} is not accepted: it needs --checkpoint FILE")
-    progress = RichProgress(enabled=not quiet and console.is_terminal)
+    # Memory and work, before any work: a run that cannot fit or would not end is refused.
+    estimate = resources.check(config, backend=backend, precision=precision, max_path_steps=max_path_steps,
+                               threads=threads)
+    # A long run prints its estimate when it starts (after the remaining checks), even with --quiet.
+    announce = f"estimate: {estimate.describe()}" if estimate.seconds > resources.LONG_RUN_S else None
+    progress = RichProgress(enabled=not quiet and console.is_terminal, announce=announce)
     if checkpoint is not None:
         from stochpend._cli_scale import parse_duration, simulate_with_checkpoint
 
@@ -236,7 +288,7 @@ def simulate(
         ds = run_simulation(
             noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max, times=parse_times(times),
             n_times=n_times, seed=seed, theta0=parse_theta0(theta0), Omega0=Omega0, backend=backend,
-            threads=threads, progress=progress, precision=precision, **kwargs,
+            threads=threads, progress=progress, precision=precision, max_path_steps=max_path_steps, **kwargs,
         )
         ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
         if out is not None:
@@ -258,11 +310,13 @@ def simulate(
 @handles_errors
 def show(
     path: Annotated[Path, typer.Argument(help="A results file written by 'stochpend simulate --out'.")],
-    rows: Annotated[int, typer.Option(help="Maximum number of rows.")] = 12,
+    rows: Annotated[int, typer.Option(parser=integer, help="Maximum number of rows.")] = 12,
 ) -> None:
     """Print the summary table of a saved run."""
     from stochpend import io
 
+    if rows < 1:
+        raise ValueError(f"rows={rows!r} is not accepted: an integer >= 1")
     ds = io.open_results(path)
     if "mean_E" not in ds:
         raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend simulation result (no mean_E)")

@@ -70,6 +70,8 @@ def to_netcdf(ds: xr.Dataset, path: str | os.PathLike, *, overwrite: bool = Fals
 def open_results(path: str | os.PathLike) -> xr.Dataset:
     """Open a results file written by :func:`to_netcdf` (loaded into memory, file closed)."""
     p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"path={str(p)!r} is not accepted: it is a directory, not a results file")
     if not p.is_file():
         raise ValueError(f"path={str(p)!r} is not accepted: no such file")
     try:

@@ -27,32 +27,66 @@ DEFAULT_H_MAX = 0.05
 DEFAULT_STEP_C = 0.1
 DEFAULT_HIST_BINS = 100
 DEFAULT_N_BATCHES = 100
+#: Largest accepted sizes. paths: the global path index is a 64-bit counter of the random
+#: streams. n_times: the default grid is allocated while validating (the memory of larger
+#: outputs is checked by stochpend.resources). power_n: beyond it x**(2n) overflows for any
+#: |x| > 1.42, a hard wall rather than an oscillator. omega: omega**2 must stay finite.
+MAX_PATHS = 2**63 - 1
+MAX_N_TIMES = 1_000_000
+MAX_POWER_N = 1000
+MAX_OMEGA = 1e150
+#: Range of t_max: the default output grid, log-spaced from t_max/1000, must be representable.
+MIN_T_MAX = 1e-300
+MAX_T_MAX = 1e300
+
+
+def short_repr(value: Any, limit: int = 80) -> str:
+    """``repr(value)`` on one line, shortened to about ``limit`` characters (error messages)."""
+    try:
+        text = repr(value)
+    except Exception:  # a broken __repr__ must not hide the refusal
+        text = f"<{type(value).__name__}>"
+    text = " ".join(text.split())
+    if len(text) > limit:
+        text = text[: limit - 5] + " ...)" if text.endswith(")") else text[: limit - 4] + " ..."
+    return text
 
 
 def _fail(name: str, value: Any, accepted: str) -> None:
-    raise ValueError(f"{name}={value!r} is not accepted: {accepted}")
+    raise ValueError(f"{name}={short_repr(value)} is not accepted: {accepted}")
 
 
 def _finite(name: str, value: Any, accepted: str) -> float:
+    if isinstance(value, (complex, np.complexfloating)):
+        _fail(name, value, accepted)
     try:
         v = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         _fail(name, value, accepted)
     if not math.isfinite(v):
         _fail(name, value, accepted)
     return v
 
 
-def _integer(name: str, value: Any, accepted: str, minimum: int) -> int:
+def _integer(name: str, value: Any, accepted: str, minimum: int, maximum: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         if isinstance(value, float) and value.is_integer():
             value = int(value)
         else:
             _fail(name, value, accepted)
     v = int(value)
-    if v < minimum:
+    if v < minimum or (maximum is not None and v > maximum):
         _fail(name, value, accepted)
     return v
+
+
+def _float_array(value: Any) -> np.ndarray:
+    """``np.asarray(value, float64)``, refusing complex numbers (TypeError) instead of
+    dropping their imaginary part."""
+    raw = np.asarray(value)
+    if raw.dtype.kind == "c":
+        raise TypeError("complex numbers are not accepted")
+    return raw.astype(np.float64)
 
 
 @dataclass(frozen=True)
@@ -158,6 +192,9 @@ class SimulationConfig:
         if noise_piece.uses_omega_noise:
             if omega_noise is None:
                 omega_noise = noise_piece.default_omega_noise(tau)
+                if not math.isfinite(omega_noise):
+                    _fail("tau", tau, "tau too small for the default omega_noise (it overflows); "
+                          "give omega_noise")
             omega_noise = _finite(
                 "omega_noise", omega_noise,
                 "omega_noise must be a finite number > 0 (the harmonic noise's frequency W)")
@@ -168,25 +205,28 @@ class SimulationConfig:
             users = [n for n in _noises.names() if _noises.get(n).uses_omega_noise]
             _fail("omega_noise", omega_noise,
                   f"omega_noise applies to noise={' or '.join(repr(n) for n in users)} only")
-        omega = _finite("omega", omega, "omega must be a finite number >= 0 (the pendulum frequency)")
-        if omega < 0:
-            _fail("omega", omega, "omega must be a finite number >= 0 (the pendulum frequency)")
-        paths = _integer("paths", paths, "paths must be an integer >= 1", 1)
-        t_max = _finite("t_max", t_max, "t_max must be a finite number > 0")
-        if t_max <= 0:
-            _fail("t_max", t_max, "t_max must be a finite number > 0")
+        omega_accepted = f"omega must be a finite number in [0, {MAX_OMEGA:g}] (the pendulum frequency)"
+        omega = _finite("omega", omega, omega_accepted)
+        if omega < 0 or omega > MAX_OMEGA:
+            _fail("omega", omega, omega_accepted)
+        paths = _integer("paths", paths, "paths must be an integer in [1, 2**63)", 1, MAX_PATHS)
+        t_max_accepted = f"t_max must be a finite number in [{MIN_T_MAX:g}, {MAX_T_MAX:g}]"
+        t_max = _finite("t_max", t_max, t_max_accepted)
+        if not MIN_T_MAX <= t_max <= MAX_T_MAX:
+            _fail("t_max", t_max, t_max_accepted)
         seed = _integer("seed", seed, "seed must be an integer in [0, 2**64)", 0)
         if seed >= 2**64:
             _fail("seed", seed, "seed must be an integer in [0, 2**64)")
 
         if times is None:
-            n_times = _integer("n_times", n_times, "n_times must be an integer >= 1", 1)
+            n_times = _integer("n_times", n_times, f"n_times must be an integer in [1, {MAX_N_TIMES}]", 1,
+                               MAX_N_TIMES)
             grid = np.geomspace(t_max * 1e-3, t_max, n_times) if n_times > 1 else np.array([t_max])
             grid[-1] = t_max
         else:
             try:
-                grid = np.asarray(times, dtype=np.float64).ravel()
-            except (TypeError, ValueError):
+                grid = _float_array(times).ravel()
+            except (TypeError, ValueError, OverflowError):
                 _fail("times", times, "times must be a list of numbers in [0, t_max]")
             if grid.size == 0 or not np.all(np.isfinite(grid)):
                 _fail("times", times, "times must be a non-empty list of finite numbers in [0, t_max]")
@@ -219,9 +259,10 @@ class SimulationConfig:
         if oscillator is None:
             _fail("potential", potential, f"one of {', '.join(_oscillators.names())}, or a model "
                   "registered with stochpend.models.register")
-        if coupling not in _oscillators.COUPLINGS:
+        if not isinstance(coupling, str) or coupling not in _oscillators.COUPLINGS:
             _fail("coupling", coupling, f"one of {', '.join(_oscillators.COUPLINGS)}")
-        power_n = _integer("power_n", power_n, "power_n must be an integer >= 1", 1)
+        power_n = _integer("power_n", power_n, f"power_n must be an integer in [1, {MAX_POWER_N}]", 1,
+                           MAX_POWER_N)
         if oscillator.periodic and coupling == "position":
             if oscillator.builtin:
                 _fail("coupling", coupling, f"the {potential}'s angle is periodic, so its noise can "
@@ -230,8 +271,11 @@ class SimulationConfig:
                   "multiply a periodic function (coupling='force')")
         if theta0_v is not None and Omega0 == 0.0:
             functions = oscillator.functions
-            f = float(functions.force(theta0_v, power_n))
-            g = theta0_v if coupling == "position" else float(functions.noise_shape(theta0_v, power_n))
+            try:
+                f = float(functions.force(theta0_v, power_n))
+                g = theta0_v if coupling == "position" else float(functions.noise_shape(theta0_v, power_n))
+            except OverflowError:  # |theta0| ** (2n - 1) beyond float: far from rest
+                g = f = math.inf
             at_rest = abs(g) < 1e-12 and abs(f) < 1e-12
             if at_rest:
                 _fail(
@@ -256,9 +300,13 @@ class SimulationConfig:
         if hist_E_max is None:
             e_max = default_hist_E_max(grid, noise=noise, D=D, tau=tau, omega=omega)
         else:
-            e_max = np.broadcast_to(np.asarray(hist_E_max, dtype=np.float64), grid.shape).copy()
+            accepted = "hist_E_max must be a finite number > -omega**2, or one per output time"
+            try:
+                e_max = np.broadcast_to(_float_array(hist_E_max), grid.shape).copy()
+            except (TypeError, ValueError, OverflowError):
+                _fail("hist_E_max", hist_E_max, accepted)
             if not np.all(np.isfinite(e_max)) or np.any(e_max <= -(omega**2)):
-                _fail("hist_E_max", hist_E_max, "hist_E_max must be finite and > -omega**2")
+                _fail("hist_E_max", hist_E_max, accepted)
 
         return cls(
             noise=noise,
@@ -290,14 +338,22 @@ def default_hist_E_max(times: np.ndarray, *, noise: str, D: float, tau: float | 
     Uses the white-noise growth D t/4 for white noise and, for OU noise, the crossover
     estimate (sqrt(D tau**2 phi t + 1) - 1)/(2 tau**2 phi) with phi = 2.19, which follows
     D t/4 early and the t**(1/2) law late; 30 times that scale leaves < 1e-6 of the mass out.
+    The result is capped at 1e300, so that extreme (D, t) give a finite, if useless, range.
     """
     t = np.asarray(times, dtype=np.float64)
-    if noise == "white" or tau is None:
-        scale = D * t / 4.0
-    else:
-        phi = 2.19
-        scale = (np.sqrt(D * tau**2 * phi * t + 1.0) - 1.0) / (2.0 * tau**2 * phi)
-    return omega**2 + 1.0 + 30.0 * scale
+    D, omega = np.float64(D), np.float64(omega)
+    tau = None if tau is None else np.float64(tau)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        white = D * t / 4.0
+        if noise == "white" or tau is None:
+            scale = white
+        else:
+            phi = 2.19
+            scale = (np.sqrt(D * tau**2 * phi * t + 1.0) - 1.0) / (2.0 * tau**2 * phi)
+            # tau**2 underflowing to 0 gives 0/0: the tau -> 0 limit is the white-noise scale
+            scale = np.where(np.isfinite(scale), scale, white)
+        e_max = omega**2 + 1.0 + 30.0 * scale
+    return np.minimum(np.nan_to_num(e_max, nan=1e300), 1e300)
 
 
 def hist_edges(config: SimulationConfig) -> np.ndarray:

@@ -694,6 +694,7 @@ def simulate_reduced(
     n_batches: int = DEFAULT_N_BATCHES,
     threads: int | None = None,
     chunk_paths: int | None = None,
+    max_path_steps: float | None = None,
 ) -> xr.Dataset:
     r"""Ensemble of the reduced (averaged) energy dynamics; Dataset as :func:`stochpend.simulate`.
 
@@ -753,6 +754,9 @@ def simulate_reduced(
     )
     threads = _with_threads(threads)
     chunk_batches = _chunk_batches(config, chunk_paths)
+    from stochpend import resources
+
+    resources.check_reduced(config, chunk_paths=chunk_paths, max_path_steps=max_path_steps, threads=threads)
     previous = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(threads)
@@ -803,6 +807,7 @@ def sample_reduced(
     xi0: float | str = "stationary",
     h_max: float | None = None,
     threads: int | None = None,
+    max_path_steps: float | None = None,
 ) -> np.ndarray:
     """Per-path energies at ``t_max`` (shape ``(paths,)``; NaN for non-finite paths).
 
@@ -814,6 +819,10 @@ def sample_reduced(
         seed=seed, E0=E0, xi0=xi0, h_max=h_max,
     )
     threads = _with_threads(threads)
+    from stochpend import resources
+
+    resources.check_reduced(config, chunk_paths=DEFAULT_CHUNK_PATHS, max_path_steps=max_path_steps,
+                            threads=threads, keep_energies=True)
     previous = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(threads)

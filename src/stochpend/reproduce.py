@@ -165,6 +165,7 @@ def reproduce(
     force: bool = False,
     progress: ReproduceProgress | Progress | None = None,
     threads: int | None = None,
+    max_path_steps: float | None = None,
     backend: str = "cpu",
     precision: str = "float64",
 ) -> ReproduceResult:
@@ -190,6 +191,8 @@ def reproduce(
         Receives the overall and per-simulation progress and one line per figure.
     threads : int, optional
         CPU threads for the simulations (results do not depend on it).
+    max_path_steps : float, optional
+        Work limit of each run (:func:`stochpend.resources.check`; default 1e13 path-steps).
     backend : {"cpu", "cuda", "auto"}
         Where the simulations run (``stochpend.simulate``'s meaning); "auto" picks the GPU when
         one is usable. Stored runs are reused only for the same backend and precision.
@@ -239,11 +242,13 @@ def reproduce(
 
     specs = {name: FIGURES[name].runs(paths, t_max, quick) for name in names}
     # Validate every run before any work (one-line ValueError naming the parameter).
+    from stochpend import resources
     from stochpend.params import SimulationConfig
 
     for name_specs in specs.values():
         for s in name_specs:
-            SimulationConfig.build(**s.simulate_kwargs())
+            resources.check(SimulationConfig.build(**s.simulate_kwargs()), max_path_steps=max_path_steps,
+                            threads=threads)
 
     out.mkdir(parents=True, exist_ok=True)
     (out / "runs").mkdir(exist_ok=True)

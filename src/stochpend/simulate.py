@@ -10,7 +10,7 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import __version__, integrator, models, runner
+from stochpend import __version__, integrator, models, resources, runner
 from stochpend.params import (
     DEFAULT_H_MAX,
     DEFAULT_HIST_BINS,
@@ -50,6 +50,7 @@ def simulate(
     chunk_paths: int | None = None,
     progress: Progress | None = None,
     precision: str = "float64",
+    max_path_steps: float | None = None,
 ) -> xr.Dataset:
     r"""Simulate an ensemble of stochastic pendulums and return its energy statistics.
 
@@ -137,6 +138,7 @@ def simulate(
         step_c=step_c, hist_bins=hist_bins, hist_E_max=hist_E_max, n_batches=n_batches,
         potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
     )
+    resources.check(config, backend=backend, precision=precision, chunk_paths=chunk_paths, max_path_steps=max_path_steps)
     backend = resolve_backend(backend)
     check_precision(precision, backend)
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1

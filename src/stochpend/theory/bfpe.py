@@ -158,14 +158,31 @@ def _step_nodes(s_start: float, s_targets: NDArray[np.float64], ratio: float) ->
     return out
 
 
-def _integer(name: str, value: Any, accepted: str, minimum: int) -> int:
+#: Largest grids accepted: beyond them the arrays (the step nodes are stored per decade) or
+#: the time would be absurd (an out-of-memory traceback, or a run that does not end).
+MAX_N_CELLS = 10_000_000
+MAX_STEPS_PER_DECADE = 100_000
+MAX_N_TIMES = 1_000_000
+MAX_N_OMEGA = 1_000_000
+#: Range of tau: the moments of E are computed as moments of x = tau Omega over tau**8.
+MIN_TAU = 1e-20
+MAX_TAU = 1e20
+#: Range of the scaled times t/t_c = t D tau**2 the solver represents without overflow.
+MIN_SCALED_TIME = 1e-30
+MAX_SCALED_TIME = 1e30
+#: Range of the rate 1/t_c = D tau**2.
+MIN_RATE = 1e-250
+MAX_RATE = 1e250
+
+
+def _integer(name: str, value: Any, accepted: str, minimum: int, maximum: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         if isinstance(value, float) and value.is_integer():
             value = int(value)
         else:
             _fail(name, value, accepted)
     v = int(value)
-    if v < minimum:
+    if v < minimum or (maximum is not None and v > maximum):
         _fail(name, value, accepted)
     return v
 
@@ -238,26 +255,30 @@ def solve_bfpe(
     """
     D = _check_D(D, positive=True)
     tau = _check_tau(tau)
+    if not MIN_TAU <= tau <= MAX_TAU:
+        _fail("tau", tau, f"tau must be a finite number in [{MIN_TAU:g}, {MAX_TAU:g}] here (the moments of E "
+              "scale as tau**-8)")
     om = _scalar("omega", omega, "omega must be 0: the averaged B.F.P.E. (avbfpe) is derived for omega = 0")
     if om != 0.0:
         _fail("omega", omega, "omega must be 0: the averaged B.F.P.E. (avbfpe) is derived for omega = 0")
     t_max = _scalar("t_max", t_max, "t_max must be a finite number > 0")
     if t_max <= 0:
         _fail("t_max", t_max, "t_max must be a finite number > 0")
-    n_cells = _integer("n_cells", n_cells, "n_cells must be an integer >= 20", 20)
+    n_cells = _integer("n_cells", n_cells, f"n_cells must be an integer in [20, {MAX_N_CELLS}]", 20, MAX_N_CELLS)
     steps_per_decade = _integer(
-        "steps_per_decade", steps_per_decade, "steps_per_decade must be an integer >= 2", 2
+        "steps_per_decade", steps_per_decade,
+        f"steps_per_decade must be an integer in [2, {MAX_STEPS_PER_DECADE}]", 2, MAX_STEPS_PER_DECADE,
     )
     tail_exponent = _scalar("tail_exponent", tail_exponent, "tail_exponent must be a finite number >= 10")
     if tail_exponent < 10:
         _fail("tail_exponent", tail_exponent, "tail_exponent must be a finite number >= 10")
-    n_Omega = _integer("n_Omega", n_Omega, "n_Omega must be an integer >= 3", 3)
+    n_Omega = _integer("n_Omega", n_Omega, f"n_Omega must be an integer in [3, {MAX_N_OMEGA}]", 3, MAX_N_OMEGA)
     u_max = _scalar("u_max", u_max, "u_max must be a finite number > 0")
     if u_max <= 0:
         _fail("u_max", u_max, "u_max must be a finite number > 0")
 
     if times is None:
-        n_times = _integer("n_times", n_times, "n_times must be an integer >= 1", 1)
+        n_times = _integer("n_times", n_times, f"n_times must be an integer in [1, {MAX_N_TIMES}]", 1, MAX_N_TIMES)
         grid_t = np.geomspace(t_max * 1e-3, t_max, n_times) if n_times > 1 else np.array([t_max])
         grid_t[-1] = t_max
     else:
@@ -272,6 +293,16 @@ def solve_bfpe(
         if np.any(np.diff(grid_t) <= 0):
             _fail("times", times, "times must be strictly increasing")
 
+    # The problem is solved in s = t/t_c = t D tau**2, and <E**4> is computed as <x**8>/tau**8
+    # (x = tau Omega, x**2 ~ s): these ranges keep every moment within the floats.
+    rate = D * tau * tau  # 1/t_c (a product: never an OverflowError, at worst inf or 0)
+    if not MIN_RATE <= rate <= MAX_RATE:
+        _fail("D", D, f"with tau={tau:g}, 1/t_c = D tau**2 (here {rate:.3g}) must lie in [{MIN_RATE:g}, {MAX_RATE:g}]")
+    s_max = t_max * rate
+    if not (MIN_SCALED_TIME <= s_max <= MAX_SCALED_TIME and MIN_SCALED_TIME <= grid_t[0] * rate):
+        _fail("t_max", t_max, f"with D={D:g} and tau={tau:g}, the output times in units of t_c = 1/(D tau**2), "
+              f"t*D*tau**2 (here {float(grid_t[0]) * rate:.3g} to {s_max:.3g}), must lie in "
+              f"[{MIN_SCALED_TIME:g}, {MAX_SCALED_TIME:g}]")
     t_c = 1.0 / (D * tau**2)
     if t0 is None:
         t0 = min(1e-6 * t_c, 1e-3 * float(grid_t[0]))

@@ -1,0 +1,362 @@
+"""What a simulation will cost, estimated before any work: memory and path-steps.
+
+:func:`estimate` computes, from a validated :class:`~stochpend.params.SimulationConfig`,
+
+* the peak host memory of the run: the per-path state of one chunk of paths (57 bytes a path in
+  float64, 45 in float32: x, Omega, xi in the working precision; xi_aux, t, t_comp in float64;
+  k uint64, status uint8), the per-batch power sums, the energy histograms and their edges,
+  and the output Dataset (about the sums, histogram and edges again). A chunk is whole
+  batches, as many as fit in ``chunk_paths`` (2**20 paths by default on the CPU) and at least
+  one, as :mod:`stochpend.runner` cuts them: an ensemble of huge batches (paths/n_batches
+  beyond chunk_paths) holds a whole batch at a time. On the CUDA backend the
+  state lives on the GPU (reported as ``device_bytes``; the backend sizes its chunks to the
+  free device memory) and the host holds the rest;
+* a lower bound on the work, ``paths * t_max / h_max`` path-steps (no step is longer than
+  ``h_max``; the adaptive step makes the real count larger, often by a factor 1.5 to 2);
+* a rough duration from that lower bound and :data:`CPU_PATH_STEPS_PER_S_PER_CORE` or
+  :data:`GPU_PATH_STEPS_PER_S` (approximate figures, see below): a hint, not a promise.
+
+:func:`check` refuses, with one ``ValueError`` line naming the parameter, a run whose memory
+does not fit in the memory available now (``psutil.virtual_memory().available``), or whose
+lower-bound work exceeds ``max_path_steps`` (default :data:`DEFAULT_MAX_PATH_STEPS`, raised
+with ``max_path_steps=`` or ``stochpend simulate --max-path-steps``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+from stochpend.params import DEFAULT_H_MAX, SimulationConfig, short_repr
+
+__all__ = [
+    "DEFAULT_MAX_PATH_STEPS",
+    "LONG_RUN_S",
+    "Estimate",
+    "available_memory",
+    "check",
+    "check_reduced",
+    "estimate",
+    "estimate_reduced",
+    "work_limit",
+    "format_bytes",
+    "format_seconds",
+]
+
+#: Largest lower-bound work accepted without ``max_path_steps``: 1e13 path-steps is about
+#: 3 hours on a GPU at :data:`GPU_PATH_STEPS_PER_S`, about 4 days on 16 CPU cores at
+#: :data:`CPU_PATH_STEPS_PER_S_PER_CORE`; the paper's largest run (10**4 paths to t = 10**5)
+#: is 2e10.
+DEFAULT_MAX_PATH_STEPS = 1e13
+#: Runs estimated to last longer than this (seconds) announce their estimate on stderr
+#: (command line), so that a long run shows a sign of life even with --quiet.
+LONG_RUN_S = 10.0
+#: Approximate adaptive-step rate of one CPU core (benchmarks: 2.8e7 path-steps/s on 2 cores
+#: for the default OU run, docs/performance.md). Machines differ by a factor of a few.
+CPU_PATH_STEPS_PER_S_PER_CORE = 1.4e7
+#: Assumed rate of one recent NVIDIA GPU (float64): NOT measured (docs/gpu.md has no GPU
+#: figures yet); an order of magnitude only.
+GPU_PATH_STEPS_PER_S = 1e9
+#: Paths per chunk by default: ``stochpend.simulate.DEFAULT_CHUNK_PATHS`` (CPU) and
+#: ``stochpend._backends.cuda.DEFAULT_CHUNK_PATHS`` (GPU; also capped by the free device memory).
+CPU_CHUNK_PATHS = 1 << 20
+CUDA_CHUNK_PATHS = 1 << 26
+#: Per-path state: x, Omega, xi in the working precision; xi_aux, t, t_comp (float64), k
+#: (uint64), status (uint8).
+STATE_BYTES_PER_PATH = {"float64": 4 * 8 + 8 + 8 + 8 + 1, "float32": 3 * 4 + 8 + 8 + 8 + 8 + 1}
+#: Number of power sums per batch and output time (stochpend._backends.cpu.N_SUMS).
+N_SUMS = 9
+_DEFAULT_PATHS = 10_000
+_DEFAULT_T_MAX = 1000.0
+_DEFAULT_N_TIMES = 40
+_DEFAULT_HIST_BINS = 100
+_DEFAULT_N_BATCHES = 100
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Resources of one run (see the module docstring for what each figure counts)."""
+
+    memory_bytes: int  # peak host memory
+    min_path_steps: float  # paths * t_max / h_max: a lower bound
+    seconds: float  # rough duration of min_path_steps at the assumed rate
+    device_bytes: int = 0  # GPU memory of the chunk state (cuda backend), else 0
+    chunk_paths: int = 0
+    backend: str = "cpu"
+    precision: str = "float64"
+    workers: str = ""  # "2 CPU cores", "the GPU"
+    rate: float = 0.0  # assumed path-steps per second
+    #: (part of memory, bytes, the parameter that sets it), largest first
+    parts: tuple[tuple[str, int, str], ...] = field(default=())
+
+    def describe(self) -> str:
+        """One line: the work, the rough duration and the memory."""
+        mem = f"peak memory {format_bytes(self.memory_bytes)}"
+        if self.device_bytes:
+            mem += f" (and {format_bytes(self.device_bytes)} on the GPU)"
+        return (f"at least {self.min_path_steps:.3g} path-steps (paths x t_max / h_max), roughly "
+                f"{format_seconds(self.seconds)} on {self.workers} at ~{self.rate:.2g} path-steps/s; {mem}")
+
+
+def format_bytes(n: float) -> str:
+    """1536 -> '1.5 KiB' (binary units)."""
+    try:
+        n = float(n)
+    except OverflowError:  # an int beyond 1e308
+        return "more than 1e308 B"
+    if not math.isfinite(n):
+        return f"{n} B"
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"):
+        if abs(n) < 1024 or unit == "EiB":
+            return f"{n:.0f} B" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024.0
+    raise AssertionError  # pragma: no cover
+
+
+def format_seconds(s: float) -> str:
+    """Seconds in the largest sensible unit: '12 s', '3.5 min', '2.0 h', '4.1 days', '3e+05 years'."""
+    if not math.isfinite(s):
+        return "forever"
+    if s < 90:
+        return f"{s:.2g} s"
+    if s < 5400:
+        return f"{s / 60:.2g} min"
+    if s < 2 * 86400:
+        return f"{s / 3600:.2g} h"
+    if s < 365.25 * 86400:
+        return f"{s / 86400:.2g} days"
+    return f"{s / (365.25 * 86400):.2g} years"
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation now, or None when unknown."""
+    try:
+        import psutil
+    except ImportError:  # pragma: no cover - psutil is a dependency
+        try:
+            return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+        except (AttributeError, OSError, ValueError):
+            return None
+    return int(psutil.virtual_memory().available)
+
+
+def _cores(threads: Any) -> int:
+    if isinstance(threads, int) and not isinstance(threads, bool) and threads >= 1:
+        return threads
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _memory_parts(*, paths: int, chunk: int, chunk_given: bool, batch_size: int, n_batches: int,
+                  n_times: int, hist_bins: int, bytes_per_path: int) -> list[tuple[str, int, str]]:
+    """(part, bytes, the parameter that makes it large), largest first."""
+    n_cols = hist_bins + 2
+    batches_in_chunk = min(n_batches, max(1, -(-chunk // batch_size)))
+    state = chunk * bytes_per_path
+    sums = n_batches * n_times * N_SUMS * 8
+    chunk_sums = batches_in_chunk * n_times * N_SUMS * 8
+    hist = n_times * n_cols * 8  # the run's total
+    chunk_hist = n_times * n_cols * 8 + batches_in_chunk * n_cols * 8  # the chunk's, and per batch
+    edges = n_times * (hist_bins + 1) * 8
+    # The output Dataset holds about sums + hist + edges again: counted twice below.
+    # x/x_default >= n_times/40, in integers (hist_bins may be any int, even 10**400)
+    hist_name = "hist_bins" if hist_bins * _DEFAULT_N_TIMES >= n_times * _DEFAULT_HIST_BINS else "n_times"
+    sums_name = "n_batches" if n_batches * _DEFAULT_N_TIMES >= n_times * _DEFAULT_N_BATCHES else "n_times"
+    state_name = "chunk_paths" if chunk_given and chunk < paths else "paths"
+    parts = [
+        ("histograms and their edges", 2 * hist + chunk_hist + 2 * edges, hist_name),
+        ("per-batch sums", 2 * sums + chunk_sums, sums_name),
+        ("path state", state, state_name),
+    ]
+    parts.sort(key=lambda p: -p[1])
+    return parts
+
+
+def _rate(cuda: bool, threads: Any) -> tuple[float, str]:
+    if cuda:
+        return GPU_PATH_STEPS_PER_S, "the GPU"
+    cores = _cores(threads)
+    return CPU_PATH_STEPS_PER_S_PER_CORE * cores, f"{cores} CPU core" + ("s" if cores > 1 else "")
+
+
+def _valid_chunk(chunk_paths: Any) -> bool:
+    return isinstance(chunk_paths, int) and not isinstance(chunk_paths, bool) and chunk_paths >= 1
+
+
+def estimate(
+    config: SimulationConfig,
+    *,
+    backend: str = "cpu",
+    precision: str = "float64",
+    chunk_paths: int | None = None,
+    threads: int | None = None,
+) -> Estimate:
+    """Peak memory, lower-bound path-steps and a rough duration of ``config``'s run.
+
+    ``backend``, ``precision``, ``chunk_paths`` and ``threads`` are read leniently (an
+    unknown value counts as the default): :func:`stochpend.simulate` validates them itself.
+    ``backend="auto"`` is estimated as the CPU.
+    """
+    cuda = backend == "cuda"
+    if precision not in STATE_BYTES_PER_PATH:
+        precision = "float64"
+    given = _valid_chunk(chunk_paths)
+    requested = chunk_paths if given else (CUDA_CHUNK_PATHS if cuda else CPU_CHUNK_PATHS)
+    # As stochpend.runner chunks: whole batches, at least one (so a huge batch is one chunk).
+    chunk = min(config.paths, max(1, requested // config.batch_size) * config.batch_size)
+    parts = _memory_parts(paths=config.paths, chunk=chunk, chunk_given=given, batch_size=config.batch_size,
+                          n_batches=config.n_batches, n_times=len(config.times), hist_bins=config.hist_bins,
+                          bytes_per_path=STATE_BYTES_PER_PATH[precision])
+    device = 0
+    if cuda:  # the state lives on the GPU
+        device = next(b for label, b, _ in parts if label == "path state")
+        parts = [p for p in parts if p[0] != "path state"]
+    min_steps = float(config.paths) * config.t_max / config.h_max
+    rate, workers = _rate(cuda, threads)
+    return Estimate(
+        memory_bytes=int(sum(p[1] for p in parts)), min_path_steps=min_steps, seconds=min_steps / rate,
+        device_bytes=int(device), chunk_paths=int(chunk), backend="cuda" if cuda else "cpu",
+        precision=precision, workers=workers, rate=rate, parts=tuple(parts),
+    )
+
+
+#: Per-path state of the reduced dynamics (stochpend.reduced): the energy variable, the status,
+#: the final energies, and xi for the second order.
+REDUCED_BYTES_PER_PATH = 8 + 1 + 8
+REDUCED_CHUNK_PATHS = 1 << 18  # stochpend.reduced.DEFAULT_CHUNK_PATHS
+
+
+def estimate_reduced(config: Any, *, chunk_paths: int | None = None, threads: int | None = None,
+                     keep_energies: bool = False) -> Estimate:
+    """:func:`estimate` for :func:`stochpend.reduced.simulate_reduced` (a ``ReducedConfig``).
+
+    Its runner advances whole batches (a chunk is at least one batch); the work is
+    ``paths * t_max / h_max`` steps for the second order and one exact transition per path and
+    output time for the others. ``keep_energies``: the run also returns every path's final
+    energy (:func:`stochpend.reduced.sample_reduced`, 8 bytes a path).
+    """
+    given = _valid_chunk(chunk_paths)
+    bs = config.batch_size
+    chunk = min(config.paths, max(1, (chunk_paths if given else REDUCED_CHUNK_PATHS) // bs) * bs)
+    per_path = REDUCED_BYTES_PER_PATH + (8 if config.order == "second" else 0)
+    parts = _memory_parts(paths=config.paths, chunk=chunk, chunk_given=given, batch_size=bs,
+                          n_batches=config.n_batches, n_times=len(config.times), hist_bins=config.hist_bins,
+                          bytes_per_path=per_path)
+    if keep_energies:
+        parts = sorted([*parts, ("per-path energies", 8 * config.paths, "paths")], key=lambda p: -p[1])
+    if config.order == "second":
+        min_steps = float(config.paths) * config.t_max / config.h_max
+    else:
+        min_steps = float(config.paths) * len(config.times)
+    rate, workers = _rate(False, threads)
+    return Estimate(
+        memory_bytes=int(sum(p[1] for p in parts)), min_path_steps=min_steps, seconds=min_steps / rate,
+        chunk_paths=int(chunk), workers=workers, rate=rate, parts=tuple(parts),
+    )
+
+
+def work_limit(max_path_steps: Any = None) -> float:
+    """The path-step limit ``max_path_steps`` stands for (None: the default); validates it."""
+    if max_path_steps is None:
+        return DEFAULT_MAX_PATH_STEPS
+    accepted = "a number > 0 of path-steps (inf: no limit)"
+    if isinstance(max_path_steps, bool):
+        raise ValueError(f"max_path_steps={max_path_steps!r} is not accepted: {accepted}")
+    try:
+        v = float(max_path_steps)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"max_path_steps={max_path_steps!r} is not accepted: {accepted}") from None
+    if not v > 0:  # also NaN
+        raise ValueError(f"max_path_steps={max_path_steps!r} is not accepted: {accepted}")
+    return v
+
+
+_ADVICE = {
+    "hist_bins": "use fewer histogram bins (hist_bins, --hist-bins)",
+    "n_times": "use fewer output times (n_times or times)",
+    "n_batches": "use fewer batches (n_batches)",
+    "chunk_paths": "use a smaller chunk_paths",
+    "paths": "use fewer paths",
+}
+
+
+def _refuse_memory(est: Estimate, values: dict[str, Any]) -> None:
+    available = available_memory()
+    if available is not None and est.memory_bytes > available:
+        _, _, name = est.parts[0]
+        detail = ", ".join(f"{label} {format_bytes(b)}" for label, b, _ in est.parts)
+        raise ValueError(
+            f"{name}={short_repr(values[name])} is not accepted: the run needs {format_bytes(est.memory_bytes)} "
+            f"of memory ({detail}) and this machine has {format_bytes(available)} available; {_ADVICE[name]}"
+        )
+
+
+def _refuse_work(est: Estimate, limit: float, factors: dict[str, float], values: dict[str, Any],
+                 formula: str, advice: str = "use fewer paths, a shorter t_max or a larger h_max") -> None:
+    if est.min_path_steps <= limit:
+        return
+    name = max(factors, key=lambda k: factors[k])  # the one furthest above its default
+    if factors[name] <= 1.0:  # none is: the limit itself is small; paths is the usual knob
+        name = "paths"
+    raise ValueError(
+        f"{name}={short_repr(values[name])} is not accepted: the run needs at least {est.min_path_steps:.3g} "
+        f"path-steps ({formula}), roughly {format_seconds(est.seconds)} on {est.workers}, above the limit "
+        f"of {limit:.3g}; {advice}, or raise the limit with max_path_steps= (--max-path-steps)"
+    )
+
+
+def check(
+    config: SimulationConfig,
+    *,
+    backend: str = "cpu",
+    precision: str = "float64",
+    chunk_paths: int | None = None,
+    max_path_steps: float | None = None,
+    threads: int | None = None,
+) -> Estimate:
+    """Refuse, before any work, a run that cannot fit in memory or exceeds the work limit.
+
+    Raises ``ValueError`` (one line naming the parameter responsible, the figures and what
+    to change); returns the :class:`Estimate` otherwise. ``max_path_steps`` (default
+    :data:`DEFAULT_MAX_PATH_STEPS`; ``math.inf`` for no limit) bounds ``paths * t_max /
+    h_max``.
+    """
+    limit = work_limit(max_path_steps)
+    est = estimate(config, backend=backend, precision=precision, chunk_paths=chunk_paths, threads=threads)
+    values = {"hist_bins": config.hist_bins, "n_times": len(config.times), "n_batches": config.n_batches,
+              "chunk_paths": est.chunk_paths, "paths": config.paths, "t_max": config.t_max,
+              "h_max": config.h_max}
+    # The work first: a run that would never end is refused as such, whatever else it needs.
+    factors = {"paths": config.paths / _DEFAULT_PATHS, "t_max": config.t_max / _DEFAULT_T_MAX,
+               "h_max": DEFAULT_H_MAX / config.h_max}
+    _refuse_work(est, limit, factors, values,
+                 f"paths x t_max / h_max = {config.paths} x {config.t_max:g} / {config.h_max:g}")
+    _refuse_memory(est, values)
+    return est
+
+
+def check_reduced(config: Any, *, chunk_paths: int | None = None, max_path_steps: float | None = None,
+                  threads: int | None = None, keep_energies: bool = False) -> Estimate:
+    """:func:`check` for the reduced dynamics (a ``stochpend.reduced.ReducedConfig``)."""
+    limit = work_limit(max_path_steps)
+    est = estimate_reduced(config, chunk_paths=chunk_paths, threads=threads, keep_energies=keep_energies)
+    n_times = len(config.times)
+    values = {"hist_bins": config.hist_bins, "n_times": n_times, "n_batches": config.n_batches,
+              "chunk_paths": est.chunk_paths, "paths": config.paths, "t_max": config.t_max,
+              "h_max": config.h_max}
+    _refuse_memory(est, values)
+    if config.order == "second":
+        factors = {"paths": config.paths / _DEFAULT_PATHS, "t_max": config.t_max / _DEFAULT_T_MAX,
+                   "h_max": 0.05 * config.tau / config.h_max}
+        formula = f"paths x t_max / h_max = {config.paths} x {config.t_max:g} / {config.h_max:g}"
+        advice = "use fewer paths, a shorter t_max or a larger h_max"
+    else:
+        factors = {"paths": config.paths / _DEFAULT_PATHS, "n_times": n_times / _DEFAULT_N_TIMES}
+        formula = f"paths x output times = {config.paths} x {n_times}"
+        advice = "use fewer paths or output times"
+    _refuse_work(est, limit, factors, values, formula, advice)
+    return est
