@@ -126,7 +126,9 @@ class Model:
                 continue
             try:
                 parts.append(inspect.getsource(f).strip())
-            except (OSError, TypeError):
+            except Exception:  # noqa: BLE001 - provenance never stops a run
+                # OSError/TypeError: no file; tokenize/Syntax errors: code compiled under a file
+                # name whose lines are other text (exec of a docs block, a notebook cell).
                 parts.append(f"{attr}: source unavailable")
         return "\n".join(parts)
 
