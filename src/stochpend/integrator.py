@@ -169,7 +169,6 @@ def build(spec: Spec) -> SimpleNamespace:
     real = np.float32 if spec.precision == "float32" else np.float64
     mathlib = FAST if spec.fast_math else LIBM
     osc = spec.oscillator.kernel(real, mathlib)
-    osc64 = spec.oscillator.kernel(np.float64, LIBM)  # statistics: float64 whatever the step
     nz = spec.noise.kernel(real, mathlib)
 
     POSITION = spec.coupling == "position"
@@ -177,15 +176,11 @@ def build(spec: Spec) -> SimpleNamespace:
     HAS_EVENTS = spec.noise.has_events
     half = real(0.5)
     escape = real(ESCAPE_STEP_FRACTION)
-    two_pi = 2.0 * math.pi
 
     force = osc.force
     noise_shape = osc.noise_shape
     step_scales = osc.step_scales
     wrap = osc.wrap
-    potential64 = osc64.potential
-    noise_shape64 = osc64.noise_shape
-    noise_init = nz.init
     load_aux = nz.load_aux
     coefficients = nz.coefficients
     scratch0 = nz.scratch0
@@ -235,20 +230,6 @@ def build(spec: Spec) -> SimpleNamespace:
         Omega_new = Omega - kick
         x_new = x_half + half * h * Omega_new
         return wrap(x_new), Omega_new
-
-    @register_jitable
-    def init_path(key0, key1, path, theta0, uniform_theta0, Omega0, xi0, stationary_xi0, D,
-                  tau, W):
-        """(x, Omega, xi, aux) of global path ``path`` (uint64) at t = 0, in float64: x uniform
-        on [-pi, pi) from draw ``N_INIT_THETA`` (or ``theta0``), Omega0, and the noise's
-        stationary law from draw ``N_INIT_XI`` (or xi0)."""
-        if uniform_theta0:
-            u, _ = rng.draw_uniforms(key0, key1, path, np.uint64(rng.N_INIT_THETA))
-            x = two_pi * u - math.pi
-        else:
-            x = theta0
-        xi, aux = noise_init(key0, key1, path, D, tau, W, xi0, stationary_xi0)
-        return x, Omega0, xi, aux
 
     @register_jitable
     def advance_path(i, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0,
@@ -393,6 +374,45 @@ def build(spec: Spec) -> SimpleNamespace:
                 break
         return steps, tt, tc, kk, finite
 
+    return SimpleNamespace(
+        spec=spec, real=real, G=G, step_size=step_size, verlet=verlet,
+        init_path=initial_state(spec.noise), advance_path=advance_path, advance_lanes=advance_lanes,
+        path_values=statistics(spec.oscillator, spec.coupling),
+        lockstep=(not spec.adaptive) and spec.noise.pair_draws and not HAS_EVENTS,
+    )
+
+
+@functools.lru_cache(maxsize=None)
+def initial_state(noise: Noise):
+    """``init_path`` of ``noise`` (it depends on nothing else), computed in float64."""
+    noise_init = noise.kernel(np.float64, LIBM).init
+    two_pi = 2.0 * math.pi
+
+    @register_jitable
+    def init_path(key0, key1, path, theta0, uniform_theta0, Omega0, xi0, stationary_xi0, D,
+                  tau, W):
+        """(x, Omega, xi, aux) of global path ``path`` (uint64) at t = 0, in float64: x uniform
+        on [-pi, pi) from draw ``N_INIT_THETA`` (or ``theta0``), Omega0, and the noise's
+        stationary law from draw ``N_INIT_XI`` (or xi0)."""
+        if uniform_theta0:
+            u, _ = rng.draw_uniforms(key0, key1, path, np.uint64(rng.N_INIT_THETA))
+            x = two_pi * u - math.pi
+        else:
+            x = theta0
+        xi, aux = noise_init(key0, key1, path, D, tau, W, xi0, stationary_xi0)
+        return x, Omega0, xi, aux
+
+    return init_path
+
+
+@functools.lru_cache(maxsize=None)
+def statistics(oscillator: Oscillator, coupling: str):
+    """``path_values`` of (oscillator, coupling), in float64 whatever the kernel's precision."""
+    osc64 = oscillator.kernel(np.float64, LIBM)
+    potential64 = osc64.potential
+    noise_shape64 = osc64.noise_shape
+    POSITION = coupling == "position"
+
     @register_jitable
     def path_values(x, Omega, omega2, n):
         """(ok, E, E**2, Omega**2, G**2) of a path for the statistics, in float64; ``ok``
@@ -407,12 +427,7 @@ def build(spec: Spec) -> SimpleNamespace:
         ok = math.isfinite(E2 * E2) and math.isfinite(O2 * O2) and math.isfinite(g)
         return ok, E, E2, O2, g * g
 
-    return SimpleNamespace(
-        spec=spec, real=real, G=G, step_size=step_size, verlet=verlet, init_path=init_path,
-        advance_path=advance_path, advance_lanes=advance_lanes, path_values=path_values,
-        lockstep=(not spec.adaptive) and spec.noise.pair_draws and not HAS_EVENTS,
-    )
-
+    return path_values
 
 def spec(noise: str = "ou", potential: str = "pendulum", coupling: str = "force", *,
          precision: str = "float64", adaptive: bool = True, fast_math: bool = False) -> Spec:

@@ -17,7 +17,7 @@ import numpy as np
 from numba.extending import register_jitable
 
 from stochpend import noises, rng
-from stochpend.noises.base import Noise, NoiseKernel
+from stochpend.noises.base import Noise, NoiseKernel, at_no_event, no_event, no_scratch
 
 NAME = "phase-drive"
 
@@ -41,10 +41,6 @@ def build(real, mathlib) -> NoiseKernel:
         return np.float64(W) * np.float64(h), a / np.float64(W), a
 
     @register_jitable
-    def scratch0():
-        return 0
-
-    @register_jitable
     def draw(key0, key1, path, k, S):
         return (zero,), S
 
@@ -54,15 +50,7 @@ def build(real, mathlib) -> NoiseKernel:
         new = phase + dphi
         return real(a_over_W * (math.sin(new) - math.sin(phase))), real(a * math.cos(new)), new
 
-    @register_jitable
-    def next_event(xi, aux):
-        return math.inf
-
-    @register_jitable
-    def at_event(xi, aux, key0, key1, path, k, D, tau, W):
-        return xi, aux
-
-    return NoiseKernel(init, load_aux, coefficients, scratch0, draw, update, next_event, at_event)
+    return NoiseKernel(init, load_aux, coefficients, no_scratch, draw, update, no_event, at_no_event)
 
 
 PHASE_DRIVE = Noise(

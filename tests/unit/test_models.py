@@ -100,3 +100,15 @@ def test_the_docs_example_runs_as_written(capsys):
     numbers = [float(v) for v in re.findall(r"[-+]?\d+\.\d+(?:e[-+]?\d+)?", out)]
     means = numbers[:4]
     assert all(math.isfinite(v) for v in means) and means[-1] > means[0]
+
+
+def test_each_model_gets_its_own_functions_even_when_ids_are_reused():
+    """Built functions are cached per oscillator object: a model created after another was
+    dropped (its id free for reuse) never gets the dropped model's functions."""
+    import gc
+
+    for c in range(1, 60):
+        m = Model(name=f"tmp-linear-{c}", potential=lambda x, c=c: c * x * x, force=lambda x, c=c: 2 * c * x)
+        assert m.oscillator.functions.potential(1.0, 2) == c
+        del m
+        gc.collect()

@@ -34,24 +34,13 @@ import numba
 import numpy as np
 from numba import prange
 
-from stochpend import integrator, rng
+from stochpend import integrator, rng, stats
 from stochpend._jitcache import drop_stale_cache
 from stochpend.integrator import Spec
 from stochpend.noises.ou import OU
 from stochpend.oscillators.pendulum import PENDULUM
 from stochpend.runner import CHUNK_ARRAYS
-from stochpend.stats import (
-    N_SUMS,
-    S_COUNT,
-    S_E1,
-    S_E2,
-    S_E3,
-    S_E4,
-    S_G2,
-    S_NONFINITE,
-    S_OMEGA2,
-    S_OMEGA4,
-)
+from stochpend.stats import N_SUMS
 
 drop_stale_cache(__file__)
 
@@ -84,7 +73,7 @@ def init_kernel(spec: Spec):
     """``init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
     uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W)``: initial conditions of global
     paths path0 .. path0 + len(x) - 1 (draws 0 and 1); depends on the noise only."""
-    init_path = integrator.build(Spec(PENDULUM, "force", spec.noise)).init_path
+    init_path = integrator.initial_state(spec.noise)
 
     @numba.njit(parallel=True, cache=spec.noise.builtin)
     def init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
@@ -223,7 +212,7 @@ def accumulate_kernel(spec: Spec):
     overwritten. ``hist``: (n_batches, n_bins + 2) int64, overwritten; column 0 counts E below
     ``edges[0]``, the last column E at or above ``edges[-1]``.
     """
-    path_values = integrator.build(Spec(spec.oscillator, spec.coupling, OU)).path_values
+    path_values = integrator.statistics(spec.oscillator, spec.coupling)
 
     @numba.njit(parallel=True, cache=spec.oscillator.builtin)
     def accumulate(x, Omega, status, omega2, n, batch_size, edges, sums,
@@ -239,21 +228,21 @@ def accumulate_kernel(spec: Spec):
             stop = min(start + batch_size, n_paths)
             for i in range(start, stop):
                 if status[i] != 0:
-                    sums[b, S_NONFINITE] += 1.0
+                    sums[b, stats.S_NONFINITE] += 1.0
                     continue
                 ok, E, E2, O2, G2 = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, n)
                 if not ok:
                     status[i] = 1
-                    sums[b, S_NONFINITE] += 1.0
+                    sums[b, stats.S_NONFINITE] += 1.0
                     continue
-                sums[b, S_COUNT] += 1.0
-                sums[b, S_E1] += E
-                sums[b, S_E2] += E2
-                sums[b, S_E3] += E2 * E
-                sums[b, S_E4] += E2 * E2
-                sums[b, S_OMEGA2] += O2
-                sums[b, S_OMEGA4] += O2 * O2
-                sums[b, S_G2] += G2
+                sums[b, stats.S_COUNT] += 1.0
+                sums[b, stats.S_E1] += E
+                sums[b, stats.S_E2] += E2
+                sums[b, stats.S_E3] += E2 * E
+                sums[b, stats.S_E4] += E2 * E2
+                sums[b, stats.S_OMEGA2] += O2
+                sums[b, stats.S_OMEGA4] += O2 * O2
+                sums[b, stats.S_G2] += G2
                 if E < edges[0]:
                     hist[b, 0] += 1
                 elif E >= edges[n_edges - 1]:

@@ -40,25 +40,11 @@ from numba import types as nbtypes
 from numba.core.errors import NumbaPerformanceWarning
 from numba.extending import register_jitable
 
-from stochpend import integrator, rng, runner
+from stochpend import integrator, rng, runner, stats
 from stochpend.integrator import Spec
-from stochpend.noises.ou import OU
-from stochpend.oscillators.pendulum import PENDULUM
 from stochpend.params import SimulationConfig
 from stochpend.progress import Progress
-from stochpend.stats import (
-    N_SUMS,
-    S_COUNT,
-    S_E1,
-    S_E2,
-    S_E3,
-    S_E4,
-    S_G2,
-    S_NONFINITE,
-    S_OMEGA2,
-    S_OMEGA4,
-    EnsembleSums,
-)
+from stochpend.stats import N_SUMS, EnsembleSums
 
 try:  # a module global: the CUDA simulator swaps it in the kernels' globals
     from numba import cuda
@@ -179,7 +165,7 @@ def init_kernel(spec: Spec):
     """``init[blocks, threads](x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0,
     theta0, uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W)``: one path per thread,
     the initial values computed in float64 (they depend on the noise only)."""
-    init_path = integrator.build(Spec(PENDULUM, "force", spec.noise)).init_path
+    init_path = integrator.initial_state(spec.noise)
 
     @cuda.jit
     def init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
@@ -230,7 +216,7 @@ def accumulate_kernel(spec: Spec):
     sums, hist)``: the CPU's per-batch sums at output time j, block b summing batch b of the
     chunk into ``sums[b, j, :]`` in path order; the histogram counts go to ``hist[j, :]``
     (they depend on the oscillator and coupling only)."""
-    path_values = integrator.build(Spec(spec.oscillator, spec.coupling, OU)).path_values
+    path_values = integrator.statistics(spec.oscillator, spec.coupling)
     tpb = STATS_THREADS
     hist_max = SHARED_HIST_MAX
 
@@ -302,15 +288,15 @@ def accumulate_kernel(spec: Spec):
                         s_g2 += values[6, q]
             cuda.syncthreads()
         if tid == 0:
-            sums[b, j, S_COUNT] = s_count
-            sums[b, j, S_E1] = s_e1
-            sums[b, j, S_E2] = s_e2
-            sums[b, j, S_E3] = s_e3
-            sums[b, j, S_E4] = s_e4
-            sums[b, j, S_OMEGA2] = s_o2
-            sums[b, j, S_OMEGA4] = s_o4
-            sums[b, j, S_G2] = s_g2
-            sums[b, j, S_NONFINITE] = s_bad
+            sums[b, j, stats.S_COUNT] = s_count
+            sums[b, j, stats.S_E1] = s_e1
+            sums[b, j, stats.S_E2] = s_e2
+            sums[b, j, stats.S_E3] = s_e3
+            sums[b, j, stats.S_E4] = s_e4
+            sums[b, j, stats.S_OMEGA2] = s_o2
+            sums[b, j, stats.S_OMEGA4] = s_o4
+            sums[b, j, stats.S_G2] = s_g2
+            sums[b, j, stats.S_NONFINITE] = s_bad
         if in_shared:
             for c in range(tid, n_cols, tpb):
                 count = shared_hist[c]

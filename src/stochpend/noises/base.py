@@ -27,6 +27,7 @@ Parameters reach the device functions as ``(D, tau, W)``: the amplitude, the cor
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -110,14 +111,12 @@ class Noise:
     extra: dict = field(default_factory=dict)
 
     def kernel(self, real: Any, mathlib: Any) -> NoiseKernel:
-        return _kernel(self, real, mathlib)
+        return _kernel(self, real, mathlib.name)
 
 
-_KERNELS: dict[tuple[int, Any, str], NoiseKernel] = {}
+@functools.lru_cache(maxsize=None)
+def _kernel(noise: Noise, real: Any, mathlib_name: str) -> NoiseKernel:
+    """Built once per (noise, precision, math library); the cache holds the noise itself."""
+    from stochpend.mathlib import FAST, LIBM
 
-
-def _kernel(noise: Noise, real: Any, mathlib: Any) -> NoiseKernel:
-    key = (id(noise), real, mathlib.name)
-    if key not in _KERNELS:
-        _KERNELS[key] = noise.build(real, mathlib)
-    return _KERNELS[key]
+    return noise.build(real, FAST if mathlib_name == FAST.name else LIBM)

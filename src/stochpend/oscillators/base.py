@@ -27,6 +27,7 @@ parameter of the family (the power of x**(2n); ignored by the others):
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -65,10 +66,7 @@ class Oscillator:
     builtin: bool = False
 
     def kernel(self, real: Any, mathlib: Any) -> OscillatorKernel:
-        key = (id(self), real, mathlib.name)
-        if key not in _KERNELS:
-            _KERNELS[key] = self.build(real, mathlib)
-        return _KERNELS[key]
+        return _kernel(self, real, mathlib.name)
 
     @property
     def functions(self) -> OscillatorKernel:
@@ -76,4 +74,10 @@ class Oscillator:
         return self.kernel(np.float64, LIBM)
 
 
-_KERNELS: dict[tuple[int, Any, str], OscillatorKernel] = {}
+@functools.lru_cache(maxsize=None)
+def _kernel(oscillator: Oscillator, real: Any, mathlib_name: str) -> OscillatorKernel:
+    """Built once per (oscillator, precision, math library); the cache holds the oscillator
+    itself, so a key never outlives its object (an ``id`` could be reused by another model)."""
+    from stochpend.mathlib import FAST
+
+    return oscillator.build(real, FAST if mathlib_name == FAST.name else LIBM)
