@@ -93,7 +93,7 @@ from numba.extending import register_jitable
 
 from stochpend import __version__, rng
 from stochpend.noises import ou as _ou
-from stochpend._backends.cpu import (
+from stochpend.stats import (
     N_SUMS,
     S_COUNT,
     S_E1,

@@ -15,7 +15,7 @@ import xarray as xr
 from scipy import integrate, special, stats
 
 from stochpend import reduced
-from stochpend._backends.cpu import N_SUMS, S_COUNT, S_E1, S_NONFINITE
+from stochpend.stats import N_SUMS, S_COUNT, S_E1, S_NONFINITE
 from stochpend.reduced import draw_samples, sample_reduced, simulate_reduced
 from stochpend.theory import laws
 from tests.conftest import Z_TOL
