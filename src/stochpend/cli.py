@@ -15,6 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.markup import escape
@@ -177,7 +178,11 @@ def summary_table(ds: Any, max_rows: int = 12) -> Table:
     title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {attrs.get('seed')}"
     table = Table(title=title)
     scaled = "<E2>/(Dt/tau^2)" if noise == "ou" else "<E>/(Dt/4)"
-    for col in ("t", "<E>", "<E2>", scaled, "S", "F", "non-finite"):
+    has_bias = "mean_E_bias" in ds
+    cols = ["t", "<E>", "<E2>", scaled, "S", "F", "non-finite"]
+    if has_bias:
+        cols.insert(2, "bias <E>")
+    for col in cols:
         table.add_column(col, justify="right", no_wrap=True)
     n = ds.sizes["time"]
     shown = min(max_rows, n)
@@ -191,7 +196,7 @@ def summary_table(ds: Any, max_rows: int = 12) -> Table:
         else:
             norm = D * t / 4.0 if t > 0 and D > 0 else float("nan")
             s_val, s_se = float(row.mean_E) / norm, float(row.mean_E_stderr) / norm
-        table.add_row(
+        cells = [
             f"{t:.4g}",
             _fmt(float(row.mean_E), float(row.mean_E_stderr)),
             _fmt(float(row.mean_E2), float(row.mean_E2_stderr)),
@@ -199,14 +204,51 @@ def summary_table(ds: Any, max_rows: int = 12) -> Table:
             _fmt(float(row.skewness), float(row.skewness_stderr)),
             _fmt(float(row.flatness), float(row.flatness_stderr)),
             str(int(row.nonfinite_paths)),
-        )
+        ]
+        if has_bias:
+            cells.insert(2, _fmt(float(row.mean_E_bias), float(row.mean_E_bias_stderr)))
+        table.add_row(*cells)
     caption = (
         f"Values as v(e): e is one standard error in the last digits (jackknife over {int(attrs.get('n_batches', 0))} batches). "
         f"Wall time {float(attrs.get('wall_time_s', float('nan'))):.3g} s, "
         f"{float(attrs.get('path_steps', 0)):.3g} path-steps."
     )
+    if has_bias:
+        caption += (f" bias: estimated discretisation bias (value minus zero-step limit) from "
+                    f"{int(attrs.get('bias_paths', 0))} coupled pairs")
+        if attrs.get("accuracy") == "auto":
+            caption += (f"; accuracy auto: h_max={float(attrs.get('h_max', 0)):g}, "
+                        f"c={float(attrs.get('step_c', 0)):g} (level {int(attrs.get('accuracy_level', 0))})")
+        caption += "."
     table.caption = caption
     return table
+
+
+def bias_warnings(ds: Any) -> list[str]:
+    """One line per statistic whose estimated bias is significant (beyond twice its own error)
+    and larger than its standard error at some output time: the worst such time."""
+    lines = []
+    labels = {"mean_E": "<E>", "mean_E2": "<E2>", "skewness": "S", "flatness": "F",
+              "mean_Omega2": "<Omega2>"}
+    for name, label in labels.items():
+        if f"{name}_bias" not in ds:
+            continue
+        b = ds[f"{name}_bias"].values
+        b_se = ds[f"{name}_bias_stderr"].values
+        se = ds[f"{name}_stderr"].values
+        with np.errstate(invalid="ignore", divide="ignore"):
+            excess = np.where((np.abs(b) > 2.0 * b_se) & (np.abs(b) > se), np.abs(b) / se, 0.0)
+        excess = np.nan_to_num(excess)
+        if np.any(excess > 0):
+            i = int(np.argmax(excess))
+            lines.append(
+                f"{label} at t={float(ds.time[i]):.4g} has a discretisation bias of "
+                f"{_fmt(float(b[i]), float(b_se[i]))}, {excess[i]:.1f} standard errors: rerun with "
+                "--accuracy auto (or a smaller --h-max/--step-c)")
+    if ds.attrs.get("accuracy") == "auto" and not int(ds.attrs.get("accuracy_reached", 1)):
+        lines.append(f"accuracy auto stopped at level {int(ds.attrs.get('accuracy_level', 0))} "
+                     "(64x the steps): the bias may exceed the target; see the bias columns")
+    return lines
 
 
 @app.command()
@@ -233,6 +275,9 @@ def simulate(
     backend: Annotated[str, typer.Option(help="Where to run: cpu, cuda, or auto (the GPU when usable).")] = "cpu",
     precision: Annotated[str, typer.Option(help="float64 (default) or float32 (CUDA backend only).")] = "float64",
     threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
+    bias_paths: Annotated[int | None, typer.Option("--bias-paths", parser=integer, help="Coupled coarse/fine pairs estimating each statistic's discretisation bias (default: paths/32, at least 256; 0: none).")] = None,
+    accuracy: Annotated[str, typer.Option(help="'fixed': the step control as given; 'auto': refine it until every estimated |bias| is within half a standard error.")] = "fixed",
+    rtol: Annotated[float | None, typer.Option("--rtol", help="With --accuracy auto (implied): accept a bias up to this fraction of each value instead.")] = None,
     max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps, paths x t_max / h_max (default 1e13, hours on a GPU; inf: no limit).")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
@@ -266,6 +311,14 @@ def simulate(
         times=parse_times(times), n_times=n_times, seed=seed, theta0=parse_theta0(theta0),
         Omega0=Omega0, **kwargs,
     )
+    from stochpend import bias as _bias
+
+    accuracy, rtol = _bias.check_accuracy(accuracy, rtol)
+    bias_paths = _bias.check_bias_paths(bias_paths, config.paths)
+    if checkpoint is not None and accuracy == "auto":
+        raise ValueError("accuracy='auto' is not accepted with --checkpoint: run the pilot "
+                         "first (stochpend simulate --accuracy auto --paths N, small N) and "
+                         "checkpoint the run at the --h-max/--step-c it reports")
     if checkpoint_every is not None and checkpoint is None:
         raise ValueError(f"checkpoint_every={checkpoint_every!r} is not accepted: it needs --checkpoint FILE")
     # Memory and work, before any work: a run that cannot fit or would not end is refused.
@@ -288,13 +341,16 @@ def simulate(
         ds = run_simulation(
             noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max, times=parse_times(times),
             n_times=n_times, seed=seed, theta0=parse_theta0(theta0), Omega0=Omega0, backend=backend,
-            threads=threads, progress=progress, precision=precision, max_path_steps=max_path_steps, **kwargs,
+            threads=threads, progress=progress, precision=precision, max_path_steps=max_path_steps,
+            bias_paths=bias_paths, accuracy=accuracy, rtol=rtol, **kwargs,
         )
         ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
         if out is not None:
             io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
         console.print(summary_table(ds))
+        for line in bias_warnings(ds):
+            console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
         if int(ds.nonfinite_paths[-1]) > 0:
             console.print(f"[yellow]{int(ds.nonfinite_paths[-1])} paths went non-finite (or ran away) and are excluded.[/]")
         from stochpend.exponents import diagnose_growth
@@ -321,6 +377,8 @@ def show(
     if "mean_E" not in ds:
         raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend simulation result (no mean_E)")
     console.print(summary_table(ds, max_rows=rows))
+    for line in bias_warnings(ds):
+        console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
 
 
 @app.command()

@@ -314,6 +314,101 @@ def build(spec: Spec) -> SimpleNamespace:
         return steps, (1 if (not bad and tt < t_target) else 0)
 
     @register_jitable
+    def advance_pair(i, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
+                     max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max, step_c):
+        """Advance a *coupled pair* of path i towards ``t_target`` (the bias estimate,
+        :mod:`stochpend.bias`).
+
+        The coarse member (``x``, ``Omega``) takes exactly :func:`advance_path`'s steps: the
+        step control on its own state, the landing, the noise's events. The fine member
+        (``xf``, ``Omegaf``) takes each of those steps as two half steps. Both see one
+        realization of the noise: the half steps draw it (draws ``2m`` and ``2m + 1`` for
+        coarse step m; the noise state ``xi``, ``xi_aux`` is shared) and the coarse kick uses
+        the sum of the two half-step integrals, which is the exact integral over the whole
+        step. So the coarse member has the law of an ordinary path of this Spec, the fine one
+        that of the same scheme at half the step, and their difference is small path by path
+        (strong order 1), which is what makes the bias estimate cheap.
+
+        ``k`` counts draws (two per coarse step). Returns ``(draws_taken, unfinished)``; a pair
+        with either member non-finite or escaped gets status 1.
+        """
+        if status[i] != 0 or t[i] >= t_target:
+            return 0, 0
+        D_r = real(D)
+        tau_r = real(tau)
+        W_r = real(W)
+        omega2_r = real(omega2)
+        h_max_r = real(h_max)
+        c_r = real(step_c)
+        path = _U64(path0 + i)
+        xs = x[i]
+        Om = Omega[i]
+        xs2 = xf[i]
+        Om2 = Omegaf[i]
+        xn = xi[i]
+        xa = load_aux(xi_aux[i])
+        tt = t[i]
+        tc = t_comp[i]
+        kk = k[i]
+        h_cached = h_max_r
+        hh = half * h_max_r
+        C = coefficients(hh, D_r, tau_r, W_r)
+        S = scratch0()
+        steps = 0
+        bad = False
+        while steps < max_steps:
+            if ADAPTIVE:
+                h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, n)
+                if h < escape * h_max_r:
+                    bad = True
+                    break
+            else:
+                h = h_max_r
+            h_clock = h_max if h == h_max_r else np.float64(h)
+            if HAS_EVENTS:
+                h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
+                                                                 next_event(xn, xa))
+            else:
+                h_clock, last = landing_step(tt, h_clock, t_target)
+                event = False
+                t_land = t_target
+            h = real(h_clock)
+            if h != h_cached:
+                hh = half * h
+                C = coefficients(hh, D_r, tau_r, W_r)
+                h_cached = h
+            z, S = draw(key0, key1, path, kk, S)
+            I1, xn, xa = update(xn, xa, C, z)
+            z, S = draw(key0, key1, path, kk + _U64(1), S)
+            I2, xn, xa = update(xn, xa, C, z)
+            xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I1, n)
+            xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I2, n)
+            xs, Om = verlet(xs, Om, h, omega2_r, I1 + I2, n)
+            if HAS_EVENTS and event:
+                xn, xa = at_event(xn, xa, key0, key1, path, kk, D_r, tau_r, W_r)
+            kk += _U64(2)
+            steps += 1
+            tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
+            if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xs2)
+                    and math.isfinite(Om2) and math.isfinite(xn) and math.isfinite(xa)):
+                bad = True
+                break
+            if last:
+                break
+        x[i] = xs
+        Omega[i] = Om
+        xf[i] = xs2
+        Omegaf[i] = Om2
+        xi[i] = xn
+        xi_aux[i] = xa
+        t[i] = tt
+        t_comp[i] = tc
+        k[i] = kk
+        if bad:
+            status[i] = 1
+        return 2 * steps, (1 if (not bad and tt < t_target) else 0)
+
+    @register_jitable
     def advance_lanes(bx, bO, bxi, bxa, bc2, bc3, br, bph, t0, tc0, k0, t_target, max_steps,
                       rk0, rk1, D, tau, W, omega2, n, h_max):
         """The steps of :func:`advance_path` for ``LANES`` lanes in lock step (fixed step, a noise
@@ -376,7 +471,8 @@ def build(spec: Spec) -> SimpleNamespace:
 
     return SimpleNamespace(
         spec=spec, real=real, G=G, step_size=step_size, verlet=verlet,
-        init_path=initial_state(spec.noise), advance_path=advance_path, advance_lanes=advance_lanes,
+        init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
+        advance_lanes=advance_lanes,
         path_values=statistics(spec.oscillator, spec.coupling),
         lockstep=(not spec.adaptive) and spec.noise.pair_draws and not HAS_EVENTS,
     )

@@ -10,7 +10,7 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import __version__, integrator, models, resources, runner
+from stochpend import __version__, bias, integrator, models, resources, runner
 from stochpend.params import (
     DEFAULT_H_MAX,
     DEFAULT_HIST_BINS,
@@ -51,6 +51,9 @@ def simulate(
     progress: Progress | None = None,
     precision: str = "float64",
     max_path_steps: float | None = None,
+    bias_paths: int | None = None,
+    accuracy: str = "fixed",
+    rtol: float | None = None,
 ) -> xr.Dataset:
     r"""Simulate an ensemble of stochastic pendulums and return its energy statistics.
 
@@ -117,6 +120,18 @@ def simulate(
         Paths advanced together (rounded to whole batches). Results do not depend on it.
     progress : Progress, optional
         Receives the work done (see :mod:`stochpend.progress`).
+    bias_paths : int, optional
+        Coupled coarse/fine pairs that estimate every statistic's discretisation bias
+        (:mod:`stochpend.bias`); default :func:`stochpend.bias.default_bias_paths` (a 32nd of
+        the run, at least 256: about 10 % more work); 0: no estimate.
+    accuracy : {"fixed", "auto"}
+        "fixed": the step control (h_max, step_c) as given. "auto": divide both by 2**L, L the
+        smallest level at which the estimated |bias| plus its error is at most half the
+        standard error (or ``rtol`` |value|) for every statistic at every output time, judged
+        from a pilot of coupled pairs at the given step (:func:`stochpend.bias.choose_level`).
+    rtol : float, optional
+        With ``accuracy="auto"`` (implied): the accepted bias as a fraction of each value,
+        instead of half a standard error.
 
     Returns
     -------
@@ -124,7 +139,9 @@ def simulate(
         Coordinate ``time``; variables ``mean_E``, ``mean_E2``, ``mean_E3``, ``mean_E4``,
         ``skewness``, ``flatness``, ``mean_Omega2``, ``mean_Omega4``, ``mean_sin2theta``, each
         with ``<name>_stderr``; ``E_hist`` (time, E_bin) with ``E_bin_edges``;
-        ``nonfinite_paths`` and ``n_finite_paths``. Attributes hold every parameter, the seed,
+        ``nonfinite_paths`` and ``n_finite_paths``; ``<name>_bias`` and ``<name>_bias_stderr``
+        (the estimated discretisation bias, value minus zero-step limit) unless
+        ``bias_paths=0``. Attributes hold every parameter, the seed,
         the scheme, versions, wall time and the number of path-steps.
 
     Raises
@@ -138,6 +155,8 @@ def simulate(
         step_c=step_c, hist_bins=hist_bins, hist_E_max=hist_E_max, n_batches=n_batches,
         potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
     )
+    accuracy, rtol = bias.check_accuracy(accuracy, rtol)
+    bias_paths = bias.check_bias_paths(bias_paths, config.paths)
     resources.check(config, backend=backend, precision=precision, chunk_paths=chunk_paths, max_path_steps=max_path_steps)
     backend = resolve_backend(backend)
     check_precision(precision, backend)
@@ -150,7 +169,8 @@ def simulate(
                                     or chunk_paths < 1):
         raise ValueError(f"chunk_paths={chunk_paths!r} is not accepted: an integer >= 1")
     return run(config, backend=backend, threads=threads, chunk_paths=chunk_paths, progress=progress,
-               precision=precision)
+               precision=precision, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
+               max_path_steps=max_path_steps)
 
 
 def check_precision(precision: str, backend: str) -> None:
@@ -193,24 +213,49 @@ def run(
     chunk_paths: int | None = None,
     progress: Progress | None = None,
     precision: str = "float64",
+    bias_paths: int = 0,
+    accuracy: str = "fixed",
+    rtol: float | None = None,
+    max_path_steps: float | None = None,
 ) -> xr.Dataset:
-    """Run a validated configuration and build the Dataset (see :func:`simulate`)."""
+    """Run a validated configuration and build the Dataset (see :func:`simulate`).
+
+    ``bias_paths``: pairs for the bias estimate (0: none; validated by the caller).
+    """
     progress = progress or NoProgress()
     previous_threads = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(threads)
     started = _time.perf_counter()
     try:
+        choice = None
+        if accuracy == "auto":
+            choice = bias.choose_level(config, bias_paths or bias.default_bias_paths(config.paths),
+                                       rtol=rtol, progress=progress)
+            config = choice.config
+            # the refined run must pass the same memory and work checks as the one asked for
+            resources.check(config, backend=backend, precision=precision, chunk_paths=chunk_paths,
+                            max_path_steps=max_path_steps)
         sums, path_steps = runner.run_batches(config, 0, config.n_batches, backend=backend,
                                               precision=precision, chunk_paths=chunk_paths,
                                               progress=progress)
+        wall_main = _time.perf_counter() - started
+        est = None
+        if choice is not None:
+            est = choice.extrapolated()
+        elif bias_paths:
+            est = bias.estimate(config, bias_paths, progress=progress)
     finally:
         numba.set_num_threads(previous_threads)
     wall = _time.perf_counter() - started
     attrs = provenance(config, backend=backend, threads=threads or previous_threads,
                        wall_time_s=wall, path_steps=path_steps)
     attrs["precision"] = precision
-    return sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
+    attrs["simulation_wall_time_s"] = wall_main
+    ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
+    if est is not None:
+        bias.attach(ds, est, choice)
+    return ds
 
 
 def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_time_s: float,

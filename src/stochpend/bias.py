@@ -1,0 +1,415 @@
+"""The discretisation bias of every statistic, estimated from coupled coarse/fine paths.
+
+A statistic A computed with the step control (h_max, c) differs from its zero-step limit A_0 by
+the weak error of the scheme, A_h - A_0 = K h**2 + o(h**2) (weak order 2, measured in
+tests/statistical). Halving every step gives A_{h/2} - A_0 = K h**2/4 + ..., hence the
+Richardson (Talay-Tubaro) estimate
+
+    bias(A_h) = A_h - A_0 ~= (4/3) (A_h - A_{h/2}).
+
+The difference A_h - A_{h/2} is estimated on a subsample of *coupled pairs*
+(:func:`stochpend.integrator.Integrator.advance_pair`): a coarse path, which takes exactly the
+steps an ordinary path of the run would take (its own step control, landing, noise events), and
+a fine path that takes each of those steps as two half steps, both driven by one realization of
+the noise (the half steps draw it; the coarse kick uses the exact integral over the whole step,
+the sum of the halves). The law of the coarse member is the run's; the difference of the two
+members is O(h) path by path, so the difference of the two averages has a far smaller variance
+than either (multilevel Monte Carlo's coupling, Giles 2008, on two levels). Its error bar is the
+delete-one-batch jackknife over the subsample's batches, like every other error bar here.
+
+The pairs are global paths ``BIAS_PATH0 + i`` of the run's seed: streams disjoint from the
+run's own paths (which are below 2**63), so the estimate is independent of the run's values,
+and a fixed function of (seed, configuration, subsample size), whatever the threads or chunks.
+
+What this does not see: terms of the weak error beyond h**2 (the estimate is the leading
+term; docs/numerics.md shows it against brute-force refinement), and the fine member's steps
+are the coarse member's halves rather than the step control's own choice at half c and half
+h_max (the same leading term: the two step sequences differ by O(h) along a path).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time as _time
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numba
+import numpy as np
+from numba import prange
+
+from stochpend import integrator, rng, stats
+from stochpend._jitcache import drop_stale_cache
+from stochpend.integrator import Spec
+from stochpend.params import SimulationConfig
+from stochpend.progress import NoProgress, Progress
+from stochpend.stats import N_SUMS, STATISTICS
+
+drop_stale_cache(__file__)
+
+__all__ = ["BIAS_PATH0", "BiasEstimate", "default_bias_paths", "estimate", "RICHARDSON"]
+
+#: Global index of the first coupled pair: the run's own paths are below it.
+BIAS_PATH0 = 1 << 63
+#: bias = RICHARDSON * (coarse - fine) for a scheme of weak order 2 and fine = coarse/2.
+RICHARDSON = 4.0 / 3.0
+#: Batches of the subsample (the jackknife's units).
+BIAS_BATCHES = 32
+#: Pairs advanced together (memory: about 90 bytes a pair).
+CHUNK_PAIRS = 1 << 18
+_WORK_PER_CALL = 10_000_000
+
+_U64 = np.uint64
+
+
+#: Statistics whose bias ``accuracy="auto"`` controls (the issue's list: every moment of E and
+#: Omega and the two shape ratios).
+CONTROLLED = ("mean_E", "mean_E2", "mean_E3", "mean_E4", "skewness", "flatness", "mean_Omega2",
+              "mean_Omega4")
+#: ``accuracy="auto"`` refines at most this many times (2**6 = 64 times the steps).
+MAX_LEVEL = 6
+ACCURACIES = ("fixed", "auto")
+
+
+def default_bias_paths(paths: int) -> int:
+    """The subsample size when none is given: a 32nd of the run, at least 256 pairs, at most
+    the run itself (a pair costs about three paths: about 10 % more work for a large run)."""
+    return int(max(2, min(paths, max(256, paths // 32))))
+
+
+def check_bias_paths(bias_paths: Any, paths: int) -> int:
+    """The number of pairs to use: ``None`` gives the default, 0 none; else an integer >= 2."""
+    if bias_paths is None:
+        return default_bias_paths(paths)
+    if (isinstance(bias_paths, bool) or not isinstance(bias_paths, (int, np.integer))
+            or (bias_paths != 0 and bias_paths < 2) or bias_paths > 1 << 40):
+        raise ValueError(f"bias_paths={bias_paths!r} is not accepted: an integer >= 2 (coupled "
+                         "pairs for the bias estimate), or 0 for no estimate")
+    return int(bias_paths)
+
+
+def check_accuracy(accuracy: Any, rtol: Any) -> tuple[str, float | None]:
+    """Validate ``accuracy`` and ``rtol`` (which implies ``auto``)."""
+    if accuracy not in ACCURACIES:
+        raise ValueError(f"accuracy={accuracy!r} is not accepted: one of {', '.join(ACCURACIES)}")
+    if rtol is None:
+        return accuracy, None
+    try:
+        r = float(rtol)
+    except (TypeError, ValueError):
+        r = math.nan
+    if isinstance(rtol, bool) or not (0.0 < r < 1.0):
+        raise ValueError(f"rtol={rtol!r} is not accepted: a number in (0, 1), the accepted bias "
+                         "as a fraction of each statistic")
+    return "auto", r
+
+
+# -- kernels ------------------------------------------------------------------------------------
+@functools.lru_cache(maxsize=None)
+def _kernels(spec: Spec):
+    steps = integrator.build(spec)
+    init_path = steps.init_path
+    advance_pair = steps.advance_pair
+    path_values = steps.path_values
+
+    @numba.njit(parallel=True, cache=spec.cacheable)
+    def init(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
+             uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W):  # pragma: no cover
+        for i in prange(x.shape[0]):
+            x[i], Omega[i], xi[i], xi_aux[i] = init_path(
+                key0, key1, _U64(path0 + _U64(i)), theta0, uniform_theta0, Omega0, xi0,
+                stationary_xi0, D, tau, W)
+            xf[i] = x[i]
+            Omegaf[i] = Omega[i]
+            t[i] = 0.0
+            t_comp[i] = 0.0
+            k[i] = 0
+            status[i] = 0
+
+    @numba.njit(parallel=True, cache=spec.cacheable)
+    def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
+                key0, key1, path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover
+        draws = 0
+        unfinished = 0
+        for i in prange(x.shape[0]):
+            s, u = advance_pair(i, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status,
+                                t_target, max_steps, key0, key1, path0, D, tau, W, omega2, n,
+                                h_max, step_c)
+            draws += s
+            unfinished += u
+        return draws, unfinished
+
+    @numba.njit(parallel=True, cache=spec.cacheable)
+    def accumulate(x, Omega, xf, Omegaf, status, omega2, n, batch_size,
+                   sums):  # pragma: no cover
+        """sums[b, 0 or 1, :]: the power sums of the coarse (0) and fine (1) members of batch
+        b's pairs, both over the same pairs: a pair is counted only when both members are."""
+        n_paths = x.shape[0]
+        for b in prange(sums.shape[0]):
+            for m in range(2):
+                for c in range(N_SUMS):
+                    sums[b, m, c] = 0.0
+            for i in range(b * batch_size, min((b + 1) * batch_size, n_paths)):
+                if status[i] == 0:
+                    ok0, E0, E20, O20, G20 = path_values(np.float64(x[i]), np.float64(Omega[i]),
+                                                         omega2, n)
+                    ok1, E1, E21, O21, G21 = path_values(np.float64(xf[i]),
+                                                         np.float64(Omegaf[i]), omega2, n)
+                    if not (ok0 and ok1):
+                        status[i] = 1
+                if status[i] != 0:
+                    sums[b, 0, stats.S_NONFINITE] += 1.0
+                    sums[b, 1, stats.S_NONFINITE] += 1.0
+                    continue
+                for m in range(2):
+                    if m == 0:
+                        E, E2, O2, G2 = E0, E20, O20, G20
+                    else:
+                        E, E2, O2, G2 = E1, E21, O21, G21
+                    sums[b, m, stats.S_COUNT] += 1.0
+                    sums[b, m, stats.S_E1] += E
+                    sums[b, m, stats.S_E2] += E2
+                    sums[b, m, stats.S_E3] += E2 * E
+                    sums[b, m, stats.S_E4] += E2 * E2
+                    sums[b, m, stats.S_OMEGA2] += O2
+                    sums[b, m, stats.S_OMEGA4] += O2 * O2
+                    sums[b, m, stats.S_G2] += G2
+
+    return init, advance, accumulate
+
+
+# -- the estimate -------------------------------------------------------------------------------
+@dataclass
+class BiasEstimate:
+    """The estimated bias of each statistic at each output time, with its jackknife error.
+
+    ``bias[name] = (value, stderr)``, arrays of shape (n_times,); ``coarse[name]`` the coarse
+    members' statistic and its error (what the run itself would give with this many paths);
+    ``paths`` the pairs used, ``path_steps`` the steps both members took (fine half steps
+    counted as steps), ``wall_time_s`` the estimate's cost.
+    """
+
+    times: np.ndarray
+    bias: dict[str, tuple[np.ndarray, np.ndarray]]
+    coarse: dict[str, tuple[np.ndarray, np.ndarray]]
+    paths: int
+    path_steps: int
+    wall_time_s: float
+    nonfinite: np.ndarray
+    h_max: float
+    step_c: float
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def data_vars(self) -> dict[str, tuple]:
+        """``<name>_bias`` and ``<name>_bias_stderr`` for the result Dataset."""
+        out: dict[str, tuple] = {}
+        for name, (value, se) in self.bias.items():
+            out[f"{name}_bias"] = ("time", value, {
+                "long_name": f"estimated discretisation bias of {name}: its value minus the "
+                             "zero-step limit (Richardson, weak order 2, coupled half-step pairs)"})
+            out[f"{name}_bias_stderr"] = ("time", se, {
+                "long_name": f"standard error of {name}_bias (jackknife over the pairs' batches)"})
+        return out
+
+    def attrs(self) -> dict[str, Any]:
+        return {
+            "bias_method": "richardson-coupled-half-step (bias = 4/3 (coarse - fine), "
+                           "docs/numerics.md)",
+            "bias_paths": self.paths,
+            "bias_path_steps": self.path_steps,
+            "bias_wall_time_s": self.wall_time_s,
+            "bias_nonfinite_pairs": int(self.nonfinite[-1]) if self.nonfinite.size else 0,
+        }
+
+
+def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | None = None,
+             chunk_pairs: int = CHUNK_PAIRS) -> BiasEstimate:
+    """Estimate the bias of ``config``'s statistics from ``n_paths`` coupled pairs (CPU, float64).
+
+    The numbers depend on (config, n_paths) only: not on ``chunk_pairs`` or the threads.
+    """
+    if isinstance(n_paths, bool) or not isinstance(n_paths, int) or n_paths < 2:
+        raise ValueError(f"bias_paths={n_paths!r} is not accepted: an integer >= 2 (or 0: no "
+                         "bias estimate)")
+    progress = progress or NoProgress()
+    started = _time.perf_counter()
+    spec = Spec.of(config)
+    init, advance, accumulate = _kernels(spec)
+    key0, key1 = rng.seed_to_key(config.seed)
+    times = np.asarray(config.times, dtype=np.float64)
+    n_batches = min(BIAS_BATCHES, n_paths)
+    batch_size = -(-n_paths // n_batches)
+    n_batches = -(-n_paths // batch_size)
+    chunk_batches = max(1, chunk_pairs // batch_size)
+    sums = np.zeros((n_batches, times.size, 2, N_SUMS))
+    c = config
+    draws = 0
+    progress.start(n_paths * c.t_max, "bias estimate")
+    done_work = 0.0
+    for b0 in range(0, n_batches, chunk_batches):
+        b1 = min(b0 + chunk_batches, n_batches)
+        p0 = b0 * batch_size
+        n = min(b1 * batch_size, n_paths) - p0
+        arrays = [np.empty(n) for _ in range(7)]
+        x, Omega, xf, Omegaf, xi, xi_aux, t = arrays
+        t_comp = np.empty(n)
+        k = np.empty(n, dtype=np.uint64)
+        status = np.empty(n, dtype=np.uint8)
+        path0 = _U64(BIAS_PATH0 + p0)
+        init(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, key0, key1, path0,
+             0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
+             0.0 if c.xi0 is None else c.xi0, c.xi0 is None, c.D, c.tau_or_zero,
+             c.omega_noise_or_zero)
+        max_steps = max(1000, _WORK_PER_CALL // max(n, 1))
+        for j, t_target in enumerate(times):
+            while True:
+                _, unfinished = advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status,
+                                        float(t_target), max_steps, key0, key1, path0, c.D,
+                                        c.tau_or_zero, c.omega_noise_or_zero, c.omega**2,
+                                        c.power_n, c.h_max, c.step_c)
+                progress.update(done_work + float(np.sum(t)))
+                if unfinished == 0:
+                    break
+            accumulate(x, Omega, xf, Omegaf, status, c.omega**2, c.power_n, batch_size,
+                       sums[b0:b1, j])
+        draws += int(np.sum(k, dtype=np.uint64))
+        done_work += n * c.t_max
+    progress.finish()
+    # A coarse step is one draw, each fine half step one: draws count the fine steps, and
+    # the coarse steps are half as many.
+    path_steps = draws + draws // 2
+    bias, coarse = _statistics(sums)
+    nonfinite = sums[:, :, 0, stats.S_NONFINITE].sum(axis=0).astype(np.int64)
+    return BiasEstimate(times, bias, coarse, n_paths, path_steps,
+                        _time.perf_counter() - started, nonfinite, c.h_max, c.step_c)
+
+
+def _statistics(sums: np.ndarray):
+    """(bias, coarse): each statistic's RICHARDSON * (coarse - fine) and the coarse value, with
+    delete-one-batch jackknife errors. ``sums``: (n_batches, n_times, 2, N_SUMS)."""
+    n_b = sums.shape[0]
+    total = sums.sum(axis=0)
+    loo = total[None] - sums
+
+    def means(s: np.ndarray) -> np.ndarray:
+        count = s[..., stats.S_COUNT]
+        return s / np.where(count > 0, count, np.nan)[..., None]
+
+    m_all = means(total)
+    m_loo = means(loo)
+    bias: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    coarse: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for name, f in STATISTICS.items():
+            for out, g in ((bias, lambda m, f=f: RICHARDSON * (f(m[..., 0, :]) - f(m[..., 1, :]))),
+                           (coarse, lambda m, f=f: f(m[..., 0, :]))):
+                value = g(m_all)
+                if n_b >= 2:
+                    jk = g(m_loo)
+                    dev = jk - jk.mean(axis=0)
+                    se = np.sqrt((n_b - 1) / n_b * np.sum(dev * dev, axis=0))
+                else:
+                    se = np.full_like(value, np.nan)
+                out[name] = (value, se)
+    return bias, coarse
+
+
+@dataclass
+class LevelChoice:
+    """What ``accuracy="auto"`` decided: the refinement ``level`` (h_max and c divided by
+    2**level), the refined ``config``, the ``pilot`` estimate at the given step, the
+    ``needed`` ratio (worst (|bias| + error) / target at level 0), and whether the target
+    was ``reached`` within MAX_LEVEL."""
+
+    level: int
+    config: SimulationConfig
+    pilot: BiasEstimate
+    needed: float
+    reached: bool
+    target: str
+
+    def extrapolated(self) -> BiasEstimate:
+        """The pilot's bias scaled to the chosen level (weak order 2: 4**-level): the run's
+        own bias, more precisely than a new estimate at the fine step could give it."""
+        f = 0.25**self.level
+        bias = {k: (v * f, se * f) for k, (v, se) in self.pilot.bias.items()}
+        return replace(self.pilot, bias=bias, h_max=self.config.h_max, step_c=self.config.step_c)
+
+
+def choose_level(config: SimulationConfig, pilot_paths: int, *, rtol: float | None = None,
+                 progress: Progress | None = None) -> LevelChoice:
+    """``accuracy="auto"``: the smallest refinement level L for which every controlled
+    statistic's bias, bounded at one sigma by (|b| + se_b) 4**-L from a pilot of coupled pairs
+    at the given step, is at most half the run's standard error (predicted from the pilot:
+    se sqrt(pilot / paths)), or ``rtol`` |value|.
+
+    The pilot runs at the coarsest step, where the bias is largest and best resolved; a
+    refined level changes the bias by the known factor 4**-L (weak order 2), which the
+    validation in docs/numerics.md checks. A poorly resolved pilot (large se_b: the coupled
+    paths have decorrelated, e.g. long after the crossover time) makes L larger, never
+    smaller: the choice is conservative.
+    """
+    pilot = estimate(config, pilot_paths, progress=progress)
+    level, worst, level_se = _needed_level(pilot, config.paths, rtol)
+    # A pilot too small to resolve the bias (twice its error alone asks for the level): four
+    # times more pairs halve that error; worth it while they cost less than the level they
+    # may save (a pair costs about 3 paths at the coarse step, a level doubles the run).
+    while (level_se >= level and level >= 2 and 4 * pilot.paths <= config.paths
+           and 3 * 4 * pilot.paths < config.paths * 2 ** (level - 1)):
+        pilot = estimate(config, 4 * pilot.paths, progress=progress)
+        level, worst, level_se = _needed_level(pilot, config.paths, rtol)
+    reached = level <= MAX_LEVEL
+    level = min(level, MAX_LEVEL)
+    what = f"|bias| <= {rtol:g} |value|" if rtol is not None else "|bias| <= stderr/2"
+    return LevelChoice(level, refined(config, level), pilot, worst, reached, what)
+
+
+def _needed_level(pilot: BiasEstimate, paths: int, rtol: float | None) -> tuple[int, float, int]:
+    """(L, worst ratio, the L that twice the pilot's error alone asks for): see
+    :func:`choose_level`."""
+    scale = math.sqrt(pilot.paths / paths)
+    worst = worst_se = 0.0
+    for name in CONTROLLED:
+        b, b_se = pilot.bias[name]
+        value, se = pilot.coarse[name]
+        target = rtol * np.abs(value) if rtol is not None else 0.5 * se * scale
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = (np.abs(b) + b_se) / target
+            r_se = 2.0 * b_se / target
+        ok = np.isfinite(r)
+        if np.any(ok):
+            worst = max(worst, float(np.max(r[ok])))
+            worst_se = max(worst_se, float(np.max(r_se[ok])))
+
+    def level(x: float) -> int:
+        return 0 if x <= 1.0 else math.ceil(math.log(x, 4.0) - 1e-12)
+
+    return level(worst), worst, level(worst_se)
+
+
+def attach(ds: Any, est: BiasEstimate, choice: LevelChoice | None = None) -> None:
+    """Add the estimate's variables and attributes to a result Dataset (in place)."""
+    for name, (dims, value, attrs) in est.data_vars().items():
+        ds[name] = (dims, value, attrs)
+    ds.attrs.update(est.attrs())
+    if choice is None:
+        ds.attrs["accuracy"] = "fixed"
+        return
+    ds.attrs.update({
+        "accuracy": "auto",
+        "accuracy_target": choice.target,
+        "accuracy_level": choice.level,
+        "accuracy_reached": int(choice.reached),
+        "accuracy_pilot_h_max": choice.pilot.h_max,
+        "accuracy_pilot_step_c": choice.pilot.step_c,
+        "accuracy_needed_ratio": choice.needed,
+        "bias_method": ds.attrs["bias_method"] + f"; pilot at h_max={choice.pilot.h_max:g}, "
+                       f"c={choice.pilot.step_c:g}, scaled by 4**-{choice.level}",
+    })
+
+
+def refined(config: SimulationConfig, level: int) -> SimulationConfig:
+    """``config`` with h_max and c divided by 2**level (the refinement ladder of ``auto``)."""
+    factor = 0.5**level
+    return replace(config, h_max=config.h_max * factor, step_c=config.step_c * factor)
