@@ -346,7 +346,8 @@ def test_accumulate_excludes_nonfinite_paths() -> None:
 def test_dataset_has_the_simulator_format(seed: int) -> None:
     from stochpend import simulate
 
-    ref = simulate(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=20, t_max=0.5, n_times=3, seed=seed)
+    ref = simulate(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=20, t_max=0.5, n_times=3, seed=seed,
+                   bias_paths=0)
     ds = simulate_reduced("asymptotic", D=1.0, tau=1.0, paths=200, t_max=0.5, n_times=3, seed=seed)
     assert set(ds.data_vars) == set(ref.data_vars)
     sizes = dict(ds.sizes)

@@ -1,0 +1,193 @@
+"""The discretisation-bias estimate (stochpend.bias) and accuracy="auto".
+
+The reference is exact: for the harmonic oscillator with white noise on the force the scheme is
+linear, so its second moments after n fixed steps follow an exact moment map
+(tests/statistical/test_weak_order.py). The estimator's expectation is then known without
+sampling, 4/3 (M_h - M_{h/2}), and the true bias M_h - exact too.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import stochpend
+from stochpend import bias, integrator
+from stochpend.cli import app
+from stochpend.params import SimulationConfig
+from tests.conftest import SEED, Z_TOL
+from tests.statistical.test_weak_order import D, OMEGA, X0, exact_second_moments, scheme_second_moments
+
+H = 0.2
+TIMES = (1.0, 2.0, 4.0)
+
+
+def _harmonic(paths: int, **kw) -> SimulationConfig:
+    return SimulationConfig.build(noise="white", D=D, omega=OMEGA, paths=paths, t_max=4.0,
+                                  times=TIMES, seed=SEED, theta0=X0, Omega0=0.0,
+                                  potential="harmonic", h_max=H, step_c=0.0, **kw)
+
+
+def test_estimate_has_the_exact_expectation_of_the_richardson_difference():
+    """<x^2> and <Omega^2> bias estimates vs 4/3 (M_h - M_{h/2}) of the exact moment maps:
+    |z| < 4 wherever that bias is resolved (> 5 standard errors: most entries). A pair whose
+    coarse kick used one half-step integral, or whose fine member took full steps, or a wrong
+    Richardson factor, is off by many standard errors."""
+    est = bias.estimate(_harmonic(20_000), 20_000)
+    checked = 0
+    for name, col in (("mean_sin2theta", 0), ("mean_Omega2", 2)):
+        b, se = est.bias[name]
+        c, c_se = est.coarse[name]
+        for j, t in enumerate(TIMES):
+            n = round(t / H)
+            m_h = scheme_second_moments(H, n)[col]
+            want = bias.RICHARDSON * (m_h - scheme_second_moments(H / 2, 2 * n)[col])
+            # the coarse member has the law of an ordinary path of the run
+            zc = (c[j] - m_h) / c_se[j]
+            assert abs(zc) < Z_TOL, f"t={t}: coarse {name} {c[j]:.5f}, scheme map {m_h:.5f} (z={zc:+.1f})"
+            if abs(want) < 5 * se[j]:
+                continue
+            checked += 1
+            z = (b[j] - want) / se[j]
+            assert abs(z) < Z_TOL, f"t={t}: {name} bias {b[j]:.6f} +- {se[j]:.1e}, expected {want:.6f} (z={z:+.1f})"
+    assert checked >= 4
+
+
+def test_richardson_expectation_is_the_true_bias_to_leading_order():
+    """No sampling: 4/3 (M_h - M_{h/2}) is within 6 % of M_h - exact at h = 0.2 (every second
+    moment at t = 4) and the gap shrinks with h (the next term of the weak error)."""
+    gaps = []
+    for h in (H, H / 2):
+        n = round(4.0 / h)
+        true = scheme_second_moments(h, n) - exact_second_moments(4.0)
+        est = bias.RICHARDSON * (scheme_second_moments(h, n) - scheme_second_moments(h / 2, 2 * n))
+        gaps.append(np.max(np.abs(est - true) / np.abs(true)))
+    assert gaps[0] < 0.06, gaps
+    assert gaps[1] < 0.6 * gaps[0], gaps
+
+
+@pytest.mark.parametrize("step_c", [0.0, 0.1])
+def test_pairs_without_noise_are_the_run_at_h_and_at_h_over_2(step_c):
+    """D = 0, fixed start: the coarse member is advance_path's path bit for bit (fixed and
+    adaptive steps), and with a fixed step the fine member is the path run at h_max/2: the
+    pair adds nothing to the scheme but the shared noise."""
+    from stochpend import rng
+    from tests._kernels import Paths, kernels
+
+    n, seed, theta0, Omega0 = 8, SEED, 2.5, np.linspace(-1.0, 3.0, 8)
+    key0, key1 = rng.seed_to_key(seed)
+    spec = integrator.spec("ou", adaptive=step_c > 0)
+    init, advance, _ = bias._kernels(spec)
+    pair = [np.zeros(n) for _ in range(8)]
+    k = np.zeros(n, dtype=np.uint64)
+    status = np.zeros(n, dtype=np.uint8)
+    x, Om, xf, Of, xi, xa, t, tc = pair
+    init(x, Om, xf, Of, xi, xa, t, tc, k, status, key0, key1, np.uint64(0), theta0, False, 0.0,
+         0.0, False, 0.0, 1.0, 0.0)
+    Om[:] = Omega0
+    Of[:] = Omega0
+    advance(x, Om, xf, Of, xi, xa, t, tc, k, status, 3.0, 10**6, key0, key1, np.uint64(0), 0.0,
+            1.0, 0.0, 1.0, 2, 0.1, step_c)
+    kern = kernels("ou", adaptive=step_c > 0)
+    for h, (xs, Os) in ((0.1, (x, Om)), (0.05, (xf, Of))):
+        if h == 0.05 and step_c > 0:
+            continue
+        p = Paths(n).init(kern, seed, theta0=theta0, xi0=0.0, D=0.0)
+        p.Omega[:] = Omega0
+        p.advance(kern, 3.0, 10**6, seed, D=0.0, h_max=h, step_c=step_c)
+        if h == 0.1:
+            assert np.array_equal(xs, p.x) and np.array_equal(Os, p.Omega)
+        else:  # the same steps up to the last one's rounding (a clock of 0.1s vs of 0.05s)
+            assert np.allclose(xs, p.x, rtol=0, atol=1e-12) and np.allclose(Os, p.Omega, rtol=0, atol=1e-12)
+            assert not np.array_equal(xs, x)  # and not the coarse member
+    assert np.all(t == 3.0) and not np.any(status)
+
+
+def test_estimate_does_not_depend_on_chunks_or_threads():
+    import numba
+
+    cfg = SimulationConfig.build(noise="ou", paths=500, t_max=20.0, n_times=4, seed=SEED)
+    a = bias.estimate(cfg, 300)
+    b = bias.estimate(cfg, 300, chunk_pairs=40)
+    previous = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        c = bias.estimate(cfg, 300)
+    finally:
+        numba.set_num_threads(previous)
+    for name in a.bias:
+        for other in (b, c):
+            assert np.array_equal(a.bias[name][0], other.bias[name][0], equal_nan=True)
+            assert np.array_equal(a.bias[name][1], other.bias[name][1], equal_nan=True)
+    assert a.path_steps == b.path_steps == c.path_steps
+
+
+def test_simulate_reports_bias_variables_and_attrs():
+    ds = stochpend.simulate(noise="ou", paths=2000, t_max=10.0, n_times=3, seed=SEED)
+    for name in bias.CONTROLLED:
+        assert f"{name}_bias" in ds and f"{name}_bias_stderr" in ds
+        assert ds[f"{name}_bias"].dims == ("time",)
+    assert ds.attrs["bias_paths"] == bias.default_bias_paths(2000) == 256
+    assert ds.attrs["accuracy"] == "fixed"
+    assert 0 < ds.attrs["bias_path_steps"] < ds.attrs["path_steps"]
+    none = stochpend.simulate(noise="ou", paths=2000, t_max=10.0, n_times=3, seed=SEED, bias_paths=0)
+    assert "mean_E_bias" not in none
+    # the run's own numbers do not depend on the estimate
+    assert np.array_equal(ds.mean_E.values, none.mean_E.values)
+
+
+def test_auto_refines_a_coarse_step_and_accepts_a_loose_tolerance():
+    kw = dict(noise="ou", paths=4000, t_max=20.0, times=(5.0, 20.0), seed=SEED, h_max=0.4,
+              step_c=0.8, bias_paths=512)
+    ds = stochpend.simulate(accuracy="auto", **kw)
+    level = ds.attrs["accuracy_level"]
+    assert level >= 1
+    assert ds.attrs["h_max"] == pytest.approx(0.4 / 2**level)
+    assert ds.attrs["step_c"] == pytest.approx(0.8 / 2**level)
+    assert ds.attrs["accuracy_pilot_h_max"] == 0.4
+    # the reported bias is the pilot's, scaled to the chosen level
+    pilot = bias.estimate(SimulationConfig.build(**{k: v for k, v in kw.items() if k != "bias_paths"}),
+                          ds.attrs["bias_paths"])
+    assert np.allclose(ds.mean_E_bias.values, pilot.bias["mean_E"][0] * 0.25**level)
+    loose = stochpend.simulate(rtol=0.9, **kw)
+    assert loose.attrs["accuracy"] == "auto"
+    assert loose.attrs["accuracy_level"] < level
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--accuracy", "best"], "accuracy='best' is not accepted: one of fixed, auto"),
+        (["--rtol", "2"], "rtol=2.0 is not accepted: a number in (0, 1)"),
+        (["--rtol", "nan"], "rtol=nan is not accepted"),
+        (["--bias-paths", "1"], "bias_paths=1 is not accepted: an integer >= 2"),
+        (["--accuracy", "auto", "--checkpoint", "ck.npz"], "accuracy='auto' is not accepted with --checkpoint"),
+    ],
+)
+def test_cli_refuses_bad_accuracy_options(args, needle, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(app, ["simulate", "--paths", "100", "--t-max", "1", *args])
+    assert result.exit_code == 2, result.output
+    assert needle in " ".join(result.output.split())
+    assert "Traceback" not in result.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_cli_warns_when_the_bias_exceeds_the_standard_error():
+    # the linear harmonic oscillator at a coarse fixed step: a bias of a few standard errors
+    # (test_estimate_has_the_exact_expectation_of_the_richardson_difference)
+    result = CliRunner().invoke(app, ["simulate", "--potential", "harmonic", "--noise", "white",
+                                      "--D", "0.5", "--theta0", "1", "--h-max", "0.2", "--step-c",
+                                      "0", "--paths", "20000", "--t-max", "4", "--times", "2,4",
+                                      "--seed", "2", "--bias-paths", "5000"])
+    assert result.exit_code == 0, result.output
+    text = " ".join(result.output.split())
+    assert "bias <E>" in text
+    assert "<E> at t=2 has a discretisation bias of" in text
+    assert "standard errors: rerun with --accuracy auto" in text
+
+
+def test_spec_pair_function_exists_for_every_noise():
+    for noise in ("white", "ou", "dichotomous", "harmonic"):
+        assert callable(integrator.build(integrator.spec(noise)).advance_pair)
