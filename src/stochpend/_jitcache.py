@@ -38,3 +38,23 @@ def drop_stale_cache(module_file: str) -> None:
         stamp.write_text(digest.hexdigest())
     except OSError:  # a read-only install: Numba then compiles in memory or uses its own dir
         pass
+
+
+def own_index(key: str):
+    """Decorator (under ``numba.njit(cache=True)``): give a kernel built per Spec its own cache
+    index file, named after ``key`` (the Spec's label).
+
+    Numba keeps one index file per function (its qualified name and line) and, when two
+    processes add entries to it at once, both may pick the same data file name: the index can
+    end up mapping one Spec's key to another Spec's machine code, which a later process then
+    runs without a word (seen here: the dichotomous kernel running another noise's step after
+    concurrent test processes). With one index per Spec, processes that race write the same
+    Spec's code, so whichever write wins is right.
+    """
+    tag = hashlib.sha256(key.encode()).hexdigest()[:16]
+
+    def rename(fn):
+        fn.__qualname__ = f"{fn.__qualname__}_{tag}"
+        return fn
+
+    return rename

@@ -40,7 +40,7 @@ import numpy as np
 from numba import prange
 
 from stochpend import integrator, rng, stats
-from stochpend._jitcache import drop_stale_cache
+from stochpend._jitcache import drop_stale_cache, own_index
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig
 from stochpend.progress import NoProgress, Progress
@@ -114,6 +114,7 @@ def _kernels(spec: Spec):
     path_values = steps.path_values
 
     @numba.njit(parallel=True, cache=spec.cacheable)
+    @own_index(spec.label)
     def init(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
              uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W):  # pragma: no cover
         for i in prange(x.shape[0]):
@@ -128,6 +129,7 @@ def _kernels(spec: Spec):
             status[i] = 0
 
     @numba.njit(parallel=True, cache=spec.cacheable)
+    @own_index(spec.label)
     def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
                 key0, key1, path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover
         draws = 0
@@ -141,6 +143,7 @@ def _kernels(spec: Spec):
         return draws, unfinished
 
     @numba.njit(parallel=True, cache=spec.cacheable)
+    @own_index(spec.label)
     def accumulate(x, Omega, xf, Omegaf, status, omega2, n, batch_size,
                    sums):  # pragma: no cover
         """sums[b, 0 or 1, :]: the power sums of the coarse (0) and fine (1) members of batch

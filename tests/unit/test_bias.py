@@ -191,3 +191,18 @@ def test_cli_warns_when_the_bias_exceeds_the_standard_error():
 def test_spec_pair_function_exists_for_every_noise():
     for noise in ("white", "ou", "dichotomous", "harmonic"):
         assert callable(integrator.build(integrator.spec(noise)).advance_pair)
+
+
+def test_each_spec_has_its_own_cache_index():
+    """Numba's index file is shared by every overload of one function; two processes adding
+    different Specs to it at once can leave one Spec's key pointing at another's code. Each
+    Spec's kernels therefore get their own index file (stochpend._jitcache.own_index)."""
+    from stochpend._backends import cpu
+
+    paths = set()
+    for noise in ("ou", "dichotomous"):
+        for adaptive in (True, False):
+            spec = integrator.spec(noise, adaptive=adaptive)
+            for kern in (cpu.advance_kernel(spec), bias._kernels(spec)[1]):
+                paths.add(kern._cache._cache_file._index_path)
+    assert len(paths) == 8

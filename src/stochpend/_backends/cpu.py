@@ -35,7 +35,7 @@ import numpy as np
 from numba import prange
 
 from stochpend import integrator, rng, stats
-from stochpend._jitcache import drop_stale_cache
+from stochpend._jitcache import drop_stale_cache, own_index
 from stochpend.integrator import Spec
 from stochpend.noises.ou import OU
 from stochpend.oscillators.pendulum import PENDULUM
@@ -76,6 +76,7 @@ def init_kernel(spec: Spec):
     init_path = integrator.initial_state(spec.noise)
 
     @numba.njit(parallel=True, cache=spec.noise.builtin)
+    @own_index(spec.noise.name)
     def init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
              uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W):  # pragma: no cover
         for i in prange(x.shape[0]):
@@ -102,6 +103,7 @@ def advance_kernel(spec: Spec):
         return _lockstep_kernel(spec)
 
     @numba.njit(parallel=True, cache=spec.cacheable)
+    @own_index(spec.label)
     def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
                 path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover - compiled
         steps_taken = 0
@@ -124,6 +126,7 @@ def _lockstep_kernel(spec: Spec):
     real = steps.real
 
     @numba.njit(parallel=True, cache=spec.cacheable, error_model="numpy")
+    @own_index(spec.label)
     def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
                 path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover - compiled
         n_paths = x.shape[0]
@@ -215,6 +218,7 @@ def accumulate_kernel(spec: Spec):
     path_values = integrator.statistics(spec.oscillator, spec.coupling)
 
     @numba.njit(parallel=True, cache=spec.oscillator.builtin)
+    @own_index(f"{spec.oscillator.name}/{spec.coupling}")
     def accumulate(x, Omega, status, omega2, n, batch_size, edges, sums,
                    hist):  # pragma: no cover - compiled
         n_paths = x.shape[0]
