@@ -70,12 +70,21 @@ CONTROLLED = ("mean_E", "mean_E2", "mean_E3", "mean_E4", "skewness", "flatness",
 #: ``accuracy="auto"`` refines at most this many times (2**6 = 64 times the steps).
 MAX_LEVEL = 6
 ACCURACIES = ("fixed", "auto")
+#: Default subsample of a GPU run: the pairs run on the CPU.
+CUDA_DEFAULT_PAIRS = 1 << 15
 
 
 def default_bias_paths(paths: int) -> int:
     """The subsample size when none is given: a 32nd of the run, at least 256 pairs, at most
     the run itself (a pair costs about three paths: about 10 % more work for a large run)."""
     return int(max(2, min(paths, max(256, paths // 32))))
+
+
+def default_pairs(paths: int, backend: str) -> int:
+    """:func:`default_bias_paths`, capped at CUDA_DEFAULT_PAIRS for a GPU run (the pairs run on
+    the CPU)."""
+    n = default_bias_paths(paths)
+    return min(n, CUDA_DEFAULT_PAIRS) if backend == "cuda" else n
 
 
 def check_bias_paths(bias_paths: Any, paths: int) -> int:

@@ -45,7 +45,7 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import __version__, io
+from stochpend import __version__, bias, io
 from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
 from stochpend.runner import BACKENDS, RunState, run_batches
@@ -508,6 +508,10 @@ def run_checkpointed(
                                                backend=backend, precision=precision,
                                                chunk_paths=chunk_paths, progress=progress,
                                                checkpointer=checkpointer, resume=st)
+        # The bias estimate (stochpend.bias) is not checkpointed: a few per cent of the run,
+        # redone in full if the process stops during it (the checkpoint is still there).
+        estimate = bias.estimate(config, bias.default_pairs(config.paths, backend),
+                                 progress=progress)
     finally:
         numba.set_num_threads(previous_threads)
     attrs = provenance(config, backend=backend, threads=threads or previous_threads,
@@ -519,6 +523,7 @@ def run_checkpointed(
     if command_line:
         attrs["command_line"] = command_line
     ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
+    bias.attach(ds, estimate)
     if out_p is not None:
         io.to_netcdf(ds, out_p, overwrite=overwrite)
     with contextlib.suppress(FileNotFoundError):

@@ -314,7 +314,11 @@ def simulate(
     from stochpend import bias as _bias
 
     accuracy, rtol = _bias.check_accuracy(accuracy, rtol)
-    bias_paths = _bias.check_bias_paths(bias_paths, config.paths)
+    if checkpoint is not None and bias_paths is not None:
+        raise ValueError(f"bias_paths={bias_paths!r} is not accepted with --checkpoint: a "
+                         "checkpointed run estimates its bias with the default subsample")
+    if bias_paths is not None:
+        bias_paths = _bias.check_bias_paths(bias_paths, config.paths)
     if checkpoint is not None and accuracy == "auto":
         raise ValueError("accuracy='auto' is not accepted with --checkpoint: run the pilot "
                          "first (stochpend simulate --accuracy auto --paths N, small N) and "

@@ -156,7 +156,8 @@ def simulate(
         potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
     )
     accuracy, rtol = bias.check_accuracy(accuracy, rtol)
-    bias_paths = bias.check_bias_paths(bias_paths, config.paths)
+    if bias_paths is not None:
+        bias_paths = bias.check_bias_paths(bias_paths, config.paths)
     resources.check(config, backend=backend, precision=precision, chunk_paths=chunk_paths, max_path_steps=max_path_steps)
     backend = resolve_backend(backend)
     check_precision(precision, backend)
@@ -213,16 +214,19 @@ def run(
     chunk_paths: int | None = None,
     progress: Progress | None = None,
     precision: str = "float64",
-    bias_paths: int = 0,
+    bias_paths: int | None = None,
     accuracy: str = "fixed",
     rtol: float | None = None,
     max_path_steps: float | None = None,
 ) -> xr.Dataset:
     """Run a validated configuration and build the Dataset (see :func:`simulate`).
 
-    ``bias_paths``: pairs for the bias estimate (0: none; validated by the caller).
+    ``bias_paths``: pairs for the bias estimate (0: none; validated by the caller; None: the
+    default, :func:`stochpend.bias.default_pairs`).
     """
     progress = progress or NoProgress()
+    if bias_paths is None:
+        bias_paths = bias.default_pairs(config.paths, backend)
     previous_threads = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(threads)
