@@ -353,7 +353,8 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
 
 # -- saving during a run ---------------------------------------------------------------------
 class FileCheckpointer:
-    """A :class:`~stochpend.simulate.Checkpointer` that writes the state every ``every_s`` seconds.
+    """A :class:`~stochpend.simulate.Checkpointer` that writes the state every ``every_s`` seconds,
+    and at the run's last kernel boundary (so that the result, if it cannot be written, is kept).
 
     It is also where a deferred Ctrl-C or SIGTERM takes effect: :meth:`request_stop` (called
     by the signal handler of :func:`run_checkpointed`) makes the next ``maybe_save``, which
