@@ -12,7 +12,7 @@ from typing import Annotated, Any
 import typer
 
 from stochpend._cli_types import integer
-from stochpend.cli import console, handles_errors
+from stochpend.cli import console, handles_errors, note
 
 __all__ = ["RichReproduceProgress", "reproduce_command"]
 
@@ -122,7 +122,9 @@ def reproduce_command(
 
     from stochpend.figures import COLUMNS
     from stochpend.reproduce import reproduce
+    from stochpend.simulate import resolve_backend
 
+    backend = resolve_backend(backend, note=note)  # 'auto' on a broken CUDA stack: a note
     progress = RichProgressOrLines(enabled=not quiet and console.is_terminal, quiet=quiet)
     result = reproduce(figures or ["all"], paths=paths, t_max=t_max, out=out, quick=quick, force=force,
                        progress=progress, threads=threads, max_path_steps=max_path_steps,

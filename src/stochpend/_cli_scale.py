@@ -290,7 +290,7 @@ def sweep_command(
     check_scheduler(scheduler)
     from stochpend.simulate import check_precision, resolve_backend
 
-    backend = resolve_backend(backend)
+    backend = resolve_backend(backend, note=cli.note)
     check_precision(precision, backend)
     if workers is not None and workers < 1:
         cli.fail(f"workers={workers!r} is not accepted: an integer >= 1")

@@ -6,22 +6,47 @@ function it inlines from another module does (the integrator, the noises, the os
 a function referred to by module name (``rng.draw_normals``) is pickled by reference only. Each kernel module calls :func:`drop_stale_cache` at import: it hashes the kernel
 module together with the shared modules and deletes the module's cache files when the hash
 differs from the one recorded beside them, so an edit anywhere recompiles.
+
+Numba names each compiled function ``<qualname>$<n>``, with ``n`` from a counter that is
+unique in one process only, and a cached kernel calls the pieces it does not inline by those
+names. A process that compiles other pieces first (another Spec's ``build.<locals>.advance_path``)
+can give them the very names a cached kernel was written with, and the kernel, once loaded,
+then calls them: another noise's step, wrong numbers, no error. :func:`salt_unique_ids` (run
+at import) starts the counter at a random point per process, so names written by different
+processes never meet.
 """
 
 from __future__ import annotations
 
 import hashlib
+import itertools
+import secrets
 from pathlib import Path
 
 _PACKAGE = Path(__file__).resolve().parent
 SHARED_SOURCES = ("integrator.py", "rng.py", "mathlib.py", "fastmath.py", "stats.py",
                   "noises", "oscillators")
+#: Part of the cache stamp: caches written before the counter was salted are dropped.
+_NAMING = b"numba unique ids salted per process (1)"
+
+
+def salt_unique_ids() -> None:
+    """Start Numba's per-function counter at a random multiple of 2**20 below 2**60 (once per
+    process): two processes then share a function name with probability ~2**-40."""
+    from numba.core.bytecode import FunctionIdentity
+
+    if not getattr(FunctionIdentity, "_stochpend_salted", False):
+        FunctionIdentity._unique_ids = itertools.count((secrets.randbits(40) + 1) << 20)
+        FunctionIdentity._stochpend_salted = True
+
+
+salt_unique_ids()
 
 
 def drop_stale_cache(module_file: str) -> None:
     """Delete ``module_file``'s Numba cache if it or a shared source changed since it was built."""
     module = Path(module_file).resolve()
-    digest = hashlib.sha256()
+    digest = hashlib.sha256(_NAMING)
     for path in [module, *(_PACKAGE / name for name in SHARED_SOURCES)]:
         for file in sorted(path.glob("*.py")) if path.is_dir() else [path]:
             if file.is_file():

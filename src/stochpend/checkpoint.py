@@ -353,7 +353,8 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
 
 # -- saving during a run ---------------------------------------------------------------------
 class FileCheckpointer:
-    """A :class:`~stochpend.simulate.Checkpointer` that writes the state every ``every_s`` seconds.
+    """A :class:`~stochpend.simulate.Checkpointer` that writes the state every ``every_s`` seconds,
+    and at the run's last kernel boundary (so that the result, if it cannot be written, is kept).
 
     It is also where a deferred Ctrl-C or SIGTERM takes effect: :meth:`request_stop` (called
     by the signal handler of :func:`run_checkpointed`) makes the next ``maybe_save``, which
@@ -389,12 +390,23 @@ class FileCheckpointer:
         return self.elapsed_before_s + (_time.monotonic() - self.started)
 
     def save(self, state: RunState) -> Path:
+        """Write the state; a failed write (full disk) raises :class:`stochpend.io.WriteError`
+        with one line, the previous checkpoint left as it was."""
         ckpt = Checkpoint(
             config=self.config, state=state, out=self.out, overwrite=self.overwrite,
             every_s=self.every_s, threads=self.threads, chunk_paths=self.chunk_paths,
             elapsed_s=self.elapsed_s(), resumed=self.resumed, command_line=self.command_line,
         )
-        write(self.path, ckpt)
+        try:
+            write(self.path, ckpt)
+        except OSError as exc:
+            if self.path.exists():
+                kept = (f"the previous checkpoint is kept: continue with `stochpend resume {self.path}` "
+                        "once the cause is fixed")
+            else:
+                kept = "no checkpoint was written before"
+            raise io.WriteError(f"cannot write the checkpoint {str(self.path)!r}: {io.reason(exc)}; {kept}",
+                                getattr(exc, "errno", None)) from None
         self.saves += 1
         self.last_save = _time.monotonic()
         return self.path
@@ -404,6 +416,10 @@ class FileCheckpointer:
             self.save(state)
             raise CheckpointInterrupt(self.path, self.stop_signal)
         if self.every_s is not None and _time.monotonic() - self.last_save >= self.every_s:
+            self.save(state)
+        elif state.b1 >= state.stop_batch and state.j == len(self.config.times):
+            # The last kernel boundary: save, so that a result that cannot be written (full
+            # disk, a crash in the write, an output taken meanwhile) costs no recomputation.
             self.save(state)
 
 
@@ -525,7 +541,14 @@ def run_checkpointed(
     ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
     bias.attach(ds, estimate)
     if out_p is not None:
-        io.to_netcdf(ds, out_p, overwrite=overwrite)
+        keep = (f"; the finished run is kept in {str(checkpointer.path)!r}: `stochpend resume "
+                f"{checkpointer.path}` writes it (add --out FILE to write it elsewhere)")
+        try:
+            io.to_netcdf(ds, out_p, overwrite=overwrite)
+        except io.WriteError as exc:
+            raise io.WriteError(f"{exc}{keep}", exc.errno) from None
+        except ValueError as exc:  # the file appeared meanwhile
+            raise ValueError(f"{exc}{keep}") from None
     with contextlib.suppress(FileNotFoundError):
         os.unlink(checkpointer.path)
     return ds

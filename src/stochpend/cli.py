@@ -1,7 +1,7 @@
 """Command line: a thin layer over the Python API (Typer + Rich).
 
-Known errors print one red line on stderr and exit with code 2; ``--debug`` shows the
-traceback. Usage errors (a value the option's type refuses, an unknown option, a missing
+Known errors print one red line on stderr and exit with code 2 (bad input) or 1 (a file
+that cannot be written: full disk, I/O error); ``--debug`` shows the traceback. Usage errors (a value the option's type refuses, an unknown option, a missing
 argument) are one such line too. Integer options accept whole numbers in scientific notation
 (``--paths 1e6``). Human output goes to stderr, so that stdout stays clean for pipes.
 """
@@ -27,6 +27,11 @@ from stochpend._cli_types import integer, usage_message
 console = Console(stderr=True, width=None if sys.stderr.isatty() else 140)
 
 F = TypeVar("F", bound=Callable[..., Any])
+
+
+def note(message: str) -> None:
+    """Print one yellow line (a fallback the user should know about)."""
+    console.print(f"[yellow]note:[/] {escape(message)}", highlight=False, soft_wrap=True)
 
 
 def fail(message: str, code: int = 2) -> None:
@@ -72,7 +77,9 @@ app = typer.Typer(
 
 
 def handles_errors(fn: F) -> F:
-    """Turn the API's ValueError into one line and exit code 2 (traceback with --debug)."""
+    """Turn the API's ValueError into one line and exit code 2, and a file that cannot be
+    written or read (``OSError``: a full disk, an I/O error) into one line and exit code 1
+    (traceback with --debug)."""
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -82,6 +89,10 @@ def handles_errors(fn: F) -> F:
             if "--debug" in sys.argv:
                 raise
             fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+        except OSError as exc:
+            if "--debug" in sys.argv:
+                raise
+            fail(" ".join(str(exc).split()) or type(exc).__name__, code=1)
         except KeyboardInterrupt:
             console.print("[yellow]interrupted[/]")
             raise typer.Exit(130) from None
@@ -288,6 +299,7 @@ def simulate(
 ) -> None:
     """Simulate an ensemble and print the energy statistics (optionally save them as NetCDF)."""
     from stochpend import io, params, resources
+    from stochpend.simulate import resolve_backend
     from stochpend.simulate import simulate as run_simulation
 
     if out is not None:
@@ -325,6 +337,7 @@ def simulate(
                          "checkpoint the run at the --h-max/--step-c it reports")
     if checkpoint_every is not None and checkpoint is None:
         raise ValueError(f"checkpoint_every={checkpoint_every!r} is not accepted: it needs --checkpoint FILE")
+    backend = resolve_backend(backend, note=note)  # 'auto' on a broken CUDA stack: a note
     # Memory and work, before any work: a run that cannot fit or would not end is refused.
     estimate = resources.check(config, backend=backend, precision=precision, max_path_steps=max_path_steps,
                                threads=threads)
@@ -404,14 +417,13 @@ def info() -> None:
     table.add_row("numpy / numba / xarray", f"{numpy.__version__} / {numba.__version__} / {xarray.__version__}")
     table.add_row("numba threads", f"{numba.config.NUMBA_NUM_THREADS} (layer: {numba.config.THREADING_LAYER})")
     table.add_row("machine", f"{platform.machine()} {platform.processor()}")
-    try:
-        from stochpend._backends import cuda as cuda_backend
+    from stochpend.simulate import cuda_status
 
-        usable, why = cuda_backend.availability()
-    except Exception as exc:  # numba without its CUDA target
-        usable, why = False, f"numba.cuda cannot be imported ({type(exc).__name__})"
+    # The driver and the device, then a tiny kernel compiled and launched (a CUDA stack that
+    # imports but cannot compile is "unusable").
+    usable, why, broken = cuda_status()
     table.add_row("backend cpu", "usable")
-    table.add_row("backend cuda", ("usable: " if usable else "not usable: ") + why)
+    table.add_row("backend cuda", ("usable: " if usable else "unusable: " if broken else "not usable: ") + why)
     try:
         import dask
         import distributed

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import platform
 import time as _time
+import warnings
+from collections.abc import Callable
 from typing import Any
 
 import numba
@@ -182,28 +184,54 @@ def check_precision(precision: str, backend: str) -> None:
         raise ValueError("precision='float32' is not accepted with backend='cpu': float32 runs on the CUDA backend")
 
 
-def resolve_backend(backend: str) -> str:
-    """Map "auto" to the GPU when one is usable (else the CPU); refuse an unusable "cuda"."""
+def cuda_status(backend: str = "cuda") -> tuple[bool, str, bool]:
+    """``(usable, why, broken)`` for the CUDA backend: the driver and device
+    (``_backends.cuda.availability``), then a tiny kernel compiled and launched once per process
+    (``_backends.cuda_probe``). ``broken``: a GPU was found but the CUDA stack cannot compile or
+    run on it. For ``backend="auto"`` the simulator counts as not usable (never picked
+    implicitly) and is not probed."""
+    try:
+        from stochpend._backends import cuda as _cuda
+    except Exception as exc:  # numba without a CUDA target
+        return False, f"numba.cuda cannot be imported ({type(exc).__name__})", False
+    usable, why = _cuda.availability()
+    if not usable:
+        return False, why, False
+    if backend == "auto" and _cuda._simulator_enabled():
+        return False, why, False  # never pick the (slow) simulator implicitly
+    from stochpend._backends import cuda_probe
+
+    ok, probe_why = cuda_probe.probe()
+    if not ok:
+        return False, f"{why}: {probe_why}", True
+    return True, why, False
+
+
+def resolve_backend(backend: str, *, note: Callable[[str], None] | None = None) -> str:
+    """Map "auto" to the GPU when one is usable (else the CPU); refuse an unusable "cuda".
+
+    A GPU whose CUDA stack cannot compile a kernel is not usable: "auto" then runs on the CPU
+    and says why in one line, through ``note`` (default: a ``RuntimeWarning``).
+    """
     if backend == "cpu":
         return "cpu"
     if backend not in ("auto", "cuda"):
         raise ValueError(f"backend={backend!r} is not accepted: one of cpu, cuda, auto")
-    try:
-        from stochpend._backends import cuda as _cuda
-    except Exception as exc:  # numba without a CUDA target
-        usable, why = False, f"numba.cuda cannot be imported ({type(exc).__name__})"
-    else:
-        usable, why = _cuda.availability()
-        if usable and backend == "auto" and _cuda._simulator_enabled():
-            usable = False  # never pick the (slow) simulator implicitly
+    usable, why, broken = cuda_status(backend)
     if usable:
         return "cuda"
     if backend == "auto":
+        if broken:
+            message = f"backend='auto' runs on the CPU: the CUDA stack is unusable ({why})"
+            if note is None:
+                warnings.warn(message, RuntimeWarning, stacklevel=2)
+            else:
+                note(message)
         return "cpu"
-    raise ValueError(
-        f"backend='cuda' is not accepted: {why}; install the extra with "
-        "pip install 'stochpend[cuda]' on a machine with an NVIDIA GPU, or use backend='cpu'"
-    )
+    advice = ("install a numba-cuda that works with this numpy (pip install 'stochpend[cuda]' "
+              "pins one)" if broken else "install the extra with pip install 'stochpend[cuda]' on "
+              "a machine with an NVIDIA GPU")
+    raise ValueError(f"backend='cuda' is not accepted: {why}; {advice}, or use backend='cpu'")
 
 
 def run(

@@ -1,0 +1,102 @@
+"""Run the ``stochpend`` command line with a fault injected (used by test_faults.py).
+
+Usage: ``python _fault_hooks.py HOOK [HOOK_ARG] -- ARGS...`` runs ``stochpend ARGS...`` in this
+process after installing HOOK:
+
+* ``none``: nothing (the plain command line, as ``python -m stochpend``);
+* ``kill-in-out-write``: the result's temporary file is written, cut to half its size, and the
+  process kills itself with SIGKILL before the rename (a crash in the middle of the write);
+* ``kill-in-checkpoint-write N``: at the N-th checkpoint write, half of the new checkpoint is
+  written to its temporary file and the process kills itself with SIGKILL;
+* ``barrier DIR``: once the result's temporary file is written, wait until two processes
+  have reached that point (files in DIR), then put it in place: two runs finishing at the
+  same instant.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+def _kill_in_out_write() -> None:
+    import xarray as xr
+
+    original = xr.Dataset.to_netcdf
+
+    def to_netcdf(self, path=None, *args, **kwargs):
+        result = original(self, path, *args, **kwargs)
+        size = os.path.getsize(path)
+        with open(path, "r+b") as f:
+            f.truncate(size // 2)
+        os.kill(os.getpid(), signal.SIGKILL)
+        return result
+
+    xr.Dataset.to_netcdf = to_netcdf
+
+
+def _kill_in_checkpoint_write(n: int) -> None:
+    from stochpend import checkpoint
+
+    original = checkpoint.write
+    calls = [0]
+
+    def write(path, ckpt):
+        calls[0] += 1
+        if calls[0] < n:
+            return original(path, ckpt)
+        p = Path(path)
+        scratch = p.with_name(f"{p.name}.scratch")
+        original(scratch, ckpt)  # the bytes the real write would have written
+        data = scratch.read_bytes()
+        scratch.unlink()
+        fd, _ = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+        os.write(fd, data[: len(data) // 2])
+        os.kill(os.getpid(), signal.SIGKILL)
+        raise AssertionError("unreachable")
+
+    checkpoint.write = write
+
+
+def _barrier(folder: str) -> None:
+    import xarray as xr
+
+    original = xr.Dataset.to_netcdf
+    here = Path(folder)
+
+    def to_netcdf(self, path=None, *args, **kwargs):
+        result = original(self, path, *args, **kwargs)
+        (here / f"arrived-{os.getpid()}").touch()
+        deadline = time.monotonic() + 120
+        while len(list(here.glob("arrived-*"))) < 2:
+            if time.monotonic() > deadline:
+                raise SystemExit("barrier: the other process never arrived")
+            time.sleep(0.01)
+        return result
+
+    xr.Dataset.to_netcdf = to_netcdf
+
+
+def main(argv: list[str]) -> None:
+    split = argv.index("--")
+    hook, hook_args, args = argv[0], argv[1:split], argv[split + 1:]
+    if hook == "kill-in-out-write":
+        _kill_in_out_write()
+    elif hook == "kill-in-checkpoint-write":
+        _kill_in_checkpoint_write(int(hook_args[0]))
+    elif hook == "barrier":
+        _barrier(hook_args[0])
+    elif hook != "none":
+        raise SystemExit(f"unknown hook {hook!r}")
+    from stochpend.cli import main as cli_main
+
+    sys.argv = ["stochpend", *args]
+    cli_main()
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
