@@ -133,6 +133,57 @@ def _require(precision: str) -> None:
         raise RuntimeError(f"backend='cuda' is not usable here: {why}")
 
 
+# -- Philox on 32-bit words ------------------------------------------------------------------
+def _register_mulhilo() -> bool:
+    """Give :func:`stochpend.rng.mulhilo` its CUDA implementation: one ``mul.wide.u32`` (32 x 32
+    -> 64-bit product of two 32-bit registers), whose halves are the CPU's 64-bit product's.
+
+    Numba's CPU code keeps the 64-bit product, which the GPU would otherwise run as 64-bit
+    integer arithmetic on zero-extended words (``mul.lo.s64``); with this, LLVM sees the words
+    as 32-bit values and the whole Philox round runs on 32-bit registers. Registered for
+    NVIDIA's numba-cuda only (not under the simulator, whose kernels call the Python function,
+    nor Numba's deprecated built-in target); returns whether it was registered.
+    """
+    if cuda is None or getattr(cuda, "implementation", None) != "NVIDIA" or _simulator_enabled():
+        return False
+    try:
+        from llvmlite import ir
+        from numba.cuda.extending import intrinsic, overload
+    except ImportError:  # pragma: no cover - another numba-cuda layout: the 64-bit product stays
+        return False
+
+    @intrinsic
+    def mul_wide_u32(typingctx, a, b):
+        if not (isinstance(a, nbtypes.Integer) and isinstance(b, nbtypes.Integer)):
+            return None
+        sig = nbtypes.UniTuple(nbtypes.uint64, 2)(a, b)
+
+        def codegen(context, builder, signature, args):
+            i32, i64 = ir.IntType(32), ir.IntType(64)
+            words = [builder.trunc(context.cast(builder, v, t, nbtypes.uint64), i32)
+                     for v, t in zip(args, signature.args, strict=True)]
+            asm = ir.InlineAsm(ir.FunctionType(i64, [i32, i32]), "mul.wide.u32 $0, $1, $2;", "=l,r,r")
+            product = builder.call(asm, words)
+            hi = builder.lshr(product, ir.Constant(i64, 32))
+            lo = builder.zext(builder.trunc(product, i32), i64)
+            return context.make_tuple(builder, signature.return_type, [hi, lo])
+
+        return sig, codegen
+
+    @overload(rng.mulhilo, target="cuda")
+    def _mulhilo_cuda(a, b):  # pragma: no cover - compiled
+        def impl(a, b):
+            return mul_wide_u32(a, b)
+
+        return impl
+
+    return True
+
+
+#: Whether the CUDA kernels compute Philox with ``mul.wide.u32`` (see :func:`_register_mulhilo`).
+PHILOX_MUL_WIDE_U32 = _register_mulhilo()
+
+
 def spec_for(config: SimulationConfig, precision: str = "float64") -> Spec:
     """The Spec the GPU runs ``config`` with (the C library's math, every model)."""
     return Spec.of(config, precision=precision)
