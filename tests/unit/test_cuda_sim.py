@@ -473,3 +473,34 @@ def test_simulated_cases_are_small(simulated):
     """Keep this file fast: each simulated case should take a few seconds at most."""
     seconds = {name: float(simulated[f"{name}/seconds"]) for name in CASE_NAMES}
     assert math.fsum(seconds.values()) < 120, seconds
+
+
+# -- on-disk cache of the kernels ---------------------------------------------------------------
+def test_kernels_of_builtin_pieces_are_cached_on_disk_and_user_models_are_not(monkeypatch):
+    """Each kernel factory declares ``cuda.jit(cache=...)`` from what the kernel depends on:
+    the init kernel on the noise, the advance kernel on the whole Spec, the statistics kernel
+    on the oscillator. A user's pieces live in memory only, so their kernels are not cached.
+    (Loading a cached kernel needs a GPU; this checks the declarations.)"""
+    declared = []
+
+    class RecordingCuda:
+        @staticmethod
+        def jit(*args, **kwargs):
+            assert not args, "kernels are declared with keyword options only"
+            declared.append(kwargs)
+            return lambda function: function
+
+    monkeypatch.setattr(gpu, "cuda", RecordingCuda)
+    factories = (gpu.init_kernel, gpu.advance_kernel, gpu.accumulate_kernel)
+    cases = {
+        "built-in": (integrator.spec("ou"), (True, True, True)),
+        "built-in float32 fixed": (integrator.spec("white", "harmonic", "position", precision="float32",
+                                                   adaptive=False), (True, True, True)),
+        "user noise": (integrator.spec("phase-drive"), (False, False, True)),
+        "user oscillator": (integrator.spec("ou", "double-well", "position"), (True, False, False)),
+    }
+    for name, (spec, expected) in cases.items():
+        for factory, cache in zip(factories, expected, strict=True):
+            declared.clear()
+            factory.__wrapped__(spec)  # past the per-process lru_cache
+            assert declared == [{"cache": cache}], f"{name}: {factory.__name__} declared {declared}"

@@ -41,6 +41,7 @@ from numba.core.errors import NumbaPerformanceWarning
 from numba.extending import register_jitable
 
 from stochpend import integrator, rng, runner, stats
+from stochpend._jitcache import drop_stale_cache
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig
 from stochpend.progress import Progress
@@ -53,6 +54,10 @@ except Exception as _error:  # pragma: no cover - numba without its CUDA target
     _IMPORT_ERROR: BaseException | None = _error
 else:
     _IMPORT_ERROR = None
+
+# The kernels of built-in pieces are cached on disk (``cuda.jit(cache=True)``, next to this file
+# like the CPU's): dropped when this file or a shared source changes (see _jitcache).
+drop_stale_cache(__file__)
 
 __all__ = ["PRECISIONS", "Engine", "availability", "kernel_variants", "path_states",
            "run_batches"]
@@ -218,7 +223,7 @@ def init_kernel(spec: Spec):
     the initial values computed in float64 (they depend on the noise only)."""
     init_path = integrator.initial_state(spec.noise)
 
-    @cuda.jit
+    @cuda.jit(cache=spec.noise.builtin)
     def init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
              uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W):  # pragma: no cover
         i = cuda.grid(1)
@@ -247,7 +252,7 @@ def advance_kernel(spec: Spec):
     is path state, so the result does not depend on how a segment is split into launches."""
     advance_path = integrator.build(spec).advance_path
 
-    @cuda.jit
+    @cuda.jit(cache=spec.cacheable)
     def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
                 path0, D, tau, W, omega2, n, h_max, step_c, unfinished):  # pragma: no cover
         i = cuda.grid(1)
@@ -271,7 +276,7 @@ def accumulate_kernel(spec: Spec):
     tpb = STATS_THREADS
     hist_max = SHARED_HIST_MAX
 
-    @cuda.jit
+    @cuda.jit(cache=spec.oscillator.builtin)
     def accumulate(x, Omega, status, omega2, n, batch_size, edges, j, sums,
                    hist):  # pragma: no cover - device
         b = cuda.blockIdx.x
