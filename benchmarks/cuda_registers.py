@@ -19,7 +19,13 @@ What it does, per kernel variant:
 2. ``ptxas -arch=sm_90 -v`` (from the ``nvidia-cuda-nvcc-cu12`` wheel) assembles the PTX and
    reports, per kernel (``.entry``): registers per thread, spill stores and loads (bytes per
    thread, local memory), and the stack frame (bytes per thread).
-3. From the registers alone: how many warps an SM of sm_90 can hold with 128-thread blocks
+3. From the PTX: instruction counts that show where a kernel leaves its precision or word size:
+   float64 arithmetic (``add/sub/mul/fma/div/sqrt/rcp/setp/selp/... .f64``; loads, stores, moves
+   and conversions not counted), conversions to or from float64 (``cvt`` with ``f64``), 64-bit
+   integer multiplies (``mul.lo``/``mul.hi``/``mad`` on ``s64``/``u64``) and 32 x 32-bit
+   products (``mul.wide.u32``, ``mul.hi.u32``). Static counts (each instruction once, whether it
+   runs once or in a loop; libdevice slow paths included).
+4. From the registers alone: how many warps an SM of sm_90 can hold with 128-thread blocks
    (65536 registers per SM, allocated per warp in units of 256, whole blocks of 4 warps,
    at most 64 warps), as a share of the 64 warps. Shared memory and the other limits are
    ignored: this is the register ceiling on occupancy.
@@ -107,6 +113,34 @@ class Variant:
     py_func: object
     signature: object
     options: dict  # compile options (fastmath, opt, debug, lineinfo, launch_bounds, max_registers)
+
+
+@dataclass
+class PtxCounts:
+    f64_arith: int
+    f64_cvt: int
+    int64_mul: int
+    u32_products: int
+
+
+_OPCODE = re.compile(r"^\s+(?:@!?%p\d+\s+)?([a-z]+(?:\.[a-z0-9]+)*)", re.M)
+
+
+def ptx_counts(ptx: str) -> PtxCounts:
+    """Static counts of the PTX instructions described in the module docstring (item 3)."""
+    f64_arith = f64_cvt = int64_mul = u32_products = 0
+    for op in _OPCODE.findall(ptx):
+        parts = op.split(".")
+        if "f64" in parts:
+            if parts[0] == "cvt":
+                f64_cvt += 1
+            elif parts[0] not in ("ld", "st", "mov", "ldu"):
+                f64_arith += 1
+        if parts[0] in ("mul", "mad") and ("s64" in parts or "u64" in parts) and "wide" not in parts:
+            int64_mul += 1
+        if op in ("mul.wide.u32", "mul.hi.u32", "mad.wide.u32", "mad.hi.u32"):
+            u32_products += 1
+    return PtxCounts(f64_arith, f64_cvt, int64_mul, u32_products)
 
 
 @dataclass
@@ -292,15 +326,18 @@ def assemble(ptxas: str, ptx: str, max_registers: int | None) -> tuple[dict[str,
 
 # -- output -----------------------------------------------------------------------------------
 HEADER = ("| kernel | registers | spill stores (bytes) | spill loads (bytes) | stack frame (bytes) "
-          f"| register limit on occupancy ({THREADS_PER_BLOCK}-thread blocks) |")
-RULE = "|---|---:|---:|---:|---:|---|"
+          f"| register limit on occupancy ({THREADS_PER_BLOCK}-thread blocks) "
+          "| PTX f64 arith. | PTX f64 cvt | PTX 64-bit int mul | PTX mul.wide/hi.u32 |")
+RULE = "|---|---:|---:|---:|---:|---|---:|---:|---:|---:|"
 
 
-def row(label: str, usage: Usage) -> str:
+def row(label: str, usage: Usage, counts: PtxCounts | None = None) -> str:
     warps = warps_from_registers(usage.registers)
     share = 100.0 * warps / MAX_WARPS_PER_SM
+    c = counts or PtxCounts(-1, -1, -1, -1)
     return (f"| {label} | {usage.registers} | {usage.spill_stores} | {usage.spill_loads} "
-            f"| {usage.stack_frame} | {warps}/{MAX_WARPS_PER_SM} warps ({share:.1f}%) |")
+            f"| {usage.stack_frame} | {warps}/{MAX_WARPS_PER_SM} warps ({share:.1f}%) "
+            f"| {c.f64_arith} | {c.f64_cvt} | {c.int64_mul} | {c.u32_products} |")
 
 
 @contextlib.contextmanager
@@ -389,7 +426,7 @@ def main(argv: list[str] | None = None) -> int:
             except Exception as error:
                 failed = True
                 print(f"error: {variant.label}: {type(error).__name__}: {error}", file=sys.stderr)
-                lines.append(f"| {variant.label} | compile failed | | | | |")
+                lines.append(f"| {variant.label} | compile failed | | | | | | | | |")
                 continue
             done = time.perf_counter()
             print(f"{variant.label}: compiled in {compiled - start:.1f} s, ptxas {done - compiled:.1f} s",
@@ -400,7 +437,7 @@ def main(argv: list[str] | None = None) -> int:
                 (args.ptx_dir / f"{name}.ptx").write_text(ptx)
             for number, usage in enumerate(entries.values()):
                 label = variant.label if len(entries) == 1 else f"{variant.label} [{number}]"
-                lines.append(row(label, usage))
+                lines.append(row(label, usage, ptx_counts(ptx)))
                 if usage.callee_spills:
                     notes.append(f"{label}: the non-inlined device functions it calls spill "
                                  f"{usage.callee_spills} bytes (stores + loads) more.")

@@ -31,7 +31,7 @@ import numpy as np
 import xarray as xr
 
 from stochpend import __version__
-from stochpend.figures import FIGURES
+from stochpend.figures import CASES, FIGURES
 from stochpend.figures._common import COLUMNS, SUM_COMPONENTS, Row, RunSpec
 from stochpend.progress import NoProgress, Progress
 
@@ -56,7 +56,8 @@ class ReproduceProgress(Protocol):
 
     ``start``/``update``/``finish`` drive the overall bar (work in path-time units, summed
     over the runs to simulate); ``simulation(description)`` returns a :class:`Progress` for one
-    simulation; ``log(message)`` receives one line per finished figure. A plain
+    simulation; ``log(message)`` receives, before any work, one "cost: ..." line per run to
+    simulate and their total, then one line per finished figure. A plain
     :class:`~stochpend.progress.Progress` is accepted too (it then gets only the overall bar).
     """
 
@@ -174,7 +175,10 @@ def reproduce(
     Parameters
     ----------
     figures : str or iterable of str
-        Any of "fig1" ... "fig4", "exponents" (the scaling-exponent table), or "all".
+        Any of "fig1" ... "fig4", "exponents" (the scaling-exponent table), or "all" (these
+        five); or a named long run for a GPU, "fig4-crossover" or "fig2-long"
+        (:mod:`stochpend.figures.cases`). Before simulating, one line per run to simulate
+        gives its cost (``progress.log``: "cost: ...").
     paths : int, optional
         Realizations per run; default 10^4 (the paper's), or 500 with ``quick``.
     t_max : float, optional
@@ -240,15 +244,17 @@ def reproduce(
     except ImportError:  # pragma: no cover - matplotlib is in the test extra
         raise ValueError("matplotlib is not installed: pip install 'stochpend[plot]'") from None
 
-    specs = {name: FIGURES[name].runs(paths, t_max, quick) for name in names}
+    specs = {name: _module(name).runs(paths, t_max, quick) for name in names}
     # Validate every run before any work (one-line ValueError naming the parameter).
     from stochpend import resources
     from stochpend.params import SimulationConfig
 
-    for name_specs in specs.values():
+    estimates: dict[tuple[str, str], resources.Estimate] = {}
+    for name, name_specs in specs.items():
         for s in name_specs:
-            resources.check(SimulationConfig.build(**s.simulate_kwargs()), max_path_steps=max_path_steps,
-                            threads=threads)
+            estimates[name, s.key] = resources.check(
+                SimulationConfig.build(**s.simulate_kwargs()), backend=backend, precision=precision,
+                max_path_steps=max_path_steps, threads=threads)
 
     out.mkdir(parents=True, exist_ok=True)
     (out / "runs").mkdir(exist_ok=True)
@@ -263,6 +269,8 @@ def reproduce(
     preloaded = {} if force else {p: _load_cached(p, s, where) for p, s in unique.items()}
     to_simulate = {p: s for p, s in unique.items() if preloaded.get(p) is None}
     total_work = float(sum(s.paths * s.t_max for s in to_simulate.values()))
+    for line in _cost_lines(specs, estimates, set(to_simulate.values()), out, where):
+        log(line)
     progress.start(max(total_work, 1.0), f"reproduce {' '.join(names)}")
     done_work = 0.0
 
@@ -271,7 +279,7 @@ def reproduce(
     results: dict[str, FigureResult] = {}
     try:
         for name in names:
-            module = FIGURES[name]
+            module = _module(name)
             fig_started = time.perf_counter()
             datasets: dict[str, xr.Dataset] = {}
             fig_runs: list[RunRecord] = []
@@ -325,6 +333,45 @@ def reproduce(
 # ---------------------------------------------------------------------------------------------
 
 
+def _module(name: str) -> Any:
+    return FIGURES[name] if name in FIGURES else CASES[name]
+
+
+def _cost_lines(specs: dict[str, list[RunSpec]], estimates: dict, to_simulate: set, out: Path,
+                where: tuple[str, str]) -> list[str]:
+    """One line per run to simulate, then the total: the lower bound on the work and a duration
+    at the assumed rate (:func:`stochpend.resources.estimate`), and for the named long runs
+    (:data:`stochpend.figures.CASES`) the cost model's figure too."""
+    lines = []
+    lower = model = seconds = 0.0
+    seen: set[Path] = set()
+    for name, name_specs in specs.items():
+        estimator = getattr(_module(name), "expected_path_steps", None)
+        for s in name_specs:
+            path = _run_path(out, s, where)
+            if s not in to_simulate or path in seen:
+                continue
+            seen.add(path)
+            est = estimates[name, s.key]
+            steps = float(estimator(s)) if estimator is not None else est.min_path_steps
+            lower += est.min_path_steps
+            model += steps
+            seconds += steps / est.rate
+            text = f"cost: {name} {s.key} ({s.paths} paths to t = {s.t_max:g}): {est.describe()}"
+            if estimator is not None:
+                from stochpend.resources import format_seconds
+
+                text += (f"; about {steps:.3g} path-steps by the cost model of docs/reproduction.md, "
+                         f"roughly {format_seconds(steps / est.rate)} at ~{est.rate:.2g} path-steps/s")
+            lines.append(text)
+    if lines:
+        from stochpend.resources import format_seconds
+
+        lines.append(f"cost: {len(lines)} run(s) to simulate on {where[0]} ({where[1]}): at least "
+                     f"{lower:.3g} path-steps, about {model:.3g} expected, roughly {format_seconds(seconds)}")
+    return lines
+
+
 def _figure_names(figures: str | Iterable[str]) -> list[str]:
     items = [figures] if isinstance(figures, str) else list(figures)
     names: list[str] = []
@@ -332,8 +379,8 @@ def _figure_names(figures: str | Iterable[str]) -> list[str]:
         for part in str(item).replace(",", " ").split():
             chosen = list(FIGURES) if part == "all" else [part]
             for c in chosen:
-                if c not in FIGURES:
-                    raise ValueError(f"figure={part!r} is not accepted: one of {', '.join(FIGURES)}, all")
+                if c not in FIGURES and c not in CASES:
+                    raise ValueError(f"figure={part!r} is not accepted: one of {', '.join([*FIGURES, *CASES])}, all")
                 if c not in names:
                     names.append(c)
     if not names:

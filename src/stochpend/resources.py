@@ -46,7 +46,7 @@ __all__ = [
 ]
 
 #: Largest lower-bound work accepted without ``max_path_steps``: 1e13 path-steps is about
-#: 3 hours on a GPU at :data:`GPU_PATH_STEPS_PER_S`, about 4 days on 16 CPU cores at
+#: 20 minutes on a GPU at :data:`GPU_PATH_STEPS_PER_S`, about 4 days on 16 CPU cores at
 #: :data:`CPU_PATH_STEPS_PER_S_PER_CORE`; the paper's largest run (10**4 paths to t = 10**5)
 #: is 2e10.
 DEFAULT_MAX_PATH_STEPS = 1e13
@@ -56,9 +56,11 @@ LONG_RUN_S = 10.0
 #: Approximate adaptive-step rate of one CPU core (benchmarks: 2.8e7 path-steps/s on 2 cores
 #: for the default OU run, docs/performance.md). Machines differ by a factor of a few.
 CPU_PATH_STEPS_PER_S_PER_CORE = 1.4e7
-#: Assumed rate of one recent NVIDIA GPU (float64): NOT measured (docs/gpu.md has no GPU
-#: figures yet); an order of magnitude only.
-GPU_PATH_STEPS_PER_S = 1e9
+#: Assumed rate of one recent NVIDIA GPU (float64): the order of magnitude of stochpend's
+#: fixed-step OU kernel on an H100, 1.3e10 to 1.9e10 path-steps/s (measured by a teammate for the
+#: issue "Kernels at the hardware floor"); adaptive steps are unmeasured and slower (more work a
+#: step): a hint only. ``python benchmarks/gpu_bench.py`` measures both.
+GPU_PATH_STEPS_PER_S = 1e10
 #: Paths per chunk by default: ``stochpend.simulate.DEFAULT_CHUNK_PATHS`` (CPU) and
 #: ``stochpend._backends.cuda.DEFAULT_CHUNK_PATHS`` (GPU; also capped by the free device memory).
 CPU_CHUNK_PATHS = 1 << 20

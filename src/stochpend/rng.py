@@ -15,6 +15,18 @@ The functions are plain scalar Python on ``numpy.uint64`` values, registered wit
 stay callable from Python as the test oracle. Every
 32-bit word is held in a ``uint64`` and masked, because Numba would turn a mix of signed and
 unsigned 64-bit operands into floating point.
+
+The one operation whose best code differs between targets, the 32 x 32 -> 64-bit product of a
+Philox round, is :func:`mulhilo`: on the CPU (and in Python) a 64-bit product; the CUDA backend
+registers a CUDA-target implementation of the same function, one ``mul.wide.u32`` instruction on
+32-bit registers (``stochpend._backends.cuda``). Both return the exact product's two halves, so
+every backend draws the same words.
+
+Normals come as a float64 pair (:func:`draw_normals`, Box-Muller on two 52-bit uniforms) or,
+for the float32 kernels, as a float32 pair computed in float32 throughout
+(:func:`normals_with` with ``real=numpy.float32``): :func:`uniform_f32` of words 0 and 2 of
+the same draw, float32 log, sqrt, sin and cos. They follow the float64 pair to float32
+round-off (word 0 carries the high bits of the float64 u1, word 2 those of u2).
 """
 
 from __future__ import annotations
@@ -35,6 +47,11 @@ _TWO_POW_26 = 67108864.0
 _TWO_POW_M52 = 1.0 / 4503599627370496.0
 _TWO_PI = 2.0 * math.pi
 
+_F32_TWO_POW_M32 = np.float32(2.0**-32)
+_F32_TWO_POW_M33 = np.float32(2.0**-33)
+_F32_MINUS_TWO = np.float32(-2.0)
+_F32_TWO_PI = np.float32(2.0 * math.pi)
+
 #: Draw index of the initial angle theta0 (a uniform).
 N_INIT_THETA = 0
 #: Draw index of the initial noise xi0 (a normal).
@@ -44,14 +61,23 @@ N_FIRST_STEP = 2
 
 
 @register_jitable
+def mulhilo(a, b):
+    """``(hi, lo)``: the high and low 32-bit words of the product of two 32-bit words ``a``,
+    ``b`` (uint64 < 2**32), as uint64.
+
+    This definition (a 64-bit product) is the CPU's and Python's. The CUDA backend registers a
+    CUDA-target implementation (one ``mul.wide.u32``), which Numba prefers when it compiles
+    for the GPU; the product is exact in both, so both give the same words.
+    """
+    p = a * b
+    return p >> _SHIFT32, p & _MASK32
+
+
+@register_jitable
 def philox_round(c0, c1, c2, c3, k0, k1):
     """One Philox4x32 round on four 32-bit words held in uint64."""
-    p0 = _PHILOX_M0 * c0
-    p1 = _PHILOX_M1 * c2
-    hi0 = p0 >> _SHIFT32
-    lo0 = p0 & _MASK32
-    hi1 = p1 >> _SHIFT32
-    lo1 = p1 & _MASK32
+    hi0, lo0 = mulhilo(_PHILOX_M0, c0)
+    hi1, lo1 = mulhilo(_PHILOX_M1, c2)
     return (hi1 ^ c1 ^ k0) & _MASK32, lo1, (hi0 ^ c3 ^ k1) & _MASK32, lo0
 
 
@@ -111,9 +137,28 @@ def draw_uniforms(key0, key1, path, n):
     return uniform_open(r0, r1), uniform_open(r2, r3)
 
 
-def normals_with(mathlib):
-    """:func:`draw_normals` whose Box-Muller uses ``mathlib``'s log and sincos
-    (:mod:`stochpend.mathlib`); the C library's gives :func:`draw_normals` itself."""
+@register_jitable
+def uniform_f32(a):
+    """A float32 uniform on (0, 1] from one 32-bit word: ``a 2**-32 + 2**-33`` in float32
+    (cuRAND's ``curand_uniform``).
+
+    The smallest value is 2**-33, so ``log(u)`` is finite and a Box-Muller radius is at most
+    sqrt(66 ln 2) = 6.76; words within 2**7 of 2**32 round to exactly 1 (radius 0).
+    """
+    return np.float32(a) * _F32_TWO_POW_M32 + _F32_TWO_POW_M33
+
+
+def normals_with(mathlib, real=np.float64):
+    """The normal pair of a draw (``(key0, key1, path, n) -> (z1, z2)``) for kernels of
+    precision ``real``, with ``mathlib``'s log and sincos (:mod:`stochpend.mathlib`).
+
+    float64: :func:`draw_normals` (the C library's functions) or its Box-Muller with
+    ``mathlib``'s. float32: Box-Muller in float32 arithmetic on :func:`uniform_f32` of words 0
+    and 2 (no float64 operation; the pair is the float64 pair to float32 round-off, except
+    where a uniform is within about 2**-32 of 0 or 1).
+    """
+    if real is np.float32:
+        return _normals_f32(mathlib)
     if mathlib.name == "libm":
         return draw_normals
     log = mathlib.log
@@ -127,6 +172,21 @@ def normals_with(mathlib):
         return r * c, r * s
 
     return normals
+
+
+def _normals_f32(mathlib):
+    log = mathlib.log
+    sincos = mathlib.sincos
+    f32 = np.float32
+
+    @register_jitable
+    def normals_f32(key0, key1, path, n):
+        r0, _, r2, _ = draw_words(key0, key1, path, n)
+        r = f32(math.sqrt(_F32_MINUS_TWO * f32(log(uniform_f32(r0)))))
+        s, c = sincos(_F32_TWO_PI * uniform_f32(r2))
+        return r * f32(c), r * f32(s)
+
+    return normals_f32
 
 
 #: r * W0 and r * W1 for the rounds r = 0..9 (uint64: no mix of signed and unsigned operands).

@@ -18,6 +18,11 @@ import time
 
 import numpy as np
 
+try:  # a module global, as the simulator expects of the kernels' ``cuda``
+    from numba import cuda
+except Exception:  # pragma: no cover - numba without its CUDA target
+    cuda = None
+
 
 class RecordingProgress:
     def __init__(self) -> None:
@@ -62,6 +67,12 @@ def main(spec_path: str, out_path: str) -> None:
             continue
         if case.get("kind") == "sweep":
             out.update(sweep_case(case))
+            continue
+        if case.get("kind") == "rng":
+            out.update(rng_case(case))
+            continue
+        if case.get("kind") == "precision_pair":
+            out.update(precision_pair_case(case))
             continue
         started = time.perf_counter()
         config = SimulationConfig.build(**case["config"])
@@ -159,6 +170,62 @@ def sweep_case(case: dict) -> dict[str, np.ndarray]:
         for var in ("mean_E", "E_hist", "batch_sum_E"):
             out[f"{name}/set{i}_{var}"] = ds[var].values[i]
             out[f"{name}/alone{i}_{var}"] = alone[var].values
+    return out
+
+
+def rng_case(case: dict) -> dict[str, np.ndarray]:
+    """Philox words and both normal pairs of draws ``(path, n)`` computed in a CUDA kernel (the
+    paths and counters of :func:`rng_inputs`, whose high words are in use)."""
+    from stochpend import rng
+    from stochpend.mathlib import LIBM
+
+    name = case["name"]
+    paths, counters = rng_inputs(case["n"])
+    key0, key1 = rng.seed_to_key(case["seed"])
+    normals32 = rng.normals_with(LIBM, np.float32)
+
+    @cuda.jit
+    def kernel(paths, counters, words, z64, z32):
+        i = cuda.grid(1)
+        if i >= paths.shape[0]:
+            return
+        w0, w1, w2, w3 = rng.draw_words(key0, key1, paths[i], counters[i])
+        words[i, 0] = w0
+        words[i, 1] = w1
+        words[i, 2] = w2
+        words[i, 3] = w3
+        z64[i, 0], z64[i, 1] = rng.draw_normals(key0, key1, paths[i], counters[i])
+        z32[i, 0], z32[i, 1] = normals32(key0, key1, paths[i], counters[i])
+
+    words = np.zeros((paths.size, 4), dtype=np.uint64)
+    z64 = np.zeros((paths.size, 2), dtype=np.float64)
+    z32 = np.zeros((paths.size, 2), dtype=np.float32)
+    kernel[(paths.size + 31) // 32, 32](paths, counters, words, z64, z32)
+    return {f"{name}/words": words, f"{name}/z64": z64, f"{name}/z32": z32}
+
+
+def rng_inputs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Global path indices and draw counters that use both 32-bit words of each."""
+    i = np.arange(n, dtype=np.uint64)
+    paths = i * np.uint64(2654435761) + (i % np.uint64(3)) * np.uint64(2**32)
+    counters = i * np.uint64(40503) + (i % np.uint64(2)) * np.uint64(2**33 + 5)
+    return paths, counters
+
+
+def precision_pair_case(case: dict) -> dict[str, np.ndarray]:
+    """The same configuration run in float64 and in float32 with *different* seeds (independent
+    ensembles, for a two-sample test): the sums of each."""
+    from stochpend._backends import cuda as backend
+    from stochpend.params import SimulationConfig
+
+    name = case["name"]
+    out: dict[str, np.ndarray] = {}
+    started = time.perf_counter()
+    for precision, seed in (("float64", case["seeds"][0]), ("float32", case["seeds"][1])):
+        config = SimulationConfig.build(**{**case["config"], "seed": seed})
+        sums, _ = backend.run_batches(config, 0, config.n_batches, precision=precision)
+        out[f"{name}/{precision}_sums"] = sums.sums
+    out[f"{name}/seconds"] = np.array(time.perf_counter() - started)
     return out
 
 

@@ -27,7 +27,7 @@ from stochpend.mathlib import LIBM
 from stochpend.noises import ou
 from stochpend.params import SimulationConfig
 from stochpend.runner import run_batches
-from stochpend.stats import S_NONFINITE
+from stochpend.stats import S_COUNT, S_E1, S_E2, S_NONFINITE
 from tests._kernels import Paths
 from tests.unit import _phase_noise
 from tests.unit._user_models import register_all
@@ -115,6 +115,9 @@ CASES += [
                                             coupling="position", **_COMMON),
          first_batch=0, stop_batch=4, chunk_paths=24, check_paths=6, float32=True),
 ]
+#: Paths of each precision in the float32-vs-float64 two-sample test.
+PAIR_PATHS = 1000
+
 #: Runs through the runner's other features on the GPU (not compared with the CPU).
 EXTRAS = [
     # Interrupted at the 5th checkpoint opportunity (in the second of two chunks), then resumed.
@@ -127,6 +130,16 @@ EXTRAS = [
     dict(name="sweep", kind="sweep",
          spec={"base": dict(noise="ou", tau=1.0, omega=1.0, h_max=0.1, step_c=0.25, **_COMMON),
                "case": [{"D": 1.0}, {"D": 0.5, "seed": 8}]}),
+]
+EXTRAS += [
+    # Philox words and both normal pairs in a kernel, against the CPU (test_rng_in_kernel_...).
+    dict(name="rng", kind="rng", n=512, seed=2**40 + 12345),
+    # float32 against float64 as two independent ensembles (seeds differ): mean E in standard
+    # errors. A fixed start (theta0 = 1, Omega0 = 0): the spread of E comes from the noise alone.
+    dict(name="precision_pair", kind="precision_pair", seeds=[31, 32],
+         config=dict(noise="ou", D=2.0, tau=1.0, omega=1.0, h_max=0.05, step_c=0.0, theta0=1.0,
+                     Omega0=0.0, t_max=2.0, times=[0.5, 1.0, 2.0], paths=PAIR_PATHS,
+                     n_batches=10, hist_bins=4)),
 ]
 CASE_NAMES = [case["name"] for case in CASES]
 F64_CASES = CASE_NAMES  # every case checks float64 against the CPU
@@ -299,6 +312,50 @@ def test_float32_agrees_with_float64(simulated, name):
                                    rtol=0, atol=1e-4, err_msg=key)
 
 
+def test_float32_mean_energy_agrees_with_float64_in_standard_errors(simulated):
+    """float32 (normals by Box-Muller in float32, step in float32) and float64, independent
+    ensembles of PAIR_PATHS paths: <E> at each output time within Z_TOL combined standard
+    errors. The test also requires <E>(t = 2) to have moved from its start by more than 10 of
+    them, so an error of a few tens of per cent in the float32 noise's variance would fail."""
+    from tests.conftest import Z_TOL
+
+    means = {}
+    for precision in ("float64", "float32"):
+        total = simulated[f"precision_pair/{precision}_sums"].sum(axis=0)
+        count = total[:, S_COUNT]
+        assert np.all(count == PAIR_PATHS), f"{precision}: {count} finite paths"
+        mean = total[:, S_E1] / count
+        var = total[:, S_E2] / count - mean**2
+        means[precision] = (mean, np.sqrt(var / count))
+    (m64, se64), (m32, se32) = means["float64"], means["float32"]
+    E0 = -math.cos(1.0)  # E = Omega**2/2 - omega**2 cos theta; omega = 1, theta0 = 1, Omega0 = 0
+    assert m64[-1] - E0 > 10 * se64[-1], "the noise must have moved <E> for the test to mean much"
+    z = (m32 - m64) / np.sqrt(se32**2 + se64**2)
+    assert np.all(np.abs(z) < Z_TOL), f"<E> float32 {m32}, float64 {m64}: z = {z}"
+
+
+def test_rng_in_kernel_equals_cpu(simulated):
+    """Philox words (exactly), the float64 normal pair (to the last bit) and the float32 pair
+    (to float32 round-off: the simulator's math functions return float64) computed in a CUDA
+    kernel, against the CPU's Numba-compiled functions, for paths and counters with high words."""
+    import numba
+
+    from tests.unit._cudasim_check import rng_inputs
+
+    case = next(c for c in EXTRAS if c["name"] == "rng")
+    paths, counters = rng_inputs(case["n"])
+    key0, key1 = rng.seed_to_key(case["seed"])
+    words = numba.njit(rng.draw_words)
+    normals64 = numba.njit(rng.draw_normals)
+    normals32 = numba.njit(rng.normals_with(LIBM, np.float32))
+    want_words = np.array([words(key0, key1, p, n) for p, n in zip(paths, counters)], dtype=np.uint64)
+    want64 = np.array([normals64(key0, key1, p, n) for p, n in zip(paths, counters)])
+    want32 = np.array([normals32(key0, key1, p, n) for p, n in zip(paths, counters)], dtype=np.float32)
+    np.testing.assert_array_equal(simulated["rng/words"], want_words)
+    np.testing.assert_array_equal(simulated["rng/z64"], want64)
+    np.testing.assert_allclose(simulated["rng/z32"], want32, rtol=4e-7, atol=4e-7)
+
+
 def test_float32_pieces_compute_in_float32():
     """The float32 Spec's device functions, built by the same factories as float64's (no source
     rewriting), type as float32 in Numba and agree with float64 to float32 round-off."""
@@ -416,3 +473,34 @@ def test_simulated_cases_are_small(simulated):
     """Keep this file fast: each simulated case should take a few seconds at most."""
     seconds = {name: float(simulated[f"{name}/seconds"]) for name in CASE_NAMES}
     assert math.fsum(seconds.values()) < 120, seconds
+
+
+# -- on-disk cache of the kernels ---------------------------------------------------------------
+def test_kernels_of_builtin_pieces_are_cached_on_disk_and_user_models_are_not(monkeypatch):
+    """Each kernel factory declares ``cuda.jit(cache=...)`` from what the kernel depends on:
+    the init kernel on the noise, the advance kernel on the whole Spec, the statistics kernel
+    on the oscillator. A user's pieces live in memory only, so their kernels are not cached.
+    (Loading a cached kernel needs a GPU; this checks the declarations.)"""
+    declared = []
+
+    class RecordingCuda:
+        @staticmethod
+        def jit(*args, **kwargs):
+            assert not args, "kernels are declared with keyword options only"
+            declared.append(kwargs)
+            return lambda function: function
+
+    monkeypatch.setattr(gpu, "cuda", RecordingCuda)
+    factories = (gpu.init_kernel, gpu.advance_kernel, gpu.accumulate_kernel)
+    cases = {
+        "built-in": (integrator.spec("ou"), (True, True, True)),
+        "built-in float32 fixed": (integrator.spec("white", "harmonic", "position", precision="float32",
+                                                   adaptive=False), (True, True, True)),
+        "user noise": (integrator.spec("phase-drive"), (False, False, True)),
+        "user oscillator": (integrator.spec("ou", "double-well", "position"), (True, False, False)),
+    }
+    for name, (spec, expected) in cases.items():
+        for factory, cache in zip(factories, expected, strict=True):
+            declared.clear()
+            factory.__wrapped__(spec)  # past the per-process lru_cache
+            assert declared == [{"cache": cache}], f"{name}: {factory.__name__} declared {declared}"

@@ -124,6 +124,9 @@ def test_progress_protocol_gets_bars_and_one_line_per_figure(tmp_path) -> None:
     names = {e[1] for e in events if e[0] == "start"}
     assert names == {"overall", "fig1 white_D1_omega1", "fig1 white_D1_omega0"}
     logs = [e[1] for e in events if e[0] == "log"]
+    cost = [line for line in logs if line.startswith("cost:")]  # before the work: 2 runs + total
+    assert len(cost) == 3 and logs[:3] == cost and "2 run(s) to simulate" in cost[-1]
+    logs = logs[3:]
     assert len(logs) == 1 and logs[0].startswith("fig1:") and " s " in logs[0]
     overall = [e[2] for e in events if e[0] == "update" and e[1] == "overall"]
     assert overall == sorted(overall) and overall[-1] == pytest.approx(2 * 8 * 1.0)

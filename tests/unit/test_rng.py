@@ -76,3 +76,93 @@ def test_normals_have_standard_gaussian_moments():
     for name, (value, exact, var) in checks.items():
         z = (value - exact) / math.sqrt(var / m)
         assert abs(z) < Z_TOL, f"{name} = {value:.6f}, exact {exact}: {z:+.2f} standard errors"
+
+
+# -- the multiply of a Philox round ------------------------------------------------------------
+def test_mulhilo_is_the_exact_product_in_python_and_numba():
+    """rng.mulhilo (the CPU's and Python's definition; the CUDA backend's mul.wide.u32 returns
+    the same halves by construction) splits the exact 64-bit product of two 32-bit words."""
+    words = np.random.default_rng(3).integers(0, 2**32, size=(200, 2), dtype=np.uint64)
+    words = np.vstack([words, [[0, 0], [2**32 - 1, 2**32 - 1], [0xD2511F53, 2**32 - 1]]]).astype(np.uint64)
+    jit = numba.njit(rng.mulhilo)
+    for a, b in words:
+        exact = int(a) * int(b)
+        want = (exact >> 32, exact & 0xFFFFFFFF)
+        assert tuple(int(v) for v in rng.mulhilo(a, b)) == want
+        assert tuple(int(v) for v in jit(a, b)) == want
+
+
+# -- float32 normals ---------------------------------------------------------------------------
+def test_uniform_f32_is_in_the_half_open_unit_interval():
+    assert rng.uniform_f32(U(0)) == np.float32(2.0**-33)
+    assert rng.uniform_f32(U(2**32 - 1)) == np.float32(1.0)  # rounds up to 1: log(1) = 0, finite
+    assert rng.uniform_f32(U(2**31)) == np.float32(0.5 + 2.0**-33)
+    for a in (U(0), U(1), U(2**24), U(2**32 - 129), U(2**32 - 1)):
+        u = rng.uniform_f32(a)
+        assert isinstance(u, np.float32) and 0.0 < u <= 1.0 and math.isfinite(math.log(u))
+
+
+def _f32_normals():
+    from stochpend.mathlib import LIBM
+
+    return rng.normals_with(LIBM, np.float32)
+
+
+def test_float32_normals_are_float32_in_numba_and_finite_at_the_extremes():
+    normals = numba.njit(_f32_normals())
+    z = normals(U(1), U(2), U(3), U(4))
+    assert normals.nopython_signatures[0].return_type == numba.types.UniTuple(numba.types.float32, 2)
+    assert all(isinstance(v, float) for v in z)
+    # the largest radius the float32 uniforms allow: sqrt(-2 log 2**-33) = 6.76
+    r_max = math.sqrt(-2.0 * math.log(float(rng.uniform_f32(U(0)))))
+    assert 6.7 < r_max < 6.8
+
+
+def test_float32_normals_follow_the_float64_pair():
+    """Words 0 and 2 carry the high bits of the float64 pair's uniforms, so the float32 pair is
+    the float64 pair to float32 round-off (paths of the two precisions stay close)."""
+    normals32 = numba.njit(_f32_normals())
+    normals64 = numba.njit(rng.draw_normals)
+    worst = 0.0
+    for i in range(2000):
+        z32 = normals32(U(11), U(0), U(i), U(7))
+        z64 = normals64(U(11), U(0), U(i), U(7))
+        for a, b in zip(z32, z64):
+            worst = max(worst, abs(a - b) / max(1.0, abs(b)))
+    assert worst < 1e-5, worst
+
+
+def _moments_f32(n, key0):
+    normals = _f32_normals()
+
+    @numba.njit
+    def moments(n, key0):
+        s1 = s2 = s3 = s4 = c12 = 0.0
+        beyond3 = 0
+        for i in range(n):
+            a32, b32 = normals(key0, np.uint64(0), np.uint64(i), np.uint64(3))
+            a = np.float64(a32)
+            b = np.float64(b32)
+            s1 += a + b
+            s2 += a * a + b * b
+            s3 += a**3 + b**3
+            s4 += a**4 + b**4
+            c12 += a * b
+            beyond3 += (abs(a) > 3.0) + (abs(b) > 3.0)
+        m = 2.0 * n
+        return s1 / m, s2 / m, s3 / m, s4 / m, c12 / n, beyond3 / m
+
+    return moments(n, key0)
+
+
+def test_float32_normals_have_standard_gaussian_moments_and_tails():
+    n = 500_000
+    m1, m2, m3, m4, c12, tail = _moments_f32(n, np.uint64(13))
+    m = 2 * n
+    p3 = math.erfc(3.0 / math.sqrt(2.0))  # P(|z| > 3) = 2.7e-3
+    checks = {"mean": (m1, 0.0, 1.0), "E z^2": (m2, 1.0, 2.0), "E z^3": (m3, 0.0, 15.0),
+              "E z^4": (m4, 3.0, 96.0), "E z1 z2": (c12, 0.0, 1.0 * m / n),
+              "P(|z| > 3)": (tail, p3, p3 * (1.0 - p3))}
+    for name, (value, exact, var) in checks.items():
+        z = (value - exact) / math.sqrt(var / m)
+        assert abs(z) < Z_TOL, f"{name} = {value:.6g}, exact {exact:.6g}: {z:+.2f} standard errors"

@@ -41,6 +41,7 @@ from numba.core.errors import NumbaPerformanceWarning
 from numba.extending import register_jitable
 
 from stochpend import integrator, rng, runner, stats
+from stochpend._jitcache import drop_stale_cache
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig
 from stochpend.progress import Progress
@@ -53,6 +54,10 @@ except Exception as _error:  # pragma: no cover - numba without its CUDA target
     _IMPORT_ERROR: BaseException | None = _error
 else:
     _IMPORT_ERROR = None
+
+# The kernels of built-in pieces are cached on disk (``cuda.jit(cache=True)``, next to this file
+# like the CPU's): dropped when this file or a shared source changes (see _jitcache).
+drop_stale_cache(__file__)
 
 __all__ = ["PRECISIONS", "Engine", "availability", "kernel_variants", "path_states",
            "run_batches"]
@@ -133,6 +138,57 @@ def _require(precision: str) -> None:
         raise RuntimeError(f"backend='cuda' is not usable here: {why}")
 
 
+# -- Philox on 32-bit words ------------------------------------------------------------------
+def _register_mulhilo() -> bool:
+    """Give :func:`stochpend.rng.mulhilo` its CUDA implementation: one ``mul.wide.u32`` (32 x 32
+    -> 64-bit product of two 32-bit registers), whose halves are the CPU's 64-bit product's.
+
+    Numba's CPU code keeps the 64-bit product, which the GPU would otherwise run as 64-bit
+    integer arithmetic on zero-extended words (``mul.lo.s64``); with this, LLVM sees the words
+    as 32-bit values and the whole Philox round runs on 32-bit registers. Registered for
+    NVIDIA's numba-cuda only (not under the simulator, whose kernels call the Python function,
+    nor Numba's deprecated built-in target); returns whether it was registered.
+    """
+    if cuda is None or getattr(cuda, "implementation", None) != "NVIDIA" or _simulator_enabled():
+        return False
+    try:
+        from llvmlite import ir
+        from numba.cuda.extending import intrinsic, overload
+    except ImportError:  # pragma: no cover - another numba-cuda layout: the 64-bit product stays
+        return False
+
+    @intrinsic
+    def mul_wide_u32(typingctx, a, b):
+        if not (isinstance(a, nbtypes.Integer) and isinstance(b, nbtypes.Integer)):
+            return None
+        sig = nbtypes.UniTuple(nbtypes.uint64, 2)(a, b)
+
+        def codegen(context, builder, signature, args):
+            i32, i64 = ir.IntType(32), ir.IntType(64)
+            words = [builder.trunc(context.cast(builder, v, t, nbtypes.uint64), i32)
+                     for v, t in zip(args, signature.args, strict=True)]
+            asm = ir.InlineAsm(ir.FunctionType(i64, [i32, i32]), "mul.wide.u32 $0, $1, $2;", "=l,r,r")
+            product = builder.call(asm, words)
+            hi = builder.lshr(product, ir.Constant(i64, 32))
+            lo = builder.zext(builder.trunc(product, i32), i64)
+            return context.make_tuple(builder, signature.return_type, [hi, lo])
+
+        return sig, codegen
+
+    @overload(rng.mulhilo, target="cuda")
+    def _mulhilo_cuda(a, b):  # pragma: no cover - compiled
+        def impl(a, b):
+            return mul_wide_u32(a, b)
+
+        return impl
+
+    return True
+
+
+#: Whether the CUDA kernels compute Philox with ``mul.wide.u32`` (see :func:`_register_mulhilo`).
+PHILOX_MUL_WIDE_U32 = _register_mulhilo()
+
+
 def spec_for(config: SimulationConfig, precision: str = "float64") -> Spec:
     """The Spec the GPU runs ``config`` with (the C library's math, every model)."""
     return Spec.of(config, precision=precision)
@@ -167,7 +223,7 @@ def init_kernel(spec: Spec):
     the initial values computed in float64 (they depend on the noise only)."""
     init_path = integrator.initial_state(spec.noise)
 
-    @cuda.jit
+    @cuda.jit(cache=spec.noise.builtin)
     def init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
              uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W):  # pragma: no cover
         i = cuda.grid(1)
@@ -196,7 +252,7 @@ def advance_kernel(spec: Spec):
     is path state, so the result does not depend on how a segment is split into launches."""
     advance_path = integrator.build(spec).advance_path
 
-    @cuda.jit
+    @cuda.jit(cache=spec.cacheable)
     def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
                 path0, D, tau, W, omega2, n, h_max, step_c, unfinished):  # pragma: no cover
         i = cuda.grid(1)
@@ -220,7 +276,7 @@ def accumulate_kernel(spec: Spec):
     tpb = STATS_THREADS
     hist_max = SHARED_HIST_MAX
 
-    @cuda.jit
+    @cuda.jit(cache=spec.oscillator.builtin)
     def accumulate(x, Omega, status, omega2, n, batch_size, edges, j, sums,
                    hist):  # pragma: no cover - device
         b = cuda.blockIdx.x

@@ -10,6 +10,9 @@ Each module in :data:`FIGURES` provides
 * ``draw(datasets, theory) -> matplotlib.figure.Figure`` (Agg canvas, no pyplot),
 * ``table(datasets, theory=None) -> list[Row]``: late-time values against the predictions.
 
+:data:`CASES` holds named long runs for a GPU (``fig4-crossover``, ``fig2-long``:
+:mod:`stochpend.figures.cases`), with the same interface; ``all`` does not include them.
+
 ``datasets`` maps each run's key (``RunSpec.key``) to its result ``Dataset``, in the order of
 ``runs``. :func:`stochpend.reproduce.reproduce` ties them together.
 """
@@ -20,10 +23,11 @@ from types import ModuleType
 
 from stochpend.figures import exponents, fig1, fig2, fig3, fig4
 from stochpend.figures._common import COLUMNS, Fit, Row, RunSpec
+from stochpend.figures.cases import CASES
 
 #: Figure name -> module.
 FIGURES: dict[str, ModuleType] = {
     "fig1": fig1, "fig2": fig2, "fig3": fig3, "fig4": fig4, "exponents": exponents,
 }
 
-__all__ = ["COLUMNS", "FIGURES", "Fit", "Row", "RunSpec"]
+__all__ = ["CASES", "COLUMNS", "FIGURES", "Fit", "Row", "RunSpec"]

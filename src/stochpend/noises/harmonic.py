@@ -130,7 +130,7 @@ def noise_step(xi, eta, z1, z2, z3, c):
 
 
 def build(real, mathlib) -> NoiseKernel:
-    normals = rng.normals_with(mathlib)
+    normals = rng.normals_with(mathlib, real)
 
     @register_jitable
     def init(key0, key1, path, D, tau, W, xi0, stationary):

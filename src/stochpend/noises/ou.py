@@ -89,7 +89,7 @@ x_minus_2tanh_half, step_coefficients = step_functions(np.float64)
 
 
 def build(real, mathlib) -> NoiseKernel:
-    normals = rng.normals_with(mathlib)
+    normals = rng.normals_with(mathlib, real)
     _, coefficients = step_functions(real)
 
     @register_jitable

@@ -20,7 +20,8 @@ _NO_DRAW = np.uint64(0xFFFFFFFFFFFFFFFF)
 
 
 def build(real, mathlib) -> NoiseKernel:
-    normals = rng.normals_with(mathlib)
+    normals = rng.normals_with(mathlib, real)
+    zero = real(0.0)
 
     @register_jitable
     def init(key0, key1, path, D, tau, W, xi0, stationary):
@@ -36,7 +37,7 @@ def build(real, mathlib) -> NoiseKernel:
 
     @register_jitable
     def scratch0():
-        return _NO_DRAW, 0.0, 0.0
+        return _NO_DRAW, zero, zero
 
     @register_jitable
     def draw(key0, key1, path, k, S):
