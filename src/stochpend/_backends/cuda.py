@@ -41,7 +41,7 @@ from numba.core.errors import NumbaPerformanceWarning
 from numba.extending import register_jitable
 
 from stochpend import integrator, rng, runner, stats
-from stochpend._jitcache import drop_stale_cache
+from stochpend._jitcache import drop_stale_cache, own_index
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig
 from stochpend.progress import Progress
@@ -224,6 +224,7 @@ def init_kernel(spec: Spec):
     init_path = integrator.initial_state(spec.noise)
 
     @cuda.jit(cache=spec.noise.builtin)
+    @own_index(spec.noise.name)
     def init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
              uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W):  # pragma: no cover
         i = cuda.grid(1)
@@ -253,6 +254,7 @@ def advance_kernel(spec: Spec):
     advance_path = integrator.build(spec).advance_path
 
     @cuda.jit(cache=spec.cacheable)
+    @own_index(spec.label)
     def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
                 path0, D, tau, W, omega2, n, h_max, step_c, unfinished):  # pragma: no cover
         i = cuda.grid(1)
@@ -277,6 +279,7 @@ def accumulate_kernel(spec: Spec):
     hist_max = SHARED_HIST_MAX
 
     @cuda.jit(cache=spec.oscillator.builtin)
+    @own_index(f"{spec.oscillator.name}/{spec.coupling}")
     def accumulate(x, Omega, status, omega2, n, batch_size, edges, j, sums,
                    hist):  # pragma: no cover - device
         b = cuda.blockIdx.x
