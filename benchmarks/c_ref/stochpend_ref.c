@@ -1,5 +1,6 @@
 /*
- * C reference of stochpend's fixed-step OU scheme: the practical floor for the benchmark.
+ * C reference of stochpend's OU scheme, fixed step and adaptive step (the default; see the
+ * second half of this file): the practical floor for the benchmark.
  *
  * It reproduces, number for number, what stochpend's CPU kernels (init_paths + advance_paths
  * in src/stochpend/_backends/cpu.py) do for the pendulum with OU noise at a fixed step:

@@ -1,21 +1,28 @@
-"""Branch-free log, sin and cos in plain float64 arithmetic, so that LLVM can vectorize them.
+"""Branch-free log, sin, cos and expm1 in plain float64 arithmetic, so that LLVM can vectorize them.
 
-Numba lowers ``math.log``/``math.sin``/``math.cos`` to calls into the C library, and the
-llvmlite wheels carry no vector math library (SVML), so a loop that calls them stays scalar.
-These versions are the FreeBSD msun (fdlibm) algorithms with their branches replaced by
-selects: the same polynomials and the same error bounds (< 1 ulp), so they agree with glibc's
-correctly rounded or < 1 ulp results to within an ulp. Measured maximum errors against
-``math.log``/``math.sin``/``math.cos`` are asserted in tests/unit/test_fastmath.py.
+Numba lowers ``math.log``/``math.sin``/``math.cos``/``math.expm1`` to calls into the C library,
+and the llvmlite wheels carry no vector math library (SVML), so a loop that calls them stays
+scalar. ``log``, ``sin`` and ``cos`` are the FreeBSD msun (fdlibm) algorithms with their
+branches replaced by selects: the same polynomials and the same error bounds (< 1 ulp), so they
+agree with glibc's correctly rounded or < 1 ulp results to within an ulp. ``expm1`` is a
+Cody-Waite reduction and a degree-13 Taylor polynomial (at most 2 ulps from glibc's). Measured
+maximum errors against the C library are asserted in tests/unit/test_fastmath.py.
+
+With AVX2 alone (no AVX-512) there is no vector conversion between int64 and float64, and
+Numba's ``math.floor`` returns an int64: :func:`floor`, :func:`int_to_float` and
+:func:`float_to_int` do these exactly without conversion instructions (bit casts and the
+1.5 * 2**52 trick), so that nothing in a lane loop falls back to one lane at a time.
 
 Valid inputs (no special cases are handled, by design):
 
 * :func:`log_pos`: finite, positive, normal x (the Box-Muller uniforms of ``rng.uniform_open``
   lie in [2**-53, 1 - 2**-53]);
 * :func:`sincos`, :func:`sin`: finite ``|x| < 2**19 * pi/2`` (about 8e5); the reduction uses
-  pi/2 to 119 bits (fdlibm's ``pio2_1 + pio2_2 + pio2_2t``), exact enough in this range.
+  pi/2 to 119 bits (fdlibm's ``pio2_1 + pio2_2 + pio2_2t``), exact enough in this range;
+* :func:`expm1`: x <= 700 (-1 below -700).
 
-The functions are ``register_jitable``: compiled into the calling kernel and inlined, callable
-from Python too (as the tests do).
+The functions are ``register_jitable`` (or ``overload``-ed Python functions): compiled into the
+calling kernel and inlined, callable from Python too (as the tests do).
 """
 
 from __future__ import annotations

@@ -20,7 +20,10 @@ functions that the backends' thin drivers call:
   kernel both call it;
 * :func:`Integrator.advance_lanes`: the same steps for a block of paths that share their time
   and step count (fixed steps, noises with ``pair_draws``), laid out so that LLVM vectorizes
-  them across the lanes (the CPU SIMD driver);
+  them across the lanes (the CPU's lock-step driver);
+* :func:`build_lanes` (a separate builder): the same step loop for ``LANE_COUNT`` paths side by
+  side, each with its own time, step and step count, refilled as paths finish (the CPU's
+  default driver: adaptive steps in SIMD);
 * ``init_path`` (initial conditions) and ``path_values`` (what the statistics sum).
 
 Every choice in the Spec is a Python constant captured by these closures, so each combination

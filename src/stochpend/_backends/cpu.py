@@ -1,22 +1,34 @@
-"""CPU drivers: the integrator's step loop run by Numba threads, and a SIMD lock-step driver.
+"""CPU drivers: the integrator's step loop run by Numba threads, and two SIMD drivers.
 
 The drivers only orchestrate: every step is :mod:`stochpend.integrator`'s, specialised for the
 run's :class:`~stochpend.integrator.Spec` and compiled once per Spec (cached on disk for the
-built-in oscillators and noises). They allocate nothing per step and call no Python.
+built-in oscillators and noises). They allocate nothing per step and call no Python; the SIMD
+drivers' per-worker scratch is allocated by their Python wrapper (:func:`_with_scratch`).
 
 * ``init``: the initial conditions of a range of global paths, one thread per path range;
-* ``advance``: every path towards an output time, ``prange`` over paths, each path its own
-  step control (``Integrator.advance_path``);
-* ``advance`` in **lock step** (fixed step, noises whose step takes one Philox pair: the OU
-  noise): ``BLOCK`` consecutive paths share their time and step count, so each step is two
-  loops over the block's lanes that LLVM vectorizes (``Integrator.advance_lanes``), with the
-  branch-free log/sin/cos of :mod:`stochpend.fastmath`. A block whose paths are not in lock
-  step (a path frozen as non-finite, paths at different times after a resumed checkpoint), and
-  the rest of a block where a path turned non-finite, go one path at a time through the same
-  fast-math Spec's ``advance_path``, so a path's numbers are a function of (seed, path) alone,
-  whatever its block, chunk or thread.
+* ``advance`` one path at a time (:func:`path_kernel`): ``prange`` over paths, each path its
+  own step control (``Integrator.advance_path``); the C library's math. Every model without a
+  SIMD driver;
+* ``advance`` in **lanes** (:func:`_lanes_kernel`, the default: the pendulum with the noise on
+  the force, OU or white noise, adaptive or fixed steps): each worker thread takes a range of
+  paths and runs ``integrator.build_lanes``' machine on it, ``LANE_COUNT`` paths side by side,
+  each with its own time, step, coefficients and Philox counter, refilled as paths finish;
+* ``advance`` in **lock-step blocks** (:func:`_lockstep_kernel`, the fixed-step OU pendulum):
+  ``BLOCK`` consecutive paths share their time and step count, so the landing, the clock and
+  the coefficients are computed once per block (``Integrator.advance_lanes``). A block whose
+  paths are not in lock step (a path frozen as non-finite, paths at different times after a
+  resumed checkpoint), and the rest of a block where a path turned non-finite, go one path at a
+  time through the same Spec's ``advance_path``.
 * ``accumulate``: the per-batch power sums and histogram at one output time, each batch summed
   sequentially in path order (so the sums do not depend on the thread count).
+
+The SIMD drivers use the branch-free log/sin/cos/expm1 of :mod:`stochpend.fastmath`
+(``Spec.fast_math``, chosen by :func:`spec_for`), whose loops LLVM vectorizes; their
+arithmetic is ``advance_path``'s with that Spec, operation for operation, so a path's numbers
+are a function of (seed, path) alone, whatever its lane, block, chunk or thread (tested bit for
+bit against ``path_kernel`` of the same Spec). They differ from the C library's by an ulp or so
+per call, which the chaotic dynamics amplify: the ensembles agree statistically
+(tests/statistical/test_simd_agreement.py).
 
 Each path's state lives in arrays of length n_paths: ``x`` (the angle theta for the pendulum),
 ``Omega``, the noise ``xi`` and its auxiliary ``xi_aux``, the time ``t`` and its Kahan
