@@ -1,9 +1,12 @@
 """``python -m benchmarks``: the issue-5 benchmark, every implementation in one sitting.
 
-Workload: OU noise, D = tau = omega = 1, 10**4 paths, fixed step 0.01, 10**4 steps (10**8
-path-steps), float64; simulation time only. Each measurement runs in its own subprocess (a
-fresh interpreter, so peak memory is per implementation), one after the other; this process
-only orchestrates and writes ``benchmarks/RESULTS.md``.
+Workload: OU noise, D = tau = omega = 1, 10**4 paths to t = 100, float64, simulation time only:
+the fixed step 0.01 (10**8 path-steps) and the default adaptive step (2.3e7 path-steps). The
+main table interleaves its rows over several rounds (median and range of each row; ratios per
+round), each measurement in its own subprocess (a fresh interpreter, so peak memory is per
+implementation); this process only orchestrates and writes ``benchmarks/RESULTS.md``. Also
+timed: the user's run ``stochpend simulate --noise ou --D 1 --tau 1 --omega 1 --paths 10000
+--t-max 1000`` as a whole process, with the kernels cached on disk and with an empty cache.
 
     python -m benchmarks              # full run (a few minutes), writes benchmarks/RESULTS.md
     python -m benchmarks --quick      # 1/100 of the work, smoke run, writes nothing unless --out
@@ -63,14 +66,21 @@ def _worker_stochpend(spec):
 
     from stochpend.simulate import simulate
 
-    # "fixed" and "fast": the fixed-step run, which the runner gives the SIMD lock-step driver
-    # (stochpend._backends.cpu.spec_for); "adaptive": the default step control.
+    # "fixed": the fixed-step run, which the runner gives the SIMD lock-step blocks
+    # (stochpend._backends.cpu.spec_for); "adaptive": the default step control, which it gives
+    # the SIMD lane machine; "adaptive_libm": the same with the C library's math one path at a
+    # time (the default before the lane machine), by replacing cpu.spec_for in this process.
     mode = spec["mode"]
     threads = spec.get("threads")
     paths, t_max = spec["paths"], spec["t_max"]
     kw = dict(noise="ou", D=D, tau=TAU, omega=OMEGA, seed=SEED, threads=threads)
-    if mode in ("fixed", "fast"):
+    if mode == "fixed":
         kw.update(step_c=0.0, h_max=H)
+    if mode == "adaptive_libm":
+        from stochpend._backends import cpu
+        from stochpend.integrator import Spec
+
+        cpu.spec_for = lambda config, precision="float64": Spec.of(config, precision=precision)
     # Warm-up (loads or compiles the kernels), not timed.
     simulate(paths=min(paths, 64), t_max=min(t_max, 0.05), times=[min(t_max, 0.05)], **kw)
     import tracemalloc
@@ -127,14 +137,22 @@ def _worker_c(spec):
     t0 = time.perf_counter()
     lib = c_ref.build(flavour)
     build_s = time.perf_counter() - t0
-    c_ref.run(16, 0.05, H, seed=SEED, variant=spec["variant"], threads=threads, flavour=flavour)
-    wall, cpu_s, r = _timed(lambda: c_ref.run(paths, t_max, H, D=D, tau=TAU, omega=OMEGA, seed=SEED,
-                                              variant=spec["variant"], threads=threads,
-                                              flavour=flavour),
-                            spec.get("repeat", 1))
+    variant = spec["variant"]
+    if variant.startswith("adaptive_"):
+        def call(n, t):
+            return c_ref.run_adaptive(n, [t], D=D, tau=TAU, omega=OMEGA, seed=SEED,
+                                      variant=variant[len("adaptive_"):], threads=threads,
+                                      flavour=flavour)
+    else:
+        def call(n, t):
+            return c_ref.run(n, t, H, D=D, tau=TAU, omega=OMEGA, seed=SEED, variant=variant,
+                             threads=threads, flavour=flavour)
+    call(16, 0.05)
+    wall, cpu_s, r = _timed(lambda: call(paths, t_max), spec.get("repeat", 1))
     E = r.energy(OMEGA)
+    path_steps = r.steps if variant.startswith("adaptive_") else paths * r.steps
     return {
-        "available": True, "wall_s": r.seconds, "cpu_s": cpu_s, "path_steps": paths * r.steps,
+        "available": True, "wall_s": r.seconds, "cpu_s": cpu_s, "path_steps": path_steps,
         "threads": threads or lib.sp_max_threads(), "build_s": build_s,
         "E2_scaled": float(np.mean(E * E)) / (D * t_max / TAU**2),
         "E2_scaled_stderr": float(np.std(E * E) / np.sqrt(paths)) / (D * t_max / TAU**2),
@@ -149,8 +167,9 @@ def _worker_jit(spec):
     from stochpend.simulate import simulate
 
     t_import = time.monotonic()
-    kw = dict(noise="ou", D=D, tau=TAU, omega=OMEGA, paths=1000, t_max=1.0, times=[1.0], seed=SEED,
-              step_c=0.0, h_max=H)
+    kw = dict(noise="ou", D=D, tau=TAU, omega=OMEGA, paths=1000, t_max=1.0, times=[1.0], seed=SEED)
+    if spec.get("mode", "fixed") == "fixed":
+        kw.update(step_c=0.0, h_max=H)
     t0 = time.perf_counter()
     simulate(**kw)
     first = time.perf_counter() - t0
@@ -259,6 +278,33 @@ class Runner:
         spec = {"kind": "diffrax", "paths": paths, "t_max": t_max}
         return self._record(out, label, group, spec, load0, time.perf_counter() - t0)
 
+    def cli(self, args: list[str], *, label: str, group: str, cache_dir: str, timeout: float = 900):
+        """One whole ``python -m stochpend ...`` process, timed from spawn to exit (wall) with
+        its CPU time (all threads); ``cache_dir`` is its NUMBA_CACHE_DIR."""
+        import resource
+
+        load0 = os.getloadavg()[0]
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        with tempfile.TemporaryDirectory() as cwd:
+            proc = subprocess.run([sys.executable, "-m", "stochpend", *args], cwd=cwd,
+                                  env=self.env(cache_dir=cache_dir), capture_output=True, text=True,
+                                  timeout=timeout)
+        wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu_s = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        if proc.returncode != 0:
+            tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
+            out = {"available": False, "reason": f"rc={proc.returncode}: {' | '.join(tail)}"}
+        else:
+            out = {"available": True, "process_wall_s": wall, "process_cpu_s": cpu_s,
+                   "command": "stochpend " + " ".join(args)}
+            for line in proc.stdout.splitlines():
+                if "Wall time" in line:
+                    out["reported"] = line.strip()
+        spec = {"kind": "cli", "args": args}
+        return self._record(out, label, group, spec, load0, wall)
+
     def _record(self, out, label, group, spec, load0, elapsed):
         out = dict(out)
         out.update(label=label, group=group, spec={k: v for k, v in spec.items() if k != "t_spawn"},
@@ -290,6 +336,8 @@ def _line(rec):
         parts.append(f"compile {rec['compile_s']:.2f} s")
     if "ready_s" in rec:
         parts.append(f"ready after {rec['ready_s']:.2f} s")
+    if "process_wall_s" in rec:
+        parts.append(f"process {rec['process_wall_s']:.2f} s wall, {rec['process_cpu_s']:.2f} s CPU")
     parts.append(f"load {rec['loadavg_before']:.2f}")
     return " ".join(parts)
 
@@ -305,6 +353,7 @@ def machine_info() -> dict:
                                "L2 cache", "L3 cache", "Hypervisor vendor"):
                 info[key.strip()] = val.strip()
         flags = next((l for l in lscpu.splitlines() if l.startswith("Flags")), "")
+        info["avx2"] = " avx2 " in f" {flags} "
         info["avx512f"] = "avx512f" in flags
     except OSError:
         pass
@@ -344,86 +393,88 @@ def find_bench_python() -> str | None:
     return str(cand) if cand.exists() else None
 
 
+#: The rows of the main table: key -> (label, worker spec without paths/t_max).
+MAIN_ROWS = {
+    "fixed": ("stochpend fixed step (SIMD lock-step blocks)", {"kind": "stochpend", "mode": "fixed"}),
+    "adaptive": ("stochpend default: adaptive step (SIMD lanes)",
+                 {"kind": "stochpend", "mode": "adaptive"}),
+    "adaptive_libm": ("stochpend adaptive step, C library's math one path at a time (the old default)",
+                      {"kind": "stochpend", "mode": "adaptive_libm"}),
+    "c_simd": ("C reference, fixed step, SIMD blocks", {"kind": "c", "variant": "simd"}),
+    "c_adaptive": ("C reference, adaptive step, SIMD lanes", {"kind": "c", "variant": "adaptive_simd"}),
+    "c_scalar": ("C reference, fixed step, one path at a time", {"kind": "c", "variant": "scalar"}),
+    "c_adaptive_scalar": ("C reference, adaptive step, one path at a time",
+                          {"kind": "c", "variant": "adaptive_scalar"}),
+    "numpy": ("NumPy reference, fixed step (default_rng, 1 thread)", {"kind": "numpy"}),
+}
+#: Fixed-step rows (10**8 path-steps) and adaptive ones (2.3e7): the workload's two step modes.
+ADAPTIVE_ROWS = ("adaptive", "adaptive_libm", "c_adaptive", "c_adaptive_scalar")
+USER_RUN = ["simulate", "--noise", "ou", "--D", "1", "--tau", "1", "--omega", "1", "--paths", "10000",
+            "--t-max", "1000"]
+
+
 def run_all(args) -> dict:
     quick = args.quick
-    # Main workload: 10**4 paths x 10**4 steps; quick: 10**3 x 10**3.
+    # Main workload: 10**4 paths to t = 100; quick: 10**3 to t = 10.
     paths = 1_000 if quick else 10_000
     t_max = 10.0 if quick else 100.0
-    repeat = 1 if quick else 2
+    rounds = 1 if quick else args.rounds
     cache_dir = tempfile.mkdtemp(prefix="stochpend_bench_numba_")
     R = Runner(cache_dir)
     info = machine_info()
     t_start = time.perf_counter()
     load_start = os.getloadavg()
     print(f"stochpend benchmark ({'quick' if quick else 'full'}), {info.get('Model name', '?')}, "
-          f"{info.get('CPU(s)', '?')} CPUs, load {load_start[0]:.2f}", flush=True)
+          f"{info.get('CPU(s)', '?')} CPUs, avx512f {info.get('avx512f')}, load {load_start[0]:.2f}",
+          flush=True)
 
     print("JIT compile and on-disk cache:", flush=True)
-    jit_dir = tempfile.mkdtemp(prefix="stochpend_bench_jit_")
-    R.worker({"kind": "jit"}, label="stochpend first process (empty cache)", group="jit", cache_dir=jit_dir)
-    R.worker({"kind": "jit"}, label="stochpend second process (cache on disk)", group="jit", cache_dir=jit_dir)
-    fast_dir = tempfile.mkdtemp(prefix="stochpend_bench_jitfast_")
-    R.worker({"kind": "jit", "fast": True}, label="stochpend fast, first process (empty cache)", group="jit",
-             cache_dir=fast_dir)
-    R.worker({"kind": "jit", "fast": True}, label="stochpend fast, second process (cache on disk)", group="jit",
-             cache_dir=fast_dir)
+    dirs = []
+    for mode in ("fixed", "adaptive"):
+        jit_dir = tempfile.mkdtemp(prefix="stochpend_bench_jit_")
+        dirs.append(jit_dir)
+        R.worker({"kind": "jit", "mode": mode}, label=f"stochpend {mode}, first process (empty cache)",
+                 group="jit", cache_dir=jit_dir)
+        R.worker({"kind": "jit", "mode": mode}, label=f"stochpend {mode}, second process (cache on disk)",
+                 group="jit", cache_dir=jit_dir)
     # Populate the run's cache so that the timed workers only load.
-    R.worker({"kind": "stochpend", "mode": "fixed", "paths": 64, "t_max": 0.1}, label="(cache warm-up)",
-             group="warmup")
-    R.worker({"kind": "stochpend", "mode": "adaptive", "paths": 64, "t_max": 0.1}, label="(cache warm-up)",
-             group="warmup")
-    R.worker({"kind": "stochpend", "mode": "fast", "paths": 64, "t_max": 0.1}, label="(cache warm-up)",
-             group="warmup")
-    R.worker({"kind": "stochpend", "mode": "fast", "paths": 64, "t_max": 0.1, "wide": True},
-             label="(cache warm-up)", group="warmup")
+    for mode in ("fixed", "adaptive", "adaptive_libm"):
+        R.worker({"kind": "stochpend", "mode": mode, "paths": 64, "t_max": 0.1}, label="(cache warm-up)",
+                 group="warmup")
+
+    user = {}
+    if not args.no_user_run and not quick:
+        print("The user's run, whole process:", flush=True)
+        user_dir = tempfile.mkdtemp(prefix="stochpend_bench_user_")
+        dirs.append(user_dir)
+        user["cold"] = R.cli(USER_RUN, label="empty kernel cache (first run)", group="user",
+                             cache_dir=user_dir)
+        user["warm"] = [R.cli(USER_RUN, label=f"kernels cached on disk, run {i + 1}", group="user",
+                              cache_dir=user_dir) for i in range(2)]
 
     print("Micro-benchmarks (1 thread, CPU time):", flush=True)
     micro = R.worker({"kind": "micro"}, label="micro-benchmarks", group="micro")
 
-    print(f"Main workload: OU, D = tau = omega = 1, {paths} paths, h = {H}, t = {t_max:g}:", flush=True)
-    main = {}
-    main["fixed"] = R.worker({"kind": "stochpend", "mode": "fixed", "paths": paths, "t_max": t_max,
-                              "repeat": repeat}, label="stochpend fixed-step", group="main")
-    main["adaptive"] = R.worker({"kind": "stochpend", "mode": "adaptive", "paths": paths, "t_max": t_max,
-                                 "repeat": repeat}, label="stochpend adaptive (default step control)",
-                                group="main")
-    main["fast"] = R.worker({"kind": "stochpend", "mode": "fast", "paths": paths, "t_max": t_max,
-                             "repeat": repeat}, label="stochpend fast fixed-step", group="main")
-    main["fast512"] = R.worker({"kind": "stochpend", "mode": "fast", "paths": paths, "t_max": t_max,
-                                "repeat": repeat, "wide": True},
-                               label="stochpend fast fixed-step, 512-bit vectors", group="main")
-    main["c_simd"] = R.worker({"kind": "c", "variant": "simd", "paths": paths, "t_max": t_max,
-                               "repeat": repeat}, label="C reference, SIMD blocks (OpenMP)", group="main")
-    main["c_simd256"] = R.worker({"kind": "c", "variant": "simd", "flavour": "fast256", "paths": paths,
-                                  "t_max": t_max, "repeat": repeat},
-                                 label="C reference, SIMD blocks, gcc's default 256-bit vectors",
-                                 group="main")
-    main["c_scalar"] = R.worker({"kind": "c", "variant": "scalar", "paths": paths, "t_max": t_max,
-                                 "repeat": repeat}, label="C reference, scalar per path (OpenMP)",
-                                group="main")
-    main["numpy"] = R.worker({"kind": "numpy", "paths": paths, "t_max": t_max, "repeat": 1},
-                             label="NumPy (default_rng)", group="main")
+    print(f"Main workload: OU, D = tau = omega = 1, {paths} paths, t = {t_max:g}, {rounds} "
+          "interleaved rounds:", flush=True)
+    main = {key: [] for key in MAIN_ROWS}
+    for r in range(rounds):
+        for key, (label, spec) in MAIN_ROWS.items():
+            main[key].append(R.worker(dict(spec, paths=paths, t_max=t_max, repeat=1),
+                                      label=f"{label} (round {r + 1})", group="main"))
     if args.no_diffrax:
-        main["diffrax"] = R._record({"available": False, "reason": "skipped (--no-diffrax)"},
-                                    "diffrax (JAX CPU, Heun)", "main", {}, os.getloadavg()[0], 0.0)
+        diffrax = R._record({"available": False, "reason": "skipped (--no-diffrax)"},
+                            "diffrax (JAX CPU, Heun)", "main", {}, os.getloadavg()[0], 0.0)
     else:
-        main["diffrax"] = R.diffrax(find_bench_python(), paths, t_max, label="diffrax (JAX CPU, Heun)",
-                                    group="main")
+        diffrax = R.diffrax(find_bench_python(), paths, t_max, label="diffrax (JAX CPU, Heun)",
+                            group="main")
 
     print("Thread scaling (same workload):", flush=True)
     threads = {}
-    for impl, spec in (("fixed", {"kind": "stochpend", "mode": "fixed"}),
-                       ("fast", {"kind": "stochpend", "mode": "fast"}),
-                       ("fast512", {"kind": "stochpend", "mode": "fast", "wide": True}),
-                       ("c_simd", {"kind": "c", "variant": "simd"}),
-                       ("c_scalar", {"kind": "c", "variant": "scalar"}),
-                       ("numpy", {"kind": "numpy"})):
-        if impl == "numpy":
-            threads[(impl, 1)] = main["numpy"]
-            continue
+    for impl in ("fixed", "adaptive", "c_simd", "c_adaptive"):
         for n in (1, 2):
-            s = dict(spec, paths=paths, t_max=t_max, threads=n, repeat=1)
-            threads[(impl, n)] = R.worker(s, label=f"{main[impl]['label']}, {n} thread(s)", group="threads")
+            s = dict(MAIN_ROWS[impl][1], paths=paths, t_max=t_max, threads=n, repeat=1)
+            threads[(impl, n)] = R.worker(s, label=f"{MAIN_ROWS[impl][0]}, {n} thread(s)", group="threads")
 
     print("Scaling with paths (path-steps per point about constant):", flush=True)
     path_list = [10**k for k in range(2, 6 if quick else 8)]
@@ -432,21 +483,17 @@ def run_all(args) -> dict:
     for n in path_list:
         steps = max(10, min(10_000 if not quick else 1_000, budget // n))
         tm = steps * H
-        for impl, spec in (("fixed", {"kind": "stochpend", "mode": "fixed"}),
-                           ("fast", {"kind": "stochpend", "mode": "fast"}),
-                           ("c_simd", {"kind": "c", "variant": "simd"}),
-                           ("numpy", {"kind": "numpy"})):
-            s = dict(spec, paths=n, t_max=tm, repeat=1)
-            scaling[(impl, n)] = R.worker(s, label=f"{main[impl]['label']}, {n:.0e} paths x {steps} steps",
+        for impl in ("fixed", "adaptive", "c_simd", "numpy"):
+            s = dict(MAIN_ROWS[impl][1], paths=n, t_max=tm, repeat=1)
+            scaling[(impl, n)] = R.worker(s, label=f"{MAIN_ROWS[impl][0]}, {n:.0e} paths to t = {tm:g}",
                                           group="paths")
     total = time.perf_counter() - t_start
-    shutil.rmtree(cache_dir, ignore_errors=True)
-    shutil.rmtree(jit_dir, ignore_errors=True)
-    shutil.rmtree(fast_dir, ignore_errors=True)
-    return {"info": info, "quick": quick, "paths": paths, "t_max": t_max, "main": main,
-            "threads": threads, "scaling": scaling, "path_list": path_list, "total_s": total,
-            "load_start": load_start, "load_end": os.getloadavg(), "records": R.records,
-            "micro": micro}
+    for d in [cache_dir, *dirs]:
+        shutil.rmtree(d, ignore_errors=True)
+    return {"info": info, "quick": quick, "paths": paths, "t_max": t_max, "rounds": rounds,
+            "main": main, "diffrax": diffrax, "user": user, "threads": threads, "scaling": scaling,
+            "path_list": path_list, "total_s": total, "load_start": load_start,
+            "load_end": os.getloadavg(), "records": R.records, "micro": micro}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -468,7 +515,32 @@ def _ratio(a, b, cpu=False):
     return "-" if v is None else f"{v:.2f}x"
 
 
-MAIN_ORDER = ("fixed", "fast", "fast512", "adaptive", "c_simd", "c_simd256", "c_scalar", "numpy", "diffrax")
+def _median(values):
+    values = sorted(v for v in values if v is not None)
+    if not values:
+        return None
+    m = len(values) // 2
+    return values[m] if len(values) % 2 else 0.5 * (values[m - 1] + values[m])
+
+
+def _spread(values, fmt):
+    """'median (min–max)' of the non-missing values."""
+    vals = [v for v in values if v is not None]
+    if not vals:
+        return "-"
+    if len(vals) == 1:
+        return fmt(vals[0])
+    return f"{fmt(_median(vals))} ({fmt(min(vals))}–{fmt(max(vals))})"
+
+
+def _round_ratios(main, a, b, cpu=False):
+    """The ratio a/b of path-steps/s in each round (the rows a and b of one round ran back to
+    back, so the ratio survives a load that changes between rounds)."""
+    return [_ratio_val(x, y, cpu) for x, y in zip(main[a], main[b])]
+
+
+def _x(v):
+    return f"{v:.2f}x"
 
 
 def report(res: dict) -> str:
@@ -479,8 +551,8 @@ def report(res: dict) -> str:
              f"on {info['date']} in {res['total_s']:.0f} s. Do not edit by hand: rerun `make bench`.\n")
     L.append("## Machine\n")
     for k in ("Model name", "CPU(s)", "Thread(s) per core", "Core(s) per socket", "L2 cache", "L3 cache",
-              "Hypervisor vendor", "memory", "avx512f", "platform", "python", "numpy", "numba", "llvmlite",
-              "gcc"):
+              "Hypervisor vendor", "memory", "avx2", "avx512f", "platform", "python", "numpy", "numba",
+              "llvmlite", "gcc"):
         if k in info:
             L.append(f"- {k}: {info[k]}")
     ls, le = res["load_start"], res["load_end"]
@@ -489,105 +561,93 @@ def report(res: dict) -> str:
     if max(ls[0], le[0]) > 2.5:
         L.append("\n**The machine was shared during this run** (load average well above the 2 cores): "
                  "other processes took CPU time, so the wall-clock rates are lower than on an idle "
-                 "machine and vary from row to row. The CPU-time columns (path-steps per CPU-second "
-                 "of the measuring process) are much less affected and are the ones to compare "
-                 "across rows; the 2-thread wall-clock rates and the thread scaling are only "
-                 "meaningful on an idle machine.")
+                 "machine and vary from round to round. The path-steps per CPU-second columns, and the "
+                 "ratios of rows measured back to back in one round, are much less affected; the "
+                 "2-thread wall-clock rates and the thread scaling are only meaningful on an idle "
+                 "machine.")
     L.append("")
-    L.append(f"## Main workload\n\nOU noise, D = τ = ω = 1, {res['paths']:,} paths, fixed step h = {H}, "
-             f"t = {res['t_max']:g} ({res['paths'] * round(res['t_max'] / H):.0e} path-steps), float64; "
-             "θ₀ uniform, Ω₀ = 0, ξ₀ stationary; time of the simulation call only (compilation "
-             "excluded, reported below), best of the repeats. Each row is its own process. Every "
-             "implementation reports ⟨E²⟩/(Dt/τ²) at the last time (second-order averaging predicts "
-             "0.25 as t → ∞; at t = 100 it is still about 0.20). stochpend, its fast kernel and the C "
-             "reference use the same Philox numbers (the ⟨E²⟩ agree to ~1e-5 relative, the chaotic "
-             "dynamics amplifying round-off differences over 10⁴ steps); NumPy and diffrax use their "
-             "own generators (agreement within the standard error).\n")
-    L.append("| implementation | threads | path-steps/s (wall) | path-steps per CPU-s | cpu/wall | "
-             "stochpend fixed / this (wall) | stochpend fast / this (wall) | stochpend fast / this (CPU) | "
-             "peak RSS (MB) | ⟨E²⟩/(Dt/τ²) ± s.e. | load before |")
-    L.append("|---|---|---|---|---|---|---|---|---|---|---|")
-    for key in MAIN_ORDER:
-        rec = main.get(key)
-        if rec is None:
+    rounds = res["rounds"]
+    n_fixed = res["paths"] * round(res["t_max"] / H)
+    adapt = next((r for r in main["adaptive"] if r.get("available")), {})
+    L.append(f"## Main workload\n\nOU noise, D = τ = ω = 1, {res['paths']:,} paths to t = {res['t_max']:g}, "
+             f"float64; θ₀ uniform, Ω₀ = 0, ξ₀ stationary; time of the simulation call only (compilation "
+             f"excluded, reported below). Fixed step h = {H} ({n_fixed:.1e} path-steps), or the default "
+             f"adaptive step h = min(0.05, 0.1/|Ω|, 0.1/√|ω² + ξ|) ({adapt.get('path_steps', 0):.3g} "
+             f"path-steps: the rates of the two step modes are compared in path-steps per second). "
+             f"The rows ran one after the other, each in its own process, in {rounds} interleaved "
+             f"round(s); each cell is the median over the rounds with the range in parentheses. "
+             "Every implementation reports ⟨E²⟩/(Dt/τ²) at the last time (about 0.20 at t = 100); "
+             "stochpend and the C reference draw the same Philox numbers, NumPy its own generator.\n")
+    L.append("| implementation | threads | M path-steps/s (wall) | M path-steps per CPU-s | "
+             "⟨E²⟩/(Dt/τ²) ± s.e. | peak RSS (MB) |")
+    L.append("|---|---|---|---|---|---|")
+    for key, (label, _) in MAIN_ROWS.items():
+        recs = main[key]
+        ok = [r for r in recs if r.get("available")]
+        if not ok:
+            reason = recs[0].get("reason") if recs else "not run"
+            L.append(f"| {label} | | not available: {reason} | | | |")
             continue
-        if not rec.get("available"):
-            L.append(f"| {rec['label']} | | not available: {rec.get('reason')} | | | | | | | | |")
-            continue
-        cpuw = f"{rec['cpu_s'] / rec['wall_s']:.2f}" if rec.get("cpu_s") else "-"
-        se = f" ± {rec['E2_scaled_stderr']:.4f}" if "E2_scaled_stderr" in rec else ""
-        L.append(f"| {rec['label']} | {rec.get('threads', '-')} | {_fmt_rate(_rate(rec))} | "
-                 f"{_fmt_rate(_rate(rec, True))} | {cpuw} | {_ratio(main['fixed'], rec)} | "
-                 f"{_ratio(main['fast'], rec)} | {_ratio(main['fast'], rec, True)} | "
-                 f"{rec.get('peak_rss_mb', 0):.0f} | {rec['E2_scaled']:.4f}{se} | {rec['loadavg_before']:.2f} |")
-    L.append("\nNotes: *fast* is `stochpend._backends.cpu_fast` (SIMD blocks of 64 paths, "
-             "branch-free log/sin/cos) run through `simulate()` in place of `cpu.advance_paths`; "
-             "*512-bit vectors* is the same with `NUMBA_CPU_FEATURES=<host features>,-prefer-256-bit` "
-             "(LLVM otherwise vectorizes 4 doubles wide on this CPU). The C reference is "
-             f"`{main['c_simd'].get('compile_command', 'gcc')}`; the 256-bit row drops "
-             "`-mprefer-vector-width=512` (the brief's flags exactly). diffrax's threads are XLA's "
-             "own pool (its CPU time covers all of them).")
-    adaptive = main["adaptive"]
-    if adaptive.get("available") and main["fixed"].get("available"):
-        L.append(f"\nThe adaptive run (default step control, h ≤ 0.05) takes {adaptive['path_steps']:.3g} "
-                 f"path-steps in {adaptive['wall_s']:.2f} s, against {main['fixed']['wall_s']:.2f} s for "
-                 "the fixed-step run: compare wall times, not path-steps/s.")
-    d = main["diffrax"]
+        se = f" ± {ok[0]['E2_scaled_stderr']:.4f}" if "E2_scaled_stderr" in ok[0] else ""
+        L.append(f"| {label} | {ok[0].get('threads', '-')} | "
+                 f"{_spread([_rate(r) for r in ok], lambda v: f'{v / 1e6:.1f}')} | "
+                 f"{_spread([_rate(r, True) for r in ok], lambda v: f'{v / 1e6:.1f}')} | "
+                 f"{ok[0]['E2_scaled']:.4f}{se} | {max(r.get('peak_rss_mb', 0) for r in ok):.0f} |")
+    d = res["diffrax"]
     if d.get("available"):
-        L.append(f"\ndiffrax {d['diffrax_version']} on JAX {d['jax_version']} (separate venv): first call "
-                 f"{d['first_call_s']:.2f} s (trace + XLA compile + run), steady {d['steady_s']:.2f} s, "
-                 f"compile ≈ {d['compile_s']:.2f} s, import {d['import_s']:.2f} s; peak RSS "
-                 f"{d['peak_rss_mb']:.0f} MB. Heun is another scheme (two drift evaluations per step); "
-                 "its ⟨E²⟩ is statistically comparable, not equal.")
-    for key in ("numpy", "fixed", "fast"):
-        rec = main[key]
-        if rec.get("available") and "traced_peak_mb" in rec:
-            L.append(f"\n{rec['label']}: tracemalloc peak during the timed call {rec['traced_peak_mb']:.1f} MB.")
+        L.append(f"| diffrax {d['diffrax_version']} (JAX CPU, Heun, fixed step) | XLA | "
+                 f"{_rate(d) / 1e6:.1f} | {(_rate(d, True) or 0) / 1e6:.1f} | {d['E2_scaled']:.4f} | "
+                 f"{d['peak_rss_mb']:.0f} |")
+    else:
+        L.append(f"| diffrax (JAX CPU, Heun) | | not available: {d.get('reason')} | | | |")
+    L.append("\nThe C reference is `benchmarks/c_ref/stochpend_ref.c`, compiled "
+             f"`{next((r.get('compile_command') for r in main['c_simd'] if r.get('compile_command')), 'gcc')}` "
+             "(libmvec for log/sin/cos in its SIMD loops; its adaptive SIMD lanes use the same "
+             "branch-free OU coefficients and expm1 polynomial as stochpend's lanes).")
 
-    L.append("\n## Targets\n")
-    L.append("Wall-clock ratios from the main table, and the same ratios in path-steps per CPU-second "
-             "(the comparison that survives a shared machine; for NumPy, 1 thread, it compares the "
-             "work per core).\n")
-    rows = [
-        ("stochpend fixed ≥ 0.7× C reference (SIMD, 512-bit)", "fixed", "c_simd", 0.7),
-        ("stochpend fast ≥ 0.7× C reference (SIMD, 512-bit)", "fast", "c_simd", 0.7),
-        ("stochpend fast (512-bit) ≥ 0.7× C reference (SIMD, 512-bit)", "fast512", "c_simd", 0.7),
-        ("stochpend fast ≥ 0.7× C reference (SIMD, 256-bit, brief's flags)", "fast", "c_simd256", 0.7),
-        ("stochpend fixed ≥ 0.7× C reference (scalar)", "fixed", "c_scalar", 0.7),
-        ("stochpend fixed ≥ 30× NumPy", "fixed", "numpy", 30),
-        ("stochpend fast ≥ 30× NumPy", "fast", "numpy", 30),
-        ("stochpend fixed ≥ 100× diffrax", "fixed", "diffrax", 100),
-        ("stochpend fast ≥ 100× diffrax", "fast", "diffrax", 100),
-    ]
-    L.append("| target | measured (wall) | met | measured (CPU time) | met |")
+    L.append("\n## Targets (ratios of path-steps/s, per round: median and range)\n")
+    L.append("| target | wall | met | CPU time | met |")
     L.append("|---|---|---|---|---|")
-
-    def cell(v, goal):
-        return ("-", "-") if v is None else (f"{v:.2f}x", "yes" if v >= goal else "no")
-
+    rows = [
+        ("default (adaptive, SIMD lanes) ≥ 0.5× fixed step (SIMD blocks)", "adaptive", "fixed", 0.5),
+        ("default (adaptive) ≥ 0.7× C reference adaptive (SIMD lanes)", "adaptive", "c_adaptive", 0.7),
+        ("fixed step ≥ 0.7× C reference fixed step (SIMD)", "fixed", "c_simd", 0.7),
+        ("default (adaptive) against the old default (one path at a time, C library)", "adaptive",
+         "adaptive_libm", None),
+        ("C reference: adaptive SIMD against fixed SIMD", "c_adaptive", "c_simd", None),
+        ("fixed step against NumPy (1 thread)", "fixed", "numpy", None),
+    ]
     for name, a, b, goal in rows:
-        w = cell(_ratio_val(main[a], main[b]), goal)
-        c = cell(_ratio_val(main[a], main[b], True), goal)
-        L.append(f"| {name} | {w[0]} | {w[1]} | {c[0]} | {c[1]} |")
-    for impl in ("fixed", "fast", "fast512"):
-        w = cell(_ratio_val(thr[(impl, 2)], thr[(impl, 1)]), 1.7)
-        L.append(f"| {main[impl]['label']}: 2 threads ≥ 1.7× 1 thread | {w[0]} | {w[1]} | - | - |")
-    jit = [r for r in res["records"] if r["group"] == "jit"]
-    for r in jit:
-        if "second process" in r["label"] and r.get("available"):
-            rc = r.get("ready_cpu_s")
-            L.append(f"| {r['label']}: < 1 s before computing | {r['ready_s']:.2f} s | "
-                     f"{'yes' if r['ready_s'] < 1 else 'no'} | "
-                     f"{'-' if rc is None else f'{rc:.2f} s'} | "
-                     f"{'-' if rc is None else ('yes' if rc < 1 else 'no')} |")
+        cells = []
+        for cpu in (False, True):
+            vals = _round_ratios(main, a, b, cpu)
+            med = _median(vals)
+            met = "-" if goal is None or med is None else ("yes" if med >= goal else "no")
+            cells += [_spread(vals, _x), met]
+        L.append(f"| {name} | {' | '.join(cells)} |")
 
+    user = res.get("user") or {}
+    if user:
+        L.append("\n## The user's run, whole process\n")
+        L.append(f"`{USER_RUN and 'stochpend ' + ' '.join(USER_RUN)}` (3.4e8 path-steps, 40 output "
+                 "times), timed from spawn to exit by this process, with its CPU time (all threads). "
+                 "Target: ≤ 8 s with the kernels cached on disk by a previous process.\n")
+        L.append("| kernel cache | process wall | process CPU | stochpend's own report | load before |")
+        L.append("|---|---|---|---|---|")
+        for rec in [user["cold"], *user["warm"]]:
+            if not rec.get("available"):
+                L.append(f"| {rec['label']} | not available: {rec.get('reason')} | | | |")
+                continue
+            L.append(f"| {rec['label']} | {rec['process_wall_s']:.1f} s | {rec['process_cpu_s']:.1f} s | "
+                     f"{rec.get('reported', '-')} | {rec['loadavg_before']:.2f} |")
+
+    jit = [r for r in res["records"] if r["group"] == "jit"]
     L.append("\n## JIT compile time and the on-disk cache\n")
     L.append("Each row is a fresh process with `NUMBA_CACHE_DIR` set to a new directory (first row of "
              "each pair: empty; second: what the first wrote). Times from the moment the parent "
              "spawned the process. `ready` = process start to the start of computing (interpreter, "
-             "imports, kernel load or compile) = `import done` + first call − second call.\n")
-    L.append("`ready (CPU)` is the same in CPU time of the process (all its threads): what `ready` "
-             "would be on an idle machine, give or take the threads' spinning.\n")
+             "imports, kernel load or compile) = `import done` + first call − second call; "
+             "`ready (CPU)` the same in CPU time of the process.\n")
     L.append("| process | interpreter up | `import stochpend` done | first call | second call | "
              "compile ≈ | ready | ready (CPU) | peak RSS (MB) | load before |")
     L.append("|---|---|---|---|---|---|---|---|---|---|")
@@ -598,30 +658,29 @@ def report(res: dict) -> str:
         L.append(f"| {r['label']} | {r['startup_s']:.2f} s | {r['import_s']:.2f} s | {r['first_call_s']:.2f} s | "
                  f"{r['second_call_s']:.3f} s | {r['compile_s']:.2f} s | {r['ready_s']:.2f} s | "
                  f"{r.get('ready_cpu_s', float('nan')):.2f} s | {r['peak_rss_mb']:.0f} | {r['loadavg_before']:.2f} |")
-    L.append("\n(first/second call: `simulate()` of 1,000 paths × 100 steps, fixed step.)")
+    L.append("\n(first/second call: `simulate()` of 1,000 paths to t = 1, fixed step 0.01 or the "
+             "default adaptive step.)")
 
     L.append("\n## Thread scaling (main workload)\n")
     L.append("| implementation | 1 thread (wall) | 2 threads (wall) | speed-up (wall) | 1 thread per CPU-s | "
-             "2 threads per CPU-s | cpu/wall at 2 threads | load before 2-thread run |")
-    L.append("|---|---|---|---|---|---|---|---|")
-    for impl in ("fixed", "fast", "fast512", "c_simd", "c_scalar"):
+             "2 threads per CPU-s | load before 2-thread run |")
+    L.append("|---|---|---|---|---|---|---|")
+    for impl in ("fixed", "adaptive", "c_simd", "c_adaptive"):
         a, b = thr[(impl, 1)], thr[(impl, 2)]
-        cw = f"{b['cpu_s'] / b['wall_s']:.2f}" if b.get("available") and b.get("cpu_s") else "-"
-        L.append(f"| {main[impl]['label']} | {_fmt_rate(_rate(a))} | {_fmt_rate(_rate(b))} | "
-                 f"{_ratio(b, a)} | {_fmt_rate(_rate(a, True))} | {_fmt_rate(_rate(b, True))} | {cw} | "
+        L.append(f"| {MAIN_ROWS[impl][0]} | {_fmt_rate(_rate(a))} | {_fmt_rate(_rate(b))} | "
+                 f"{_ratio(b, a)} | {_fmt_rate(_rate(a, True))} | {_fmt_rate(_rate(b, True))} | "
                  f"{b.get('loadavg_before', 0):.2f} |")
 
     L.append("\n## Scaling with paths (path-steps/s, wall; 2 threads, NumPy 1)\n")
-    L.append("About 10⁸ path-steps per point (10⁶ with --quick): fewer steps for the big ensembles, "
-             "at least 10, so the per-call costs (initial conditions, statistics) weigh more there. "
-             "In parentheses: path-steps per CPU-second.\n")
-    impls = ("fixed", "fast", "c_simd", "numpy")
-    L.append("| paths | steps | " + " | ".join(main[i]["label"] for i in impls) + " |")
+    L.append("About 10⁸ fixed-step path-steps per point (10⁶ with --quick), t = steps × 0.01 for "
+             "every row (the adaptive row takes its own steps to the same t); in parentheses: "
+             "path-steps per CPU-second.\n")
+    impls = ("fixed", "adaptive", "c_simd", "numpy")
+    L.append("| paths | t | " + " | ".join(MAIN_ROWS[i][0] for i in impls) + " |")
     L.append("|---|---|" + "---|" * len(impls))
     for n in res["path_list"]:
         recs = [res["scaling"][(i, n)] for i in impls]
-        steps = recs[0].get("path_steps", 0) // n if recs[0].get("available") else "-"
-        L.append(f"| {n:.0e} | {steps} | " + " | ".join(
+        L.append(f"| {n:.0e} | {recs[0]['spec']['t_max']:g} | " + " | ".join(
             f"{_fmt_rate(_rate(r))} ({_fmt_rate(_rate(r, True))})" for r in recs) + " |")
 
     micro = res.get("micro")
@@ -646,6 +705,10 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="1/100 of the work (smoke run)")
     p.add_argument("--no-diffrax", action="store_true", help="skip the JAX/diffrax part")
+    p.add_argument("--rounds", type=int, default=3,
+                   help="interleaved rounds of the main table (default 3; --quick: 1)")
+    p.add_argument("--no-user-run", action="store_true",
+                   help="skip the user's 3.4e8-path-step run (three whole processes)")
     p.add_argument("--out", type=Path, default=None,
                    help="where to write the report (default: benchmarks/RESULTS.md for a full run, "
                         "nothing for --quick)")

@@ -1,4 +1,5 @@
-"""Build and call the C reference (``stochpend_ref.c``) through ctypes.
+"""Build and call the C reference (``stochpend_ref.c``) through ctypes: the fixed-step scheme
+(:func:`run`) and the adaptive one, stochpend's default (:func:`run_adaptive`).
 
 The shared library is compiled at run time into a temporary directory (nothing compiled is
 kept in the repository). Two flavours:
@@ -70,6 +71,13 @@ def build(flavour: str = "fast") -> ctypes.CDLL:
         fn.argtypes = [ctypes.c_long, ctypes.c_uint64, ctypes.c_uint64, ctypes.c_double,
                        ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_double,
                        ctypes.c_int, dptr, dptr, dptr]
+    lptr = np.ctypeslib.ndpointer(dtype=np.int64, flags="C_CONTIGUOUS")
+    for name in ("sp_run_adaptive_scalar", "sp_run_adaptive_simd"):
+        fn = getattr(lib, name)
+        fn.restype = ctypes.c_long
+        fn.argtypes = [ctypes.c_long, ctypes.c_uint64, ctypes.c_uint64, ctypes.c_double,
+                       ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_double,
+                       ctypes.c_int, dptr, ctypes.c_int, dptr, dptr, dptr, lptr]
     lib.sp_micro.restype = ctypes.c_double
     lib.sp_micro.argtypes = [ctypes.c_int, ctypes.c_long]
     lib.sp_max_threads.restype = ctypes.c_int
@@ -111,3 +119,28 @@ def run(paths: int, t_max: float, h: float, *, D: float = 1.0, tau: float = 1.0,
     steps = fn(paths, 0, seed, D, tau, omega * omega, h, t_max, threads, x, Om, xi)
     seconds = time.perf_counter() - t0
     return CResult(x, Om, xi, int(steps), seconds)
+
+
+def run_adaptive(paths: int, times, *, h_max: float = 0.05, step_c: float = 0.1,
+                 D: float = 1.0, tau: float = 1.0, omega: float = 1.0, seed: int = 0,
+                 threads: int = 0, variant: str = "simd", flavour: str = "fast") -> CResult:
+    """Run the reference's adaptive scheme (stochpend's default step control) on paths
+    0 .. paths-1 through the output times ``times`` (increasing, > 0), landing on each.
+
+    ``steps`` is the total over paths (``CResult.path_steps`` per path); ``seconds`` the time
+    of the C call alone.
+    """
+    lib = build(flavour)
+    fn = {"simd": lib.sp_run_adaptive_simd, "scalar": lib.sp_run_adaptive_scalar}[variant]
+    times = np.ascontiguousarray(times, dtype=np.float64)
+    x = np.empty(paths)
+    Om = np.empty(paths)
+    xi = np.empty(paths)
+    per_path = np.empty(paths, dtype=np.int64)
+    t0 = time.perf_counter()
+    steps = fn(paths, 0, seed, D, tau, omega * omega, h_max, step_c, times.size, times, threads,
+               x, Om, xi, per_path)
+    seconds = time.perf_counter() - t0
+    result = CResult(x, Om, xi, int(steps), seconds)
+    result.path_steps = per_path
+    return result

@@ -1,5 +1,6 @@
 /*
- * C reference of stochpend's fixed-step OU scheme: the practical floor for the benchmark.
+ * C reference of stochpend's OU scheme, fixed step and adaptive step (the default; see the
+ * second half of this file): the practical floor for the benchmark.
  *
  * It reproduces, number for number, what stochpend's CPU kernels (init_paths + advance_paths
  * in src/stochpend/_backends/cpu.py) do for the pendulum with OU noise at a fixed step:
@@ -276,6 +277,240 @@ long sp_run_simd(long n, uint64_t path0, uint64_t seed, double D, double tau, do
         if ((long)kk > steps_out) steps_out = (long)kk;
     }
     return steps_out;
+}
+
+/* ==========================================================================================
+ * The adaptive scheme: stochpend's default (integrator.step_size, landing_step, advance_clock).
+ *
+ * Every path goes from t = 0 through the output times times[0] < ... < times[n_times-1] with
+ * its own step h = min(h_max, c/|Omega|, c/sqrt(|omega2 + xi|)) (the pendulum: |U''| <= 1),
+ * the last step before each output time shortened to land on it (stretched when it would stop
+ * within 1e-6 h of it), t summed with Kahan compensation (reset on landing), the OU
+ * coefficients recomputed whenever h changes. A step below 1e-9 h_max freezes the path
+ * (escape); so does a non-finite state. Each path's final state and step count are stored.
+ *
+ *   sp_run_adaptive_scalar: one path at a time (OpenMP over paths), the C library's expm1 and
+ *       tanh for the coefficients (noises.ou.step_coefficients): compiled "exact" it is
+ *       stochpend's one-path kernel with the C library's math, bit for bit (the smoke test);
+ *   sp_run_adaptive_simd: SP_LANES lanes per thread, each carrying one path with its own
+ *       time, step, coefficients and Philox counter, advanced together by one branch-free
+ *       `omp simd` loop and refilled with the next path when theirs is done (the design of
+ *       stochpend's lane machine, integrator.build_lanes); coefficients by the branch-free
+ *       formulas of noises.ou.branch_free_coefficients (the polynomial expm1 of
+ *       fastmath.expm1), log/sin/cos from libmvec under -ffast-math.
+ * ========================================================================================== */
+#define SP_LANES 16
+
+static inline double sp_kahan_comp(double t_new, double tt, double y)
+{
+#if defined(__FAST_MATH__) && defined(__GNUC__) && __GNUC__ >= 12
+    return __builtin_assoc_barrier(t_new - tt) - y;
+#else
+    return (t_new - tt) - y;
+#endif
+}
+
+static inline double sp_step_size(double Om, double xn, double h_max, double c, double omega2)
+{
+    double h = h_max;
+    double speed = fabs(Om);
+    if (speed * h > c) h = c / speed;
+    double stiff = fabs(omega2 + xn);
+    if (stiff * h * h > c * c) h = c / sqrt(stiff);
+    return h;
+}
+
+/* fastmath.expm1: x = k ln2 + r, expm1(r) by its Taylor polynomial (degree 13). The int <->
+   double conversions go through the mantissa of 1.5 * 2^52, as in fastmath. */
+static inline double sp_bits_f(int64_t i) { double d; __builtin_memcpy(&d, &i, 8); return d; }
+static inline int64_t sp_bits_i(double d) { int64_t i; __builtin_memcpy(&i, &d, 8); return i; }
+
+static inline double sp_expm1_poly(double x)
+{
+    x = x < -700.0 ? -700.0 : x;
+    double fk = floor(x * 1.44269504088896338700e+00 + 0.5);
+    double r = (x - fk * 6.93147180369123816490e-01) - fk * 1.90821492927058770002e-10;
+    double q = 1.0 / 6227020800.0;
+    q = q * r + 1.0 / 479001600.0;
+    q = q * r + 1.0 / 39916800.0;
+    q = q * r + 1.0 / 3628800.0;
+    q = q * r + 1.0 / 362880.0;
+    q = q * r + 1.0 / 40320.0;
+    q = q * r + 1.0 / 5040.0;
+    q = q * r + 1.0 / 720.0;
+    q = q * r + 1.0 / 120.0;
+    q = q * r + 1.0 / 24.0;
+    q = q * r + 1.0 / 6.0;
+    q = q * r + 0.5;
+    double p = r + (r * r) * q;
+    int64_t k = sp_bits_i(fk + 6755399441055744.0) - 0x4338000000000000LL;
+    double two_k = sp_bits_f((k + 1023) << 52);
+    return two_k * p + (two_k - 1.0);
+}
+
+static inline ou_coef ou_coefficients_branch_free(double h, double D, double tau)
+{
+    ou_coef cf;
+    double x = h * (1.0 / tau);
+    double b = -sp_expm1_poly(-x);
+    cf.a = 1.0 - b;
+    cf.s_xi = sqrt((D / (2.0 * tau)) * (b * (2.0 - b)));
+    double cov = (0.5 * D) * (b * b);
+    cf.c_I = cf.s_xi > 0.0 ? cov / cf.s_xi : 0.0;
+    double x2 = x * x;
+    double acc = TANH_SERIES[11];
+    for (int i = 10; i >= 0; --i) acc = acc * x2 + TANH_SERIES[i];
+    double series = acc * x * x2;
+    double direct = x - 2.0 * b / (2.0 - b);
+    cf.s_I = sqrt((D * tau) * (x < 0.6 ? series : direct));
+    cf.m_I = tau * b;
+    return cf;
+}
+
+long sp_run_adaptive_scalar(long n, uint64_t path0, uint64_t seed, double D, double tau,
+                            double omega2, double h_max, double step_c, int n_times,
+                            const double *times, int threads, double *x, double *Om,
+                            double *xi, long *steps)
+{
+    const uint32_t k0 = (uint32_t)seed, k1 = (uint32_t)(seed >> 32);
+    long total = 0;
+    if (threads > 0) omp_set_num_threads(threads);
+#pragma omp parallel for schedule(static) reduction(+ : total)
+    for (long i = 0; i < n; ++i) {
+        uint64_t path = path0 + (uint64_t)i;
+        double xs, Om_, xn;
+        init_path(&xs, &Om_, &xn, k0, k1, path, D, tau);
+        double tt = 0.0, t_comp = 0.0, h_cached = h_max;
+        ou_coef cf = ou_step_coefficients(h_max, D, tau);
+        uint64_t kk = 0;
+        int bad = 0;
+        for (int j = 0; j < n_times && !bad; ++j) {
+            double t_target = times[j];
+            while (tt < t_target) {
+                double h = sp_step_size(Om_, xn, h_max, step_c, omega2);
+                if (h < 1e-9 * h_max) { bad = 1; break; }
+                int last = 0;
+                if (sp_land(tt, h, t_target)) { h = t_target - tt; last = 1; }
+                if (h != h_cached) { cf = ou_step_coefficients(h, D, tau); h_cached = h; }
+                SP_STEP(xs, Om_, xn, path, kk);
+                kk += 1;
+                if (last) { tt = t_target; t_comp = 0.0; } else sp_advance_time(&tt, &t_comp, h);
+                if (!(isfinite(xs) && isfinite(Om_) && isfinite(xn))) { bad = 1; break; }
+                if (last) break;
+            }
+        }
+        x[i] = xs; Om[i] = Om_; xi[i] = xn; steps[i] = (long)kk;
+        total += (long)kk;
+    }
+    return total;
+}
+
+long sp_run_adaptive_simd(long n, uint64_t path0, uint64_t seed, double D, double tau,
+                          double omega2, double h_max, double step_c, int n_times,
+                          const double *times, int threads, double *x, double *Om,
+                          double *xi, long *steps)
+{
+    const uint32_t k0 = (uint32_t)seed, k1 = (uint32_t)(seed >> 32);
+    long total = 0;
+    if (threads > 0) omp_set_num_threads(threads);
+#pragma omp parallel reduction(+ : total)
+    {
+        int nt = omp_get_num_threads(), tid = omp_get_thread_num();
+        long lo = n * tid / nt, hi = n * (tid + 1) / nt, next = lo;
+        /* Lane state; an idle lane (act = 0) computes on harmless numbers, never stored. */
+        double bx[SP_LANES], bO[SP_LANES], bxi[SP_LANES], bt[SP_LANES], btc[SP_LANES],
+            btarget[SP_LANES];
+        uint64_t bk[SP_LANES];
+        uint32_t bp0[SP_LANES], bp1[SP_LANES];
+        long bi[SP_LANES];
+        int bj[SP_LANES], bact[SP_LANES], bland[SP_LANES], bbad[SP_LANES];
+        int n_active = 0;
+        for (int l = 0; l < SP_LANES; ++l) {
+            bx[l] = bO[l] = bxi[l] = bt[l] = btc[l] = 0.0;
+            btarget[l] = 0.0; bk[l] = 0; bp0[l] = bp1[l] = 0; bi[l] = -1; bj[l] = 0;
+            bact[l] = bland[l] = bbad[l] = 0;
+            if (next < hi) {
+                uint64_t path = path0 + (uint64_t)next;
+                init_path(&bx[l], &bO[l], &bxi[l], k0, k1, path, D, tau);
+                bp0[l] = (uint32_t)path; bp1[l] = (uint32_t)(path >> 32);
+                bi[l] = next++; btarget[l] = times[0]; bact[l] = 1; ++n_active;
+            }
+        }
+        while (n_active > 0) {
+            /* Loop fission as in sp_run_simd: the normals' cos and sin in their own lane
+               loops, so that gcc does not fuse them into sincos (no vector variant). */
+            double br[SP_LANES], bph[SP_LANES], bc[SP_LANES], bs[SP_LANES];
+#pragma omp simd
+            for (int l = 0; l < SP_LANES; ++l) {
+                uint64_t nn = bk[l] + 2u;
+                uint32_t w0 = (uint32_t)nn, w1 = (uint32_t)(nn >> 32), w2 = bp0[l], w3 = bp1[l];
+                philox4x32_10(&w0, &w1, &w2, &w3, k0, k1);
+                br[l] = sqrt(-2.0 * log(uniform_open(w0, w1)));
+                bph[l] = SP_TWO_PI * uniform_open(w2, w3);
+            }
+#pragma omp simd
+            for (int l = 0; l < SP_LANES; ++l) bc[l] = cos(bph[l]);
+#pragma omp simd
+            for (int l = 0; l < SP_LANES; ++l) bs[l] = sin(bph[l]);
+            int n_done = 0;
+#pragma omp simd reduction(+ : n_done)
+            for (int l = 0; l < SP_LANES; ++l) {
+                double xs = bx[l], Om_ = bO[l], xn = bxi[l], tt = bt[l], tc = btc[l];
+                double t_target = btarget[l];
+                uint64_t kk = bk[l];
+                int act = bact[l];
+                double h = sp_step_size(Om_, xn, h_max, step_c, omega2);
+                int esc = h < 1e-9 * h_max;
+                int last = tt + h * (1.0 + 1e-6) >= t_target;
+                h = last ? t_target - tt : h;
+                ou_coef cf = ou_coefficients_branch_free(h, D, tau);
+                double z1 = br[l] * bc[l], z2 = br[l] * bs[l];
+                double I = cf.m_I * xn + cf.c_I * z1 + cf.s_I * z2;
+                double xn_new = cf.a * xn + cf.s_xi * z1;
+                double xh = xs + 0.5 * h * Om_;
+                double s_ = sin(xh);
+                double kick = omega2 * h * s_;
+                kick += I * s_;
+                double Om_new = Om_ - kick;
+                double xw = xh + 0.5 * h * Om_new;
+                double xs_new = xw - SP_TWO_PI * floor((xw + SP_PI) / SP_TWO_PI);
+                double y = h - tc;
+                double t_sum = tt + y;
+                double tc_new = sp_kahan_comp(t_sum, tt, y);
+                int finite = isfinite(xs_new) & isfinite(Om_new) & isfinite(xn_new);
+                int go = act & !esc;
+                bx[l] = go ? xs_new : xs;
+                bO[l] = go ? Om_new : Om_;
+                bxi[l] = go ? xn_new : xn;
+                bt[l] = go ? (last ? t_target : t_sum) : tt;
+                btc[l] = go ? (last ? 0.0 : tc_new) : tc;
+                bk[l] = go ? kk + 1u : kk;
+                int bad = act & (esc | (go & !finite));
+                int land = go & last & finite;
+                bbad[l] = bad;
+                bland[l] = land;
+                n_done += bad | land;
+            }
+            if (n_done == 0) continue;
+            for (int l = 0; l < SP_LANES; ++l) {
+                if (!(bbad[l] | bland[l])) continue;
+                bland[l] = 0;
+                if (!bbad[l] && ++bj[l] < n_times) { btarget[l] = times[bj[l]]; continue; }
+                long i = bi[l];
+                x[i] = bx[l]; Om[i] = bO[l]; xi[i] = bxi[l]; steps[i] = (long)bk[l];
+                total += (long)bk[l];
+                bbad[l] = 0; bact[l] = 0; bi[l] = -1; --n_active;
+                if (next < hi) {
+                    uint64_t path = path0 + (uint64_t)next;
+                    init_path(&bx[l], &bO[l], &bxi[l], k0, k1, path, D, tau);
+                    bt[l] = 0.0; btc[l] = 0.0; bk[l] = 0; bj[l] = 0; btarget[l] = times[0];
+                    bp0[l] = (uint32_t)path; bp1[l] = (uint32_t)(path >> 32);
+                    bi[l] = next++; bact[l] = 1; ++n_active;
+                }
+            }
+        }
+    }
+    return total;
 }
 
 /* Micro-benchmark helpers for docs/performance.md: n evaluations of one operation. */

@@ -1,35 +1,60 @@
-"""Branch-free log, sin and cos in plain float64 arithmetic, so that LLVM can vectorize them.
+"""Branch-free log, sin, cos and expm1 in plain float64 arithmetic, so that LLVM can vectorize them.
 
-Numba lowers ``math.log``/``math.sin``/``math.cos`` to calls into the C library, and the
-llvmlite wheels carry no vector math library (SVML), so a loop that calls them stays scalar.
-These versions are the FreeBSD msun (fdlibm) algorithms with their branches replaced by
-selects: the same polynomials and the same error bounds (< 1 ulp), so they agree with glibc's
-correctly rounded or < 1 ulp results to within an ulp. Measured maximum errors against
-``math.log``/``math.sin``/``math.cos`` are asserted in tests/unit/test_fastmath.py.
+Numba lowers ``math.log``/``math.sin``/``math.cos``/``math.expm1`` to calls into the C library,
+and the llvmlite wheels carry no vector math library (SVML), so a loop that calls them stays
+scalar. ``log``, ``sin`` and ``cos`` are the FreeBSD msun (fdlibm) algorithms with their
+branches replaced by selects: the same polynomials and the same error bounds (< 1 ulp), so they
+agree with glibc's correctly rounded or < 1 ulp results to within an ulp. ``expm1`` is a
+Cody-Waite reduction and a degree-13 Taylor polynomial (at most 2 ulps from glibc's). Measured
+maximum errors against the C library are asserted in tests/unit/test_fastmath.py.
+
+With AVX2 alone (no AVX-512) there is no vector conversion between int64 and float64, and
+Numba's ``math.floor`` returns an int64: :func:`floor`, :func:`int_to_float` and
+:func:`float_to_int` do these exactly without conversion instructions (bit casts and the
+1.5 * 2**52 trick), so that nothing in a lane loop falls back to one lane at a time.
 
 Valid inputs (no special cases are handled, by design):
 
 * :func:`log_pos`: finite, positive, normal x (the Box-Muller uniforms of ``rng.uniform_open``
   lie in [2**-53, 1 - 2**-53]);
 * :func:`sincos`, :func:`sin`: finite ``|x| < 2**19 * pi/2`` (about 8e5); the reduction uses
-  pi/2 to 119 bits (fdlibm's ``pio2_1 + pio2_2 + pio2_2t``), exact enough in this range.
+  pi/2 to 119 bits (fdlibm's ``pio2_1 + pio2_2 + pio2_2t``), exact enough in this range;
+* :func:`expm1`: x <= 700 (-1 below -700).
 
-The functions are ``register_jitable``: compiled into the calling kernel and inlined, callable
-from Python too (as the tests do).
+The functions are ``register_jitable`` (or ``overload``-ed Python functions): compiled into the
+calling kernel and inlined, callable from Python too (as the tests do).
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import types
-from numba.extending import intrinsic, register_jitable
+from numba.extending import intrinsic, overload, register_jitable
 
 
-# -- bit casts --------------------------------------------------------------------------------
-@intrinsic
-def f64_as_i64(typingctx, x):
+# -- bit casts, floor, exact integer conversions --------------------------------------------------
+# Each is a plain Python function (so that the functions below stay callable from Python, as
+# the tests call them) with an LLVM implementation for compiled code (``overload``).
+def f64_as_i64(x):
     """The IEEE-754 bits of a float64 as an int64 (no conversion)."""
+    return int(np.float64(x).view(np.int64))
+
+
+def i64_as_f64(x):
+    """The float64 whose IEEE-754 bits are the int64 x (no conversion)."""
+    return float(np.int64(x).view(np.float64))
+
+
+def floor(x):
+    """floor(x) as a float64 (``math.floor`` gives an int64 in Numba, and the conversions
+    do not vectorize without AVX-512)."""
+    return float(math.floor(x))
+
+
+@intrinsic
+def _f64_as_i64(typingctx, x):
     if not isinstance(x, types.Float) or x.bitwidth != 64:
         return None
 
@@ -40,8 +65,7 @@ def f64_as_i64(typingctx, x):
 
 
 @intrinsic
-def i64_as_f64(typingctx, x):
-    """The float64 whose IEEE-754 bits are the int64 x (no conversion)."""
+def _i64_as_f64(typingctx, x):
     if not isinstance(x, types.Integer) or x.bitwidth != 64:
         return None
 
@@ -49,6 +73,62 @@ def i64_as_f64(typingctx, x):
         return builder.bitcast(args[0], context.get_value_type(types.float64))
 
     return types.float64(x), codegen
+
+
+@intrinsic
+def _floor(typingctx, x):
+    if not isinstance(x, types.Float) or x.bitwidth != 64:
+        return None
+
+    def codegen(context, builder, signature, args):
+        fn = builder.module.declare_intrinsic("llvm.floor", [args[0].type])
+        return builder.call(fn, args)
+
+    return types.float64(types.float64), codegen
+
+
+@overload(f64_as_i64)
+def _ol_f64_as_i64(x):
+    return lambda x: _f64_as_i64(x)
+
+
+@overload(i64_as_f64)
+def _ol_i64_as_f64(x):
+    return lambda x: _i64_as_f64(x)
+
+
+@overload(floor)
+def _ol_floor(x):
+    return lambda x: _floor(x)
+
+
+@register_jitable
+def select(condition, a, b):
+    """``a if condition else b``, as a call: functions that Numba inlines into its IR
+    (``inline="always"``) keep no conditional expression of their own, whose merged variables
+    Numba's IR inliner mishandles; LLVM inlines this and makes it a select."""
+    if condition:
+        return a
+    return b
+
+
+# AVX2 has no vector conversion between int64 and float64 (AVX-512DQ has), so LLVM would do
+# these one lane at a time. Adding 1.5 * 2**52 puts an integer |k| < 2**51 in the low bits of
+# the mantissa, exactly.
+_MAGIC = 6755399441055744.0  # 1.5 * 2**52
+_MAGIC_BITS = 0x4338000000000000
+
+
+@register_jitable
+def int_to_float(k):
+    """float(k) for an int64 |k| < 2**51 (exact), vectorizable."""
+    return i64_as_f64(k + _MAGIC_BITS) - _MAGIC
+
+
+@register_jitable
+def float_to_int(f):
+    """int(f) for an integral float64 |f| < 2**51 (exact), vectorizable."""
+    return f64_as_i64(f + _MAGIC) - _MAGIC_BITS
 
 
 # -- log (FreeBSD e_log.c) ----------------------------------------------------------------------
@@ -76,7 +156,7 @@ def log_pos(x):
     k = k + (i >> 20)
     f = m - 1.0
     s = f / (2.0 + f)
-    dk = float(k)
+    dk = int_to_float(k)
     z = s * s
     w = z * z
     t1 = w * (_LG2 + w * (_LG4 + w * _LG6))
@@ -132,8 +212,8 @@ def _kernel_cos(x, y):
 @register_jitable
 def sincos(x):
     """(sin x, cos x), each < 1 ulp, branch-free, for finite |x| < 2**19 pi/2."""
-    fn = math.floor(x * _INVPIO2 + 0.5)
-    n = int(fn)
+    fn = floor(x * _INVPIO2 + 0.5)
+    n = float_to_int(fn)
     # Cody-Waite reduction x - fn pi/2 = y0 + y1, pi/2 to 119 bits (fdlibm's second pass).
     t = x - fn * _PIO2_1
     w = fn * _PIO2_2
@@ -162,3 +242,44 @@ def sin(x):
 def cos(x):
     """cos x, < 1 ulp, branch-free, for finite |x| < 2**19 pi/2."""
     return sincos(x)[1]
+
+
+# -- expm1 (exp(x) - 1 by argument reduction and a Taylor polynomial) ---------------------------
+_INVLN2 = 1.44269504088896338700e+00
+_LN2_HI_EXP = 6.93147180369123816490e-01  # fdlibm's ln2_hi: k * ln2_hi exact for |k| < 2**11
+_LN2_LO_EXP = 1.90821492927058770002e-10
+# 1/j! for j = 2..13: the Taylor series of expm1(r) = r + r**2 q(r), |r| <= ln2/2, whose first
+# term left out, r**14/14!, is below 1e-17 relative.
+_EXPM1_TAYLOR = tuple(1.0 / math.factorial(j) for j in range(2, 14))
+_EXPM1_LOWEST = -700.0
+
+
+@register_jitable
+def expm1(x):
+    """exp(x) - 1 for finite x <= 700 (-1 below -700), a few ulps at most, branch-free.
+
+    x = k ln2 + r with |r| <= ln2/2 (Cody-Waite, ln2 in two parts); expm1(r) = r + r**2 q(r) by
+    its Taylor polynomial (degree 13), then expm1(x) = 2**k expm1(r) + (2**k - 1), exact
+    arithmetic for k = 0 (|x| <= ln2/2, where the relative accuracy of a small argument matters).
+    Measured error against ``math.expm1`` in tests/unit/test_fastmath.py.
+    """
+    x = max(x, _EXPM1_LOWEST)
+    fk = floor(x * _INVLN2 + 0.5)
+    hi = x - fk * _LN2_HI_EXP
+    lo = fk * _LN2_LO_EXP
+    r = hi - lo
+    q = _EXPM1_TAYLOR[11]
+    q = q * r + _EXPM1_TAYLOR[10]
+    q = q * r + _EXPM1_TAYLOR[9]
+    q = q * r + _EXPM1_TAYLOR[8]
+    q = q * r + _EXPM1_TAYLOR[7]
+    q = q * r + _EXPM1_TAYLOR[6]
+    q = q * r + _EXPM1_TAYLOR[5]
+    q = q * r + _EXPM1_TAYLOR[4]
+    q = q * r + _EXPM1_TAYLOR[3]
+    q = q * r + _EXPM1_TAYLOR[2]
+    q = q * r + _EXPM1_TAYLOR[1]
+    q = q * r + _EXPM1_TAYLOR[0]
+    p = r + (r * r) * q
+    two_k = i64_as_f64((float_to_int(fk) + 1023) << 52)
+    return two_k * p + (two_k - 1.0)

@@ -20,7 +20,10 @@ functions that the backends' thin drivers call:
   kernel both call it;
 * :func:`Integrator.advance_lanes`: the same steps for a block of paths that share their time
   and step count (fixed steps, noises with ``pair_draws``), laid out so that LLVM vectorizes
-  them across the lanes (the CPU SIMD driver);
+  them across the lanes (the CPU's lock-step driver);
+* :func:`build_lanes` (a separate builder): the same step loop for ``LANE_COUNT`` paths side by
+  side, each with its own time, step and step count, refilled as paths finish (the CPU's
+  default driver: adaptive steps in SIMD);
 * ``init_path`` (initial conditions) and ``path_values`` (what the statistics sum).
 
 Every choice in the Spec is a Python constant captured by these closures, so each combination
@@ -535,3 +538,213 @@ def spec(noise: str = "ou", potential: str = "pendulum", coupling: str = "force"
     if noise_piece is None:
         raise ValueError(f"noise={noise!r} is not accepted: not registered")
     return Spec(oscillator, coupling, noise_piece, precision, adaptive, fast_math)
+
+
+# -- the SIMD lane machine (CPU) -----------------------------------------------------------------
+#: Lanes of :func:`build_lanes`' machine: paths advanced side by side, each with its own time,
+#: step and step count (4 float64 lanes of AVX2, 8 of AVX-512, a few vectors deep).
+LANE_COUNT = 16
+
+#: Rows of the lane machine's scratch arrays (per thread, preallocated by the driver):
+#: ``fs`` float64 (x, Omega, xi, aux, t, t_comp), ``us`` uint64 (k, the path's two counter
+#: words), ``js`` int64 (path index or -1, steps in this call, active, escaped/non-finite).
+LANE_F_ROWS = 6
+LANE_U_ROWS = 3
+LANE_I_ROWS = 4
+
+
+def lanes_supported(spec: Spec) -> bool:
+    """Whether :func:`build_lanes` runs ``spec``: float64, a noise without events whose fast-math
+    kernel has ``draw_keyed``, the fast math library."""
+    if not spec.fast_math or spec.precision != "float64" or spec.noise.has_events:
+        return False
+    return spec.noise.kernel(np.float64, FAST).draw_keyed is not None
+
+
+@functools.lru_cache(maxsize=None)
+def build_lanes(spec: Spec) -> SimpleNamespace:
+    """The step loop of :func:`build`'s ``advance_path`` for ``LANE_COUNT`` paths side by side.
+
+    Each lane carries one path with its own time, clock compensation, step count, step size
+    (the step control of ``step_size``), landing, noise coefficients and Philox counter, so
+    adaptive steps run in SIMD. Every iteration advances every lane by one step in one loop
+    over the lanes without a branch (the conditions are selects), which LLVM vectorizes; a
+    lane whose path has landed on ``t_target``, used up ``max_steps``, escaped or become
+    non-finite is masked (its state is not changed), written back, and refilled with the next
+    path of the range. The arithmetic is ``advance_path``'s, operation for operation, so a
+    path's numbers are the same in any lane, at any time, next to any other paths: a function
+    of (seed, path) alone, as for every driver. Needs :func:`lanes_supported`.
+
+    ``advance_range(lo, hi, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
+    rk0, rk1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js) -> (steps_taken,
+    unfinished)``: advance_path for paths lo .. hi - 1 of the arrays; ``rk0``, ``rk1`` the
+    seed's round keys (``rng.round_keys``); ``fs``, ``us``, ``js`` the thread's scratch, shapes
+    (``LANE_F_ROWS``, ``LANE_COUNT``), (``LANE_U_ROWS``, ...), (``LANE_I_ROWS``, ...).
+    """
+    if not lanes_supported(spec):
+        raise ValueError(f"spec {spec.label} is not accepted: the lane machine needs "
+                         "integrator.lanes_supported(spec)")
+    steps = build(spec)
+    real = steps.real
+    nz = spec.noise.kernel(real, FAST)
+    verlet = steps.verlet
+    step_size = steps.step_size
+    coefficients = nz.coefficients
+    draw_keyed = nz.draw_keyed
+    update = nz.update
+    load_aux = nz.load_aux
+    ADAPTIVE = spec.adaptive
+    lanes = LANE_COUNT
+    escape = real(ESCAPE_STEP_FRACTION)
+    slack = 1.0 + LANDING_SLACK
+
+    @register_jitable
+    def load(lane, i, x, Omega, xi, xi_aux, t, t_comp, k, path0, fs, us, js):
+        fs[0, lane] = x[i]
+        fs[1, lane] = Omega[i]
+        fs[2, lane] = xi[i]
+        fs[3, lane] = load_aux(xi_aux[i])
+        fs[4, lane] = t[i]
+        fs[5, lane] = t_comp[i]
+        p = _U64(path0 + i)
+        us[0, lane] = k[i]
+        us[1, lane] = p & rng._MASK32
+        us[2, lane] = p >> rng._SHIFT32
+        js[0, lane] = i
+        js[1, lane] = 0
+        js[2, lane] = 1
+        js[3, lane] = 0
+
+    @register_jitable
+    def advance_range(lo, hi, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
+                      rk0, rk1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js):
+        D_r = real(D)
+        tau_r = real(tau)
+        W_r = real(W)
+        omega2_r = real(omega2)
+        h_max_r = real(h_max)
+        c_r = real(step_c)
+        bx = fs[0]
+        bO = fs[1]
+        bxi = fs[2]
+        bxa = fs[3]
+        bt = fs[4]
+        btc = fs[5]
+        bk = us[0]
+        bc2 = us[1]
+        bc3 = us[2]
+        bi = js[0]
+        bs = js[1]
+        ba = js[2]
+        bbad = js[3]
+        # Idle lanes compute on harmless numbers and are never written back.
+        for lane in range(lanes):
+            bx[lane] = 0.0
+            bO[lane] = 0.0
+            bxi[lane] = 0.0
+            bxa[lane] = 0.0
+            bt[lane] = t_target
+            btc[lane] = 0.0
+            bk[lane] = 0
+            bc2[lane] = 0
+            bc3[lane] = 0
+            bi[lane] = -1
+            bs[lane] = 0
+            ba[lane] = 0
+            bbad[lane] = 0
+        steps_taken = 0
+        unfinished = 0
+        nxt = lo
+        n_active = 0
+        if max_steps > 0:
+            for lane in range(lanes):
+                while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
+                    nxt += 1
+                if nxt < hi:
+                    load(lane, nxt, x, Omega, xi, xi_aux, t, t_comp, k, path0, fs, us, js)
+                    nxt += 1
+                    n_active += 1
+        while n_active > 0:
+            n_done = 0
+            for lane in range(lanes):
+                # Every load first and every store last, unconditionally: a conditional store,
+                # or a load after a store, makes LLVM's alias checks fail and the scalar loop run.
+                active = ba[lane]
+                bad_before = bbad[lane]
+                steps_before = bs[lane]
+                xs = bx[lane]
+                Om = bO[lane]
+                xn = bxi[lane]
+                xa = bxa[lane]
+                tt = bt[lane]
+                tc = btc[lane]
+                kk = bk[lane]
+                c2 = bc2[lane]
+                c3 = bc3[lane]
+                if ADAPTIVE:
+                    h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, n)
+                    esc = h < escape * h_max_r
+                else:
+                    h = h_max_r
+                    esc = False
+                h_clock = h_max if h == h_max_r else np.float64(h)
+                last = tt + h_clock * slack >= t_target
+                h_clock = t_target - tt if last else h_clock
+                h = real(h_clock)
+                C = coefficients(h, D_r, tau_r, W_r)
+                z = draw_keyed(rk0, rk1, c2, c3, kk)
+                noise_integral, xn_new, xa_new = update(xn, xa, C, z)
+                xs_new, Om_new = verlet(xs, Om, h, omega2_r, noise_integral, n)
+                y = h_clock - tc
+                t_sum = tt + y
+                tc_new = (t_sum - tt) - y
+                t_new = t_target if last else t_sum
+                tc_new = 0.0 if last else tc_new
+                finite = (math.isfinite(xs_new) & math.isfinite(Om_new)
+                          & math.isfinite(xn_new) & math.isfinite(xa_new))
+                act = active != 0
+                go = act & (not esc)
+                steps_after = steps_before + (1 if go else 0)
+                bad = act & (esc | (go & (not finite)))
+                done = act & (esc | (go & (last | (not finite) | (steps_after >= max_steps))))
+                bx[lane] = xs_new if go else xs
+                bO[lane] = Om_new if go else Om
+                bxi[lane] = xn_new if go else xn
+                bxa[lane] = xa_new if go else xa
+                bt[lane] = t_new if go else tt
+                btc[lane] = tc_new if go else tc
+                bk[lane] = kk + _U64(1) if go else kk
+                bs[lane] = steps_after
+                bbad[lane] = 1 if bad else bad_before
+                ba[lane] = 0 if done else active
+                n_done += 1 if done else 0
+            if n_done == 0:
+                continue
+            # Write the finished paths back and refill their lanes (scalar, rare).
+            for lane in range(lanes):
+                i = bi[lane]
+                if i < 0 or ba[lane] != 0:
+                    continue
+                x[i] = bx[lane]
+                Omega[i] = bO[lane]
+                xi[i] = bxi[lane]
+                xi_aux[i] = bxa[lane]
+                t[i] = bt[lane]
+                t_comp[i] = btc[lane]
+                k[i] = bk[lane]
+                steps_taken += bs[lane]
+                if bbad[lane] != 0:
+                    status[i] = 1
+                elif bt[lane] < t_target:
+                    unfinished += 1
+                bi[lane] = -1
+                n_active -= 1
+                while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
+                    nxt += 1
+                if nxt < hi:
+                    load(lane, nxt, x, Omega, xi, xi_aux, t, t_comp, k, path0, fs, us, js)
+                    nxt += 1
+                    n_active += 1
+        return steps_taken, unfinished
+
+    return SimpleNamespace(spec=spec, advance_range=advance_range, lanes=lanes)

@@ -2,11 +2,11 @@
 
 An integrator is specialised for one :class:`MathLib` at compile time (``integrator.Spec``):
 
-* :data:`LIBM`: ``math.log``/``math.sin``/``math.cos`` (the C library, correctly rounded or
-  < 1 ulp); every kernel uses it except the one below;
-* :data:`FAST`: the branch-free fdlibm versions of :mod:`stochpend.fastmath`, which LLVM can
-  vectorize; the CPU lock-step (SIMD) driver uses them, so its numbers differ from LIBM's by
-  at most an ulp per call (tests/unit/test_fastmath.py).
+* :data:`LIBM`: ``math.log``/``math.sin``/``math.cos``/``math.expm1`` (the C library,
+  correctly rounded or < 1 ulp); the CUDA kernels and the CPU's one-path-at-a-time driver use it;
+* :data:`FAST`: the branch-free versions of :mod:`stochpend.fastmath`, which LLVM can
+  vectorize; the CPU's SIMD drivers (lock-step blocks and lanes) use them, so their numbers
+  differ from LIBM's by an ulp or two per call (tests/unit/test_fastmath.py).
 
 The functions are ``register_jitable``, so a kernel inlines them and Python can call them.
 """
@@ -42,16 +42,30 @@ def _sincos(x):
     return math.sin(x), math.cos(x)
 
 
+@register_jitable
+def _expm1(x):
+    return math.expm1(x)
+
+
+@register_jitable
+def _floor(x):
+    return float(math.floor(x))
+
+
 @dataclass(frozen=True)
 class MathLib:
-    """``log`` (of a positive normal number), ``sin``, ``cos`` and ``sincos`` (-> (sin, cos))."""
+    """``log`` (of a positive normal number), ``sin``, ``cos``, ``sincos`` (-> (sin, cos)),
+    ``expm1`` (of x <= 700) and ``floor`` (a float, equal for both libraries)."""
 
     name: str
     log: Callable[[float], float]
     sin: Callable[[float], float]
     cos: Callable[[float], float]
     sincos: Callable[[float], tuple[float, float]]
+    expm1: Callable[[float], float]
+    floor: Callable[[float], float]
 
 
-LIBM = MathLib("libm", _log, _sin, _cos, _sincos)
-FAST = MathLib("fast", fastmath.log_pos, fastmath.sin, fastmath.cos, fastmath.sincos)
+LIBM = MathLib("libm", _log, _sin, _cos, _sincos, _expm1, _floor)
+FAST = MathLib("fast", fastmath.log_pos, fastmath.sin, fastmath.cos, fastmath.sincos,
+               fastmath.expm1, fastmath.floor)

@@ -36,6 +36,8 @@ import math
 import numpy as np
 from numba.extending import register_jitable
 
+from stochpend import fastmath
+
 _MASK32 = np.uint64(0xFFFFFFFF)
 _SHIFT32 = np.uint64(32)
 _PHILOX_M0 = np.uint64(0xD2511F53)
@@ -232,3 +234,34 @@ def seed_to_key(seed: int) -> tuple[np.uint64, np.uint64]:
     """Split a seed in [0, 2**64) into the Philox key words."""
     seed = int(seed)
     return np.uint64(seed & 0xFFFFFFFF), np.uint64((seed >> 32) & 0xFFFFFFFF)
+
+
+_BITS_2_POW_52 = np.uint64(0x4330000000000000)
+
+
+@register_jitable
+def uniform_open_bits(a, b):
+    """:func:`uniform_open`'s value, bit for bit, from integer operations and one float64
+    subtraction: the 52-bit integer k is placed in the mantissa of 2**52 + k (exact), so no
+    integer-to-float conversion is needed (AVX2 has none for 64-bit lanes)."""
+    k = ((a >> _SHIFT6) << np.uint64(26)) | (b >> _SHIFT6)
+    kf = fastmath.i64_as_f64(np.int64(k | _BITS_2_POW_52)) - 4503599627370496.0
+    return (kf + 0.5) * _TWO_POW_M52
+
+
+def normals_keyed_with(mathlib):
+    """``normals(rk0, rk1, c2, c3, n)``: the two normals of draw ``n`` (uint64) of the path whose
+    counter words are ``(c2, c3)`` (path mod 2**32, path >> 32), from the round keys of
+    :func:`round_keys`: :func:`normals_with`'s numbers, bit for bit, written for a loop over
+    lanes that LLVM vectorizes (the rounds written out, no branch)."""
+    log = mathlib.log
+    sincos = mathlib.sincos
+
+    @register_jitable(inline="always")
+    def normals(rk0, rk1, c2, c3, n):
+        r0, r1, r2, r3 = philox4x32_10_keyed(n & _MASK32, n >> _SHIFT32, c2, c3, rk0, rk1)
+        r = math.sqrt(-2.0 * log(uniform_open_bits(r0, r1)))
+        s, c = sincos(_TWO_PI * uniform_open_bits(r2, r3))
+        return r * c, r * s
+
+    return normals

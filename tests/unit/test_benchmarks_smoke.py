@@ -101,6 +101,44 @@ def test_c_reference_fast_math_build_agrees_to_roundoff(variant):
     assert E2 == pytest.approx(_stochpend_E2()[0], rel=1e-10)
 
 
+ADAPTIVE_TIMES = (0.3, 1.0, 2.5)
+
+
+def _stochpend_adaptive(spec, D):
+    """Paths 0..PATHS-1 through ADAPTIVE_TIMES with the default step control (h_max = 0.05,
+    c = 0.1), the calls split every 37 steps as the runner splits them."""
+    kern = kernels("ou", fast_math=spec == "fast")
+    p = Paths(PATHS).init(kern, SEED, D=D, tau=TAU)
+    for t_target in ADAPTIVE_TIMES:
+        while p.advance(kern, t_target, 37, SEED, D=D, tau=TAU, omega2=OMEGA**2, h_max=0.05,
+                        step_c=0.1)[1]:
+            pass
+    return p
+
+
+@needs_gcc
+@pytest.mark.parametrize("D", [1.0, 30.0])
+def test_c_reference_adaptive_scheme_is_stochpends(D):
+    """The adaptive C reference takes stochpend's steps: built "exact", one path at a time, it
+    is stochpend's C-library kernel bit for bit (step rule, landing, clock, coefficients,
+    escapes); its SIMD lanes (branch-free coefficients) take the same steps as stochpend's
+    lanes, their states equal to round-off (glibc's log/sin/cos against fastmath's, 1e-12)."""
+    libm = _stochpend_adaptive("libm", D)
+    fast = _stochpend_adaptive("fast", D)
+    assert libm.k.min() < libm.k.max()  # the paths took their own steps
+    r = c_ref.run_adaptive(PATHS, ADAPTIVE_TIMES, D=D, tau=TAU, omega=OMEGA, seed=SEED,
+                           variant="scalar", flavour="exact")
+    np.testing.assert_array_equal(r.path_steps, libm.k.astype(np.int64))
+    for got, want in ((r.x, libm.x), (r.Omega, libm.Omega), (r.xi, libm.xi)):
+        np.testing.assert_array_equal(got, want)
+    for flavour in ("exact", "fast"):
+        r = c_ref.run_adaptive(PATHS, ADAPTIVE_TIMES, D=D, tau=TAU, omega=OMEGA, seed=SEED,
+                               variant="simd", flavour=flavour)
+        np.testing.assert_array_equal(r.path_steps, fast.k.astype(np.int64))
+        for got, want in ((r.x, fast.x), (r.Omega, fast.Omega), (r.xi, fast.xi)):
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+
 def test_loading_the_fast_math_reference_keeps_denormals():
     """Linking with -ffast-math would switch on flush-to-zero for the whole test process."""
     if c_ref.compiler() is None:

@@ -148,19 +148,27 @@ def test_fast_kernel_numbers_do_not_depend_on_blocks():
         np.testing.assert_array_equal(u, np.concatenate([v, w]))
 
 
-def test_fast_kernel_is_used_only_in_its_case():
-    """The runner gives the lock-step fast-math driver the fixed-step OU pendulum with the
-    noise on the force; white noise, adaptive steps or another oscillator run the C library's
-    math one path at a time (their numbers unchanged)."""
+def test_simd_drivers_are_used_only_in_their_cases():
+    """The runner gives the SIMD drivers (fast math) the pendulum with the noise on the force in
+    float64: the fixed-step OU noise to the lock-step blocks, the OU noise with adaptive steps
+    and the white noise to the lane machine. The dichotomous and harmonic noises, another
+    oscillator or the position coupling run the C library's math one path at a time (their
+    numbers unchanged)."""
     fast = cpu.spec_for(SimulationConfig.build(noise="ou", step_c=0.0))
     assert fast.fast_math and integrator.build(fast).lockstep
     assert cpu.advance_kernel(fast) is FAST.advance
-    for kwargs in (dict(noise="white", step_c=0.0), dict(noise="ou", step_c=0.25),
-                   dict(noise="ou", step_c=0.0, potential="harmonic"),
-                   dict(noise="dichotomous", step_c=0.0)):
+    for kwargs in (dict(noise="ou"), dict(noise="white"), dict(noise="white", step_c=0.0)):
+        spec = cpu.spec_for(SimulationConfig.build(**kwargs))
+        assert spec.fast_math and integrator.lanes_supported(spec), kwargs
+        assert cpu.advance_kernel(spec).kernel.__name__ == "advance", kwargs
+        assert cpu.advance_kernel(spec) is not cpu.path_kernel(spec)
+    for kwargs in (dict(noise="ou", potential="harmonic"), dict(noise="dichotomous"),
+                   dict(noise="harmonic"), dict(noise="dichotomous", step_c=0.0),
+                   dict(noise="ou", potential="harmonic", coupling="position")):
         config = SimulationConfig.build(**kwargs)
         spec = cpu.spec_for(config)
         assert spec == integrator.Spec.of(config) and not spec.fast_math, kwargs
+        assert cpu.advance_kernel(spec) is cpu.path_kernel(spec)
 
 
 def test_lockstep_driver_gives_the_fast_one_path_numbers():
@@ -177,3 +185,95 @@ def test_lockstep_driver_gives_the_fast_one_path_numbers():
     for name in ("x", "Omega", "xi", "t", "t_comp", "k"):
         np.testing.assert_array_equal(getattr(p, name)[keep], getattr(q, name)[keep])
     assert steps.lockstep
+
+
+# -- the pieces of the lane machine --------------------------------------------------------------
+@numba.njit(cache=True, error_model="numpy")
+def _fast_expm1(xs):
+    out = np.empty_like(xs)
+    for i in range(xs.shape[0]):
+        out[i] = fastmath.expm1(xs[i])
+    return out
+
+
+@numba.njit(cache=True)
+def _libm_expm1(xs):
+    out = np.empty_like(xs)
+    for i in range(xs.shape[0]):
+        out[i] = math.expm1(xs[i])
+    return out
+
+
+@pytest.mark.parametrize("lo, hi", [(-0.35, 0.35), (-1e-6, 1e-6), (-40.0, 0.0), (-800.0, -600.0),
+                                    (0.0, 10.0)])
+def test_expm1_within_two_ulps(lo, hi):
+    """fastmath.expm1 (Taylor polynomial after Cody-Waite reduction) against the C library:
+    measured at most 2 ulps (the polynomial's rounding near |x| = ln2/2); exact 0 and -1."""
+    x = np.random.default_rng(3).uniform(lo, hi, 300_000)
+    x = np.concatenate([x, [lo, hi, 0.5 * math.log(2.0), -0.5 * math.log(2.0)]])
+    a, b = _fast_expm1(x), _libm_expm1(x)
+    nonzero = b != 0.0
+    assert np.all(a[~nonzero] == 0.0)
+    assert _max_ulp(a[nonzero], b[nonzero]) <= 2.0
+    assert _fast_expm1(np.array([0.0, -700.0, -1e300]))[0] == 0.0
+    np.testing.assert_array_equal(_fast_expm1(np.array([-700.0, -1e300])), [-1.0, -1.0])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _conversions(xs, ks):
+    out = np.empty((xs.shape[0], 3))
+    for i in range(xs.shape[0]):
+        out[i, 0] = fastmath.floor(xs[i])
+        out[i, 1] = fastmath.int_to_float(ks[i])
+        out[i, 2] = fastmath.float_to_int(fastmath.floor(xs[i]))
+    return out
+
+
+def test_floor_and_exact_integer_conversions():
+    g = np.random.default_rng(4)
+    x = np.concatenate([g.uniform(-1e6, 1e6, 10_000), [-2.5, -2.0, -0.5, -0.0, 0.0, 0.5, 2.0]])
+    k = g.integers(-(2**50), 2**50, x.size)
+    out = _conversions(x, k)
+    np.testing.assert_array_equal(out[:, 0], np.floor(x))
+    np.testing.assert_array_equal(out[:, 1], k.astype(np.float64))
+    np.testing.assert_array_equal(out[:, 2], np.floor(x))
+    assert fastmath.floor(-2.5) == -3.0 and fastmath.float_to_int(-3.0) == -3  # from Python too
+
+
+@numba.njit(cache=True)
+def _uniform_pairs(words):
+    out = np.empty((words.shape[0], 2))
+    for i in range(words.shape[0]):
+        out[i, 0] = rng.uniform_open(words[i, 0], words[i, 1])
+        out[i, 1] = rng.uniform_open_bits(words[i, 0], words[i, 1])
+    return out
+
+
+def test_uniform_open_bits_is_uniform_open():
+    g = np.random.default_rng(5)
+    words = np.concatenate([g.integers(0, 2**32, (100_000, 2)),
+                            [[0, 0], [2**32 - 1, 2**32 - 1], [63, 64], [2**31, 0]]]).astype(np.uint64)
+    out = _uniform_pairs(words)
+    np.testing.assert_array_equal(out[:, 0], out[:, 1])
+
+
+@pytest.mark.parametrize("h,tau", [(0.05, 1.0), (0.003, 1.0), (1e-7, 1.0), (0.05, 0.0835),
+                                   (0.05, 0.08), (0.05, 0.01), (2.0, 0.5), (0.05, 1e-9), (0.01, 50.0)])
+def test_branch_free_ou_coefficients_agree_with_the_c_library_ones(h, tau):
+    """The fast-math Spec's OU coefficients (expm1 polynomial, tanh(x/2) = b/(2 - b) in the
+    direct form, both forms evaluated and one selected) against noises.ou.step_coefficients:
+    within 1e-14 relative for every coefficient (h/tau on both sides of the series' 0.6)."""
+    from stochpend.mathlib import FAST
+    from stochpend.noises import ou
+
+    coefficients = ou.branch_free_coefficients(np.float64, FAST)
+
+    @numba.njit(error_model="numpy")
+    def fast(h, D, tau, W):  # as the kernels compile it (0/0 selected away, not an error)
+        return coefficients(h, D, tau, W)
+
+    D = 1.7
+    for got, want in zip(fast(h, D, tau, 0.0), ou.step_coefficients(h, D, tau, 0.0)):
+        assert got == pytest.approx(want, rel=1e-14, abs=1e-300), (h, tau, got, want)
+    zero = fast(h, 0.0, tau, 0.0)  # D = 0: no noise, and no 0/0
+    assert zero[1] == zero[3] == zero[4] == 0.0

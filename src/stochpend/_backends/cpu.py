@@ -1,22 +1,34 @@
-"""CPU drivers: the integrator's step loop run by Numba threads, and a SIMD lock-step driver.
+"""CPU drivers: the integrator's step loop run by Numba threads, and two SIMD drivers.
 
 The drivers only orchestrate: every step is :mod:`stochpend.integrator`'s, specialised for the
 run's :class:`~stochpend.integrator.Spec` and compiled once per Spec (cached on disk for the
-built-in oscillators and noises). They allocate nothing per step and call no Python.
+built-in oscillators and noises). They allocate nothing per step and call no Python; the SIMD
+drivers' per-worker scratch is allocated by their Python wrapper (:func:`_with_scratch`).
 
 * ``init``: the initial conditions of a range of global paths, one thread per path range;
-* ``advance``: every path towards an output time, ``prange`` over paths, each path its own
-  step control (``Integrator.advance_path``);
-* ``advance`` in **lock step** (fixed step, noises whose step takes one Philox pair: the OU
-  noise): ``BLOCK`` consecutive paths share their time and step count, so each step is two
-  loops over the block's lanes that LLVM vectorizes (``Integrator.advance_lanes``), with the
-  branch-free log/sin/cos of :mod:`stochpend.fastmath`. A block whose paths are not in lock
-  step (a path frozen as non-finite, paths at different times after a resumed checkpoint), and
-  the rest of a block where a path turned non-finite, go one path at a time through the same
-  fast-math Spec's ``advance_path``, so a path's numbers are a function of (seed, path) alone,
-  whatever its block, chunk or thread.
+* ``advance`` one path at a time (:func:`path_kernel`): ``prange`` over paths, each path its
+  own step control (``Integrator.advance_path``); the C library's math. Every model without a
+  SIMD driver;
+* ``advance`` in **lanes** (:func:`_lanes_kernel`, the default: the pendulum with the noise on
+  the force, OU or white noise, adaptive or fixed steps): each worker thread takes a range of
+  paths and runs ``integrator.build_lanes``' machine on it, ``LANE_COUNT`` paths side by side,
+  each with its own time, step, coefficients and Philox counter, refilled as paths finish;
+* ``advance`` in **lock-step blocks** (:func:`_lockstep_kernel`, the fixed-step OU pendulum):
+  ``BLOCK`` consecutive paths share their time and step count, so the landing, the clock and
+  the coefficients are computed once per block (``Integrator.advance_lanes``). A block whose
+  paths are not in lock step (a path frozen as non-finite, paths at different times after a
+  resumed checkpoint), and the rest of a block where a path turned non-finite, go one path at a
+  time through the same Spec's ``advance_path``.
 * ``accumulate``: the per-batch power sums and histogram at one output time, each batch summed
   sequentially in path order (so the sums do not depend on the thread count).
+
+The SIMD drivers use the branch-free log/sin/cos/expm1 of :mod:`stochpend.fastmath`
+(``Spec.fast_math``, chosen by :func:`spec_for`), whose loops LLVM vectorizes; their
+arithmetic is ``advance_path``'s with that Spec, operation for operation, so a path's numbers
+are a function of (seed, path) alone, whatever its lane, block, chunk or thread (tested bit for
+bit against ``path_kernel`` of the same Spec). They differ from the C library's by an ulp or so
+per call, which the chaotic dynamics amplify: the ensembles agree statistically
+(tests/statistical/test_simd_agreement.py).
 
 Each path's state lives in arrays of length n_paths: ``x`` (the angle theta for the pendulum),
 ``Omega``, the noise ``xi`` and its auxiliary ``xi_aux``, the time ``t`` and its Kahan
@@ -58,13 +70,18 @@ _U64 = np.uint64
 def spec_for(config, precision: str = "float64") -> Spec:
     """The Spec the CPU runs ``config`` with.
 
-    The SIMD lock-step driver (fast-math log/sin/cos) runs the fixed-step OU pendulum with the
-    noise on the force, as it always has; every other model runs the C library's functions.
+    The pendulum with the noise on the force, in float64, runs on the SIMD drivers with the
+    branch-free math of :mod:`stochpend.fastmath` (``fast_math``): the fixed-step OU noise in
+    lock-step blocks, and every noise with ``draw_keyed`` (OU, white), adaptive or fixed, in
+    the lane machine. Every other model (other oscillators, the position coupling, the
+    dichotomous and harmonic noises, a user's pieces) runs the C library's functions one path
+    at a time.
     """
     spec = Spec.of(config, precision=precision)
-    if (not spec.adaptive and spec.noise is OU and spec.oscillator is PENDULUM
-            and spec.coupling == "force" and precision == "float64"):
-        spec = Spec.of(config, precision=precision, fast_math=True)
+    if spec.oscillator is PENDULUM and spec.coupling == "force" and precision == "float64":
+        fast = Spec.of(config, precision=precision, fast_math=True)
+        if integrator.build(fast).lockstep or integrator.lanes_supported(fast):
+            return fast
     return spec
 
 
@@ -95,12 +112,23 @@ def init_kernel(spec: Spec):
 def advance_kernel(spec: Spec):
     """``advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
     path0, D, tau, W, omega2, n, h_max, step_c) -> (steps_taken, paths_unfinished)``: every
-    unfinished path towards ``t_target``, at most ``max_steps`` steps each (the lock-step
-    driver when the Spec allows it; see the module docstring)."""
-    steps = integrator.build(spec)
-    advance_path = steps.advance_path
-    if steps.lockstep and spec.fast_math:
-        return _lockstep_kernel(spec)
+    unfinished path towards ``t_target``, at most ``max_steps`` steps each (the SIMD drivers
+    when the Spec allows them; see the module docstring)."""
+    if spec.fast_math and integrator.build(spec).lockstep:
+        return _with_scratch(_lockstep_kernel(spec), (6, BLOCK), (2, BLOCK), (0, BLOCK))
+    if integrator.lanes_supported(spec):
+        return _with_scratch(_lanes_kernel(spec), (integrator.LANE_F_ROWS, integrator.LANE_COUNT),
+                             (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
+                             (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
+    return path_kernel(spec)
+
+
+@functools.lru_cache(maxsize=None)
+def path_kernel(spec: Spec):
+    """``advance`` (the signature of :func:`advance_kernel`) one path at a time: ``prange`` over
+    paths, each the integrator's ``advance_path``. The driver of every Spec without a SIMD one;
+    for a fast-math Spec, the reference the SIMD drivers agree with bit for bit (tests)."""
+    advance_path = integrator.build(spec).advance_path
 
     @numba.njit(parallel=True, cache=spec.cacheable)
     @own_index(spec.label)
@@ -119,84 +147,137 @@ def advance_kernel(spec: Spec):
     return advance
 
 
-def _lockstep_kernel(spec: Spec):
-    steps = integrator.build(spec)
-    advance_path = steps.advance_path
-    advance_lanes = steps.advance_lanes
-    real = steps.real
+def _with_scratch(kernel, f_shape, u_shape, i_shape):
+    """``advance`` with the driver's signature: allocates the workers' scratch (a few kB, per
+    call, in Python) and calls ``kernel`` with it, so that the compiled kernel allocates
+    nothing. One worker per Numba thread (``numba.get_num_threads()``, which ``threads=``
+    sets), each with its row of the scratch and its share of the paths."""
+
+    def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
+                path0, D, tau, W, omega2, n, h_max, step_c):
+        workers = numba.get_num_threads()
+        fs = np.empty((workers, *f_shape))
+        us = np.empty((workers, *u_shape), dtype=np.uint64)
+        js = np.empty((workers, *i_shape), dtype=np.int64)
+        return kernel(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0,
+                      key1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js)
+
+    advance.kernel = kernel
+    return advance
+
+
+@numba.njit(cache=True)
+def _workers(n_items, rows):  # pragma: no cover - compiled
+    """How many workers share n_items: one per scratch row, at most one per item (a path's
+    numbers do not depend on it)."""
+    return max(1, min(rows, n_items))
+
+
+def _lanes_kernel(spec: Spec):
+    advance_range = integrator.build_lanes(spec).advance_range
 
     @numba.njit(parallel=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label)
     def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
-                path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover - compiled
+                path0, D, tau, W, omega2, n, h_max, step_c, fs, us,
+                js):  # pragma: no cover - compiled
         n_paths = x.shape[0]
-        n_blocks = (n_paths + BLOCK - 1) // BLOCK
+        nw = _workers(n_paths, fs.shape[0])
         rk0, rk1 = rng.round_keys(key0, key1)  # the same for every path
         steps_taken = 0
         unfinished = 0
-        for b in prange(n_blocks):
-            i0 = b * BLOCK
-            m = min(BLOCK, n_paths - i0)
-            t0 = t[i0]
-            k0 = k[i0]
-            tc0 = t_comp[i0]
-            lockstep = True
-            for lane in range(m):
-                if (status[i0 + lane] != 0 or t[i0 + lane] != t0 or k[i0 + lane] != k0
-                        or t_comp[i0 + lane] != tc0):
-                    lockstep = False
-            if not lockstep or t0 >= t_target:
+        for w in prange(nw):
+            s, u = advance_range(n_paths * w // nw, n_paths * (w + 1) // nw, x, Omega, xi,
+                                 xi_aux, t, t_comp, k, status, t_target, max_steps, rk0, rk1,
+                                 path0, D, tau, W, omega2, n, h_max, step_c, fs[w], us[w],
+                                 js[w])
+            steps_taken += s
+            unfinished += u
+        return steps_taken, unfinished
+
+    return advance
+
+
+def _lockstep_kernel(spec: Spec):
+    steps = integrator.build(spec)
+    advance_path = steps.advance_path
+    advance_lanes = steps.advance_lanes
+
+    @numba.njit(parallel=True, cache=spec.cacheable, error_model="numpy")
+    @own_index(spec.label)
+    def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
+                path0, D, tau, W, omega2, n, h_max, step_c, fs, us,
+                js):  # pragma: no cover - compiled
+        n_paths = x.shape[0]
+        n_blocks = (n_paths + BLOCK - 1) // BLOCK
+        nw = _workers(n_blocks, fs.shape[0])
+        rk0, rk1 = rng.round_keys(key0, key1)  # the same for every path
+        steps_taken = 0
+        unfinished = 0
+        for w in prange(nw):
+            bx = fs[w, 0]
+            bO = fs[w, 1]
+            bxi = fs[w, 2]
+            bxa = fs[w, 3]
+            br = fs[w, 4]
+            bph = fs[w, 5]
+            bc2 = us[w, 0]
+            bc3 = us[w, 1]
+            for b in range(n_blocks * w // nw, n_blocks * (w + 1) // nw):
+                i0 = b * BLOCK
+                m = min(BLOCK, n_paths - i0)
+                t0 = t[i0]
+                k0 = k[i0]
+                tc0 = t_comp[i0]
+                lockstep = True
                 for lane in range(m):
-                    s, u = advance_path(i0 + lane, x, Omega, xi, xi_aux, t, t_comp, k, status,
-                                        t_target, max_steps, key0, key1, path0, D, tau, W,
-                                        omega2, n, h_max, step_c)
-                    steps_taken += s
-                    unfinished += u
-                continue
-            bx = np.empty(BLOCK, dtype=real)
-            bO = np.empty(BLOCK, dtype=real)
-            bxi = np.empty(BLOCK, dtype=real)
-            bxa = np.empty(BLOCK, dtype=real)
-            br = np.empty(BLOCK)
-            bph = np.empty(BLOCK)
-            bc2 = np.empty(BLOCK, dtype=np.uint64)
-            bc3 = np.empty(BLOCK, dtype=np.uint64)
-            for lane in range(BLOCK):
-                src = i0 + lane if lane < m else i0  # padding lanes repeat the first path
-                bx[lane] = x[src]
-                bO[lane] = Omega[src]
-                bxi[lane] = xi[src]
-                bxa[lane] = xi_aux[src]
-                p = _U64(path0 + src)
-                bc2[lane] = p & rng._MASK32
-                bc3[lane] = p >> rng._SHIFT32
-            s, tt, tc, kk, finite = advance_lanes(bx, bO, bxi, bxa, bc2, bc3, br, bph, t0, tc0,
-                                                  k0, t_target, max_steps, rk0, rk1, D, tau, W,
-                                                  omega2, n, h_max)
-            for lane in range(m):
-                x[i0 + lane] = bx[lane]
-                Omega[i0 + lane] = bO[lane]
-                xi[i0 + lane] = bxi[lane]
-                xi_aux[i0 + lane] = bxa[lane]
-                t[i0 + lane] = tt
-                t_comp[i0 + lane] = tc
-                k[i0 + lane] = kk
-            steps_taken += s * m
-            if not finite:
-                # A path stops at its first non-finite state: freeze those lanes, and let the
-                # others go on one by one (the same numbers, one path at a time).
+                    if (status[i0 + lane] != 0 or t[i0 + lane] != t0 or k[i0 + lane] != k0
+                            or t_comp[i0 + lane] != tc0):
+                        lockstep = False
+                if not lockstep or t0 >= t_target:
+                    for lane in range(m):
+                        s, u = advance_path(i0 + lane, x, Omega, xi, xi_aux, t, t_comp, k,
+                                            status, t_target, max_steps, key0, key1, path0, D,
+                                            tau, W, omega2, n, h_max, step_c)
+                        steps_taken += s
+                        unfinished += u
+                    continue
+                for lane in range(BLOCK):
+                    src = i0 + lane if lane < m else i0  # padding lanes repeat the first path
+                    bx[lane] = x[src]
+                    bO[lane] = Omega[src]
+                    bxi[lane] = xi[src]
+                    bxa[lane] = xi_aux[src]
+                    p = _U64(path0 + src)
+                    bc2[lane] = p & rng._MASK32
+                    bc3[lane] = p >> rng._SHIFT32
+                s, tt, tc, kk, finite = advance_lanes(bx, bO, bxi, bxa, bc2, bc3, br, bph, t0,
+                                                      tc0, k0, t_target, max_steps, rk0, rk1, D,
+                                                      tau, W, omega2, n, h_max)
                 for lane in range(m):
-                    if not (math.isfinite(bx[lane]) and math.isfinite(bO[lane])
-                            and math.isfinite(bxi[lane])):
-                        status[i0 + lane] = 1
-                for lane in range(m):
-                    s2, u = advance_path(i0 + lane, x, Omega, xi, xi_aux, t, t_comp, k, status,
-                                         t_target, max_steps - s, key0, key1, path0, D, tau, W,
-                                         omega2, n, h_max, step_c)
-                    steps_taken += s2
-                    unfinished += u
-            elif tt < t_target:
-                unfinished += m
+                    x[i0 + lane] = bx[lane]
+                    Omega[i0 + lane] = bO[lane]
+                    xi[i0 + lane] = bxi[lane]
+                    xi_aux[i0 + lane] = bxa[lane]
+                    t[i0 + lane] = tt
+                    t_comp[i0 + lane] = tc
+                    k[i0 + lane] = kk
+                steps_taken += s * m
+                if not finite:
+                    # A path stops at its first non-finite state: freeze those lanes, and let
+                    # the others go on one by one (the same numbers, one path at a time).
+                    for lane in range(m):
+                        if not (math.isfinite(bx[lane]) and math.isfinite(bO[lane])
+                                and math.isfinite(bxi[lane])):
+                            status[i0 + lane] = 1
+                    for lane in range(m):
+                        s2, u = advance_path(i0 + lane, x, Omega, xi, xi_aux, t, t_comp, k,
+                                             status, t_target, max_steps - s, key0, key1, path0,
+                                             D, tau, W, omega2, n, h_max, step_c)
+                        steps_taken += s2
+                        unfinished += u
+                elif tt < t_target:
+                    unfinished += m
         return steps_taken, unfinished
 
     return advance

@@ -70,7 +70,12 @@ class NoiseKernel:
       ``real``), keyed by (seed, path, k) only;
     * ``update(xi, aux, C, z) -> (I, xi, aux)``: the exact step;
     * ``next_event(xi, aux) -> t`` (float64; ``inf`` for none) and
-      ``at_event(xi, aux, key0, key1, path, k, D, tau, W) -> (xi, aux)``.
+      ``at_event(xi, aux, key0, key1, path, k, D, tau, W) -> (xi, aux)``;
+    * optionally ``draw_keyed(rk0, rk1, c2, c3, k) -> z``: ``draw``'s numbers for step k, bit for
+      bit, from the seed's Philox round keys (``rng.round_keys``) and the path's counter words,
+      with no loop-carried scratch and no branch, so that a loop over lanes, each at its own
+      step k, vectorizes (the CPU's SIMD lane driver, ``integrator.build_lanes``). ``None``:
+      the noise runs one path at a time. With it, ``coefficients`` must be branch-free too.
     """
 
     init: Callable
@@ -81,6 +86,7 @@ class NoiseKernel:
     update: Callable
     next_event: Callable
     at_event: Callable
+    draw_keyed: Callable | None = None
 
 
 @dataclass(frozen=True, eq=False)

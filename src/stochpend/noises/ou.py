@@ -11,7 +11,8 @@ al. 1988, Gillespie 1996): means (a xi_n, tau (1 - a) xi_n), variances D (1 - a*
 D [h - 2 tau (1 - a) + tau (1 - a**2)/2], covariance D (1 - a)**2 / 2, with a = exp(-h/tau).
 The conditional variance of I given xi_{n+1} simplifies to D tau (x - 2 tanh(x/2)), x = h/tau,
 which :func:`x_minus_2tanh_half` evaluates without cancellation. Step k uses both normals of
-Philox draw ``N_FIRST_STEP + k``.
+Philox draw ``N_FIRST_STEP + k``. With the fast math of the CPU's SIMD kernels the
+coefficients are :func:`branch_free_coefficients` (a few ulps from the C library's).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy as np
 from numba.extending import register_jitable
 
 from stochpend import rng
+from stochpend.fastmath import select
 from stochpend.noises.base import Noise, NoiseKernel, at_no_event, no_event, no_scratch
 
 _U64 = np.uint64
@@ -88,9 +90,62 @@ def step_functions(real):
 x_minus_2tanh_half, step_coefficients = step_functions(np.float64)
 
 
+def branch_free_coefficients(real, mathlib):
+    """:func:`step_functions`'s ``coefficients`` with no branch and no C-library call, so that
+    a loop over SIMD lanes, each with its own h, vectorizes (the fast-math kernels).
+
+    The same formulas, with ``mathlib.expm1`` for 1 - a and tanh(x/2) = b/(2 - b) (b = 1 - a)
+    in the direct form of x - 2 tanh(x/2) for x >= 0.6; both branches are evaluated and one
+    selected; invariant factors (1/tau, D/(2 tau)) grouped so that the compiler computes them
+    once per loop. They differ from the C library's by a few ulps
+    (tests/unit/test_fastmath.py).
+    """
+    expm1 = mathlib.expm1
+    zero = real(0.0)
+    half = real(0.5)
+    one = real(1.0)
+    two = real(2.0)
+    below = real(SERIES_BELOW)
+    c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10, c11 = (real(c) for c in TANH_SERIES)
+
+    @register_jitable(inline="always")
+    def coefficients(h, D, tau, W):
+        x = h * (one / tau)
+        b = -expm1(-x)
+        a = one - b
+        s_xi = math.sqrt((D / (two * tau)) * (b * (two - b)))
+        cov = (half * D) * (b * b)
+        c_I = select(s_xi > zero, cov / s_xi, zero)
+        x2 = x * x
+        acc = c11
+        acc = acc * x2 + c10
+        acc = acc * x2 + c9
+        acc = acc * x2 + c8
+        acc = acc * x2 + c7
+        acc = acc * x2 + c6
+        acc = acc * x2 + c5
+        acc = acc * x2 + c4
+        acc = acc * x2 + c3
+        acc = acc * x2 + c2
+        acc = acc * x2 + c1
+        acc = acc * x2 + c0
+        series = acc * x * x2
+        direct = x - two * b / (two - b)
+        f = select(x < below, series, direct)
+        s_I = math.sqrt((D * tau) * f)
+        return a, s_xi, tau * b, c_I, s_I
+
+    return coefficients
+
+
 def build(real, mathlib) -> NoiseKernel:
     normals = rng.normals_with(mathlib, real)
-    _, coefficients = step_functions(real)
+    normals_keyed = rng.normals_keyed_with(mathlib)
+    lanes = mathlib.name != "libm"
+    if lanes:
+        coefficients = branch_free_coefficients(real, mathlib)
+    else:
+        _, coefficients = step_functions(real)
 
     @register_jitable
     def init(key0, key1, path, D, tau, W, xi0, stationary):
@@ -108,13 +163,19 @@ def build(real, mathlib) -> NoiseKernel:
         z1, z2 = normals(key0, key1, path, _U64(rng.N_FIRST_STEP) + k)
         return (real(z1), real(z2)), S
 
+    @register_jitable(inline="always")
+    def draw_keyed(rk0, rk1, c2, c3, k):
+        z1, z2 = normals_keyed(rk0, rk1, c2, c3, _U64(rng.N_FIRST_STEP) + k)
+        return (real(z1), real(z2))
+
     @register_jitable
     def update(xi, aux, C, z):
         a, s_xi, m_I, c_I, s_I = C
         z1, z2 = z
         return m_I * xi + c_I * z1 + s_I * z2, a * xi + s_xi * z1, aux
 
-    return NoiseKernel(init, load_aux, coefficients, no_scratch, draw, update, no_event, at_no_event)
+    return NoiseKernel(init, load_aux, coefficients, no_scratch, draw, update, no_event, at_no_event,
+                       draw_keyed if lanes else None)
 
 
 def _correlation(t, D, tau, W=None):

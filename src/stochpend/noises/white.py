@@ -13,6 +13,7 @@ import numpy as np
 from numba.extending import register_jitable
 
 from stochpend import rng
+from stochpend.fastmath import select
 from stochpend.noises.base import Noise, NoiseKernel, at_no_event, no_event
 
 _U64 = np.uint64
@@ -21,6 +22,7 @@ _NO_DRAW = np.uint64(0xFFFFFFFFFFFFFFFF)
 
 def build(real, mathlib) -> NoiseKernel:
     normals = rng.normals_with(mathlib, real)
+    normals_keyed = rng.normals_keyed_with(mathlib)
     zero = real(0.0)
 
     @register_jitable
@@ -49,11 +51,19 @@ def build(real, mathlib) -> NoiseKernel:
         z = z_even if (k & _U64(1)) == 0 else z_odd
         return (real(z),), (pair, z_even, z_odd)
 
+    @register_jitable(inline="always")
+    def draw_keyed(rk0, rk1, c2, c3, k):
+        # Both normals of the pair every step (a lane keeps no pair from step to step).
+        z_even, z_odd = normals_keyed(rk0, rk1, c2, c3, _U64(rng.N_FIRST_STEP) + (k >> _U64(1)))
+        z = select((k & _U64(1)) != 0, z_odd, z_even)
+        return (real(z),)
+
     @register_jitable
     def update(xi, aux, C, z):
         return C * z[0], xi, aux
 
-    return NoiseKernel(init, load_aux, coefficients, scratch0, draw, update, no_event, at_no_event)
+    return NoiseKernel(init, load_aux, coefficients, scratch0, draw, update, no_event, at_no_event,
+                       None if mathlib.name == "libm" else draw_keyed)
 
 
 WHITE = Noise(

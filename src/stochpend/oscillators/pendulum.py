@@ -16,6 +16,7 @@ from stochpend.oscillators.base import Oscillator, OscillatorKernel
 def build(real, mathlib) -> OscillatorKernel:
     sin = mathlib.sin
     cos = mathlib.cos
+    floor = mathlib.floor
     one = real(1.0)
     pi = real(math.pi)
     two_pi = real(2.0 * math.pi)
@@ -38,7 +39,7 @@ def build(real, mathlib) -> OscillatorKernel:
 
     @register_jitable
     def wrap(x):
-        return x - two_pi * real(math.floor((x + pi) / two_pi))
+        return x - two_pi * real(floor((x + pi) / two_pi))
 
     return OscillatorKernel(potential, force, noise_shape, step_scales, wrap)
 

@@ -1,0 +1,131 @@
+"""The CPU's SIMD lane machine (``integrator.build_lanes``, the default CPU path).
+
+Each lane carries one path with its own time, step, coefficients and Philox counter; lanes
+are refilled as paths finish. Its arithmetic is ``advance_path``'s with the same fast-math
+Spec, so every test here is bit for bit: against the one-path kernel of that Spec
+(``cpu.path_kernel``), and against itself across call splits, thread counts, chunks and
+neighbours. (The fast-math Spec against the C library's math is statistical:
+tests/statistical/test_simd_agreement.py.)
+"""
+
+from __future__ import annotations
+
+import types
+
+import numba
+import numpy as np
+import pytest
+
+from stochpend import integrator
+from stochpend._backends import cpu
+from tests._kernels import Paths
+
+FIELDS = ("x", "Omega", "xi", "xi_aux", "t", "t_comp", "k", "status")
+TIMES = (0.3, 1.0, 2.5)
+
+
+def _kernels(noise, adaptive, driver):
+    spec = integrator.spec(noise, adaptive=adaptive, fast_math=True)
+    kern = cpu.kernels(spec)
+    if driver == "lanes":
+        assert integrator.lanes_supported(spec) and kern.advance is not cpu.path_kernel(spec)
+        return kern
+    return types.SimpleNamespace(init=kern.init, advance=cpu.path_kernel(spec))
+
+
+def _run(kern, n, *, seed=11, max_steps=37, path0=0, D=4.0, h_max=0.05, step_c=0.1,
+         omega2=1.0, setup=None, threads=None):
+    """Paths path0 .. path0 + n - 1 through TIMES, max_steps a call; returns the arrays and
+    every call's (steps, unfinished)."""
+    p = Paths(n).init(kern, seed, path0=path0, D=D)
+    if setup is not None:
+        setup(p)
+    calls = []
+    previous = numba.get_num_threads()
+    if threads is not None:
+        numba.set_num_threads(threads)
+    try:
+        for t_target in TIMES:
+            while True:
+                s, u = p.advance(kern, t_target, max_steps, seed, path0=path0, D=D, h_max=h_max,
+                                 step_c=step_c, omega2=omega2)
+                calls.append((int(s), int(u)))
+                if u == 0:
+                    break
+    finally:
+        numba.set_num_threads(previous)
+    return {name: getattr(p, name).copy() for name in FIELDS}, calls
+
+
+def _assert_same(a, b, keep=slice(None)):
+    for name in FIELDS:
+        np.testing.assert_array_equal(a[name][keep], b[name][keep], err_msg=name)
+
+
+@pytest.mark.parametrize("noise", ["ou", "white"])
+@pytest.mark.parametrize("adaptive", [True, False])
+@pytest.mark.parametrize("n", [7, 130])
+def test_lanes_are_the_one_path_numbers(noise, adaptive, n):
+    """Same states, times, clock compensations, step counts and per-call (steps, unfinished)
+    as advance_path one path at a time; 7 paths leave most lanes idle, 130 refill them; the
+    calls end mid-segment (max_steps = 37) and land on three output times."""
+    a, calls_a = _run(_kernels(noise, adaptive, "lanes"), n)
+    b, calls_b = _run(_kernels(noise, adaptive, "paths"), n)
+    _assert_same(a, b)
+    assert calls_a == calls_b
+    assert np.all(a["t"] == TIMES[-1]) and np.all(a["status"] == 0)
+    if adaptive:  # the paths took different numbers of steps: the lanes were not in lock step
+        assert a["k"].min() < a["k"].max()
+
+
+def test_lane_numbers_do_not_depend_on_threads_chunks_calls_or_neighbours():
+    """A path's numbers are a function of (seed, path): 1 or 2 threads, one chunk or two
+    (different lane neighbours), one call per segment or many, frozen neighbours."""
+    kern = _kernels("ou", True, "lanes")
+    ref, _ = _run(kern, 200, threads=1)
+    two, _ = _run(kern, 200, threads=2)
+    _assert_same(ref, two)
+    whole, _ = _run(kern, 200, max_steps=10**9)
+    _assert_same(ref, whole)
+    lo, _ = _run(kern, 77)
+    hi, _ = _run(kern, 123, path0=77)
+    for name in FIELDS:
+        np.testing.assert_array_equal(ref[name], np.concatenate([lo[name], hi[name]]), err_msg=name)
+    frozen = [3, 40, 41, 150]
+
+    def freeze(p):
+        p.status[frozen] = 1
+
+    some, _ = _run(kern, 200, setup=freeze)
+    keep = np.ones(200, dtype=bool)
+    keep[frozen] = False
+    _assert_same(ref, some, keep)
+    assert np.all(some["k"][frozen] == 0) and np.all(some["t"][frozen] == 0.0)
+
+
+def test_escaped_and_nonfinite_lanes_are_frozen_as_one_path():
+    """A path whose step control asks for less than ESCAPE_STEP_FRACTION h_max (|Omega| far
+    beyond c / h_max), or whose state turns non-finite, gets status 1 and is never advanced
+    again, exactly as advance_path does; its neighbours go on."""
+    def inject(p):
+        p.Omega[[5, 70]] = 3e9  # h = c/|Omega| < 1e-9 h_max: escapes before its first step
+        p.Omega[9] = np.inf  # h = 0: escapes
+        p.xi[[20, 100]] = np.nan  # the first step gives a non-finite state
+
+    a, calls_a = _run(_kernels("ou", True, "lanes"), 130, setup=inject)
+    b, calls_b = _run(_kernels("ou", True, "paths"), 130, setup=inject)
+    _assert_same(a, b)
+    assert calls_a == calls_b
+    bad = np.zeros(130, dtype=bool)
+    bad[[5, 9, 20, 70, 100]] = True
+    np.testing.assert_array_equal(a["status"], bad.astype(np.uint8))
+    assert np.all(a["k"][[5, 9, 70]] == 0) and np.all(a["k"][[20, 100]] == 1)
+    assert np.all(a["t"][~bad] == TIMES[-1])
+
+
+def test_lane_machine_refuses_a_spec_it_cannot_run():
+    for spec in (integrator.spec("ou"), integrator.spec("dichotomous", fast_math=True),
+                 integrator.spec("harmonic", fast_math=True)):
+        assert not integrator.lanes_supported(spec)
+        with pytest.raises(ValueError, match="lanes_supported"):
+            integrator.build_lanes(spec)
