@@ -49,7 +49,6 @@ from numba import prange
 from stochpend import integrator, rng, stats
 from stochpend._jitcache import drop_stale_cache, own_index
 from stochpend.integrator import Spec
-from stochpend.noises.ou import OU
 from stochpend.oscillators.pendulum import PENDULUM
 from stochpend.runner import CHUNK_ARRAYS
 from stochpend.stats import N_SUMS
