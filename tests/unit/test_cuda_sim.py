@@ -470,9 +470,11 @@ def test_simulator_reports_itself(simulated):
 
 
 def test_simulated_cases_are_small(simulated):
-    """Keep this file fast: each simulated case should take a few seconds at most."""
+    """Keep this file fast: each simulated case should take a few seconds at most (the bound
+    leaves room for a machine shared with other jobs: it guards against a case grown by orders
+    of magnitude, it is not a benchmark)."""
     seconds = {name: float(simulated[f"{name}/seconds"]) for name in CASE_NAMES}
-    assert math.fsum(seconds.values()) < 120, seconds
+    assert math.fsum(seconds.values()) < 400, seconds
 
 
 # -- on-disk cache of the kernels ---------------------------------------------------------------
