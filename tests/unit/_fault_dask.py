@@ -12,6 +12,7 @@ the in-process sweep, and what happened to the worker.
 
 from __future__ import annotations
 
+import faulthandler
 import json
 import os
 import signal
@@ -65,6 +66,9 @@ class KillAtNthTask(distributed.WorkerPlugin):
 
 def main(backend: str, out_path: str) -> None:
     from stochpend.sweep import load_spec, sweep
+
+    # Never hang silently: after 240 s, print every thread's stack and exit (the test shows it).
+    faulthandler.dump_traceback_later(240, exit=True)
 
     spec = load_spec(SPECS[backend])
     reference = sweep(spec, backend=backend, tasks_per_set=TASKS_PER_SET[backend])
