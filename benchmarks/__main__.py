@@ -299,7 +299,7 @@ class Runner:
         else:
             out = {"available": True, "process_wall_s": wall, "process_cpu_s": cpu_s,
                    "command": "stochpend " + " ".join(args)}
-            for line in proc.stdout.splitlines():
+            for line in (proc.stdout + proc.stderr).splitlines():
                 if "Wall time" in line:
                     out["reported"] = line.strip()
         spec = {"kind": "cli", "args": args}

@@ -44,7 +44,9 @@ from types import SimpleNamespace
 
 import numba
 import numpy as np
-from numba import prange
+from numba import prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from stochpend import integrator, rng, stats
 from stochpend._jitcache import drop_stale_cache, own_index
@@ -150,7 +152,8 @@ def _with_scratch(kernel, f_shape, u_shape, i_shape):
     """``advance`` with the driver's signature: allocates the workers' scratch (a few kB, per
     call, in Python) and calls ``kernel`` with it, so that the compiled kernel allocates
     nothing. One worker per Numba thread (``numba.get_num_threads()``, which ``threads=``
-    sets), each with its row of the scratch and its share of the paths."""
+    sets), each with its row of the scratch; the workers take the pieces of the paths
+    (:func:`_pieces`) one after the other from the shared counter ``next_piece``."""
 
     def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
                 path0, D, tau, W, omega2, n, h_max, step_c):
@@ -158,8 +161,9 @@ def _with_scratch(kernel, f_shape, u_shape, i_shape):
         fs = np.empty((workers, *f_shape))
         us = np.empty((workers, *u_shape), dtype=np.uint64)
         js = np.empty((workers, *i_shape), dtype=np.int64)
+        next_piece = np.zeros(1, dtype=np.int64)
         return kernel(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0,
-                      key1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js)
+                      key1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js, next_piece)
 
     advance.kernel = kernel
     return advance
@@ -172,26 +176,61 @@ def _workers(n_items, rows):  # pragma: no cover - compiled
     return max(1, min(rows, n_items))
 
 
+#: Pieces of work per worker: the workers take them one after the other, so that a worker that
+#: the operating system holds back (a shared machine) does not hold the call back with it.
+#: More pieces balance better; each piece ends with its lanes draining (a fraction of a path's
+#: steps per lane wasted).
+PIECES_PER_WORKER = 4
+
+
+@numba.njit(cache=True)
+def _pieces(n_items, workers):  # pragma: no cover - compiled
+    """(n_pieces, piece size) of n_items shared by ``workers``."""
+    n_pieces = min(n_items, workers * PIECES_PER_WORKER)
+    size = (n_items + n_pieces - 1) // n_pieces
+    return (n_items + size - 1) // size, size
+
+
+@intrinsic
+def _take(typingctx, counter):
+    """counter[0] += 1, atomically; returns the value before (a worker's next piece)."""
+    if not (isinstance(counter, types.Array) and counter.dtype == types.int64):
+        return None
+
+    def codegen(context, builder, signature, args):
+        array = context.make_array(signature.args[0])(context, builder, args[0])
+        pointer = cgutils.get_item_pointer(context, builder, signature.args[0], array,
+                                           [context.get_constant(types.intp, 0)])
+        return builder.atomic_rmw("add", pointer, context.get_constant(types.int64, 1),
+                                  "monotonic")
+
+    return types.int64(counter), codegen
+
+
 def _lanes_kernel(spec: Spec):
     advance_range = integrator.build_lanes(spec).advance_range
 
     @numba.njit(parallel=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label)
     def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
-                path0, D, tau, W, omega2, n, h_max, step_c, fs, us,
-                js):  # pragma: no cover - compiled
+                path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js,
+                next_piece):  # pragma: no cover - compiled
         n_paths = x.shape[0]
         nw = _workers(n_paths, fs.shape[0])
+        n_pieces, size = _pieces(n_paths, nw)
         rk0, rk1 = rng.round_keys(key0, key1)  # the same for every path
         steps_taken = 0
         unfinished = 0
         for w in prange(nw):
-            s, u = advance_range(n_paths * w // nw, n_paths * (w + 1) // nw, x, Omega, xi,
-                                 xi_aux, t, t_comp, k, status, t_target, max_steps, rk0, rk1,
-                                 path0, D, tau, W, omega2, n, h_max, step_c, fs[w], us[w],
-                                 js[w])
-            steps_taken += s
-            unfinished += u
+            piece = _take(next_piece)
+            while piece < n_pieces:
+                s, u = advance_range(piece * size, min((piece + 1) * size, n_paths), x, Omega,
+                                     xi, xi_aux, t, t_comp, k, status, t_target, max_steps, rk0,
+                                     rk1, path0, D, tau, W, omega2, n, h_max, step_c, fs[w],
+                                     us[w], js[w])
+                steps_taken += s
+                unfinished += u
+                piece = _take(next_piece)
         return steps_taken, unfinished
 
     return advance
@@ -205,11 +244,12 @@ def _lockstep_kernel(spec: Spec):
     @numba.njit(parallel=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label)
     def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
-                path0, D, tau, W, omega2, n, h_max, step_c, fs, us,
-                js):  # pragma: no cover - compiled
+                path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js,
+                next_piece):  # pragma: no cover - compiled
         n_paths = x.shape[0]
         n_blocks = (n_paths + BLOCK - 1) // BLOCK
         nw = _workers(n_blocks, fs.shape[0])
+        n_pieces, size = _pieces(n_blocks, nw)
         rk0, rk1 = rng.round_keys(key0, key1)  # the same for every path
         steps_taken = 0
         unfinished = 0
@@ -222,8 +262,15 @@ def _lockstep_kernel(spec: Spec):
             bph = fs[w, 5]
             bc2 = us[w, 0]
             bc3 = us[w, 1]
-            for b in range(n_blocks * w // nw, n_blocks * (w + 1) // nw):
+            piece = _take(next_piece)
+            b = piece * size
+            while piece < n_pieces:
+                if b >= min((piece + 1) * size, n_blocks):
+                    piece = _take(next_piece)
+                    b = piece * size
+                    continue
                 i0 = b * BLOCK
+                b += 1
                 m = min(BLOCK, n_paths - i0)
                 t0 = t[i0]
                 k0 = k[i0]
