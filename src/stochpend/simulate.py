@@ -283,6 +283,9 @@ def run(
     attrs = provenance(config, backend=backend, threads=threads or previous_threads,
                        wall_time_s=wall, path_steps=path_steps)
     attrs["precision"] = precision
+    # which compiled step ran (oscillator/coupling/noise/precision/step/math): the fast-math
+    # SIMD kernels and the C library's differ in the last bits, so the numbers depend on it
+    attrs["kernel"] = runner.spec_for(config, backend, precision).label
     attrs["simulation_wall_time_s"] = wall_main
     ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
     if est is not None:
