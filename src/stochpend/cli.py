@@ -11,6 +11,7 @@ from __future__ import annotations
 import functools
 import math
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
@@ -123,19 +124,29 @@ class RichProgress:
     """A Rich progress bar with rate and ETA; implements :class:`stochpend.progress.Progress`.
 
     ``announce``: a line printed when the run starts (after every check), even when the bar
-    is disabled (--quiet): the estimate of a long run.
+    is disabled (--quiet): the estimate of a long run. A long run without a bar (--quiet, or
+    stderr not a terminal, e.g. a batch job's log) also prints a heartbeat every
+    ``heartbeat_s`` seconds, so that a run that lasts is seen to be alive:
+    ``progress: simulating 37.0 % after 5.0 min, about 8.5 min left``.
     """
 
-    def __init__(self, enabled: bool, announce: str | None = None) -> None:
+    def __init__(self, enabled: bool, announce: str | None = None, heartbeat_s: float = 60.0,
+                 clock: Any = None) -> None:
         self.enabled = enabled
         self.announce = announce
+        self.heartbeat = heartbeat_s if (announce and not enabled) else None
+        self._clock = clock or time.monotonic
         self._progress: Any = None
         self._task: Any = None
+        self._beat: tuple[float, float, str, float] | None = None  # started, total, what, next
 
     def start(self, total: float, description: str) -> None:
         if self.announce:
             console.print(self.announce, highlight=False, soft_wrap=True)
             self.announce = None
+        if self.heartbeat is not None:
+            now = self._clock()
+            self._beat = (now, float(total), description, now + self.heartbeat)
         if not self.enabled:
             return
         from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -150,11 +161,25 @@ class RichProgress:
     def update(self, done: float) -> None:
         if self._progress is not None:
             self._progress.update(self._task, completed=done)
+        if self._beat is not None and self._clock() >= self._beat[3]:
+            started, total, what, _ = self._beat
+            now = self._clock()
+            elapsed = now - started
+            frac = min(max(done / total, 0.0), 1.0) if total > 0 else 0.0
+            left = f", about {_minutes(elapsed * (1.0 - frac) / frac)} left" if frac > 0 else ""
+            console.print(f"progress: {what} {100.0 * frac:.1f} % after {_minutes(elapsed)}{left}",
+                          highlight=False, soft_wrap=True)
+            self._beat = (started, total, what, now + self.heartbeat)
 
     def finish(self) -> None:
+        self._beat = None
         if self._progress is not None:
             self._progress.stop()
             self._progress = None
+
+
+def _minutes(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60.0:.1f} min"
 
 
 def _fmt(value: float, se: float | None = None) -> str:

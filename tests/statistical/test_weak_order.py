@@ -13,18 +13,15 @@ checked against the same map by Monte Carlo.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-import pytest
 from scipy.linalg import expm
 
 import stochpend
 from stochpend import integrator
+from tests.conftest import SEED, Z_TOL
 
 #: The harmonic oscillator with the noise on the force (G = x): a linear scheme.
 VERLET = integrator.build(integrator.spec("white", "harmonic", "force")).verlet
-from tests.conftest import SEED, Z_TOL
 
 OMEGA, D, X0, T = 1.0, 0.5, 1.0, 4.0
 

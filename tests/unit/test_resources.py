@@ -134,3 +134,25 @@ def test_cli_announces_long_runs_even_when_quiet(args, long_run):
         assert "peak memory" in lines[0]
     else:
         assert lines == [], result.output
+
+
+def test_quiet_long_run_prints_a_heartbeat_every_minute(capsys):
+    """A long run without a progress bar (--quiet, or a batch job's log) says it is alive once
+    a minute: done fraction, elapsed and remaining time; a short run, or one with a bar, never."""
+    from stochpend.cli import RichProgress
+
+    now = [1000.0]
+    beat = RichProgress(enabled=False, announce="estimate: long", clock=lambda: now[0])
+    beat.start(200.0, "simulating")
+    for done, at in [(10.0, 30.0), (50.0, 61.0), (60.0, 90.0), (100.0, 122.0), (200.0, 300.0)]:
+        now[0] = 1000.0 + at
+        beat.update(done)
+    beat.finish()
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert lines == ["estimate: long",
+                     "progress: simulating 25.0 % after 61 s, about 3.0 min left",
+                     "progress: simulating 50.0 % after 2.0 min, about 2.0 min left",
+                     "progress: simulating 100.0 % after 5.0 min, about 0 s left"]
+    for enabled, announce in [(False, None), (True, "estimate: long")]:
+        other = RichProgress(enabled=enabled, announce=announce, clock=lambda: now[0])
+        assert other.heartbeat is None  # a short run, or a bar that shows the progress
