@@ -71,11 +71,15 @@ class EnsembleSums:
 
     @classmethod
     def empty(cls, n_batches: int, n_times: int, n_bins: int) -> EnsembleSums:
-        return cls(
-            sums=np.zeros((n_batches, n_times, N_SUMS)),
-            hist=np.zeros((n_times, n_bins + 2), dtype=np.int64),
-            filled=np.zeros(n_batches, dtype=bool),
-        )
+        """Zeroed sums, written once here: ``np.zeros`` maps pages that become resident only
+        when first written, so the per-batch sums would grow the process's memory batch by
+        batch over a long run (a slow rise that looks like a leak, and a shortfall that shows
+        late). Written now, the memory the resource check counted is held from the start."""
+        sums = np.empty((n_batches, n_times, N_SUMS))
+        sums.fill(0.0)
+        filled = np.empty(n_batches, dtype=bool)
+        filled.fill(False)
+        return cls(sums=sums, hist=np.zeros((n_times, n_bins + 2), dtype=np.int64), filled=filled)
 
     def add_batches(self, first_batch: int, sums: np.ndarray, hist: np.ndarray) -> None:
         """Insert the sums of batches ``first_batch ...`` (shape (n, n_times, N_SUMS))."""
