@@ -133,15 +133,91 @@ def format_seconds(s: float) -> str:
 
 
 def available_memory() -> int | None:
-    """Bytes of memory available to a new allocation now, or None when unknown."""
+    """Bytes of memory available to a new allocation now, or None when unknown: the machine's
+    available memory, or less where this process's control group (a Slurm job, a container)
+    has a memory limit (:func:`cgroup_headroom`), since there the kernel kills the process
+    at the limit whatever the machine has."""
     try:
         import psutil
     except ImportError:  # pragma: no cover - psutil is a dependency
         try:
-            return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+            machine = int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
         except (AttributeError, OSError, ValueError):
-            return None
-    return int(psutil.virtual_memory().available)
+            machine = None
+    else:
+        machine = int(psutil.virtual_memory().available)
+    group = cgroup_headroom()
+    if machine is None or group is None:
+        return machine if group is None else group
+    return min(machine, group)
+
+
+#: A cgroup v1 limit at or above this is "no limit" (the kernel writes 2**63 rounded to pages).
+_NO_LIMIT = 1 << 60
+
+
+def _read_int(path: str) -> int | None:
+    try:
+        with open(path) as f:
+            text = f.read().strip()
+    except OSError:
+        return None
+    try:
+        return int(text)
+    except ValueError:
+        return None  # cgroup v2 writes "max" for no limit
+
+
+def _stat_value(path: str, key: str) -> int:
+    try:
+        with open(path) as f:
+            for line in f:
+                name, _, value = line.partition(" ")
+                if name == key:
+                    return int(value)
+    except (OSError, ValueError):
+        pass
+    return 0
+
+
+def cgroup_headroom(root: str = "/sys/fs/cgroup", proc_cgroup: str = "/proc/self/cgroup") -> int | None:
+    """Bytes this process's memory control group can still take: the smallest of limit - usage
+    + reclaimable page cache (``inactive_file``) over the group and its ancestors (cgroup v2,
+    ``memory.max``), or of the v1 memory controller's group (``memory.limit_in_bytes``); None
+    where no limit is set or the files cannot be read."""
+    try:
+        with open(proc_cgroup) as f:
+            lines = f.read().splitlines()
+    except OSError:
+        return None
+    best: int | None = None
+
+    def consider(limit: int | None, usage: int | None, cache: int) -> None:
+        nonlocal best
+        if limit is None or usage is None or limit >= _NO_LIMIT:
+            return
+        room = max(0, limit - usage + cache)
+        best = room if best is None else min(best, room)
+
+    for line in lines:
+        hier, _, rest = line.partition(":")
+        controllers, _, path = rest.partition(":")
+        if hier == "0" and controllers == "":  # v2: walk up from the group to the root
+            parts = [p for p in path.split("/") if p]
+            for depth in range(len(parts), -1, -1):
+                d = os.path.join(root, *parts[:depth])
+                consider(_read_int(os.path.join(d, "memory.max")),
+                         _read_int(os.path.join(d, "memory.current")),
+                         _stat_value(os.path.join(d, "memory.stat"), "inactive_file"))
+        elif "memory" in controllers.split(","):  # v1; in a container the group is the mount's root
+            for d in (os.path.join(root, "memory", *[p for p in path.split("/") if p]),
+                      os.path.join(root, "memory")):
+                if os.path.exists(os.path.join(d, "memory.limit_in_bytes")):
+                    consider(_read_int(os.path.join(d, "memory.limit_in_bytes")),
+                             _read_int(os.path.join(d, "memory.usage_in_bytes")),
+                             _stat_value(os.path.join(d, "memory.stat"), "total_inactive_file"))
+                    break
+    return best
 
 
 def _cores(threads: Any) -> int:
@@ -291,9 +367,11 @@ def _refuse_memory(est: Estimate, values: dict[str, Any]) -> None:
     if available is not None and est.memory_bytes > available:
         _, _, name = est.parts[0]
         detail = ", ".join(f"{label} {format_bytes(b)}" for label, b, _ in est.parts)
+        where = ("this process's memory limit (cgroup) leaves" if cgroup_headroom() == available
+                 else "this machine has")
         raise ValueError(
             f"{name}={short_repr(values[name])} is not accepted: the run needs {format_bytes(est.memory_bytes)} "
-            f"of memory ({detail}) and this machine has {format_bytes(available)} available; {_ADVICE[name]}"
+            f"of memory ({detail}) and {where} {format_bytes(available)} available; {_ADVICE[name]}"
         )
 
 

@@ -4,7 +4,7 @@ Each fault hits a real ``stochpend`` process (the command line, as a user runs i
 
 * kill -9, SIGTERM and Ctrl-C (SIGINT) in the middle of ``simulate --checkpoint F --out O``,
   then ``resume F``: the result equals an uninterrupted run bit for bit, on the CPU's
-  path-parallel driver (adaptive step), its SIMD lock-step driver (fixed step) and the CUDA
+  SIMD lane driver (adaptive step, the default), its SIMD lock-step driver (fixed step) and the CUDA
   backend (in Numba's CUDA simulator);
 * a crash in the middle of writing ``--out`` or a checkpoint: nothing partial at either path,
   and the run resumes exactly;

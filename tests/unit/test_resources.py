@@ -156,3 +156,46 @@ def test_quiet_long_run_prints_a_heartbeat_every_minute(capsys):
     for enabled, announce in [(False, None), (True, "estimate: long")]:
         other = RichProgress(enabled=enabled, announce=announce, clock=lambda: now[0])
         assert other.heartbeat is None  # a short run, or a bar that shows the progress
+
+
+def test_a_cgroup_memory_limit_bounds_the_available_memory(tmp_path):
+    """A Slurm job or a container kills a process at its group's limit whatever the machine
+    has: the headroom is the smallest limit - usage + reclaimable cache over the group and its
+    ancestors (v2), or the v1 memory group's; no limit, no number."""
+    from stochpend.resources import cgroup_headroom
+
+    root, proc = tmp_path / "cg", tmp_path / "cgroup"
+    job = root / "slurm" / "job_7"
+    job.mkdir(parents=True)
+    (root / "slurm" / "memory.max").write_text("max\n")
+    (root / "slurm" / "memory.current").write_text("900\n")
+    (job / "memory.max").write_text(f"{4 << 30}\n")
+    (job / "memory.current").write_text(f"{3 << 30}\n")
+    (job / "memory.stat").write_text(f"anon 5\ninactive_file {1 << 29}\nactive_file 7\n")
+    proc.write_text("0::/slurm/job_7\n")
+    assert cgroup_headroom(str(root), str(proc)) == (1 << 30) + (1 << 29)
+    (root / "slurm" / "memory.max").write_text(f"{(1 << 30) + 1000}\n")  # a tighter parent
+    assert cgroup_headroom(str(root), str(proc)) == (1 << 30) + 100
+    (job / "memory.max").write_text("max\n")
+    (root / "slurm" / "memory.max").write_text("max\n")
+    assert cgroup_headroom(str(root), str(proc)) is None
+    # cgroup v1, inside a container (the group's path is not under the mount)
+    v1 = root / "memory"
+    v1.mkdir()
+    (v1 / "memory.limit_in_bytes").write_text(f"{2 << 30}\n")
+    (v1 / "memory.usage_in_bytes").write_text(f"{1 << 30}\n")
+    (v1 / "memory.stat").write_text("cache 3\ntotal_inactive_file 1000\n")
+    proc.write_text("4:memory:/process_api/abc\n0::/\n")
+    assert cgroup_headroom(str(root), str(proc)) == (1 << 30) + 1000
+    (v1 / "memory.limit_in_bytes").write_text("9223372036854771712\n")  # v1's "no limit"
+    assert cgroup_headroom(str(root), str(proc)) is None
+    assert cgroup_headroom(str(root), str(tmp_path / "missing")) is None
+
+
+def test_the_memory_refusal_names_the_cgroup_limit(monkeypatch):
+    from stochpend import resources
+
+    monkeypatch.setattr(resources, "cgroup_headroom", lambda: 1 << 20)
+    with pytest.raises(ValueError, match=r"^hist_bins=100000 is not accepted: .* and this process's memory "
+                                         r"limit \(cgroup\) leaves 1(\.0)? MiB available; use fewer"):
+        stochpend.simulate(paths=10, t_max=1.0, hist_bins=100_000)
