@@ -160,7 +160,7 @@ def resume_command(
     kwargs: dict[str, Any] = {"out": target, "overwrite": ow}
     if threads is not None:
         kwargs["threads"] = threads
-    progress = cli.RichProgress(enabled=not quiet and cli.console.is_terminal)
+    progress = cli.RichProgress(enabled=not quiet and cli.console.is_terminal, long_run=True)
     ds = _interruptible(_resume, checkpoint_path=checkpoint, progress=progress, **kwargs)
     if not quiet:
         cli.console.print(cli.summary_table(ds))
@@ -363,7 +363,7 @@ def _simulate_ckpt_command(
     config = SimulationConfig.build(noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max,
                                     n_times=n_times, seed=seed)
     every = parse_duration(checkpoint_every)
-    progress = cli.RichProgress(enabled=not quiet and cli.console.is_terminal)
+    progress = cli.RichProgress(enabled=not quiet and cli.console.is_terminal, long_run=True)
     ds = simulate_with_checkpoint(config, checkpoint_path=checkpoint, every_s=every, out=out,
                                   overwrite=overwrite, progress=progress, threads=threads)
     if not quiet:

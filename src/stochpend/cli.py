@@ -131,10 +131,11 @@ class RichProgress:
     """
 
     def __init__(self, enabled: bool, announce: str | None = None, heartbeat_s: float = 60.0,
-                 clock: Any = None) -> None:
+                 clock: Any = None, long_run: bool = False) -> None:
         self.enabled = enabled
         self.announce = announce
-        self.heartbeat = heartbeat_s if (announce and not enabled) else None
+        # long_run: a run known to last (a resumed checkpointed run) beats without an announce
+        self.heartbeat = heartbeat_s if ((announce or long_run) and not enabled) else None
         self._clock = clock or time.monotonic
         self._progress: Any = None
         self._task: Any = None

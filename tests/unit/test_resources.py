@@ -156,6 +156,9 @@ def test_quiet_long_run_prints_a_heartbeat_every_minute(capsys):
     for enabled, announce in [(False, None), (True, "estimate: long")]:
         other = RichProgress(enabled=enabled, announce=announce, clock=lambda: now[0])
         assert other.heartbeat is None  # a short run, or a bar that shows the progress
+    # a resumed checkpointed run is long by nature: it beats without an estimate line
+    assert RichProgress(enabled=False, long_run=True).heartbeat == 60.0
+    assert RichProgress(enabled=True, long_run=True).heartbeat is None
 
 
 def test_a_cgroup_memory_limit_bounds_the_available_memory(tmp_path):
