@@ -530,9 +530,9 @@ def run_checkpointed(
                                  progress=progress)
     finally:
         numba.set_num_threads(previous_threads)
-    attrs = provenance(config, backend=backend, threads=threads or previous_threads,
-                       wall_time_s=checkpointer.elapsed_s(), path_steps=path_steps)
-    attrs["precision"] = precision
+    attrs = provenance(config, backend=backend, precision=precision,
+                       threads=threads or previous_threads, wall_time_s=checkpointer.elapsed_s(),
+                       path_steps=path_steps)
     attrs["checkpoint"] = str(checkpointer.path)
     attrs["checkpoint_every_s"] = "none" if every_s is None else float(every_s)
     attrs["resumed"] = checkpointer.resumed

@@ -452,9 +452,8 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None,
     finally:
         numba.set_num_threads(previous)
     wall = time.perf_counter() - started
-    attrs = provenance(config, backend=where[0], threads=threads or previous, wall_time_s=wall,
-                       path_steps=path_steps)
-    attrs["precision"] = where[1]
+    attrs = provenance(config, backend=where[0], precision=where[1], threads=threads or previous,
+                       wall_time_s=wall, path_steps=path_steps)
     ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
     ds["batch_sums"] = (
         ("batch", "time", "sum_component"),

@@ -280,12 +280,8 @@ def run(
     finally:
         numba.set_num_threads(previous_threads)
     wall = _time.perf_counter() - started
-    attrs = provenance(config, backend=backend, threads=threads or previous_threads,
-                       wall_time_s=wall, path_steps=path_steps)
-    attrs["precision"] = precision
-    # which compiled step ran (oscillator/coupling/noise/precision/step/math): the fast-math
-    # SIMD kernels and the C library's differ in the last bits, so the numbers depend on it
-    attrs["kernel"] = runner.spec_for(config, backend, precision).label
+    attrs = provenance(config, backend=backend, precision=precision,
+                       threads=threads or previous_threads, wall_time_s=wall, path_steps=path_steps)
     attrs["simulation_wall_time_s"] = wall_main
     ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
     if est is not None:
@@ -294,8 +290,10 @@ def run(
 
 
 def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_time_s: float,
-               path_steps: int) -> dict[str, Any]:
-    """Attributes stored with every result: enough to reproduce it."""
+               path_steps: int, precision: str = "float64") -> dict[str, Any]:
+    """Attributes stored with every result: enough to reproduce it, down to the compiled
+    kernel (``kernel``: oscillator/coupling/noise/precision/step/math; the fast-math SIMD
+    kernels and the C library's differ in the last bits)."""
     attrs: dict[str, Any] = {"title": "stochpend ensemble simulation"}
     attrs.update(config.to_attrs())
     user_model = models.get(config.potential)
@@ -307,6 +305,8 @@ def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_tim
         {
             "rng": "Philox4x32-10, key = seed, counter = (draw, global path index)",
             "backend": backend,
+            "precision": precision,
+            "kernel": runner.spec_for(config, backend, precision).label,
             "threads": threads,
             "wall_time_s": wall_time_s,
             "path_steps": path_steps,

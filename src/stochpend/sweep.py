@@ -559,7 +559,8 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
         if not acc.complete:
             raise RuntimeError("internal error: a sweep set is missing batches")
         datasets.append(acc.to_dataset(np.asarray(config.times), hist_edges(config), {}))
-        per_set_attrs.append(provenance(config, backend=info.get("backend", "cpu"), threads=0,
+        per_set_attrs.append(provenance(config, backend=info.get("backend", "cpu"),
+                                        precision=info.get("precision", "float64"), threads=0,
                                         wall_time_s=0.0, path_steps=steps))
         path_steps.append(steps)
 

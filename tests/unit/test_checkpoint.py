@@ -73,6 +73,7 @@ def test_interrupt_then_resume_is_exact(tmp_path, small, n):
     _assert_identical(ref, ds)
     assert ds.attrs["path_steps"] == ref.attrs["path_steps"]
     assert ds.attrs["resumed"] == 1
+    assert ds.attrs["kernel"] == ref.attrs["kernel"] and ds.attrs["precision"] == "float64"
     assert not path.exists(), "a finished run removes its checkpoint"
     _assert_identical(ref, io.open_results(out))
 

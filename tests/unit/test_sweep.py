@@ -105,6 +105,9 @@ def test_case_list_layout(tmp_path):
     assert ds.D.dims == ("case",) and ds.D.values.tolist() == [1.0, 10.0, 2.0]
     assert ds.noise.values.tolist() == ["ou", "ou", "white"]
     assert ds.seed.values.tolist() == [11, 3, 11]
+    # each set records the compiled kernel it ran, as a single run does
+    assert ds.kernel.values.tolist() == ["pendulum/force/ou/float64/adaptive/fast"] * 2 + [
+        "pendulum/force/white/float64/adaptive/fast"]
     assert ds.tau.values[:2].tolist() == [0.5, 2.0] and np.isnan(ds.tau.values[2])
     ref = run(SimulationConfig.build(noise="white", D=2, omega=1.0, paths=24, t_max=2.0, n_times=4, seed=11,
                                      n_batches=6), bias_paths=0)
