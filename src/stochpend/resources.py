@@ -137,6 +137,12 @@ def available_memory() -> int | None:
     available memory, or less where this process's control group (a Slurm job, a container)
     has a memory limit (:func:`cgroup_headroom`), since there the kernel kills the process
     at the limit whatever the machine has."""
+    return _memory_bound()[0]
+
+
+def _memory_bound() -> tuple[int | None, str]:
+    """``(bytes, what bounds them)``: :func:`available_memory` and, for the refusal's wording,
+    "this machine has" or "this process's memory limit (cgroup) leaves"."""
     try:
         import psutil
     except ImportError:  # pragma: no cover - psutil is a dependency
@@ -147,9 +153,9 @@ def available_memory() -> int | None:
     else:
         machine = int(psutil.virtual_memory().available)
     group = cgroup_headroom()
-    if machine is None or group is None:
-        return machine if group is None else group
-    return min(machine, group)
+    if group is not None and (machine is None or group < machine):
+        return group, "this process's memory limit (cgroup) leaves"
+    return machine, "this machine has"
 
 
 #: A cgroup v1 limit at or above this is "no limit" (the kernel writes 2**63 rounded to pages).
@@ -363,12 +369,10 @@ _ADVICE = {
 
 
 def _refuse_memory(est: Estimate, values: dict[str, Any]) -> None:
-    available = available_memory()
+    available, where = _memory_bound()
     if available is not None and est.memory_bytes > available:
         _, _, name = est.parts[0]
         detail = ", ".join(f"{label} {format_bytes(b)}" for label, b, _ in est.parts)
-        where = ("this process's memory limit (cgroup) leaves" if cgroup_headroom() == available
-                 else "this machine has")
         raise ValueError(
             f"{name}={short_repr(values[name])} is not accepted: the run needs {format_bytes(est.memory_bytes)} "
             f"of memory ({detail}) and {where} {format_bytes(available)} available; {_ADVICE[name]}"

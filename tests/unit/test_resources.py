@@ -75,7 +75,7 @@ def test_work_limit_refuses_in_one_line_and_can_be_raised():
 
 
 def test_memory_check_names_the_parameter(monkeypatch):
-    monkeypatch.setattr(resources, "available_memory", lambda: 2**30)
+    monkeypatch.setattr(resources, "_memory_bound", lambda: (2**30, "this machine has"))
     with pytest.raises(ValueError) as info:
         resources.check(_config(hist_bins=10**9))
     msg = str(info.value)
