@@ -32,7 +32,8 @@ from __future__ import annotations
 import functools
 import math
 import time as _time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numba
@@ -48,7 +49,8 @@ from stochpend.stats import N_SUMS, STATISTICS
 
 drop_stale_cache(__file__)
 
-__all__ = ["BIAS_PATH0", "BiasEstimate", "default_bias_paths", "estimate", "RICHARDSON"]
+__all__ = ["BIAS_PATH0", "Assessment", "BiasEstimate", "RICHARDSON", "assess", "assess_dataset",
+           "default_bias_paths", "estimate", "summary_line", "warnings_for"]
 
 #: Global index of the first coupled pair: the run's own paths are below it.
 BIAS_PATH0 = 1 << 63
@@ -67,6 +69,16 @@ _U64 = np.uint64
 #: Omega and the two shape ratios).
 CONTROLLED = ("mean_E", "mean_E2", "mean_E3", "mean_E4", "skewness", "flatness", "mean_Omega2",
               "mean_Omega4")
+#: Family-wise false-alarm probability of the bias verdicts: the chance that a run whose
+#: every bias is zero has *any* (statistic, time) called significant (Bonferroni over them all).
+FAMILY_ALPHA = 0.05
+#: The verdict of one (statistic, time), stored in ``<name>_bias_verdict``.
+CERTIFIED_SMALL, SIGNIFICANT, INCONCLUSIVE = 0, 1, 2
+VERDICT_MEANINGS = "certified_small significant inconclusive"
+#: The pairs count as decorrelated where the estimate's error is above half what independent
+#: coarse and fine ensembles of the same size would give: ``bias_pair_decorrelation`` =
+#: sqrt(1 - r) > 1/2, r the coarse/fine correlation (r < 3/4).
+DECORRELATED = 0.5
 #: ``accuracy="auto"`` refines at most this many times (2**6 = 64 times the steps).
 MAX_LEVEL = 6
 ACCURACIES = ("fixed", "auto")
@@ -74,10 +86,21 @@ ACCURACIES = ("fixed", "auto")
 CUDA_DEFAULT_PAIRS = 1 << 15
 
 
+#: The default subsample is a 48th of the run (at least MIN_PAIRS): a pair costs about three
+#: path-steps (one coarse, two fine half steps) for each step of a path, in the same SIMD lanes,
+#: so about 6 % of the run's path-steps. What it resolves: while the pairs stay coupled the
+#: estimate's error is about (4/3) sqrt(2 paths/pairs) sqrt(1 - r) = 13 sqrt(1 - r) standard
+#: errors of the run (r the coarse/fine correlation), so it certifies |bias| < SE/2 wherever
+#: sqrt(1 - r) < 0.008 or so; more pairs buy little (the error shrinks as the square root), and
+#: beyond the horizon (r < 3/4) even pairs = paths could not certify (docs/numerics.md).
+PAIRS_FRACTION = 48
+MIN_PAIRS = 64
+
+
 def default_bias_paths(paths: int) -> int:
-    """The subsample size when none is given: a 32nd of the run, at least 256 pairs, at most
-    the run itself (a pair costs about three paths: about 10 % more work for a large run)."""
-    return int(max(2, min(paths, max(256, paths // 32))))
+    """The subsample size when none is given: ``paths // PAIRS_FRACTION``, at least
+    ``MIN_PAIRS`` (two a jackknife batch), at most the run itself."""
+    return int(max(2, min(paths, max(MIN_PAIRS, paths // PAIRS_FRACTION))))
 
 
 def default_pairs(paths: int, backend: str) -> int:
@@ -115,44 +138,23 @@ def check_accuracy(accuracy: Any, rtol: Any) -> tuple[str, float | None]:
 
 
 # -- kernels ------------------------------------------------------------------------------------
+def pair_spec(config: SimulationConfig) -> Spec:
+    """The Spec the pairs run with: the run's own CPU kernel (:func:`stochpend._backends.cpu.
+    spec_for`), so the coarse member has the law of the run's paths and the pairs run in SIMD
+    lanes with the run's fast math wherever the run does. Always float64: in float32 the
+    difference of the members would chase the rounding floor (eps_32 ~ 1e-7 per step) rather
+    than the step's bias."""
+    from stochpend._backends import cpu
+
+    return cpu.spec_for(config, "float64")
+
+
 @functools.lru_cache(maxsize=None)
-def _kernels(spec: Spec):
-    steps = integrator.build(spec)
-    init_path = steps.init_path
-    advance_pair = steps.advance_pair
-    path_values = steps.path_values
+def _accumulate_kernel(oscillator: Any, coupling: str, builtin: bool):
+    path_values = integrator.statistics(oscillator, coupling)
 
-    @numba.njit(parallel=True, cache=spec.cacheable)
-    @own_index(spec.label)
-    def init(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
-             uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W):  # pragma: no cover
-        for i in prange(x.shape[0]):
-            x[i], Omega[i], xi[i], xi_aux[i] = init_path(
-                key0, key1, _U64(path0 + _U64(i)), theta0, uniform_theta0, Omega0, xi0,
-                stationary_xi0, D, tau, W)
-            xf[i] = x[i]
-            Omegaf[i] = Omega[i]
-            t[i] = 0.0
-            t_comp[i] = 0.0
-            k[i] = 0
-            status[i] = 0
-
-    @numba.njit(parallel=True, cache=spec.cacheable)
-    @own_index(spec.label)
-    def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-                key0, key1, path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover
-        draws = 0
-        unfinished = 0
-        for i in prange(x.shape[0]):
-            s, u = advance_pair(i, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status,
-                                t_target, max_steps, key0, key1, path0, D, tau, W, omega2, n,
-                                h_max, step_c)
-            draws += s
-            unfinished += u
-        return draws, unfinished
-
-    @numba.njit(parallel=True, cache=spec.cacheable)
-    @own_index(spec.label)
+    @numba.njit(parallel=True, cache=builtin)
+    @own_index(f"{oscillator.name}/{coupling}/pairs")
     def accumulate(x, Omega, xf, Omegaf, status, omega2, n, batch_size,
                    sums):  # pragma: no cover
         """sums[b, 0 or 1, :]: the power sums of the coarse (0) and fine (1) members of batch
@@ -188,7 +190,17 @@ def _kernels(spec: Spec):
                     sums[b, m, stats.S_OMEGA4] += O2 * O2
                     sums[b, m, stats.S_G2] += G2
 
-    return init, advance, accumulate
+    return accumulate
+
+
+def _kernels(spec: Spec):
+    """(init, advance, accumulate) of the pairs of ``spec``: the run's ``init`` (both members
+    start where the run's path of that index would), the pair driver of
+    :func:`stochpend._backends.cpu.pair_advance_kernel`, and the pairs' power sums."""
+    from stochpend._backends import cpu
+
+    return (cpu.init_kernel(spec), cpu.pair_advance_kernel(spec),
+            _accumulate_kernel(spec.oscillator, spec.coupling, spec.oscillator.builtin))
 
 
 # -- the estimate -------------------------------------------------------------------------------
@@ -199,7 +211,7 @@ class BiasEstimate:
     ``bias[name] = (value, stderr)``, arrays of shape (n_times,); ``coarse[name]`` the coarse
     members' statistic and its error (what the run itself would give with this many paths);
     ``paths`` the pairs used, ``path_steps`` the steps both members took (fine half steps
-    counted as steps), ``wall_time_s`` the estimate's cost.
+    counted as steps), ``wall_time_s`` the estimate's cost, ``batches`` the jackknife's.
     """
 
     times: np.ndarray
@@ -211,7 +223,9 @@ class BiasEstimate:
     nonfinite: np.ndarray
     h_max: float
     step_c: float
-    extra: dict[str, Any] = field(default_factory=dict)
+    batches: int = BIAS_BATCHES
+    #: sqrt(1 - r) of the pairs at each output time (:func:`_decorrelation`).
+    decorrelation: np.ndarray | None = None
 
     def data_vars(self) -> dict[str, tuple]:
         """``<name>_bias`` and ``<name>_bias_stderr`` for the result Dataset."""
@@ -222,6 +236,9 @@ class BiasEstimate:
                              "zero-step limit (Richardson, weak order 2, coupled half-step pairs)"})
             out[f"{name}_bias_stderr"] = ("time", se, {
                 "long_name": f"standard error of {name}_bias (jackknife over the pairs' batches)"})
+        out["bias_pair_decorrelation"] = ("time", self.decorrelation, {
+            "long_name": "sqrt(1 - r), r the coupled pairs' coarse/fine correlation: 0 coupled, "
+                         f"1 independent; beyond {DECORRELATED:g} the pairs have decorrelated"})
         return out
 
     def attrs(self) -> dict[str, Any]:
@@ -232,6 +249,7 @@ class BiasEstimate:
             "bias_path_steps": self.path_steps,
             "bias_wall_time_s": self.wall_time_s,
             "bias_nonfinite_pairs": int(self.nonfinite[-1]) if self.nonfinite.size else 0,
+            "bias_batches": self.batches,
         }
 
 
@@ -246,7 +264,7 @@ def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | Non
                          "bias estimate)")
     progress = progress or NoProgress()
     started = _time.perf_counter()
-    spec = Spec.of(config)
+    spec = pair_spec(config)
     init, advance, accumulate = _kernels(spec)
     key0, key1 = rng.seed_to_key(config.seed)
     times = np.asarray(config.times, dtype=np.float64)
@@ -269,10 +287,12 @@ def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | Non
         k = np.empty(n, dtype=np.uint64)
         status = np.empty(n, dtype=np.uint8)
         path0 = _U64(BIAS_PATH0 + p0)
-        init(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, key0, key1, path0,
+        init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0,
              0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
              0.0 if c.xi0 is None else c.xi0, c.xi0 is None, c.D, c.tau_or_zero,
              c.omega_noise_or_zero)
+        xf[:] = x
+        Omegaf[:] = Omega
         max_steps = max(1000, _WORK_PER_CALL // max(n, 1))
         for j, t_target in enumerate(times):
             while True:
@@ -294,7 +314,28 @@ def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | Non
     bias, coarse = _statistics(sums)
     nonfinite = sums[:, :, 0, stats.S_NONFINITE].sum(axis=0).astype(np.int64)
     return BiasEstimate(times, bias, coarse, n_paths, path_steps,
-                        _time.perf_counter() - started, nonfinite, c.h_max, c.step_c)
+                        _time.perf_counter() - started, nonfinite, c.h_max, c.step_c, n_batches,
+                        _decorrelation(bias, coarse, times.size))
+
+
+def _decorrelation(bias: dict[str, tuple[np.ndarray, np.ndarray]],
+                   coarse: dict[str, tuple[np.ndarray, np.ndarray]], n_times: int) -> np.ndarray:
+    """sqrt(1 - r) of the coupled pairs at each output time (r the coarse/fine correlation): 0
+    for members that move together, 1 for independent ones. Measured as the bias's error over
+    what independent members would give, (4/3) sqrt(2) times the coarse member's error; the
+    median over the statistics (they decorrelate together, and the median is not led by one
+    noisy ratio). Shape (n_times,)."""
+    ratios = []
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for name, (_, b_se) in bias.items():
+            ratios.append(b_se / (RICHARDSON * math.sqrt(2.0) * coarse[name][1]))
+    r = np.array(ratios).reshape(len(ratios), n_times)
+    out = np.full(n_times, np.nan)
+    ok = np.isfinite(r)
+    for j in range(n_times):
+        if np.any(ok[:, j]):
+            out[j] = float(np.median(r[ok[:, j], j]))
+    return out
 
 
 def _statistics(sums: np.ndarray):
@@ -327,12 +368,117 @@ def _statistics(sums: np.ndarray):
     return bias, coarse
 
 
+# -- what the estimate can say ------------------------------------------------------------------
+def interval_width(n_tests: int, batches: int, alpha: float = FAMILY_ALPHA) -> float:
+    """The half-width, in bias standard errors, of the simultaneous intervals b +- w sigma_b
+    over ``n_tests`` (statistic, time) entries: Bonferroni at family-wise level ``alpha``, with
+    Student's t of ``batches - 1`` degrees of freedom (the jackknife's error is itself estimated
+    from the batches). 32 batches, 40 times x 9 statistics: w = 4.6."""
+    from scipy.stats import t as student
+
+    if n_tests < 1 or batches < 2:
+        return math.inf
+    return float(student.isf(alpha / (2.0 * n_tests), batches - 1))
+
+
+@dataclass
+class Assessment:
+    """What the bias estimate says at every (statistic, output time).
+
+    ``verdict[name]``: int8 array (n_times,) of CERTIFIED_SMALL (|bias| + w sigma_b below half
+    the statistic's standard error), SIGNIFICANT (|bias| - w sigma_b above the standard error),
+    INCONCLUSIVE (neither: the estimate cannot tell, or the bias lies between SE/2 and SE);
+    ``width`` w (:func:`interval_width`) over the ``n_tests`` finite entries examined;
+    ``certified_until``: the last output time up to which every entry is resolved (certified
+    small or significant), NaN if the first is not; ``horizon``: the first output time at which
+    the pairs have decorrelated (``bias_pair_decorrelation`` > DECORRELATED), NaN if none.
+    """
+
+    times: np.ndarray
+    verdict: dict[str, np.ndarray]
+    width: float
+    n_tests: int
+    certified_until: float
+    horizon: float
+
+    def significant(self) -> dict[str, np.ndarray]:
+        return {k: v == SIGNIFICANT for k, v in self.verdict.items()}
+
+
+def assess(times: np.ndarray, bias: dict[str, tuple[np.ndarray, np.ndarray]],
+           stderr: dict[str, np.ndarray], batches: int,
+           decorrelation: np.ndarray | None = None) -> Assessment:
+    """The verdicts of an estimate against the run's standard errors (see :class:`Assessment`).
+
+    ``bias[name] = (b, sigma_b)`` and ``stderr[name]``, arrays of shape (n_times,). The family
+    is every finite entry: with FAMILY_ALPHA = 0.05, a run whose biases are all zero has a
+    significant verdict anywhere with probability at most 5 % (Bonferroni is conservative for
+    the strongly correlated output times; calibrated in tests/statistical/test_bias_calibration.py).
+    """
+    times = np.asarray(times, dtype=float)
+    finite = {}
+    n_tests = 0
+    for name, (b, b_se) in bias.items():
+        ok = np.isfinite(b) & np.isfinite(b_se) & np.isfinite(stderr[name])
+        finite[name] = ok
+        n_tests += int(np.sum(ok))
+    w = interval_width(n_tests, batches)
+    verdict: dict[str, np.ndarray] = {}
+    resolved = np.ones(times.shape, dtype=bool)
+    for name, (b, b_se) in bias.items():
+        se = np.asarray(stderr[name], dtype=float)
+        v = np.full(times.shape, INCONCLUSIVE, dtype=np.int8)
+        ok = finite[name]
+        with np.errstate(invalid="ignore"):
+            v[ok & (np.abs(b) - w * b_se > se)] = SIGNIFICANT
+            v[ok & (np.abs(b) + w * b_se < 0.5 * se)] = CERTIFIED_SMALL
+        verdict[name] = v
+        resolved &= v != INCONCLUSIVE
+    bad = np.flatnonzero(~resolved)
+    upto = times.size if bad.size == 0 else int(bad[0])
+    certified_until = float(times[upto - 1]) if upto > 0 else math.nan
+    horizon = math.nan
+    if decorrelation is not None:
+        with np.errstate(invalid="ignore"):
+            gone = np.flatnonzero(np.asarray(decorrelation) > DECORRELATED)
+        if gone.size:
+            horizon = float(times[gone[0]])
+    return Assessment(times, verdict, w, n_tests, certified_until, horizon)
+
+
+def assess_dataset(ds: Any) -> Assessment | None:
+    """:func:`assess` of a result Dataset from its stored variables (None without an
+    estimate): what the table, the warnings and ``show`` report, also for files written before
+    the verdicts were stored."""
+    names = [n for n in STATISTICS if f"{n}_bias" in ds and f"{n}_stderr" in ds]
+    if not names:
+        return None
+    bias = {n: (np.asarray(ds[f"{n}_bias"].values, dtype=float),
+                np.asarray(ds[f"{n}_bias_stderr"].values, dtype=float)) for n in names}
+    stderr = {n: np.asarray(ds[f"{n}_stderr"].values, dtype=float) for n in names}
+    try:
+        batches = int(ds.attrs.get("bias_batches", BIAS_BATCHES))
+    except (TypeError, ValueError):
+        batches = BIAS_BATCHES
+    decorrelation = (np.asarray(ds["bias_pair_decorrelation"].values, dtype=float)
+                     if "bias_pair_decorrelation" in ds else None)
+    return assess(np.asarray(ds.time.values, dtype=float), bias, stderr, max(batches, 2),
+                  decorrelation)
+
+
+def independent_paths_to_certify(paths: int, width: float) -> int:
+    """Paths that each of two *independent* ensembles, at the run's step and at half of it,
+    would need to certify |bias| < SE/2 of a run of ``paths`` (the only way beyond the
+    horizon): (4/3) sqrt(2/N) sigma w < sigma / (2 sqrt(paths)), N = (8 sqrt(2) w / 3)**2 paths."""
+    return int(math.ceil((8.0 * math.sqrt(2.0) * width / 3.0) ** 2 * paths))
+
+
 @dataclass
 class LevelChoice:
     """What ``accuracy="auto"`` decided: the refinement ``level`` (h_max and c divided by
     2**level), the refined ``config``, the ``pilot`` estimate at the given step, the
-    ``needed`` ratio (worst (|bias| + error) / target at level 0), and whether the target
-    was ``reached`` within MAX_LEVEL."""
+    ``needed`` ratio (worst (|bias| + error) / target at level 0), whether the target
+    was ``reached`` within MAX_LEVEL, and the pilot's ``horizon``."""
 
     level: int
     config: SimulationConfig
@@ -340,6 +486,9 @@ class LevelChoice:
     needed: float
     reached: bool
     target: str
+    #: The first output time at which the pilot's pairs have decorrelated (NaN: none): the
+    #: level is chosen from the times before it only, and nothing beyond it is certified.
+    horizon: float = math.nan
 
     def extrapolated(self) -> BiasEstimate:
         """The pilot's bias scaled to the chosen level (weak order 2: 4**-level): the run's
@@ -354,13 +503,16 @@ def choose_level(config: SimulationConfig, pilot_paths: int, *, rtol: float | No
     """``accuracy="auto"``: the smallest refinement level L for which every controlled
     statistic's bias, bounded at one sigma by (|b| + se_b) 4**-L from a pilot of coupled pairs
     at the given step, is at most half the run's standard error (predicted from the pilot:
-    se sqrt(pilot / paths)), or ``rtol`` |value|.
+    se sqrt(pilot / paths)), or ``rtol`` |value|, at every output time before the pilot's
+    horizon.
 
     The pilot runs at the coarsest step, where the bias is largest and best resolved; a
     refined level changes the bias by the known factor 4**-L (weak order 2), which the
-    validation in docs/numerics.md checks. A poorly resolved pilot (large se_b: the coupled
-    paths have decorrelated, e.g. long after the crossover time) makes L larger, never
-    smaller: the choice is conservative.
+    validation in docs/numerics.md checks. From the horizon on (the pairs have decorrelated:
+    ``bias_pair_decorrelation`` > DECORRELATED) the pilot's error is that of independent
+    ensembles, and a level bought there would buy noise: those times are left out of the choice
+    and reported as not certified (:func:`independent_paths_to_certify` says what certifying
+    them would take). Before it, a poorly resolved pilot makes L larger, never smaller.
     """
     pilot = estimate(config, pilot_paths, progress=progress)
     level, worst, level_se = _needed_level(pilot, config.paths, rtol)
@@ -374,13 +526,25 @@ def choose_level(config: SimulationConfig, pilot_paths: int, *, rtol: float | No
     reached = level <= MAX_LEVEL
     level = min(level, MAX_LEVEL)
     what = f"|bias| <= {rtol:g} |value|" if rtol is not None else "|bias| <= stderr/2"
-    return LevelChoice(level, refined(config, level), pilot, worst, reached, what)
+    return LevelChoice(level, refined(config, level), pilot, worst, reached, what,
+                       _horizon(pilot))
+
+
+def _horizon(pilot: BiasEstimate) -> float:
+    """The first output time at which the pilot's pairs have decorrelated, NaN if none."""
+    if pilot.decorrelation is None:
+        return math.nan
+    with np.errstate(invalid="ignore"):
+        gone = np.flatnonzero(pilot.decorrelation > DECORRELATED)
+    return float(pilot.times[gone[0]]) if gone.size else math.nan
 
 
 def _needed_level(pilot: BiasEstimate, paths: int, rtol: float | None) -> tuple[int, float, int]:
-    """(L, worst ratio, the L that twice the pilot's error alone asks for): see
-    :func:`choose_level`."""
+    """(L, worst ratio, the L that twice the pilot's error alone asks for), over the output
+    times before the pilot's horizon: see :func:`choose_level`."""
     scale = math.sqrt(pilot.paths / paths)
+    horizon = _horizon(pilot)
+    coupled = pilot.times < horizon if math.isfinite(horizon) else np.ones(pilot.times.shape, bool)
     worst = worst_se = 0.0
     for name in CONTROLLED:
         b, b_se = pilot.bias[name]
@@ -389,7 +553,7 @@ def _needed_level(pilot: BiasEstimate, paths: int, rtol: float | None) -> tuple[
         with np.errstate(invalid="ignore", divide="ignore"):
             r = (np.abs(b) + b_se) / target
             r_se = 2.0 * b_se / target
-        ok = np.isfinite(r)
+        ok = np.isfinite(r) & coupled
         if np.any(ok):
             worst = max(worst, float(np.max(r[ok])))
             worst_se = max(worst_se, float(np.max(r_se[ok])))
@@ -401,10 +565,26 @@ def _needed_level(pilot: BiasEstimate, paths: int, rtol: float | None) -> tuple[
 
 
 def attach(ds: Any, est: BiasEstimate, choice: LevelChoice | None = None) -> None:
-    """Add the estimate's variables and attributes to a result Dataset (in place)."""
+    """Add the estimate's variables, its verdicts (:func:`assess` against the run's standard
+    errors) and its attributes to a result Dataset (in place)."""
     for name, (dims, value, attrs) in est.data_vars().items():
         ds[name] = (dims, value, attrs)
     ds.attrs.update(est.attrs())
+    verdicts = assess_dataset(ds)
+    if verdicts is not None:
+        for name, v in verdicts.verdict.items():
+            ds[f"{name}_bias_verdict"] = ("time", v, {
+                "long_name": f"what {name}_bias says at each time (bias_interval_width sigma "
+                             "intervals, family-wise over every statistic and time)",
+                "flag_values": np.array([CERTIFIED_SMALL, SIGNIFICANT, INCONCLUSIVE], np.int8),
+                "flag_meanings": VERDICT_MEANINGS})
+        ds.attrs.update({
+            "bias_family_alpha": FAMILY_ALPHA,
+            "bias_tests": verdicts.n_tests,
+            "bias_interval_width": verdicts.width,
+            "bias_certified_until": verdicts.certified_until,
+            "bias_horizon": verdicts.horizon,
+        })
     if choice is None:
         ds.attrs["accuracy"] = "fixed"
         return
@@ -416,6 +596,7 @@ def attach(ds: Any, est: BiasEstimate, choice: LevelChoice | None = None) -> Non
         "accuracy_pilot_h_max": choice.pilot.h_max,
         "accuracy_pilot_step_c": choice.pilot.step_c,
         "accuracy_needed_ratio": choice.needed,
+        "accuracy_horizon": choice.horizon,
         "bias_method": ds.attrs["bias_method"] + f"; pilot at h_max={choice.pilot.h_max:g}, "
                        f"c={choice.pilot.step_c:g}, scaled by 4**-{choice.level}",
     })
@@ -425,3 +606,72 @@ def refined(config: SimulationConfig, level: int) -> SimulationConfig:
     """``config`` with h_max and c divided by 2**level (the refinement ladder of ``auto``)."""
     factor = 0.5**level
     return replace(config, h_max=config.h_max * factor, step_c=config.step_c * factor)
+
+
+# -- what the tool says about it ------------------------------------------------------------------
+#: Labels of the statistics in warnings and tables.
+LABELS = {"mean_E": "<E>", "mean_E2": "<E2>", "mean_E3": "<E3>", "mean_E4": "<E4>",
+          "skewness": "S", "flatness": "F", "mean_Omega2": "<Omega2>",
+          "mean_Omega4": "<Omega4>", "mean_sin2theta": "<G2>"}
+
+
+def warnings_for(ds: Any, fmt: Callable[[float, float], str],
+                 shown: Sequence[int] | None = None) -> list[str]:
+    """One line per statistic with a *significant* bias somewhere (:func:`assess_dataset`):
+    the bias with its error, as a fraction of the value and in standard errors, at the worst
+    such time among the output times ``shown`` (indices; all if None), or at the worst time
+    with a pointer to it when no shown time has one. ``fmt(value, error)`` writes v(e).
+    Nothing is said of inconclusive entries: noise is not a finding."""
+    verdicts = assess_dataset(ds)
+    if verdicts is None:
+        return []
+    times = verdicts.times
+    shown_set = set(range(times.size) if shown is None else shown)
+    lines = []
+    for name, v in verdicts.verdict.items():
+        hits = np.flatnonzero(v == SIGNIFICANT)
+        if hits.size == 0:
+            continue
+        b = np.asarray(ds[f"{name}_bias"].values, dtype=float)
+        b_se = np.asarray(ds[f"{name}_bias_stderr"].values, dtype=float)
+        se = np.asarray(ds[f"{name}_stderr"].values, dtype=float)
+        value = np.asarray(ds[name].values, dtype=float)
+        visible = [i for i in hits if i in shown_set]
+        pool = visible or list(hits)
+        i = max(pool, key=lambda j: (abs(b[j]) - verdicts.width * b_se[j]) / se[j])
+        where = "" if visible else " (not among the rows shown)"
+        with np.errstate(invalid="ignore", divide="ignore"):
+            frac = abs(b[i] / value[i]) if value[i] != 0 else math.inf
+        size = f"{100 * frac:.2g} % of the value, " if math.isfinite(frac) else ""
+        lines.append(
+            f"{LABELS.get(name, name)} at t={times[i]:.4g}{where}: discretisation bias "
+            f"{fmt(float(b[i]), float(b_se[i]))} ({size}{abs(b[i]) / se[i]:.2g} standard errors; "
+            f"significant in {hits.size} of {times.size} times at a {100 * FAMILY_ALPHA:g} % "
+            f"family-wise level over {verdicts.n_tests} tests): rerun with --accuracy auto "
+            "(or a smaller --h-max/--step-c)")
+    return lines
+
+
+def summary_line(ds: Any, paths: int | None = None) -> str | None:
+    """One sentence for under a table: how far the estimate certifies the bias, and where the
+    pairs decorrelate (None without an estimate)."""
+    verdicts = assess_dataset(ds)
+    if verdicts is None:
+        return None
+    times = verdicts.times
+    until = verdicts.certified_until
+    if math.isnan(until):
+        head = "bias: inconclusive from the first output time"
+    elif until >= times[-1]:
+        head = "bias: resolved at every output time (below SE/2 or significant)"
+    else:
+        head = (f"bias: resolved (below SE/2 or significant) up to t = {until:.4g}, "
+                "inconclusive after")
+    horizon = verdicts.horizon
+    if math.isfinite(horizon):
+        n = paths if paths is not None else int(ds.attrs.get("paths", 0) or 0)
+        need = independent_paths_to_certify(n, verdicts.width) if n > 0 else None
+        head += (f"; the coupled pairs decorrelate from t = {horizon:.4g}, beyond which only "
+                 "independent ensembles at two steps could resolve it"
+                 + (f" ({need:.2g} paths each)" if need else ""))
+    return head + "."

@@ -199,6 +199,25 @@ def _fmt(value: float, se: float | None = None) -> str:
     return f"{value:.{decimals}f}({err_digits})"
 
 
+def shown_rows(ds: Any, max_rows: int = 12) -> list[int]:
+    """The output-time indices a table of at most ``max_rows`` rows shows (evenly spread, the
+    first and last always)."""
+    n = ds.sizes["time"]
+    shown = min(max_rows, n)
+    return sorted({round(k * (n - 1) / max(shown - 1, 1)) for k in range(shown)})
+
+
+def _bias_cell(value: float, bias_stderr: float, verdict: int | None) -> str:
+    """The bias column: the estimate where it says something (certified small, or significant,
+    marked '!'), 'unresolved' where it cannot tell (:func:`stochpend.bias.assess`)."""
+    from stochpend import bias as _bias
+
+    if verdict == _bias.INCONCLUSIVE:
+        return "unresolved"
+    cell = _fmt(value, bias_stderr)
+    return cell + " !" if verdict == _bias.SIGNIFICANT else cell
+
+
 def summary_table(ds: Any, max_rows: int = 12) -> Table:
     """A table of the main statistics of a result at up to ``max_rows`` times."""
     attrs = ds.attrs
@@ -221,9 +240,12 @@ def summary_table(ds: Any, max_rows: int = 12) -> Table:
         cols.insert(2, "bias <E>")
     for col in cols:
         table.add_column(col, justify="right", no_wrap=True)
-    n = ds.sizes["time"]
-    shown = min(max_rows, n)
-    idx = sorted({round(k * (n - 1) / max(shown - 1, 1)) for k in range(shown)})
+    idx = shown_rows(ds, max_rows)
+    verdicts = None
+    if has_bias:
+        from stochpend import bias as _bias
+
+        verdicts = _bias.assess_dataset(ds)
     for i in idx:
         row = ds.isel(time=i)
         t = float(row.time)
@@ -243,7 +265,8 @@ def summary_table(ds: Any, max_rows: int = 12) -> Table:
             str(int(row.nonfinite_paths)),
         ]
         if has_bias:
-            cells.insert(2, _fmt(float(row.mean_E_bias), float(row.mean_E_bias_stderr)))
+            cells.insert(2, _bias_cell(float(row.mean_E_bias), float(row.mean_E_bias_stderr),
+                                       int(verdicts.verdict["mean_E"][i]) if verdicts else None))
         table.add_row(*cells)
     caption = (
         f"Values as v(e): e is one standard error in the last digits (jackknife over {int(attrs.get('n_batches', 0))} batches). "
@@ -252,40 +275,46 @@ def summary_table(ds: Any, max_rows: int = 12) -> Table:
     )
     if has_bias:
         caption += (f" bias: estimated discretisation bias (value minus zero-step limit) from "
-                    f"{int(attrs.get('bias_paths', 0))} coupled pairs")
+                    f"{int(attrs.get('bias_paths', 0))} coupled pairs; '!' significant, "
+                    "'unresolved' where the estimate cannot tell")
         if attrs.get("accuracy") == "auto":
             caption += (f"; accuracy auto: h_max={float(attrs.get('h_max', 0)):g}, "
                         f"c={float(attrs.get('step_c', 0)):g} (level {int(attrs.get('accuracy_level', 0))})")
         caption += "."
+        from stochpend import bias as _bias
+
+        line = _bias.summary_line(ds)
+        if line:
+            caption += " " + line[0].upper() + line[1:]
     table.caption = caption
     return table
 
 
-def bias_warnings(ds: Any) -> list[str]:
-    """One line per statistic whose estimated bias is significant (beyond twice its own error)
-    and larger than its standard error at some output time: the worst such time."""
-    lines = []
-    labels = {"mean_E": "<E>", "mean_E2": "<E2>", "skewness": "S", "flatness": "F",
-              "mean_Omega2": "<Omega2>"}
-    for name, label in labels.items():
-        if f"{name}_bias" not in ds:
-            continue
-        b = ds[f"{name}_bias"].values
-        b_se = ds[f"{name}_bias_stderr"].values
-        se = ds[f"{name}_stderr"].values
-        with np.errstate(invalid="ignore", divide="ignore"):
-            excess = np.where((np.abs(b) > 2.0 * b_se) & (np.abs(b) > se), np.abs(b) / se, 0.0)
-        excess = np.nan_to_num(excess)
-        if np.any(excess > 0):
-            i = int(np.argmax(excess))
-            lines.append(
-                f"{label} at t={float(ds.time[i]):.4g} has a discretisation bias of "
-                f"{_fmt(float(b[i]), float(b_se[i]))}, {excess[i]:.1f} standard errors: rerun with "
-                "--accuracy auto (or a smaller --h-max/--step-c)")
+def bias_warnings(ds: Any, shown: list[int] | None = None) -> list[str]:
+    """The bias estimate's warnings (:func:`stochpend.bias.warnings_for`: significant biases
+    only, family-wise controlled), naming times among the rows ``shown``, and what ``auto``
+    could not do."""
+    from stochpend import bias as _bias
+
+    lines = _bias.warnings_for(ds, _fmt, shown)
     if ds.attrs.get("accuracy") == "auto" and not int(ds.attrs.get("accuracy_reached", 1)):
         lines.append(f"accuracy auto stopped at level {int(ds.attrs.get('accuracy_level', 0))} "
                      "(64x the steps): the bias may exceed the target; see the bias columns")
     return lines
+
+
+def bias_notes(ds: Any) -> list[str]:
+    """What ``accuracy="auto"`` did not certify: the times from the pilot's horizon on."""
+    from stochpend import bias as _bias
+
+    horizon = float(ds.attrs.get("accuracy_horizon", math.nan))
+    if ds.attrs.get("accuracy") != "auto" or not math.isfinite(horizon):
+        return []
+    verdicts = _bias.assess_dataset(ds)
+    need = _bias.independent_paths_to_certify(int(ds.attrs.get("paths", 0)), verdicts.width) if verdicts else 0
+    return [f"accuracy auto chose the step from the times before t = {horizon:.4g}: from there on "
+            "the coupled pairs have decorrelated and the bias is not certified; two independent "
+            f"ensembles of {need:.2g} paths each, at the step and at half of it, would be needed"]
 
 
 @app.command()
@@ -392,8 +421,10 @@ def simulate(
             io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
         console.print(summary_table(ds))
-        for line in bias_warnings(ds):
+        for line in bias_warnings(ds, shown_rows(ds)):
             console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
+        for line in bias_notes(ds):
+            note(line)
         if int(ds.nonfinite_paths[-1]) > 0:
             console.print(f"[yellow]{int(ds.nonfinite_paths[-1])} paths went non-finite (or ran away) and are excluded.[/]")
         from stochpend.exponents import diagnose_growth
@@ -420,8 +451,10 @@ def show(
     if "mean_E" not in ds:
         raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend simulation result (no mean_E)")
     console.print(summary_table(ds, max_rows=rows))
-    for line in bias_warnings(ds):
+    for line in bias_warnings(ds, shown_rows(ds, rows)):
         console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
+    for line in bias_notes(ds):
+        note(line)
 
 
 @app.command()

@@ -748,3 +748,216 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
         return steps_taken, unfinished
 
     return SimpleNamespace(spec=spec, advance_range=advance_range, lanes=lanes)
+
+
+#: Rows of the pair lane machine's float64 scratch: the lane machine's six, then the fine
+#: member's x and Omega.
+PAIR_LANE_F_ROWS = LANE_F_ROWS + 2
+
+
+@functools.lru_cache(maxsize=None)
+def build_pair_lanes(spec: Spec) -> SimpleNamespace:
+    """:func:`build`'s ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate)
+    for ``LANE_COUNT`` pairs side by side, as :func:`build_lanes` runs ``advance_path``.
+
+    Each lane carries one pair: the coarse member takes the step control's step h on its own
+    state, the fine member the same step as two halves, both driven by draws ``k`` and
+    ``k + 1`` of the pair's stream (the coarse kick uses the sum of the two half-step
+    integrals). The arithmetic is ``advance_pair``'s of the same fast-math Spec, operation for
+    operation, so a pair's numbers do not depend on its lane or its neighbours (tests), and the
+    coarse member has the law of the run's own paths (which run :func:`build_lanes` with the same
+    math). Needs :func:`lanes_supported`.
+
+    ``advance_range(lo, hi, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
+    max_steps, rk0, rk1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js) ->
+    (draws_taken, unfinished)``; ``fs`` of shape (``PAIR_LANE_F_ROWS``, ``LANE_COUNT``), ``us``
+    and ``js`` as for :func:`build_lanes`. ``k`` counts draws (two per coarse step).
+    """
+    if not lanes_supported(spec):
+        raise ValueError(f"spec {spec.label} is not accepted: the pair lane machine needs "
+                         "integrator.lanes_supported(spec)")
+    steps = build(spec)
+    real = steps.real
+    nz = spec.noise.kernel(real, FAST)
+    verlet = steps.verlet
+    step_size = steps.step_size
+    coefficients = nz.coefficients
+    draw_keyed = nz.draw_keyed
+    update = nz.update
+    load_aux = nz.load_aux
+    ADAPTIVE = spec.adaptive
+    lanes = LANE_COUNT
+    half = real(0.5)
+    escape = real(ESCAPE_STEP_FRACTION)
+    slack = 1.0 + LANDING_SLACK
+
+    @register_jitable
+    def load(lane, i, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, path0, fs, us, js):
+        fs[0, lane] = x[i]
+        fs[1, lane] = Omega[i]
+        fs[2, lane] = xi[i]
+        fs[3, lane] = load_aux(xi_aux[i])
+        fs[4, lane] = t[i]
+        fs[5, lane] = t_comp[i]
+        fs[6, lane] = xf[i]
+        fs[7, lane] = Omegaf[i]
+        p = _U64(path0 + i)
+        us[0, lane] = k[i]
+        us[1, lane] = p & rng._MASK32
+        us[2, lane] = p >> rng._SHIFT32
+        js[0, lane] = i
+        js[1, lane] = 0
+        js[2, lane] = 1
+        js[3, lane] = 0
+
+    @register_jitable
+    def advance_range(lo, hi, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
+                      max_steps, rk0, rk1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us,
+                      js):
+        D_r = real(D)
+        tau_r = real(tau)
+        W_r = real(W)
+        omega2_r = real(omega2)
+        h_max_r = real(h_max)
+        c_r = real(step_c)
+        bx = fs[0]
+        bO = fs[1]
+        bxi = fs[2]
+        bxa = fs[3]
+        bt = fs[4]
+        btc = fs[5]
+        bxf = fs[6]
+        bOf = fs[7]
+        bk = us[0]
+        bc2 = us[1]
+        bc3 = us[2]
+        bi = js[0]
+        bs = js[1]
+        ba = js[2]
+        bbad = js[3]
+        # Idle lanes compute on harmless numbers and are never written back.
+        for lane in range(lanes):
+            bx[lane] = 0.0
+            bO[lane] = 0.0
+            bxf[lane] = 0.0
+            bOf[lane] = 0.0
+            bxi[lane] = 0.0
+            bxa[lane] = 0.0
+            bt[lane] = t_target
+            btc[lane] = 0.0
+            bk[lane] = 0
+            bc2[lane] = 0
+            bc3[lane] = 0
+            bi[lane] = -1
+            bs[lane] = 0
+            ba[lane] = 0
+            bbad[lane] = 0
+        draws_taken = 0
+        unfinished = 0
+        nxt = lo
+        n_active = 0
+        if max_steps > 0:
+            for lane in range(lanes):
+                while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
+                    nxt += 1
+                if nxt < hi:
+                    load(lane, nxt, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, path0, fs,
+                         us, js)
+                    nxt += 1
+                    n_active += 1
+        while n_active > 0:
+            n_done = 0
+            for lane in range(lanes):
+                # As in build_lanes: every load first, every store last, unconditionally.
+                active = ba[lane]
+                bad_before = bbad[lane]
+                steps_before = bs[lane]
+                xs = bx[lane]
+                Om = bO[lane]
+                xs2 = bxf[lane]
+                Om2 = bOf[lane]
+                xn = bxi[lane]
+                xa = bxa[lane]
+                tt = bt[lane]
+                tc = btc[lane]
+                kk = bk[lane]
+                c2 = bc2[lane]
+                c3 = bc3[lane]
+                if ADAPTIVE:
+                    h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, n)
+                    esc = h < escape * h_max_r
+                else:
+                    h = h_max_r
+                    esc = False
+                h_clock = h_max if h == h_max_r else np.float64(h)
+                last = tt + h_clock * slack >= t_target
+                h_clock = t_target - tt if last else h_clock
+                h = real(h_clock)
+                hh = half * h
+                C = coefficients(hh, D_r, tau_r, W_r)
+                z = draw_keyed(rk0, rk1, c2, c3, kk)
+                I1, xn1, xa1 = update(xn, xa, C, z)
+                z = draw_keyed(rk0, rk1, c2, c3, kk + _U64(1))
+                I2, xn_new, xa_new = update(xn1, xa1, C, z)
+                xf1, Of1 = verlet(xs2, Om2, hh, omega2_r, I1, n)
+                xf_new, Of_new = verlet(xf1, Of1, hh, omega2_r, I2, n)
+                xs_new, Om_new = verlet(xs, Om, h, omega2_r, I1 + I2, n)
+                y = h_clock - tc
+                t_sum = tt + y
+                tc_new = (t_sum - tt) - y
+                t_new = t_target if last else t_sum
+                tc_new = 0.0 if last else tc_new
+                finite = (math.isfinite(xs_new) & math.isfinite(Om_new)
+                          & math.isfinite(xf_new) & math.isfinite(Of_new)
+                          & math.isfinite(xn_new) & math.isfinite(xa_new))
+                act = active != 0
+                go = act & (not esc)
+                steps_after = steps_before + (1 if go else 0)
+                bad = act & (esc | (go & (not finite)))
+                done = act & (esc | (go & (last | (not finite) | (steps_after >= max_steps))))
+                bx[lane] = xs_new if go else xs
+                bO[lane] = Om_new if go else Om
+                bxf[lane] = xf_new if go else xs2
+                bOf[lane] = Of_new if go else Om2
+                bxi[lane] = xn_new if go else xn
+                bxa[lane] = xa_new if go else xa
+                bt[lane] = t_new if go else tt
+                btc[lane] = tc_new if go else tc
+                bk[lane] = kk + _U64(2) if go else kk
+                bs[lane] = steps_after
+                bbad[lane] = 1 if bad else bad_before
+                ba[lane] = 0 if done else active
+                n_done += 1 if done else 0
+            if n_done == 0:
+                continue
+            # Write the finished pairs back and refill their lanes (scalar, rare).
+            for lane in range(lanes):
+                i = bi[lane]
+                if i < 0 or ba[lane] != 0:
+                    continue
+                x[i] = bx[lane]
+                Omega[i] = bO[lane]
+                xf[i] = bxf[lane]
+                Omegaf[i] = bOf[lane]
+                xi[i] = bxi[lane]
+                xi_aux[i] = bxa[lane]
+                t[i] = bt[lane]
+                t_comp[i] = btc[lane]
+                k[i] = bk[lane]
+                draws_taken += 2 * bs[lane]
+                if bbad[lane] != 0:
+                    status[i] = 1
+                elif bt[lane] < t_target:
+                    unfinished += 1
+                bi[lane] = -1
+                n_active -= 1
+                while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
+                    nxt += 1
+                if nxt < hi:
+                    load(lane, nxt, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, path0, fs,
+                         us, js)
+                    nxt += 1
+                    n_active += 1
+        return draws_taken, unfinished
+
+    return SimpleNamespace(spec=spec, advance_range=advance_range, lanes=lanes)

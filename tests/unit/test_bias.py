@@ -83,8 +83,9 @@ def test_pairs_without_noise_are_the_run_at_h_and_at_h_over_2(step_c):
     k = np.zeros(n, dtype=np.uint64)
     status = np.zeros(n, dtype=np.uint8)
     x, Om, xf, Of, xi, xa, t, tc = pair
-    init(x, Om, xf, Of, xi, xa, t, tc, k, status, key0, key1, np.uint64(0), theta0, False, 0.0,
+    init(x, Om, xi, xa, t, tc, k, status, key0, key1, np.uint64(0), theta0, False, 0.0,
          0.0, False, 0.0, 1.0, 0.0)
+    xf[:] = x
     Om[:] = Omega0
     Of[:] = Omega0
     advance(x, Om, xf, Of, xi, xa, t, tc, k, status, 3.0, 10**6, key0, key1, np.uint64(0), 0.0,
@@ -128,7 +129,8 @@ def test_simulate_reports_bias_variables_and_attrs():
     for name in bias.CONTROLLED:
         assert f"{name}_bias" in ds and f"{name}_bias_stderr" in ds
         assert ds[f"{name}_bias"].dims == ("time",)
-    assert ds.attrs["bias_paths"] == bias.default_bias_paths(2000) == 256
+    assert ds.attrs["bias_paths"] == bias.default_bias_paths(2000) == bias.MIN_PAIRS
+    assert bias.default_bias_paths(96_000) == 2000  # a 48th of a larger run
     assert ds.attrs["accuracy"] == "fixed"
     assert 0 < ds.attrs["bias_path_steps"] < ds.attrs["path_steps"]
     none = stochpend.simulate(noise="ou", paths=2000, t_max=10.0, n_times=3, seed=SEED, bias_paths=0)
@@ -175,17 +177,18 @@ def test_cli_refuses_bad_accuracy_options(args, needle, tmp_path, monkeypatch):
 
 
 def test_cli_warns_when_the_bias_exceeds_the_standard_error():
-    # the linear harmonic oscillator at a coarse fixed step: a bias of a few standard errors
-    # (test_estimate_has_the_exact_expectation_of_the_richardson_difference)
+    # the linear harmonic oscillator at a coarse fixed step: an exact bias of <E> of 0.008 at
+    # t = 2 (test_estimate_has_the_exact_expectation_of_the_richardson_difference), 4.5
+    # standard errors at 80 000 paths, and 10 000 pairs resolve it (error 0.001)
     result = CliRunner().invoke(app, ["simulate", "--potential", "harmonic", "--noise", "white",
                                       "--D", "0.5", "--theta0", "1", "--h-max", "0.2", "--step-c",
-                                      "0", "--paths", "20000", "--t-max", "4", "--times", "2,4",
-                                      "--seed", "2", "--bias-paths", "5000"])
+                                      "0", "--paths", "80000", "--t-max", "4", "--times", "2,4",
+                                      "--seed", "2", "--bias-paths", "10000"])
     assert result.exit_code == 0, result.output
     text = " ".join(result.output.split())
     assert "bias <E>" in text
-    assert "<E> at t=2 has a discretisation bias of" in text
-    assert "standard errors: rerun with --accuracy auto" in text
+    assert "<E> at t=2: discretisation bias" in text
+    assert "family-wise level over" in text and "rerun with --accuracy auto" in text
 
 
 def test_spec_pair_function_exists_for_every_noise():
@@ -206,3 +209,53 @@ def test_each_spec_has_its_own_cache_index():
             for kern in (cpu.advance_kernel(spec), bias._kernels(spec)[1]):
                 paths.add(kern._cache._cache_file._index_path)
     assert len(paths) == 8
+
+
+@pytest.mark.parametrize(("noise", "adaptive"), [("ou", True), ("white", True), ("ou", False)])
+def test_pairs_in_simd_lanes_are_the_one_pair_kernel_bit_for_bit(noise, adaptive):
+    """The pairs run in SIMD lanes with the run's fast math (integrator.build_pair_lanes): the
+    same numbers as advance_pair of that Spec one pair at a time, however the calls are cut
+    (max_steps) and whatever the thread count; a lane that swapped its draws, shared a
+    neighbour's counter or dropped a half step differs at once."""
+    import numba
+
+    from stochpend import rng
+    from stochpend._backends import cpu
+
+    spec = integrator.spec(noise, adaptive=adaptive, fast_math=True)
+    assert integrator.lanes_supported(spec)
+    n = 300
+    key0, key1 = rng.seed_to_key(SEED)
+    path0 = np.uint64(bias.BIAS_PATH0)
+    out = []
+    for advance, threads in ((cpu.pair_advance_kernel(spec), 2), (cpu.pair_advance_kernel(spec), 1),
+                             (cpu._pair_path_kernel(spec), 2)):
+        previous = numba.get_num_threads()
+        numba.set_num_threads(min(threads, previous))
+        try:
+            x, Om, xf, Of, xi, xa, t, tc = (np.empty(n) for _ in range(8))
+            k = np.empty(n, dtype=np.uint64)
+            status = np.empty(n, dtype=np.uint8)
+            cpu.init_kernel(spec)(x, Om, xi, xa, t, tc, k, status, key0, key1, path0, 0.0, True,
+                                  0.0, 0.0, True, 1.0, 1.0, 0.0)
+            xf[:] = x
+            Of[:] = Om
+            draws = 0
+            for t_target in (0.7, 3.0, 8.0):
+                while True:
+                    d, unfinished = advance(x, Om, xf, Of, xi, xa, t, tc, k, status, t_target, 37,
+                                            key0, key1, path0, 1.0, 1.0, 0.0, 1.0, 2, 0.05,
+                                            0.1 if adaptive else 0.0)
+                    draws += d
+                    if unfinished == 0:
+                        break
+        finally:
+            numba.set_num_threads(previous)
+        out.append((x, Om, xf, Of, xi, k, status, draws))
+    for other in out[1:]:
+        for a, b in zip(out[0], other):
+            assert np.array_equal(a, b)
+    x, Om, xf, Of = out[0][:4]
+    assert not np.array_equal(x, xf)  # the members differ: a coupled pair, not one path twice
+    assert np.median(np.abs(Om - Of)) < 0.1 * np.std(Om)  # ... and most stay close
+    assert out[0][-1] == 2 * int(np.sum(out[0][5])) // 2 and np.all(t == 8.0)

@@ -236,6 +236,83 @@ def _lanes_kernel(spec: Spec):
     return advance
 
 
+@functools.lru_cache(maxsize=None)
+def pair_advance_kernel(spec: Spec):
+    """``advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
+    key0, key1, path0, D, tau, W, omega2, n, h_max, step_c) -> (draws_taken, pairs_unfinished)``:
+    the coupled pairs of the bias estimate (:mod:`stochpend.bias`) towards ``t_target``.
+
+    In SIMD lanes (``integrator.build_pair_lanes``) when the Spec has them, with the run's fast
+    math, so the pairs cost what the run's own paths cost per step; else one pair at a time
+    (``Integrator.advance_pair``), as the run's paths go one at a time."""
+    if integrator.lanes_supported(spec):
+        kernel = _pair_lanes_kernel(spec)
+
+        def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
+                    key0, key1, path0, D, tau, W, omega2, n, h_max, step_c):
+            workers = numba.get_num_threads()
+            fs = np.empty((workers, integrator.PAIR_LANE_F_ROWS, integrator.LANE_COUNT))
+            us = np.empty((workers, integrator.LANE_U_ROWS, integrator.LANE_COUNT), dtype=np.uint64)
+            js = np.empty((workers, integrator.LANE_I_ROWS, integrator.LANE_COUNT), dtype=np.int64)
+            next_piece = np.zeros(1, dtype=np.int64)
+            return kernel(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
+                          max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, fs,
+                          us, js, next_piece)
+
+        advance.kernel = kernel
+        return advance
+    return _pair_path_kernel(spec)
+
+
+def _pair_path_kernel(spec: Spec):
+    advance_pair = integrator.build(spec).advance_pair
+
+    @numba.njit(parallel=True, cache=spec.cacheable)
+    @own_index(spec.label + "/pairs")
+    def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
+                key0, key1, path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover
+        draws = 0
+        unfinished = 0
+        for i in prange(x.shape[0]):
+            s, u = advance_pair(i, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status,
+                                t_target, max_steps, key0, key1, path0, D, tau, W, omega2, n,
+                                h_max, step_c)
+            draws += s
+            unfinished += u
+        return draws, unfinished
+
+    return advance
+
+
+def _pair_lanes_kernel(spec: Spec):
+    advance_range = integrator.build_pair_lanes(spec).advance_range
+
+    @numba.njit(parallel=True, cache=spec.cacheable, error_model="numpy")
+    @own_index(spec.label + "/pairs")
+    def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
+                key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js,
+                next_piece):  # pragma: no cover - compiled
+        n_paths = x.shape[0]
+        nw = _workers(n_paths, fs.shape[0])
+        n_pieces, size = _pieces(n_paths, nw)
+        rk0, rk1 = rng.round_keys(key0, key1)
+        draws = 0
+        unfinished = 0
+        for w in prange(nw):
+            piece = _take(next_piece)
+            while piece < n_pieces:
+                s, u = advance_range(piece * size, min((piece + 1) * size, n_paths), x, Omega,
+                                     xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
+                                     max_steps, rk0, rk1, path0, D, tau, W, omega2, n, h_max,
+                                     step_c, fs[w], us[w], js[w])
+                draws += s
+                unfinished += u
+                piece = _take(next_piece)
+        return draws, unfinished
+
+    return advance
+
+
 def _lockstep_kernel(spec: Spec):
     steps = integrator.build(spec)
     advance_path = steps.advance_path
