@@ -204,6 +204,72 @@ def _worker_jit(spec):
     }
 
 
+def _worker_bias_share(spec):
+    """The bias estimate's share of a run's wall time: simulate with the default subsample,
+    ``simulation_wall_time_s`` against ``bias_wall_time_s`` (kernels loaded first). ``engine``
+    "lanes" is the default (pairs in SIMD lanes, fast math); "one_pair_libm" runs the pairs one
+    at a time on the C library's math with the previous default subsample (paths/32, at least
+    256), by replacing ``bias.pair_spec`` and ``bias.default_bias_paths`` in this process."""
+    from stochpend import bias
+    from stochpend.simulate import simulate
+
+    if spec["engine"] == "one_pair_libm":
+        from stochpend.integrator import Spec
+
+        bias.pair_spec = lambda config, backend="cpu": Spec.of(config)
+        bias.default_bias_paths = lambda paths: int(max(2, min(paths, max(256, paths // 32))))
+    kw = dict(noise="ou", D=D, tau=TAU, omega=OMEGA, seed=SEED, n_times=40)
+    simulate(paths=256, t_max=1.0, **kw)  # loads or compiles the kernels, not timed
+    steal0 = _steal_s()
+    ds = simulate(paths=spec["paths"], t_max=spec["t_max"], **kw)
+    return {
+        "available": True, "sim_s": float(ds.attrs["simulation_wall_time_s"]),
+        "bias_s": float(ds.attrs["bias_wall_time_s"]), "pairs": int(ds.attrs["bias_paths"]),
+        "path_steps": int(ds.attrs["path_steps"]), "bias_path_steps": int(ds.attrs["bias_path_steps"]),
+        "wall_s": float(ds.attrs["wall_time_s"]), "steal_s": _steal_s() - steal0,
+        "peak_rss_mb": _rusage()[1],
+    }
+
+
+BIAS_WORKLOADS = ((10_000, 1000.0), (100_000, 100.0))
+BIAS_ENGINES = {"lanes": "pairs in SIMD lanes, fast math, paths/48 (default)",
+                "one_pair_libm": "pairs one at a time, C library math, paths/32 (before)"}
+
+
+def bias_share(R, rounds: int) -> dict:
+    """Interleaved rounds of every (workload, engine) of :func:`_worker_bias_share`."""
+    out = {}
+    for r in range(rounds):
+        for paths, t_max in BIAS_WORKLOADS:
+            for engine in BIAS_ENGINES:
+                out.setdefault((paths, t_max, engine), []).append(R.worker(
+                    {"kind": "bias_share", "engine": engine, "paths": paths, "t_max": t_max},
+                    label=f"bias share, {paths} paths to t = {t_max:g}, {engine} (round {r + 1})",
+                    group="bias"))
+    return out
+
+
+def bias_report(bias_res: dict, rounds: int) -> list[str]:
+    L = ["\n## The bias estimate's share of the run (issue 19)\n",
+         "OU D = τ = ω = 1, 40 output times, default step control, 2 threads; "
+         "`simulation_wall_time_s` and `bias_wall_time_s` of one `simulate` call (kernels loaded "
+         f"first), {rounds} interleaved rounds: median (range) of bias / simulation.\n",
+         "| workload | pairs engine | pairs | pair path-steps / run's | bias s | simulation s | "
+         "bias / simulation |", "|---|---|---|---|---|---|---|"]
+    for (paths, t_max, engine), recs in bias_res.items():
+        ok = [r for r in recs if r.get("available")]
+        if not ok:
+            L.append(f"| {paths} paths, t = {t_max:g} | {BIAS_ENGINES[engine]} | unavailable: "
+                     f"{recs[0].get('reason', '?')} | | | | |")
+            continue
+        shares = [r["bias_s"] / r["sim_s"] for r in ok]
+        L.append(f"| {paths} paths, t = {t_max:g} | {BIAS_ENGINES[engine]} | {ok[0]['pairs']} | "
+                 f"{ok[0]['bias_path_steps'] / ok[0]['path_steps']:.3f} | "
+                 f"{_median([r['bias_s'] for r in ok]):.3g} | {_median([r['sim_s'] for r in ok]):.3g} | "
+                 f"**{100 * _median(shares):.1f} %** ({100 * min(shares):.1f}–{100 * max(shares):.1f} %) |")
+    return L
+
+
 def _worker_micro(spec):
     from benchmarks import micro
 
@@ -211,7 +277,7 @@ def _worker_micro(spec):
 
 
 WORKERS = {"stochpend": _worker_stochpend, "numpy": _worker_numpy, "c": _worker_c,
-           "jit": _worker_jit, "micro": _worker_micro}
+           "jit": _worker_jit, "micro": _worker_micro, "bias_share": _worker_bias_share}
 
 
 def worker_main(spec_json: str) -> int:
@@ -475,6 +541,11 @@ def run_all(args) -> dict:
                                   label="kernels cached on disk, without the bias estimate (--bias-paths 0)",
                                   group="user", cache_dir=user_dir))
 
+    bias_res = {}
+    if not quick:
+        print("The bias estimate's share of the run:", flush=True)
+        bias_res = bias_share(R, rounds)
+
     print("Micro-benchmarks (1 thread, CPU time):", flush=True)
     micro = R.worker({"kind": "micro"}, label="micro-benchmarks", group="micro")
 
@@ -516,7 +587,7 @@ def run_all(args) -> dict:
     return {"info": info, "quick": quick, "paths": paths, "t_max": t_max, "rounds": rounds,
             "main": main, "diffrax": diffrax, "user": user, "threads": threads, "scaling": scaling,
             "path_list": path_list, "total_s": total, "load_start": load_start,
-            "load_end": os.getloadavg(), "records": R.records, "micro": micro}
+            "load_end": os.getloadavg(), "records": R.records, "micro": micro, "bias": bias_res}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -707,6 +778,9 @@ def report(res: dict) -> str:
         L.append(f"| {n:.0e} | {recs[0]['spec']['t_max']:g} | " + " | ".join(
             f"{_fmt_rate(_rate(r))} ({_fmt_rate(_rate(r, True))})" for r in recs) + " |")
 
+    if res.get("bias"):
+        L.extend(bias_report(res["bias"], res["rounds"]))
+
     micro = res.get("micro")
     if micro and micro.get("available"):
         from benchmarks.micro import table
@@ -720,6 +794,29 @@ def report(res: dict) -> str:
                         indent=1, default=str))
     L.append("```\n</details>\n")
     return "\n".join(L)
+
+
+def bias_only(args) -> int:
+    """``--bias-only``: the bias share table alone, in one sitting, with the machine."""
+    t0 = time.perf_counter()
+    cache_dir = tempfile.mkdtemp(prefix="stochpend_bench_numba_")
+    R = Runner(cache_dir)
+    info = machine_info()
+    load0 = os.getloadavg()
+    res = bias_share(R, args.rounds)
+    shutil.rmtree(cache_dir, ignore_errors=True)
+    L = ["# The bias estimate's share of the run\n",
+         f"Written by `python -m benchmarks --bias-only` on {info['date']} in "
+         f"{time.perf_counter() - t0:.0f} s. Do not edit by hand.\n",
+         f"Machine: {info.get('Model name', '?')}, {info.get('CPU(s)', '?')} CPUs, avx512f "
+         f"{info.get('avx512f')}; load average {load0[0]:.2f} at start, {os.getloadavg()[0]:.2f} "
+         "at end."]
+    L.extend(bias_report(res, args.rounds))
+    out = args.out if args.out is not None else HERE / "RESULTS_BIAS.md"
+    out.write_text("\n".join(L) + "\n")
+    print("\n".join(L))
+    print(f"wrote {out}")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -736,7 +833,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=None,
                    help="where to write the report (default: benchmarks/RESULTS.md for a full run, "
                         "nothing for --quick)")
+    p.add_argument("--bias-only", action="store_true",
+                   help="only the bias estimate's share of the run (writes benchmarks/RESULTS_BIAS.md)")
     args = p.parse_args(argv)
+    if args.bias_only:
+        return bias_only(args)
     res = run_all(args)
     text = report(res)
     out = args.out if args.out is not None else (None if args.quick else HERE / "RESULTS.md")

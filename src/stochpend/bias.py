@@ -32,8 +32,8 @@ from __future__ import annotations
 import functools
 import math
 import time as _time
-from dataclasses import dataclass, replace
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numba
@@ -82,8 +82,6 @@ DECORRELATED = 0.5
 #: ``accuracy="auto"`` refines at most this many times (2**6 = 64 times the steps).
 MAX_LEVEL = 6
 ACCURACIES = ("fixed", "auto")
-#: Default subsample of a GPU run: the pairs run on the CPU.
-CUDA_DEFAULT_PAIRS = 1 << 15
 
 
 #: The default subsample is a 48th of the run (at least MIN_PAIRS): a pair costs about three
@@ -101,13 +99,6 @@ def default_bias_paths(paths: int) -> int:
     """The subsample size when none is given: ``paths // PAIRS_FRACTION``, at least
     ``MIN_PAIRS`` (two a jackknife batch), at most the run itself."""
     return int(max(2, min(paths, max(MIN_PAIRS, paths // PAIRS_FRACTION))))
-
-
-def default_pairs(paths: int, backend: str) -> int:
-    """:func:`default_bias_paths`, capped at CUDA_DEFAULT_PAIRS for a GPU run (the pairs run on
-    the CPU)."""
-    n = default_bias_paths(paths)
-    return min(n, CUDA_DEFAULT_PAIRS) if backend == "cuda" else n
 
 
 def check_bias_paths(bias_paths: Any, paths: int) -> int:
@@ -138,12 +129,17 @@ def check_accuracy(accuracy: Any, rtol: Any) -> tuple[str, float | None]:
 
 
 # -- kernels ------------------------------------------------------------------------------------
-def pair_spec(config: SimulationConfig) -> Spec:
-    """The Spec the pairs run with: the run's own CPU kernel (:func:`stochpend._backends.cpu.
-    spec_for`), so the coarse member has the law of the run's paths and the pairs run in SIMD
-    lanes with the run's fast math wherever the run does. Always float64: in float32 the
-    difference of the members would chase the rounding floor (eps_32 ~ 1e-7 per step) rather
-    than the step's bias."""
+def pair_spec(config: SimulationConfig, backend: str = "cpu") -> Spec:
+    """The Spec the pairs run with: the run's own kernel on ``backend`` (``spec_for`` of
+    :mod:`stochpend._backends.cpu` or ``.cuda``), so the coarse member has the law of the run's
+    paths, and on the CPU the pairs run in SIMD lanes with the run's fast math wherever the run
+    does. Always float64, also for a float32 GPU run: in float32 the difference of the members
+    would chase the rounding floor (eps_32 ~ 1e-7 a step, amplified by the dynamics) rather than
+    the step's bias; the estimate is then that of the float64 scheme at the run's steps."""
+    if backend == "cuda":
+        from stochpend._backends import cuda
+
+        return cuda.spec_for(config, "float64")
     from stochpend._backends import cpu
 
     return cpu.spec_for(config, "float64")
@@ -191,16 +187,6 @@ def _accumulate_kernel(oscillator: Any, coupling: str, builtin: bool):
                     sums[b, m, stats.S_G2] += G2
 
     return accumulate
-
-
-def _kernels(spec: Spec):
-    """(init, advance, accumulate) of the pairs of ``spec``: the run's ``init`` (both members
-    start where the run's path of that index would), the pair driver of
-    :func:`stochpend._backends.cpu.pair_advance_kernel`, and the pairs' power sums."""
-    from stochpend._backends import cpu
-
-    return (cpu.init_kernel(spec), cpu.pair_advance_kernel(spec),
-            _accumulate_kernel(spec.oscillator, spec.coupling, spec.oscillator.builtin))
 
 
 # -- the estimate -------------------------------------------------------------------------------
@@ -254,19 +240,20 @@ class BiasEstimate:
 
 
 def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | None = None,
-             chunk_pairs: int = CHUNK_PAIRS) -> BiasEstimate:
-    """Estimate the bias of ``config``'s statistics from ``n_paths`` coupled pairs (CPU, float64).
+             chunk_pairs: int = CHUNK_PAIRS, backend: str = "cpu") -> BiasEstimate:
+    """Estimate the bias of ``config``'s statistics from ``n_paths`` coupled pairs, in float64,
+    on the run's ``backend``: the CPU's SIMD lanes (or one pair at a time where the run goes one
+    path at a time), or one GPU thread per pair (``"cuda"``), with the run's own Spec.
 
-    The numbers depend on (config, n_paths) only: not on ``chunk_pairs`` or the threads.
+    The numbers depend on (config, n_paths, backend) only: not on ``chunk_pairs`` or the threads.
     """
     if isinstance(n_paths, bool) or not isinstance(n_paths, int) or n_paths < 2:
         raise ValueError(f"bias_paths={n_paths!r} is not accepted: an integer >= 2 (or 0: no "
                          "bias estimate)")
     progress = progress or NoProgress()
     started = _time.perf_counter()
-    spec = pair_spec(config)
-    init, advance, accumulate = _kernels(spec)
-    key0, key1 = rng.seed_to_key(config.seed)
+    spec = pair_spec(config, backend)
+    accumulate = _accumulate_kernel(spec.oscillator, spec.coupling, spec.oscillator.builtin)
     times = np.asarray(config.times, dtype=np.float64)
     n_batches = min(BIAS_BATCHES, n_paths)
     batch_size = -(-n_paths // n_batches)
@@ -281,31 +268,17 @@ def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | Non
         b1 = min(b0 + chunk_batches, n_batches)
         p0 = b0 * batch_size
         n = min(b1 * batch_size, n_paths) - p0
-        arrays = [np.empty(n) for _ in range(7)]
-        x, Omega, xf, Omegaf, xi, xi_aux, t = arrays
-        t_comp = np.empty(n)
-        k = np.empty(n, dtype=np.uint64)
-        status = np.empty(n, dtype=np.uint8)
-        path0 = _U64(BIAS_PATH0 + p0)
-        init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0,
-             0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
-             0.0 if c.xi0 is None else c.xi0, c.xi0 is None, c.D, c.tau_or_zero,
-             c.omega_noise_or_zero)
-        xf[:] = x
-        Omegaf[:] = Omega
+        pairs = (_GpuPairs if backend == "cuda" else _CpuPairs)(config, spec, p0, n)
         max_steps = max(1000, _WORK_PER_CALL // max(n, 1))
         for j, t_target in enumerate(times):
-            while True:
-                _, unfinished = advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status,
-                                        float(t_target), max_steps, key0, key1, path0, c.D,
-                                        c.tau_or_zero, c.omega_noise_or_zero, c.omega**2,
-                                        c.power_n, c.h_max, c.step_c)
-                progress.update(done_work + float(np.sum(t)))
-                if unfinished == 0:
-                    break
+            while not pairs.advance(float(t_target), max_steps):
+                progress.update(done_work + pairs.time_sum())
+            x, Omega, xf, Omegaf, status = pairs.members()
             accumulate(x, Omega, xf, Omegaf, status, c.omega**2, c.power_n, batch_size,
                        sums[b0:b1, j])
-        draws += int(np.sum(k, dtype=np.uint64))
+            pairs.set_status(status)  # pairs whose moments overflowed stay excluded
+            progress.update(done_work + n * float(t_target))
+        draws += pairs.draws()
         done_work += n * c.t_max
     progress.finish()
     # A coarse step is one draw, each fine half step one: draws count the fine steps, and
@@ -316,6 +289,74 @@ def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | Non
     return BiasEstimate(times, bias, coarse, n_paths, path_steps,
                         _time.perf_counter() - started, nonfinite, c.h_max, c.step_c, n_batches,
                         _decorrelation(bias, coarse, times.size))
+
+
+class _CpuPairs:
+    """A chunk of pairs in host arrays, advanced by the CPU's pair driver."""
+
+    def __init__(self, config: SimulationConfig, spec: Spec, p0: int, n: int) -> None:
+        from stochpend._backends import cpu
+
+        c = self.config = config
+        self.advance_k = cpu.pair_advance_kernel(spec)
+        self.key0, self.key1 = rng.seed_to_key(config.seed)
+        self.x, self.Omega, self.xf, self.Omegaf, self.xi, self.xi_aux, self.t, self.t_comp = (
+            np.empty(n) for _ in range(8))
+        self.k = np.empty(n, dtype=np.uint64)
+        self.status = np.empty(n, dtype=np.uint8)
+        self.path0 = _U64(BIAS_PATH0 + p0)
+        cpu.init_kernel(spec)(self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k,
+                              self.status, self.key0, self.key1, self.path0,
+                              0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
+                              0.0 if c.xi0 is None else c.xi0, c.xi0 is None, c.D, c.tau_or_zero,
+                              c.omega_noise_or_zero)
+        self.xf[:] = self.x
+        self.Omegaf[:] = self.Omega
+
+    def advance(self, t_target: float, max_steps: int) -> bool:
+        c = self.config
+        _, unfinished = self.advance_k(self.x, self.Omega, self.xf, self.Omegaf, self.xi,
+                                       self.xi_aux, self.t, self.t_comp, self.k, self.status,
+                                       t_target, max_steps, self.key0, self.key1, self.path0, c.D,
+                                       c.tau_or_zero, c.omega_noise_or_zero, c.omega**2,
+                                       c.power_n, c.h_max, c.step_c)
+        return unfinished == 0
+
+    def time_sum(self) -> float:
+        return float(np.sum(self.t))
+
+    def members(self) -> tuple[np.ndarray, ...]:
+        return self.x, self.Omega, self.xf, self.Omegaf, self.status
+
+    def set_status(self, status: np.ndarray) -> None:
+        pass  # the accumulate kernel wrote the host array itself
+
+    def draws(self) -> int:
+        return int(np.sum(self.k, dtype=np.uint64))
+
+
+class _GpuPairs:
+    """A chunk of pairs on the GPU (:class:`stochpend._backends.cuda.PairEngine`)."""
+
+    def __init__(self, config: SimulationConfig, spec: Spec, p0: int, n: int) -> None:
+        from stochpend._backends import cuda
+
+        self.engine = cuda.PairEngine(config, spec, _U64(BIAS_PATH0 + p0), n)
+
+    def advance(self, t_target: float, max_steps: int) -> bool:
+        return self.engine.advance(t_target, max_steps)
+
+    def time_sum(self) -> float:
+        return 0.0
+
+    def members(self) -> tuple[np.ndarray, ...]:
+        return self.engine.members()
+
+    def set_status(self, status: np.ndarray) -> None:
+        self.engine.set_status(status)
+
+    def draws(self) -> int:
+        return self.engine.draws()
 
 
 def _decorrelation(bias: dict[str, tuple[np.ndarray, np.ndarray]],
@@ -499,7 +540,7 @@ class LevelChoice:
 
 
 def choose_level(config: SimulationConfig, pilot_paths: int, *, rtol: float | None = None,
-                 progress: Progress | None = None) -> LevelChoice:
+                 progress: Progress | None = None, backend: str = "cpu") -> LevelChoice:
     """``accuracy="auto"``: the smallest refinement level L for which every controlled
     statistic's bias, bounded at one sigma by (|b| + se_b) 4**-L from a pilot of coupled pairs
     at the given step, is at most half the run's standard error (predicted from the pilot:
@@ -514,14 +555,14 @@ def choose_level(config: SimulationConfig, pilot_paths: int, *, rtol: float | No
     and reported as not certified (:func:`independent_paths_to_certify` says what certifying
     them would take). Before it, a poorly resolved pilot makes L larger, never smaller.
     """
-    pilot = estimate(config, pilot_paths, progress=progress)
+    pilot = estimate(config, pilot_paths, progress=progress, backend=backend)
     level, worst, level_se = _needed_level(pilot, config.paths, rtol)
     # A pilot too small to resolve the bias (twice its error alone asks for the level): four
     # times more pairs halve that error; worth it while they cost less than the level they
     # may save (a pair costs about 3 paths at the coarse step, a level doubles the run).
     while (level_se >= level and level >= 2 and 4 * pilot.paths <= config.paths
            and 3 * 4 * pilot.paths < config.paths * 2 ** (level - 1)):
-        pilot = estimate(config, 4 * pilot.paths, progress=progress)
+        pilot = estimate(config, 4 * pilot.paths, progress=progress, backend=backend)
         level, worst, level_se = _needed_level(pilot, config.paths, rtol)
     reached = level <= MAX_LEVEL
     level = min(level, MAX_LEVEL)

@@ -526,8 +526,8 @@ def run_checkpointed(
                                                checkpointer=checkpointer, resume=st)
         # The bias estimate (stochpend.bias) is not checkpointed: a few per cent of the run,
         # redone in full if the process stops during it (the checkpoint is still there).
-        estimate = bias.estimate(config, bias.default_pairs(config.paths, backend),
-                                 progress=progress)
+        estimate = bias.estimate(config, bias.default_bias_paths(config.paths),
+                                 progress=progress, backend=backend)
     finally:
         numba.set_num_threads(previous_threads)
     attrs = provenance(config, backend=backend, precision=precision,

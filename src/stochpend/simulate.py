@@ -250,11 +250,11 @@ def run(
     """Run a validated configuration and build the Dataset (see :func:`simulate`).
 
     ``bias_paths``: pairs for the bias estimate (0: none; validated by the caller; None: the
-    default, :func:`stochpend.bias.default_pairs`).
+    default, :func:`stochpend.bias.default_bias_paths`).
     """
     progress = progress or NoProgress()
     if bias_paths is None:
-        bias_paths = bias.default_pairs(config.paths, backend)
+        bias_paths = bias.default_bias_paths(config.paths)
     previous_threads = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(threads)
@@ -263,7 +263,7 @@ def run(
         choice = None
         if accuracy == "auto":
             choice = bias.choose_level(config, bias_paths or bias.default_bias_paths(config.paths),
-                                       rtol=rtol, progress=progress)
+                                       rtol=rtol, progress=progress, backend=backend)
             config = choice.config
             # the refined run must pass the same memory and work checks as the one asked for
             resources.check(config, backend=backend, precision=precision, chunk_paths=chunk_paths,
@@ -276,7 +276,7 @@ def run(
         if choice is not None:
             est = choice.extrapolated()
         elif bias_paths:
-            est = bias.estimate(config, bias_paths, progress=progress)
+            est = bias.estimate(config, bias_paths, progress=progress, backend=backend)
     finally:
         numba.set_num_threads(previous_threads)
     wall = _time.perf_counter() - started

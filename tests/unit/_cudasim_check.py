@@ -74,6 +74,9 @@ def main(spec_path: str, out_path: str) -> None:
         if case.get("kind") == "precision_pair":
             out.update(precision_pair_case(case))
             continue
+        if case.get("kind") == "bias":
+            out.update(bias_case(case))
+            continue
         started = time.perf_counter()
         config = SimulationConfig.build(**case["config"])
         default_launch = (backend._WORK_PER_LAUNCH, backend._MIN_STEPS_PER_LAUNCH)
@@ -170,6 +173,25 @@ def sweep_case(case: dict) -> dict[str, np.ndarray]:
         for var in ("mean_E", "E_hist", "batch_sum_E"):
             out[f"{name}/set{i}_{var}"] = ds[var].values[i]
             out[f"{name}/alone{i}_{var}"] = alone[var].values
+    return out
+
+
+def bias_case(case: dict) -> dict[str, np.ndarray]:
+    """The bias estimate with its pairs on the GPU (``bias.estimate(..., backend="cuda")``), in
+    chunks of ``chunk_pairs``: each statistic's bias and coarse value with their errors, the
+    pairs' path-steps and decorrelation, saved as "<name>/<what>_<statistic>"."""
+    from stochpend import bias
+    from stochpend.params import SimulationConfig
+
+    name = case["name"]
+    est = bias.estimate(SimulationConfig.build(**case["config"]), case["pairs"],
+                        chunk_pairs=case["chunk_pairs"], backend="cuda")
+    out = {f"{name}/path_steps": np.array(est.path_steps),
+           f"{name}/decorrelation": est.decorrelation}
+    for stat, (value, se) in est.bias.items():
+        out[f"{name}/bias_{stat}"] = value
+        out[f"{name}/bias_se_{stat}"] = se
+        out[f"{name}/coarse_{stat}"] = est.coarse[stat][0]
     return out
 
 

@@ -78,7 +78,9 @@ def test_pairs_without_noise_are_the_run_at_h_and_at_h_over_2(step_c):
     n, seed, theta0, Omega0 = 8, SEED, 2.5, np.linspace(-1.0, 3.0, 8)
     key0, key1 = rng.seed_to_key(seed)
     spec = integrator.spec("ou", adaptive=step_c > 0)
-    init, advance, _ = bias._kernels(spec)
+    from stochpend._backends import cpu
+
+    init, advance = cpu.init_kernel(spec), cpu.pair_advance_kernel(spec)
     pair = [np.zeros(n) for _ in range(8)]
     k = np.zeros(n, dtype=np.uint64)
     status = np.zeros(n, dtype=np.uint8)
@@ -206,7 +208,7 @@ def test_each_spec_has_its_own_cache_index():
     for noise in ("ou", "dichotomous"):
         for adaptive in (True, False):
             spec = integrator.spec(noise, adaptive=adaptive)
-            for kern in (cpu.advance_kernel(spec), bias._kernels(spec)[1]):
+            for kern in (cpu.advance_kernel(spec), cpu.pair_advance_kernel(spec)):
                 paths.add(kern._cache._cache_file._index_path)
     assert len(paths) == 8
 

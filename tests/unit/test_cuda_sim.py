@@ -140,6 +140,9 @@ EXTRAS += [
          config=dict(noise="ou", D=2.0, tau=1.0, omega=1.0, h_max=0.05, step_c=0.0, theta0=1.0,
                      Omega0=0.0, t_max=2.0, times=[0.5, 1.0, 2.0], paths=PAIR_PATHS,
                      n_batches=10, hist_bins=4)),
+    # The bias estimate's pairs on the GPU, in two chunks of 16 (test_gpu_bias_pairs_equal_cpu).
+    dict(name="bias_pairs", kind="bias", pairs=32, chunk_pairs=16,
+         config=dict(noise="ou", D=1.0, tau=1.0, omega=1.0, h_max=0.1, step_c=0.25, **_COMMON)),
 ]
 CASE_NAMES = [case["name"] for case in CASES]
 F64_CASES = CASE_NAMES  # every case checks float64 against the CPU
@@ -462,6 +465,28 @@ def test_gpu_sweep_equals_each_set_alone(simulated):
         for var in ("mean_E", "E_hist", "batch_sum_E"):
             np.testing.assert_array_equal(simulated[f"sweep/set{i}_{var}"],
                                           simulated[f"sweep/alone{i}_{var}"], err_msg=var)
+
+
+def test_gpu_bias_pairs_equal_cpu(simulated, monkeypatch):
+    """A GPU run's bias pairs run on the GPU (one thread a pair, the run's Spec: the C library's
+    math): every statistic's bias and coarse value equal the CPU's one-pair kernel of that Spec
+    to the last bits, and the pairs' path-steps exactly."""
+    from stochpend import bias
+    from stochpend.integrator import Spec
+
+    case = next(c for c in EXTRAS if c["name"] == "bias_pairs")
+    monkeypatch.setattr(bias, "pair_spec", lambda config, backend="cpu": Spec.of(config))
+    est = bias.estimate(SimulationConfig.build(**case["config"]), case["pairs"])
+    assert int(simulated["bias_pairs/path_steps"]) == est.path_steps
+    checked = 0
+    for stat, (value, se) in est.bias.items():
+        np.testing.assert_allclose(simulated[f"bias_pairs/bias_{stat}"], value, rtol=1e-9,
+                                   atol=1e-12 * np.max(np.abs(est.coarse[stat][0])), err_msg=stat)
+        np.testing.assert_allclose(simulated[f"bias_pairs/coarse_{stat}"], est.coarse[stat][0],
+                                   rtol=1e-12, err_msg=stat)
+        checked += int(np.sum(value != 0))
+    assert checked > 0
+    np.testing.assert_allclose(simulated["bias_pairs/decorrelation"], est.decorrelation, rtol=1e-6)
 
 
 def test_simulator_reports_itself(simulated):

@@ -269,6 +269,82 @@ def advance_kernel(spec: Spec):
 
 
 @functools.lru_cache(maxsize=None)
+def pair_advance_kernel(spec: Spec):
+    """``advance[blocks, threads](x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status,
+    t_target, max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, unfinished)``:
+    the integrator's ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate) for
+    one pair per thread, as :func:`advance_kernel` runs ``advance_path``."""
+    advance_pair = integrator.build(spec).advance_pair
+
+    @cuda.jit(cache=spec.cacheable)
+    @own_index(spec.label + "/pairs")
+    def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
+                key0, key1, path0, D, tau, W, omega2, n, h_max, step_c,
+                unfinished):  # pragma: no cover
+        i = cuda.grid(1)
+        if i >= x.shape[0]:
+            return
+        _, u = advance_pair(i, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
+                            max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max, step_c)
+        if u != 0:
+            unfinished[0] = 1
+
+    return advance
+
+
+class PairEngine:
+    """Device arrays of a chunk of coupled pairs (:mod:`stochpend.bias` on a GPU run): the
+    pairs start like the run's paths (the Spec's ``init`` kernel, then fine = coarse) and are
+    advanced by :func:`pair_advance_kernel`; per output time the host copies back the members'
+    state, which the CPU's pair sums then add up (so, given the states, the same sums)."""
+
+    def __init__(self, config: SimulationConfig, spec: Spec, p0: int, n: int) -> None:
+        _require(spec.precision)
+        self.config = config
+        self.init = init_kernel(spec)
+        self.advance_k = pair_advance_kernel(spec)
+        self.key0, self.key1 = rng.seed_to_key(config.seed)
+        self.p0, self.n = p0, n
+        c = config
+        with _quiet():
+            self.d = [cuda.device_array(n, dtype=np.float64) for _ in range(8)]
+            self.d_k = cuda.device_array(n, dtype=np.uint64)
+            self.d_status = cuda.device_array(n, dtype=np.uint8)
+            self.flag = cuda.device_array(1, dtype=np.int32)
+            x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp = self.d
+            self.init[_blocks(n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
+                x, Omega, xi, xi_aux, t, t_comp, self.d_k, self.d_status, self.key0, self.key1, p0,
+                0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
+                0.0 if c.xi0 is None else c.xi0, c.xi0 is None, c.D, c.tau_or_zero,
+                c.omega_noise_or_zero)
+            xf.copy_to_device(x)
+            Omegaf.copy_to_device(Omega)
+        self._zero_flag = np.zeros(1, dtype=np.int32)
+
+    def advance(self, t_target: float, max_steps: int) -> bool:
+        """One launch towards t_target; True when every live pair has landed on it."""
+        c = self.config
+        with _quiet():
+            self.flag.copy_to_device(self._zero_flag)
+            self.advance_k[_blocks(self.n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
+                *self.d, self.d_k, self.d_status, t_target, max_steps, self.key0, self.key1,
+                self.p0, c.D, c.tau_or_zero, c.omega_noise_or_zero, c.omega**2, c.power_n,
+                c.h_max, c.step_c, self.flag)
+            return int(self.flag.copy_to_host()[0]) == 0
+
+    def members(self) -> tuple[np.ndarray, ...]:
+        """Host copies of (x, Omega, xf, Omegaf, status)."""
+        x, Omega, xf, Omegaf = (a.copy_to_host() for a in self.d[:4])
+        return x, Omega, xf, Omegaf, self.d_status.copy_to_host()
+
+    def set_status(self, status: np.ndarray) -> None:
+        self.d_status.copy_to_device(status)
+
+    def draws(self) -> int:
+        return int(np.sum(self.d_k.copy_to_host(), dtype=np.uint64))
+
+
+@functools.lru_cache(maxsize=None)
 def accumulate_kernel(spec: Spec):
     """``accumulate[n_batches, STATS_THREADS](x, Omega, status, omega2, n, batch_size, edges, j,
     sums, hist)``: the CPU's per-batch sums at output time j, block b summing batch b of the
