@@ -261,3 +261,44 @@ def test_pairs_in_simd_lanes_are_the_one_pair_kernel_bit_for_bit(noise, adaptive
     assert not np.array_equal(x, xf)  # the members differ: a coupled pair, not one path twice
     assert np.median(np.abs(Om - Of)) < 0.1 * np.std(Om)  # ... and most stay close
     assert out[0][-1] == 2 * int(np.sum(out[0][5])) // 2 and np.all(t == 8.0)
+
+
+def test_auto_does_not_buy_levels_for_times_beyond_the_horizon():
+    """OU tau = omega = 1 at the default controls: accurate early, and from t ~ 60 on the pairs
+    have decorrelated. auto chooses level 0 from the early times and reports the horizon; the
+    same pilot asked about every time would have bought 4 levels (256 times the work) of noise."""
+    import dataclasses
+
+    kw = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=4000, t_max=200.0,
+              times=(2.0, 5.0, 100.0, 200.0), seed=3)
+    choice = bias.choose_level(SimulationConfig.build(**kw), bias.default_bias_paths(4000))
+    assert choice.level == 0 and choice.horizon == 100.0
+    blind = dataclasses.replace(choice.pilot, decorrelation=None)
+    assert bias._needed_level(blind, 4000, None)[0] >= 2
+    result = CliRunner().invoke(app, ["simulate", "--accuracy", "auto", "--paths", "4000",
+                                      "--t-max", "200", "--times", "2,5,100,200", "--seed", "3"])
+    assert result.exit_code == 0, result.output
+    text = " ".join(result.output.split())
+    assert "accuracy auto chose the step from the times before t = 100" in text
+    assert "not certified" in text and "independent ensembles of" in text
+
+
+def test_verdicts_follow_the_interval_rule():
+    """assess on hand-made numbers: the three verdicts, the family size and width, how far the
+    entries are resolved and the horizon."""
+    times = np.array([1.0, 2.0, 3.0, 4.0])
+    b = np.array([0.001, 5.0, 0.3, 0.0])
+    b_se = np.array([0.001, 0.1, 0.3, np.nan])
+    se = np.ones(4)
+    a = bias.assess(times, {"mean_E": (b, b_se)}, {"mean_E": se}, 32,
+                    decorrelation=np.array([0.01, 0.2, 0.6, 0.9]))
+    assert a.n_tests == 3
+    assert a.width == pytest.approx(bias.interval_width(3, 32))
+    assert 2.4 < a.width < 3.2  # Bonferroni at 5 % over 3 tests, t with 31 degrees of freedom
+    assert list(a.verdict["mean_E"]) == [bias.CERTIFIED_SMALL, bias.SIGNIFICANT,
+                                         bias.INCONCLUSIVE, bias.INCONCLUSIVE]
+    assert a.certified_until == 2.0 and a.horizon == 3.0
+    # more tests, wider intervals: 5.0 +- w 0.1 stays significant, 1.3 +- w 0.1 does not at w > 3
+    many = bias.assess(np.arange(400.0), {"mean_E": (np.full(400, 1.3), np.full(400, 0.1))},
+                       {"mean_E": np.ones(400)}, 32)
+    assert many.width > 4.0 and not np.any(many.verdict["mean_E"] == bias.SIGNIFICANT)
