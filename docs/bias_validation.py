@@ -108,7 +108,9 @@ def main() -> None:
             lines.append(
                 f"| {label} | {when} | {name} | {d:.5g} ± {se:.2g} | {est:.3g} ± {e_se:.2g} | "
                 f"{meas:.3g} ± {m_se:.2g} | {z:+.2f} | {abs(est) / se:.2f} | {verdict} |")
-        notes.append(f"{label}: resolved up to t = {until:.3g}; the pairs decorrelate from "
+        notes.append(f"{label}: " + (f"resolved up to t = {until:.3g}" if math.isfinite(until)
+                                     else "not resolved at the first time")
+                     + "; the pairs decorrelate from "
                      + (f"t = {horizon:.3g}" if math.isfinite(horizon) else "no output time")
                      + f"; {wall:.0f} s for both runs and the estimate ({pairs} pairs, "
                      f"{100 * cost:.1f} % of the default run's path-steps)")
