@@ -633,10 +633,18 @@ def _advance_signature(precision: str):
             nbtypes.Array(nbtypes.int32, 1, "C"))
 
 
+def _pair_advance_signature():
+    sig = _advance_signature("float64")
+    f64 = nbtypes.Array(nbtypes.float64, 1, "C")
+    # x, Omega, then the fine member's xf, Omegaf; path0 is a uint64 (2**63 + pair index)
+    return (sig[0], sig[1], f64, f64, *sig[2:12], nbtypes.uint64, *sig[13:])
+
+
 def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str, object, tuple]]:
     """Every built-in advance kernel: ``(label, python function, signature)`` for offline
     compilation (``benchmarks/cuda_registers.py``): each oscillator and coupling it takes, each
-    noise, adaptive and fixed steps, each precision."""
+    noise, adaptive and fixed steps, each precision; and the bias estimate's pair kernels
+    (float64 only: the pairs always run in float64)."""
     from stochpend import noises, oscillators
 
     out = []
@@ -651,4 +659,7 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
                         kernel = advance_kernel(spec)
                         out.append((f"advance {spec.label}", kernel.py_func,
                                     _advance_signature(precision)))
+                        if precision == "float64":
+                            out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
+                                        _pair_advance_signature()))
     return out
