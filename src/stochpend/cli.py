@@ -24,6 +24,7 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 from stochpend._cli_types import integer, usage_message
+from stochpend._notation import ve
 
 console = Console(stderr=True, width=None if sys.stderr.isatty() else 140)
 
@@ -184,19 +185,9 @@ def _minutes(seconds: float) -> str:
 
 
 def _fmt(value: float, se: float | None = None) -> str:
-    """Value with its standard error in the concise notation, e.g. 0.3482(22)."""
-    if value is None or not math.isfinite(value):
-        return "nan"
-    if se is None or not math.isfinite(se) or se <= 0:
-        return f"{value:.5g}"
-    exponent = math.floor(math.log10(se)) - 1  # two significant digits of the error
-    if abs(value) >= 1e6 or (abs(value) < 1e-3 and value != 0):
-        return f"{value:.4e} ± {se:.2g}"
-    decimals = max(0, -exponent)
-    err_digits = round(se / 10.0**exponent)
-    if decimals == 0:
-        return f"{round(value, -exponent if exponent > 0 else 0):.0f}({round(se):.0f})"
-    return f"{value:.{decimals}f}({err_digits})"
+    """Value with its standard error in the one notation of every table (:func:`stochpend.
+    _notation.ve`), e.g. 0.3482(22)."""
+    return ve(value, se)
 
 
 def shown_rows(ds: Any, max_rows: int = 12) -> list[int]:

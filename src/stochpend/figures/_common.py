@@ -31,6 +31,8 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from stochpend._notation import ve
+
 #: Names of the components of the per-batch sums stored with each run (``batch_sums``), in the
 #: order of the CPU backend's accumulator (stochpend._backends.cpu: S_COUNT ... S_NONFINITE).
 SUM_COMPONENTS = ("count", "E", "E2", "E3", "E4", "Omega2", "Omega4", "sin2theta", "nonfinite")
@@ -440,19 +442,9 @@ def fmt_dev(d: float) -> str:
 
 
 def fmt_se(value: float, se: float) -> str:
-    """Value with its standard error in the concise notation, e.g. 0.3482(22)."""
-    if value is None or not math.isfinite(value):
-        return "n/a"
-    if se is None or not math.isfinite(se) or se <= 0:
-        return f"{value:.5g}"
-    exponent = math.floor(math.log10(se)) - 1  # two significant digits of the error
-    if abs(value) >= 1e6 or (abs(value) < 1e-3 and value != 0):
-        return f"{value:.4e} ± {se:.2g}"
-    if exponent >= 0:
-        return f"{value:.0f} ± {se:.2g}"
-    decimals = -exponent
-    err_digits = round(se / 10.0**exponent)
-    return f"{value:.{decimals}f}({err_digits})"
+    """Value with its standard error in the one notation of every table (:func:`stochpend.
+    _notation.ve`), e.g. 0.3482(22)."""
+    return ve(value, se)
 
 
 def at_last(ds: xr.Dataset, var: str, kind: str) -> tuple[float, float, float]:
