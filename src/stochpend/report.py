@@ -10,11 +10,13 @@ from __future__ import annotations
 import base64
 import html
 import math
+import re
 import time
 from pathlib import Path
 from typing import Any
 
 from stochpend.figures._common import COLUMNS, DASH, describe_attrs, fmt_num
+from stochpend.paper import with_numbers
 
 __all__ = ["build_report", "write_report"]
 
@@ -38,6 +40,20 @@ def _e(x: Any) -> str:
     return html.escape(str(x), quote=True)
 
 
+_SUP = re.compile(r"\^\{([^{}]*)\}|\^\(([^()]*)\)|\^(-?[0-9]+(?:\.[0-9]+)?)")
+_SUB = re.compile(r"_\{([^{}]*)\}")
+
+
+def _text(x: Any) -> str:
+    """Prose for the page: escaped, the paper's labels as its printed equation numbers
+    (:func:`stochpend.paper.with_numbers`), and the plain-text mathematics of the captions
+    rendered: ``(Dt/τ²)^{1/2}`` as a superscript, ``t_{c}`` as a subscript; no script, no
+    network at view time."""
+    out = _e(with_numbers(str(x)))
+    out = _SUP.sub(lambda m: f"<sup>{next(g for g in m.groups() if g is not None)}</sup>", out)
+    return _SUB.sub(r"<sub>\1</sub>", out)
+
+
 def _dev_class(text: str) -> str:
     try:
         d = abs(float(text))
@@ -49,13 +65,13 @@ def _dev_class(text: str) -> str:
 
 
 def _table(header: list[str], rows: list[list[str]], classes: list[list[str]] | None = None) -> str:
-    out = ["<table>", "<thead><tr>" + "".join(f"<th>{_e(h)}</th>" for h in header) + "</tr></thead>", "<tbody>"]
+    out = ["<table>", "<thead><tr>" + "".join(f"<th>{_text(h)}</th>" for h in header) + "</tr></thead>", "<tbody>"]
     for i, row in enumerate(rows):
         cells = []
         for j, c in enumerate(row):
             text = c if str(c).strip() else DASH
             cls = classes[i][j] if classes else ""
-            cells.append(f'<td class="{cls}">{_e(text)}</td>' if cls else f"<td>{_e(text)}</td>")
+            cells.append(f'<td class="{cls}">{_text(text)}</td>' if cls else f"<td>{_text(text)}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
     out.append("</tbody></table>")
     return "\n".join(out)
@@ -115,6 +131,21 @@ def _steps_total(result: Any) -> float:
     return float(sum(r.path_steps for r in result.runs.values() if math.isfinite(r.path_steps)))
 
 
+#: The report's closing notes (prose: labels become equation numbers, ^{...} superscripts).
+_NOTES = (
+    "Initial conditions (the paper states none): θ(0) uniform on [−π, π), Ω(0) = 0, and for OU "
+    "noise ξ(0) drawn from its stationary law N(0, D/(2τ)). (θ, Ω) = (0, 0) is a fixed point "
+    "that the multiplicative noise cannot leave.",
+    "The printed closed form of the OU skewness (eq:skewEcolor) has a typo; the value used "
+    "here, 2.028 = Γ(7/4) Γ(1/4)^{1/2}/Γ(5/4)^{3/2} = 6√2π/Γ(1/4)², is the paper's quoted one.",
+    "First-order averaging (diff1, quad1, PDFav1) is shown for contrast: the paper explains "
+    "why its prefactors are wrong; the tables show which set the data select.",
+    "Standard errors: delete-one-batch jackknife over the run's batches. Equation numbers are "
+    "those of the printed paper (the code and the docs cite the LaTeX source's labels: "
+    "stochpend.paper.EQUATIONS maps one to the other).",
+)
+
+
 def build_report(result: Any) -> str:
     """The report as one HTML string (see :func:`write_report`)."""
     settings = result.settings
@@ -127,7 +158,8 @@ def build_report(result: Any) -> str:
         "<h1>Stochastic pendulum with Ornstein–Uhlenbeck noise — reproduction of the figures</h1>",
         "<p>K. Mallick and P. Marcq, <i>On the stochastic pendulum with Ornstein–Uhlenbeck noise</i> "
         "(2004). Model: dΩ/dt = −(ω² + ξ) sin θ, dθ/dt = Ω; E = Ω²/2 − ω² cos θ. "
-        "S = ⟨E³⟩/⟨E²⟩^{3/2} and F = ⟨E⁴⟩/⟨E²⟩² are raw-moment ratios, as in the paper.</p>",
+        "S = ⟨E³⟩/⟨E²⟩<sup>3/2</sup> and F = ⟨E⁴⟩/⟨E²⟩² are raw-moment ratios, as in the paper "
+        f"({with_numbers('Eqs. eq:skewEblanc, eq:flatEblanc')}).</p>",
         f'<p class="small">Generated {_e(time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()))} by '
         f"stochpend {_e(result.versions.get('stochpend', '?'))}; wall time of this call "
         f"{result.wall_time_s:.1f} s; the runs' own simulation times add up to {_sim_total(result):.0f} s "
@@ -158,7 +190,7 @@ def build_report(result: Any) -> str:
             f'<h2 id="{_e(f.name)}">{_e(f.title)}</h2>',
             "<figure>",
             _image(f.png, f.title),
-            f"<figcaption>{_e(f.caption)}</figcaption>",
+            f"<figcaption>{_text(f.caption)}</figcaption>",
             "</figure>",
             f'<p class="small">Files: <a href="{_e(f.pdf.name)}">{_e(f.pdf.name)}</a>, '
             f'<a href="{_e(f.png.name)}">{_e(f.png.name)}</a>, '
@@ -166,7 +198,7 @@ def build_report(result: Any) -> str:
             f"Figure wall time {f.wall_time_s:.1f} s (simulations of this call included).</p>",
             "<h3>Late-time values against the predictions</h3>",
             _figure_table(f.rows),
-            f'<p class="small">{_e(f.fit_method)} Deviation cells: green |dev| ≤ 2, yellow ≤ 3, '
+            f'<p class="small">{_text(f.fit_method)} Deviation cells: green |dev| ≤ 2, yellow ≤ 3, '
             f"red &gt; 3 standard errors.</p>",
             "<h3>Runs</h3>",
             _runs_table(f.runs),
@@ -174,16 +206,7 @@ def build_report(result: Any) -> str:
     parts.append("<h2>Versions and machine</h2>")
     parts.append(_table(["Item", "Value"], [[k, v] for k, v in result.versions.items()]))
     parts.append(
-        "<h2>Notes</h2><ul>"
-        "<li>Initial conditions (the paper states none): θ(0) uniform on [−π, π), Ω(0) = 0, and for OU "
-        "noise ξ(0) drawn from its stationary law N(0, D/(2τ)). (θ, Ω) = (0, 0) is a fixed point "
-        "that the multiplicative noise cannot leave.</li>"
-        "<li>The printed closed form of the OU skewness (eq:skewEcolor) has a typo; the value used "
-        "here, 2.028 = Γ(7/4) Γ(1/4)^{1/2}/Γ(5/4)^{3/2} = 6√2π/Γ(1/4)², is the paper's quoted one.</li>"
-        "<li>First-order averaging (diff1, quad1, PDFav1) is shown for contrast: the paper explains "
-        "why its prefactors are wrong; the tables show which set the data select.</li>"
-        "<li>Standard errors: delete-one-batch jackknife over the run's batches.</li>"
-        "</ul>"
+        "<h2>Notes</h2><ul>" + "".join(f"<li>{_text(item)}</li>" for item in _NOTES) + "</ul>"
     )
     parts.append("</body></html>")
     return "\n".join(parts)

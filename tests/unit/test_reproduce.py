@@ -47,6 +47,11 @@ def _check_complete(result) -> None:
     for f in result.figures.values():
         assert f.title.replace("&", "&amp;") in html
     assert "<script" not in html and "http://" not in html and "https://" not in html
+    # mathematics rendered and the paper's printed equation numbers, not LaTeX or source labels
+    assert "^{" not in html and "<sup>1/2</sup>" in html
+    for label in ("eq:scalEblanc", "eq:scalEcolor", "tpcross", "avbfpe", "eq:skewEcolor"):
+        assert label not in html, label
+    assert "Eqs. (9)–(11)" in html and "Eq. (54)" in html and "Eq. (58)" in html
 
 
 def test_tiny_reproduce_all_produces_every_file_and_fills_every_table(tiny) -> None:
