@@ -448,6 +448,44 @@ def show(
         note(line)
 
 
+PLOT_FORMATS = ("png", "pdf", "svg")
+
+
+@app.command()
+@handles_errors
+def plot(
+    path: Annotated[Path, typer.Argument(help="A results file written by 'stochpend simulate --out'.")],
+    out: Annotated[Path | None, typer.Option("--out", help="The figure to write (default: the results file's name with the format's extension).")] = None,
+    format: Annotated[str | None, typer.Option("--format", help="png, pdf or svg (default: from --out's extension, else png).")] = None,
+    band: Annotated[float, typer.Option("--band", help="Width of the shaded band in standard errors (default 2; 0: none).")] = 2.0,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing figure file.")] = False,
+) -> None:
+    """Plot <E>(t) of a saved run, log-log, with its error band and the predicted law."""
+    from stochpend import io, plotting
+
+    if format is None:
+        suffix = (out.suffix.lstrip(".").lower() if out is not None else "") or "png"
+        format = suffix if suffix in PLOT_FORMATS else None
+        if format is None:
+            raise ValueError(f"--out={str(out)!r} is not accepted: its extension must be one of "
+                             f"{', '.join('.' + f for f in PLOT_FORMATS)} (or give --format)")
+    if format not in PLOT_FORMATS:
+        raise ValueError(f"--format={format!r} is not accepted: one of {', '.join(PLOT_FORMATS)}")
+    if not (math.isfinite(band) and band >= 0):
+        raise ValueError(f"--band={band!r} is not accepted: a number >= 0 (standard errors)")
+    target = out if out is not None else Path(path).with_suffix("." + format)
+    io.check_output_path(target, overwrite=overwrite, name="out")
+    ds = io.open_results(path)
+    if "mean_E" not in ds:
+        raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend simulation result (no mean_E)")
+    import io as _bytes_io
+
+    buffer = _bytes_io.BytesIO()
+    plotting.plot_run(ds, band=band).savefig(buffer, format=format, dpi=150)
+    written = io.write_bytes_atomic(buffer.getvalue(), target, overwrite=overwrite)
+    console.print(f"wrote {escape(str(written))}", highlight=False)
+
+
 @app.command()
 def info() -> None:
     """Versions, threads, and which backends are usable here."""

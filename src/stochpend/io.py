@@ -99,6 +99,34 @@ def to_netcdf(ds: xr.Dataset, path: str | os.PathLike, *, overwrite: bool = Fals
     return p
 
 
+def write_bytes_atomic(data: bytes, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
+    """Write ``data`` to ``path`` as :func:`to_netcdf` writes a result: a temporary file in the
+    same directory, flushed to disk, then put in place (refused if ``path`` appeared meanwhile
+    without ``overwrite``); a failed write raises :class:`WriteError` and leaves nothing."""
+    p = check_output_path(path, overwrite=overwrite)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent if str(p.parent) else ".")
+    try:
+        try:
+            with os.fdopen(fd, "wb") as f:
+                f.write(data)
+                f.flush()
+                os.fsync(f.fileno())
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)
+            _put_in_place(tmp, p, overwrite)
+        except OSError as exc:
+            if isinstance(exc, FileExistsError) and not overwrite:
+                raise ValueError(f"out={str(p)!r} is not accepted: the file exists (another process wrote it "
+                                 "while this one ran; pass --overwrite to replace it)") from None
+            raise WriteError(f"cannot write out={str(p)!r}: {reason(exc)}; nothing was written there",
+                             getattr(exc, "errno", None)) from None
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return p
+
+
 def _put_in_place(tmp: str, p: Path, overwrite: bool) -> None:
     """Rename ``tmp`` to ``p``; without ``overwrite``, atomically refuse an existing ``p``."""
     if overwrite:

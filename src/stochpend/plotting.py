@@ -24,6 +24,8 @@ __all__ = [
     "plot_skewness_flatness",
     "plot_theory",
     "plot_level",
+    "plot_run",
+    "predicted_mean_E",
 ]
 
 #: Scaled observables: label and normalisation kind (see :func:`stochpend.figures._common.norm_series`).
@@ -141,3 +143,61 @@ def plot_level(ax: Any, value: float, *, label: str | None = None, **style: Any)
     kw = {**THEORY_STYLE, **style}
     ax.axhline(value, label=label, **kw)
     return ax
+
+
+def predicted_mean_E(ds: Any, t: np.ndarray) -> list[tuple[str, np.ndarray, dict[str, Any]]]:
+    """The predicted laws of ``<E>(t)`` for the model of ``ds``: ``[(label, values, style)]``.
+
+    The pendulum: D t/4 with white noise (Eq. `eq:scalEblanc`); with OU noise the white-like law
+    D t/4 for t << t_c and the second-order averaging law 0.338 (D t/tau^2)^{1/2} for t >> t_c
+    (Eq. `eq:scalEcolor`). Every other model: the predicted power law t**nu of
+    :func:`stochpend.theory.scaling.predicted_exponent`, drawn through the last point (its
+    prefactor is not predicted); nothing where the growth is not a power law.
+    """
+    from stochpend.theory import laws
+    from stochpend.theory.scaling import predicted_exponent
+
+    a = ds.attrs
+    noise = str(a.get("noise", ""))
+    potential = str(a.get("potential", ""))
+    D = float(a.get("D", np.nan))
+    t = np.asarray(t, dtype=float)
+    if potential == "pendulum" and noise in ("white", "ou") and D > 0:
+        out = [(r"$\mathcal{D}t/4$ (white noise, Eq. (9))", np.asarray(laws.white_mean_E(t, D=D)),
+                THEORY_STYLE)]
+        if noise == "ou":
+            tau = float(a["tau"])
+            out = [(r"$\mathcal{D}t/4$ ($t \ll t_c$, Eq. (9))", out[0][1], THEORY_STYLE),
+                   (r"$0.338\,(\mathcal{D}t/\tau^2)^{1/2}$ ($t \gg t_c$, Eq. (54))",
+                    np.asarray(laws.ou2_mean_E(t, D=D, tau=tau)), ALT_THEORY_STYLE)]
+        return out
+    try:
+        pred = predicted_exponent(potential, noise, str(a.get("coupling", "force")),
+                                  int(a.get("power_n", 2)))
+    except (ValueError, TypeError):
+        return []
+    E = np.asarray(ds["mean_E"].values, dtype=float)
+    ok = np.isfinite(E) & (E > 0) & (t > 0)
+    if pred.exponent is None or not np.any(ok):
+        return []
+    i = np.flatnonzero(ok)[-1]
+    nu = float(pred.exponent)
+    return [(rf"$\propto t^{{{nu:.3g}}}$ (predicted; prefactor through the last point)",
+             E[i] * (t / t[i]) ** nu, THEORY_STYLE)]
+
+
+def plot_run(ds: Any, *, band: float = 2.0) -> Any:
+    """One run at a glance: ``<E>`` vs t, log-log, with its ``band``-standard-error band and the
+    predicted law(s) of :func:`predicted_mean_E`, titled with the model. Returns the Figure."""
+    from stochpend.figures._common import describe_attrs
+
+    fig, ax = new_figure((6.0, 4.4))
+    t = np.asarray(ds.time.values, dtype=float)
+    keep = t > 0
+    sub = ds.isel(time=np.flatnonzero(keep))
+    plot_mean_E(sub, ax=ax, band=band, loglog=True, label=f"simulation (±{band:g} SE)")
+    for label, y, style in predicted_mean_E(sub, t[keep]):
+        plot_theory(ax, t[keep], y, label=label, **style)
+    ax.set_title(describe_attrs(ds.attrs) + f", {int(ds.attrs.get('paths', 0))} paths", fontsize=9)
+    ax.legend(fontsize=8)
+    return fig
