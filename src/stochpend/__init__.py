@@ -2,10 +2,66 @@
 
 Implements K. Mallick and P. Marcq, "On the stochastic pendulum with Ornstein-Uhlenbeck noise"
 (2004): the ensemble simulator, the paper's analytic results, and its reduced dynamics.
+
+The public API, reachable after ``import stochpend`` and imported on first use (so that
+``import stochpend`` and the command line start fast; Numba, xarray and Dask load only when a
+name that needs them is touched):
+
+* :func:`simulate` -- run an ensemble (``stochpend.simulate(noise="ou", ...)``);
+* :mod:`io` -- ``to_netcdf`` / ``open_results``;
+* :mod:`theory` -- the paper's closed forms and the B.F.P.E.; :mod:`exponents` -- growth-law
+  fits; :mod:`sweep` -- parameter sweeps (Dask); :mod:`models` and :mod:`noises` -- oscillators
+  and noises of your own; :mod:`plotting` -- figures of results; :mod:`paper` -- the paper's
+  equation numbers; :mod:`bias` -- the discretisation-bias estimate.
 """
+
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
 
-from stochpend.simulate import simulate as simulate
+#: Submodules reachable as attributes of the package, imported on first use.
+SUBMODULES = ("bias", "exponents", "io", "models", "noises", "paper", "plotting", "sweep",
+              "theory")
 
-__all__ = ["__version__", "simulate"]
+__all__ = ["__version__", "simulate", *SUBMODULES]
+
+if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
+    from stochpend import bias, exponents, io, models, noises, paper, plotting, sweep, theory
+    from stochpend.simulate import simulate
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public submodule (or :func:`simulate`) when it is first touched."""
+    if name == "simulate":
+        from stochpend.simulate import simulate
+
+        globals()["simulate"] = simulate
+        return simulate
+    if name in SUBMODULES:
+        module = importlib.import_module(f"stochpend.{name}")
+        globals()[name] = module
+        return module
+    raise AttributeError(f"module 'stochpend' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+class _Package(types.ModuleType):
+    """The package's module type: the submodule ``stochpend.simulate`` shares its name with the
+    function, and importing the submodule makes Python set the package's attribute to the
+    module; the function stays the attribute, as users call ``stochpend.simulate(...)``."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name == "simulate" and isinstance(value, types.ModuleType):
+            value = value.simulate
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

@@ -78,6 +78,23 @@ app = typer.Typer(
 )
 
 
+def _version(value: bool) -> None:
+    if value:
+        from stochpend import __version__
+
+        typer.echo(f"stochpend {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                          help="Print the version and exit.")] = False,
+) -> None:
+    """Ensembles of the stochastic pendulum with parametric white or Ornstein-Uhlenbeck noise
+    (Mallick & Marcq 2004): simulate, compare with theory, reproduce the paper."""
+
+
 def handles_errors(fn: F) -> F:
     """Turn the API's ValueError into one line and exit code 2, and a file that cannot be
     written or read (``OSError``: a full disk, an I/O error) into one line and exit code 1
