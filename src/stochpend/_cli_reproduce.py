@@ -12,7 +12,7 @@ from typing import Annotated, Any
 import typer
 
 from stochpend._cli_types import integer
-from stochpend.cli import console, handles_errors, note
+from stochpend.cli import console, handles_errors, note, results
 
 __all__ = ["RichReproduceProgress", "reproduce_command"]
 
@@ -138,7 +138,7 @@ def reproduce_command(
             table.add_column(col, overflow="fold")
         for row in f.rows:
             table.add_row(*row.cells())
-        console.print(table)
+        results.print(table)
     console.print(f"wall time {result.wall_time_s:.1f} s; report: {result.report}")
 
 

@@ -163,7 +163,7 @@ def resume_command(
     progress = cli.RichProgress(enabled=not quiet and cli.console.is_terminal, long_run=True)
     ds = _interruptible(_resume, checkpoint_path=checkpoint, progress=progress, **kwargs)
     if not quiet:
-        cli.console.print(cli.summary_table(ds))
+        cli.results.print(cli.summary_table(ds, width=cli.results.width))
         if target is not None:
             cli.console.print(f"wrote {target}")
 
@@ -305,7 +305,7 @@ def sweep_command(
     if out is not None:
         io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
-        cli.console.print(sweep_table(ds))
+        cli.results.print(sweep_table(ds))
         if out is not None:
             cli.console.print(f"wrote {out}")
 
@@ -367,7 +367,7 @@ def _simulate_ckpt_command(
     ds = simulate_with_checkpoint(config, checkpoint_path=checkpoint, every_s=every, out=out,
                                   overwrite=overwrite, progress=progress, threads=threads)
     if not quiet:
-        cli.console.print(cli.summary_table(ds))
+        cli.results.print(cli.summary_table(ds, width=cli.results.width))
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -21,7 +21,7 @@ import typer
 from rich.table import Table
 
 from stochpend._cli_types import integer
-from stochpend.cli import _fmt, console, handles_errors, parse_times, summary_table
+from stochpend.cli import _fmt, console, handles_errors, parse_times, results, summary_table
 
 __all__ = ["bfpe_command", "bfpe_table", "reduced_command", "reduced_table", "theory_command", "theory_table"]
 
@@ -66,7 +66,7 @@ def theory_command(
     rows = predictions(noise=noise, D=D, tau=tau if noise.lower() != "white" else None, omega=omega, t=t,
                        bfpe=bfpe)
     params = f"D={D:g}" + (f", tau={tau:g}" if noise.lower() == "ou" else "") + f", omega={omega:g}"
-    console.print(theory_table(rows, title=f"Predictions at t = {t:g}: {noise.lower()} noise, {params}"))
+    results.print(theory_table(rows, title=f"Predictions at t = {t:g}: {noise.lower()} noise, {params}"))
 
 
 def bfpe_table(ds: Any, max_rows: int = 12) -> Table:
@@ -122,7 +122,7 @@ def bfpe_command(
     if out is not None:
         io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
-        console.print(bfpe_table(ds))
+        results.print(bfpe_table(ds))
         if out is not None:
             console.print(f"wrote {out}")
 
@@ -197,8 +197,8 @@ def reduced_command(
     if out is not None:
         io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
-        console.print(summary_table(ds))
-        console.print(reduced_table(ds))
+        results.print(summary_table(ds, width=results.width))
+        results.print(reduced_table(ds))
         if int(ds.nonfinite_paths[-1]) > 0:
             console.print(f"[yellow]{int(ds.nonfinite_paths[-1])} paths went non-finite and are excluded.[/]")
         if out is not None:
@@ -235,4 +235,4 @@ def scaling_command(
             else:
                 cells.append(p.growth)
         table.add_row(label, *cells)
-    console.print(table)
+    results.print(table)

@@ -26,7 +26,11 @@ from typer.core import TyperGroup
 from stochpend._cli_types import integer, usage_message
 from stochpend._notation import ve
 
+#: Progress, notes, warnings and errors: standard error.
 console = Console(stderr=True, width=None if sys.stderr.isatty() else 140)
+#: Results (tables): standard output, so that ``stochpend show run.nc > table.txt`` and pipes
+#: get them; not wrapped when it is not a terminal.
+results = Console(width=None if sys.stdout.isatty() else 200)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -226,8 +230,32 @@ def _bias_cell(value: float, bias_stderr: float, verdict: int | None) -> str:
     return cell + " !" if verdict == _bias.SIGNIFICANT else cell
 
 
-def summary_table(ds: Any, max_rows: int = 12) -> Table:
-    """A table of the main statistics of a result at up to ``max_rows`` times."""
+def _scaled_column(ds: Any) -> tuple[str, str, Callable[[float], float]] | None:
+    """(header, variable, normalisation of t) of the scaled column the paper predicts a constant
+    for: <E>/(Dt/4) -> 1 for the pendulum with white noise (Eq. (9)), <E2>/(Dt/tau^2) -> 1/4 with
+    OU noise (Eq. (55)); None for every other model, whose prefactors are not predicted."""
+    attrs = ds.attrs
+    if attrs.get("potential", "pendulum") != "pendulum" or attrs.get("coupling", "force") != "force":
+        return None
+    D = float(attrs.get("D", 1.0))
+    if D <= 0:
+        return None
+    if attrs.get("noise") == "white":
+        return "<E>/(Dt/4)", "mean_E", lambda t: D * t / 4.0
+    if attrs.get("noise") == "ou":
+        tau = float(attrs.get("tau", 1.0))
+        return "<E2>/(Dt/tau^2)", "mean_E2", lambda t: D * t / tau**2
+    return None
+
+
+#: Columns a narrow terminal drops first (the last first), with what the caption then says.
+_DROP_ORDER = ("non-finite", "F", "scaled", "S", "<E2>")
+
+
+def summary_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Table:
+    """A table of the main statistics of a result at up to ``max_rows`` times, fitted to
+    ``width`` columns (a terminal's; None: no limit): columns that do not fit are left out, the
+    least needed first, and the caption says which and how many times are shown."""
     attrs = ds.attrs
     noise = attrs.get("noise", "ou")
     D = float(attrs.get("D", 1.0))
@@ -240,43 +268,63 @@ def summary_table(ds: Any, max_rows: int = 12) -> Table:
     if attrs.get("omega_noise", "none") != "none":
         title += f", W={float(attrs['omega_noise']):g}"
     title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {attrs.get('seed')}"
-    table = Table(title=title)
-    scaled = "<E2>/(Dt/tau^2)" if noise == "ou" else "<E>/(Dt/4)"
+    scaled = _scaled_column(ds)
     has_bias = "mean_E_bias" in ds
-    cols = ["t", "<E>", "<E2>", scaled, "S", "F", "non-finite"]
-    if has_bias:
-        cols.insert(2, "bias <E>")
-    for col in cols:
-        table.add_column(col, justify="right", no_wrap=True)
     idx = shown_rows(ds, max_rows)
     verdicts = None
     if has_bias:
         from stochpend import bias as _bias
 
         verdicts = _bias.assess_dataset(ds)
+    columns: dict[str, list[str]] = {"t": [], "<E>": []}
+    if has_bias:
+        columns["bias <E>"] = []
+    columns["<E2>"] = []
+    if scaled is not None:
+        columns["scaled"] = []
+    columns.update({"S": [], "F": [], "non-finite": []})
     for i in idx:
         row = ds.isel(time=i)
         t = float(row.time)
-        if noise == "ou":
-            norm = D * t / float(tau) ** 2 if t > 0 and D > 0 else float("nan")
-            s_val, s_se = float(row.mean_E2) / norm, float(row.mean_E2_stderr) / norm
-        else:
-            norm = D * t / 4.0 if t > 0 and D > 0 else float("nan")
-            s_val, s_se = float(row.mean_E) / norm, float(row.mean_E_stderr) / norm
-        cells = [
-            f"{t:.4g}",
-            _fmt(float(row.mean_E), float(row.mean_E_stderr)),
-            _fmt(float(row.mean_E2), float(row.mean_E2_stderr)),
-            _fmt(s_val, s_se),
-            _fmt(float(row.skewness), float(row.skewness_stderr)),
-            _fmt(float(row.flatness), float(row.flatness_stderr)),
-            str(int(row.nonfinite_paths)),
-        ]
+        columns["t"].append(f"{t:.4g}")
+        columns["<E>"].append(_fmt(float(row.mean_E), float(row.mean_E_stderr)))
         if has_bias:
-            cells.insert(2, _bias_cell(float(row.mean_E_bias), float(row.mean_E_bias_stderr),
-                                       int(verdicts.verdict["mean_E"][i]) if verdicts else None))
-        table.add_row(*cells)
-    caption = (
+            columns["bias <E>"].append(_bias_cell(float(row.mean_E_bias), float(row.mean_E_bias_stderr),
+                                                  int(verdicts.verdict["mean_E"][i]) if verdicts else None))
+        columns["<E2>"].append(_fmt(float(row.mean_E2), float(row.mean_E2_stderr)))
+        if scaled is not None:
+            norm = scaled[2](t) if t > 0 else float("nan")
+            columns["scaled"].append(_fmt(float(row[scaled[1]]) / norm, float(row[f"{scaled[1]}_stderr"]) / norm))
+        columns["S"].append(_fmt(float(row.skewness), float(row.skewness_stderr)))
+        columns["F"].append(_fmt(float(row.flatness), float(row.flatness_stderr)))
+        columns["non-finite"].append(str(int(row.nonfinite_paths)))
+    headers = {name: (scaled[0] if name == "scaled" else name) for name in columns}
+    dropped = []
+    if width is not None:
+        def needed() -> int:  # Rich's box: one border and two spaces of padding a column
+            return 1 + sum(3 + max(len(headers[n]), *(len(c) for c in cells)) for n, cells in columns.items())
+
+        for name in _DROP_ORDER:
+            if needed() <= width:
+                break
+            if name == "non-finite" and any(c != "0" for c in columns[name]):
+                continue  # paths were lost: that stays in view
+            if name in columns:
+                del columns[name]
+                dropped.append("non-finite (none)" if name == "non-finite" else headers[name])
+    table = Table(title=title)
+    for name in columns:
+        table.add_column(headers[name], justify="right", no_wrap=True)
+    for k in range(len(idx)):
+        table.add_row(*(cells[k] for cells in columns.values()))
+    n_times = ds.sizes["time"]
+    caption = ""
+    if len(idx) < n_times:
+        caption += f"{len(idx)} of {n_times} output times shown (--rows {n_times} for all). "
+    if dropped:
+        caption += (f"Not shown at this width: {', '.join(dropped)} (a wider terminal or a pipe "
+                    "shows them). ")
+    caption += (
         f"Values as v(e): e is one standard error in the last digits (jackknife over {int(attrs.get('n_batches', 0))} batches). "
         f"Wall time {float(attrs.get('wall_time_s', float('nan'))):.3g} s, "
         f"{float(attrs.get('path_steps', 0)):.3g} path-steps."
@@ -428,7 +476,7 @@ def simulate(
         if out is not None:
             io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
-        console.print(summary_table(ds))
+        results.print(summary_table(ds, width=results.width))
         for line in bias_warnings(ds, shown_rows(ds)):
             console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
         for line in bias_notes(ds):
@@ -458,7 +506,7 @@ def show(
     ds = io.open_results(path)
     if "mean_E" not in ds:
         raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend simulation result (no mean_E)")
-    console.print(summary_table(ds, max_rows=rows))
+    results.print(summary_table(ds, max_rows=rows, width=results.width))
     for line in bias_warnings(ds, shown_rows(ds, rows)):
         console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
     for line in bias_notes(ds):
@@ -536,7 +584,7 @@ def info() -> None:
         table.add_row("dask / distributed", f"{dask.__version__} / {distributed.__version__}")
     except ImportError:
         table.add_row("dask / distributed", "not installed (pip install 'stochpend[dask]')")
-    console.print(table)
+    results.print(table)
 
 
 # Scale-out commands (stochpend._cli_scale imports this module lazily, so either order works).

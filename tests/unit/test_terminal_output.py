@@ -1,0 +1,108 @@
+"""What a newcomer's terminal and pipes get: results on stdout, everything else on stderr, tables
+that fit 80 columns without losing a value, every output time accounted for."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import pty
+import re
+import select
+import struct
+import subprocess
+import sys
+import termios
+from pathlib import Path
+
+import pytest
+
+import stochpend
+from stochpend import io
+from tests.conftest import SEED
+
+ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
+
+
+@pytest.fixture(scope="module")
+def run_file(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("term")
+    ds = stochpend.simulate(noise="ou", paths=2000, t_max=100.0, n_times=40, seed=SEED)
+    return io.to_netcdf(ds, folder / "run.nc")
+
+
+def _stochpend(*args: str) -> list[str]:
+    return [sys.executable, "-m", "stochpend", *args]
+
+
+def _in_pty(args: list[str], columns: int, rows: int = 24) -> str:
+    """Run ``args`` with stdout and stderr on a pseudo-terminal of the given size; its screen
+    output, escape codes removed."""
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, columns, 0, 0))
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
+    proc = subprocess.Popen(args, stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True)
+    os.close(slave)
+    chunks = []
+    while True:
+        ready, _, _ = select.select([master], [], [], 120)
+        if not ready:
+            proc.kill()
+            raise AssertionError("no output for 120 s")
+        try:
+            data = os.read(master, 65536)
+        except OSError:  # the child closed the terminal
+            break
+        if not data:
+            break
+        chunks.append(data)
+    proc.wait(timeout=60)
+    os.close(master)
+    assert proc.returncode == 0, b"".join(chunks).decode(errors="replace")
+    return ANSI.sub("", b"".join(chunks).decode("utf-8", errors="replace")).replace("\r", "")
+
+
+def test_show_in_a_pipe_puts_the_table_on_stdout(run_file):
+    out = subprocess.run(_stochpend("show", str(run_file)), capture_output=True, text=True, check=True)
+    assert "<E>" in out.stdout and "bias <E>" in out.stdout and "non-finite" in out.stdout
+    assert "<E>" not in out.stderr and "┃" not in out.stderr
+    assert "…" not in out.stdout
+
+
+def test_show_in_an_80_column_terminal_loses_no_value(run_file):
+    screen = _in_pty(_stochpend("show", str(run_file)), 80)
+    lines = screen.splitlines()
+    assert max(len(line) for line in lines) <= 80, max(lines, key=len)
+    assert "…" not in screen
+    body = [line for line in lines if line.startswith("│")]
+    assert len(body) == 12
+    for line in body:  # every value with its error: v(e) cells are whole
+        cells = [c.strip() for c in line.strip("│").split("│")]
+        assert all(re.fullmatch(r"[-0-9.e]+(\(\d+\)(e-?\d+)?)?|unresolved|[-0-9.e]+\(\d+\) !", c)
+                   for c in cells), cells
+    text = " ".join(screen.split())
+    assert "12 of 40 output times shown (--rows 40 for all)" in text
+    assert "Not shown at this width: non-finite (none)" in text
+
+
+def test_show_at_200_columns_has_every_column(run_file):
+    screen = _in_pty(_stochpend("show", str(run_file), "--rows", "40"), 200)
+    header = next(line for line in screen.splitlines() if "<E>" in line and "┃" in line)
+    for name in ("t", "<E>", "bias <E>", "<E2>", "<E2>/(Dt/tau^2)", "S", "F", "non-finite"):
+        assert name in header, name
+    assert sum(1 for line in screen.splitlines() if line.startswith("│")) == 40
+    assert "output times shown" not in screen
+
+
+def test_scaled_column_only_where_the_paper_predicts_its_constant():
+    from stochpend.cli import summary_table
+
+    def headers(**kw):
+        ds = stochpend.simulate(paths=64, t_max=1.0, n_times=2, seed=SEED, bias_paths=0, **kw)
+        return [c.header for c in summary_table(ds).columns]
+
+    assert "<E>/(Dt/4)" in headers(noise="white")
+    assert "<E2>/(Dt/tau^2)" in headers(noise="ou")
+    for kw in (dict(noise="dichotomous"), dict(noise="harmonic"),
+               dict(noise="ou", potential="power", coupling="position", theta0=1.0)):
+        h = headers(**kw)
+        assert "<E>/(Dt/4)" not in h and "<E2>/(Dt/tau^2)" not in h, kw
