@@ -492,21 +492,54 @@ def simulate(
             console.print(f"wrote {out}")
 
 
+def result_kind(ds: Any) -> str | None:
+    """What wrote ``ds``: "sweep" (a parameter dimension beside time), "bfpe" (the averaged
+    B.F.P.E.'s solution), "reduced" (the reduced dynamics), "simulation" (simulate, a
+    checkpointed run, resume, reproduce's runs), or None (not a file of stochpend's)."""
+    title = str(ds.attrs.get("title", ""))
+    if "mean_E" not in ds:
+        return None
+    if title == "stochpend parameter sweep" or any(d not in ("time", "E_bin", "E_bin_edge", "batch")
+                                                     for d in ds["mean_E"].dims):
+        return "sweep"
+    if "identity_residual" in ds and "phi" in ds:
+        return "bfpe"
+    if "mean_E_stderr" not in ds:
+        return None
+    return "reduced" if title.startswith("stochpend reduced dynamics") else "simulation"
+
+
 @app.command()
 @handles_errors
 def show(
-    path: Annotated[Path, typer.Argument(help="A results file written by 'stochpend simulate --out'.")],
-    rows: Annotated[int, typer.Option(parser=integer, help="Maximum number of rows.")] = 12,
+    path: Annotated[Path, typer.Argument(help="A file stochpend wrote: simulate, resume, sweep, reduced or bfpe --out.")],
+    rows: Annotated[int, typer.Option(parser=integer, help="Maximum number of output times shown (default 12).")] = 12,
 ) -> None:
-    """Print the summary table of a saved run."""
+    """Print the table of a saved result (a run, a sweep, a reduced run or a B.F.P.E. solution)."""
     from stochpend import io
 
     if rows < 1:
         raise ValueError(f"rows={rows!r} is not accepted: an integer >= 1")
     ds = io.open_results(path)
-    if "mean_E" not in ds:
-        raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend simulation result (no mean_E)")
+    kind = result_kind(ds)
+    if kind is None:
+        raise ValueError(f"path={str(path)!r} is not accepted: not a file stochpend writes (a simulation, "
+                         "checkpointed run, sweep, reduced run or B.F.P.E. solution)")
+    if kind == "sweep":
+        from stochpend._cli_scale import sweep_table
+
+        results.print(sweep_table(ds))
+        return
+    if kind == "bfpe":
+        from stochpend._cli_theory import bfpe_table
+
+        results.print(bfpe_table(ds, max_rows=rows))
+        return
     results.print(summary_table(ds, max_rows=rows, width=results.width))
+    if kind == "reduced":
+        from stochpend._cli_theory import reduced_table
+
+        results.print(reduced_table(ds))
     for line in bias_warnings(ds, shown_rows(ds, rows)):
         console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
     for line in bias_notes(ds):

@@ -106,3 +106,41 @@ def test_scaled_column_only_where_the_paper_predicts_its_constant():
                dict(noise="ou", potential="power", coupling="position", theta0=1.0)):
         h = headers(**kw)
         assert "<E>/(Dt/4)" not in h and "<E2>/(Dt/tau^2)" not in h, kw
+
+
+def test_show_reads_every_kind_of_file_the_tool_writes(tmp_path, run_file):
+    """simulate, a checkpointed run, a sweep, a reduced run and a B.F.P.E. solution: each shown
+    with its own table on stdout, exit 0, no traceback."""
+    from typer.testing import CliRunner
+
+    from stochpend.cli import app
+
+    runner = CliRunner()
+    (tmp_path / "sweep.toml").write_text('[base]\nnoise = "ou"\npaths = 100\nt_max = 2.0\n'
+                                         'n_times = 3\nseed = 3\n[grid]\nD = [0.5, 1.0]\n')
+    made = {
+        "sweep": ["sweep", str(tmp_path / "sweep.toml"), "--out", str(tmp_path / "sweep.nc")],
+        "bfpe": ["bfpe", "--D", "1", "--tau", "0.1", "--t-max", "10", "--n-cells", "100",
+                 "--out", str(tmp_path / "bfpe.nc")],
+        "reduced": ["reduced", "--order", "asymptotic", "--paths", "200", "--t-max", "2",
+                    "--out", str(tmp_path / "reduced.nc")],
+        "ckpt": ["simulate", "--paths", "200", "--t-max", "2", "--checkpoint",
+                 str(tmp_path / "run.ckpt"), "--out", str(tmp_path / "ckpt.nc")],
+    }
+    for name, args in made.items():
+        result = runner.invoke(app, args)
+        assert result.exit_code == 0, (name, result.output)
+    expect = {"sweep.nc": "parameter sets", "bfpe.nc": "B.F.P.E.", "reduced.nc": "<E>",
+              "ckpt.nc": "bias <E>", str(run_file): "bias <E>"}
+    for name, needle in expect.items():
+        path = name if name.startswith("/") else str(tmp_path / name)
+        out = subprocess.run(_stochpend("show", path), capture_output=True, text=True)
+        assert out.returncode == 0, (name, out.stderr)
+        assert needle in out.stdout and "Traceback" not in out.stderr, (name, out.stdout, out.stderr)
+    other = tmp_path / "other.nc"
+    import xarray as xr
+
+    xr.Dataset({"x": ("t", [1.0, 2.0])}).to_netcdf(other, engine="h5netcdf")
+    out = subprocess.run(_stochpend("show", str(other)), capture_output=True, text=True)
+    assert out.returncode == 2 and "not a file stochpend writes" in out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1
