@@ -28,10 +28,11 @@ __version__ = "0.1.0"
 SUBMODULES = ("bias", "exponents", "io", "models", "noises", "paper", "plotting", "sweep",
               "theory")
 
-__all__ = ["__version__", "simulate", *SUBMODULES]
+__all__ = ["StochpendWarning", "__version__", "simulate", *SUBMODULES]
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from stochpend import bias, exponents, io, models, noises, paper, plotting, sweep, theory
+    from stochpend._warnings import StochpendWarning
     from stochpend.simulate import simulate
 
 
@@ -42,6 +43,10 @@ def __getattr__(name: str) -> Any:
 
         globals()["simulate"] = simulate
         return simulate
+    if name == "StochpendWarning":
+        from stochpend._warnings import StochpendWarning
+
+        return StochpendWarning
     if name in SUBMODULES:
         module = importlib.import_module(f"stochpend.{name}")
         globals()[name] = module

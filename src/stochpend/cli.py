@@ -466,12 +466,20 @@ def simulate(
             precision=precision,
         )
     else:
-        ds = run_simulation(
-            noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max, times=parse_times(times),
-            n_times=n_times, seed=seed, theta0=parse_theta0(theta0), Omega0=Omega0, backend=backend,
-            threads=threads, progress=progress, precision=precision, max_path_steps=max_path_steps,
-            bias_paths=bias_paths, accuracy=accuracy, rtol=rtol, **kwargs,
-        )
+        import warnings
+
+        from stochpend._warnings import StochpendWarning
+
+        # The API raises its notes as warnings; the command prints them itself, below the table.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", StochpendWarning)
+            ds = run_simulation(
+                noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max,
+                times=parse_times(times), n_times=n_times, seed=seed, theta0=parse_theta0(theta0),
+                Omega0=Omega0, backend=backend, threads=threads, progress=progress,
+                precision=precision, max_path_steps=max_path_steps, bias_paths=bias_paths,
+                accuracy=accuracy, rtol=rtol, **kwargs,
+            )
         ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
         if out is not None:
             io.to_netcdf(ds, out, overwrite=overwrite)

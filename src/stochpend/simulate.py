@@ -22,6 +22,7 @@ from stochpend.params import (
     hist_edges,
 )
 from stochpend.progress import NoProgress, Progress
+from stochpend.progress import resolve as resolve_progress
 
 
 def simulate(
@@ -50,7 +51,7 @@ def simulate(
     backend: str = "cpu",
     threads: int | None = None,
     chunk_paths: int | None = None,
-    progress: Progress | None = None,
+    progress: Progress | bool | None = None,
     precision: str = "float64",
     max_path_steps: float | None = None,
     bias_paths: int | None = None,
@@ -120,8 +121,9 @@ def simulate(
         CPU threads (default: all Numba threads). Results do not depend on it.
     chunk_paths : int, optional
         Paths advanced together (rounded to whole batches). Results do not depend on it.
-    progress : Progress, optional
-        Receives the work done (see :mod:`stochpend.progress`).
+    progress : bool or Progress, optional
+        ``True``: a progress bar (Rich's, also in a Jupyter notebook); or an object receiving
+        the work done (see :mod:`stochpend.progress`). Default: nothing.
     bias_paths : int, optional
         Coupled coarse/fine pairs that estimate every statistic's discretisation bias
         (:mod:`stochpend.bias`); default :func:`stochpend.bias.default_bias_paths` (a 32nd of
@@ -171,9 +173,26 @@ def simulate(
     if chunk_paths is not None and (isinstance(chunk_paths, bool) or not isinstance(chunk_paths, int)
                                     or chunk_paths < 1):
         raise ValueError(f"chunk_paths={chunk_paths!r} is not accepted: an integer >= 1")
-    return run(config, backend=backend, threads=threads, chunk_paths=chunk_paths, progress=progress,
-               precision=precision, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
-               max_path_steps=max_path_steps)
+    ds = run(config, backend=backend, threads=threads, chunk_paths=chunk_paths,
+             progress=resolve_progress(progress), precision=precision, bias_paths=bias_paths,
+             accuracy=accuracy, rtol=rtol, max_path_steps=max_path_steps)
+    warn_about(ds)
+    return ds
+
+
+def warn_about(ds: xr.Dataset, stacklevel: int = 3) -> None:
+    """Raise what the command line prints about a result as :class:`stochpend.StochpendWarning`:
+    each significant discretisation bias (:func:`stochpend.bias.warnings_for`) and the paths
+    that went non-finite."""
+    from stochpend._notation import ve
+    from stochpend._warnings import StochpendWarning
+
+    for line in bias.warnings_for(ds, ve):
+        warnings.warn(line, StochpendWarning, stacklevel=stacklevel)
+    lost = int(ds["nonfinite_paths"].values[-1]) if "nonfinite_paths" in ds else 0
+    if lost:
+        warnings.warn(f"{lost} paths went non-finite (or ran away) and are excluded from every "
+                      "statistic", StochpendWarning, stacklevel=stacklevel)
 
 
 def check_precision(precision: str, backend: str) -> None:

@@ -44,6 +44,20 @@ STATISTICS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
     "mean_sin2theta": lambda m: m[..., S_G2],
 }
 
+#: Short names for plot labels (``long_name``) and units: xarray's ``ds.mean_E.plot()`` reads
+#: "⟨E⟩ [paper units]". The equations are dimensionless (the paper's units); ratios have unit 1.
+LABELS = {
+    "mean_E": ("⟨E⟩", "paper units"),
+    "mean_E2": ("⟨E²⟩", "paper units"),
+    "mean_E3": ("⟨E³⟩", "paper units"),
+    "mean_E4": ("⟨E⁴⟩", "paper units"),
+    "skewness": ("skewness S", "1"),
+    "flatness": ("flatness F", "1"),
+    "mean_Omega2": ("⟨Ω²⟩", "paper units"),
+    "mean_Omega4": ("⟨Ω⁴⟩", "paper units"),
+    "mean_sin2theta": ("⟨G²⟩", "paper units"),
+}
+
 DESCRIPTIONS = {
     "mean_E": "<E>, ensemble mean of the energy E = Omega^2/2 - omega^2 cos(theta) (defenergie)",
     "mean_E2": "<E^2>",
@@ -140,11 +154,14 @@ class EnsembleSums:
         """The result as an ``xarray.Dataset`` (names fixed: other tools read them)."""
         data_vars: dict[str, tuple] = {}
         for name, (value, se) in self.statistics().items():
-            data_vars[name] = ("time", value, {"long_name": DESCRIPTIONS[name]})
+            label, units = LABELS[name]
+            data_vars[name] = ("time", value, {"long_name": label, "units": units,
+                                               "description": DESCRIPTIONS[name]})
             data_vars[f"{name}_stderr"] = (
                 "time",
                 se,
-                {"long_name": f"standard error of {name} (delete-one-batch jackknife)"},
+                {"long_name": f"std. error of {label}", "units": units,
+                 "description": f"standard error of {name} (delete-one-batch jackknife)"},
             )
         data_vars["E_hist"] = (
             ("time", "E_bin"),
@@ -172,4 +189,4 @@ class EnsembleSums:
             self.nonfinite(),
             {"long_name": "paths that went non-finite by this time: excluded from every statistic"},
         )
-        return xr.Dataset(data_vars, coords={"time": ("time", np.asarray(times), {"units": "1/omega_0 (paper units)"})}, attrs=attrs)
+        return xr.Dataset(data_vars, coords={"time": ("time", np.asarray(times), {"long_name": "time t", "units": "paper units"})}, attrs=attrs)

@@ -42,3 +42,35 @@ def test_version_flag():
 
     result = CliRunner().invoke(app, ["--version"])
     assert result.exit_code == 0 and result.output.strip() == f"stochpend {stochpend.__version__}"
+
+
+def test_the_api_raises_the_cli_warnings_as_stochpend_warnings():
+    """A resolved bias (the coarse harmonic case of test_bias) and lost paths are warned about
+    through ``warnings`` in the Python API, as StochpendWarning; a quiet run warns nothing."""
+    import warnings
+
+    import pytest
+
+    with pytest.warns(stochpend.StochpendWarning, match="discretisation bias"):
+        stochpend.simulate(potential="harmonic", noise="white", D=0.5, theta0=1.0, h_max=0.2,
+                           step_c=0.0, paths=80_000, t_max=4.0, times=(2.0, 4.0), seed=2,
+                           bias_paths=10_000)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", stochpend.StochpendWarning)
+        stochpend.simulate(noise="ou", paths=500, t_max=5.0, n_times=4, seed=1)
+
+
+def test_progress_true_draws_a_bar_and_bad_objects_are_refused(capsys):
+    import pytest
+
+    ds = stochpend.simulate(noise="ou", paths=200, t_max=2.0, n_times=3, seed=1, progress=True)
+    assert ds.sizes["time"] == 3
+    with pytest.raises(ValueError, match="progress=.* is not accepted"):
+        stochpend.simulate(noise="ou", paths=200, t_max=2.0, n_times=3, seed=1, progress="yes")
+
+
+def test_variables_have_short_labels_and_units():
+    ds = stochpend.simulate(noise="ou", paths=200, t_max=2.0, n_times=3, seed=1)
+    assert ds.mean_E.attrs["long_name"] == "⟨E⟩" and ds.mean_E.attrs["units"] == "paper units"
+    assert ds.skewness.attrs["units"] == "1" and "raw-moment" in ds.skewness.attrs["description"]
+    assert ds.time.attrs["long_name"] == "time t"
