@@ -554,6 +554,33 @@ def show(
         note(line)
 
 
+@app.command("list")
+def list_pieces() -> None:
+    """The noises, oscillators and couplings a run can use (--noise, --potential, --coupling),
+    with the user models registered in this process."""
+    from stochpend import models, noises, oscillators
+    from stochpend._terminal import plain as _plain
+    from stochpend.paper import with_numbers
+
+    def plain(text: str) -> str:
+        return _plain(with_numbers(text))
+
+    table = Table(title="stochpend: the pieces a run is built from")
+    for col in ("option", "name", "what it is"):
+        table.add_column(col)
+    for name in noises.names():
+        table.add_row("--noise", name, plain(noises.get(name).description))
+    for name in oscillators.names():
+        table.add_row("--potential", name, plain(oscillators.get(name).description))
+    for name in models.names():
+        table.add_row("--potential", name, "user model: " + plain(models.get(name).description or ""))
+    table.add_row("--coupling", "force", "the noise multiplies the force U'(x) (the paper's pendulum)")
+    table.add_row("--coupling", "position", "the noise multiplies x (the random-frequency oscillator)")
+    table.caption = ("A noise or oscillator of your own: stochpend.noises.register / "
+                     "stochpend.models.register (docs/models.md).")
+    results.print(table)
+
+
 PLOT_FORMATS = ("png", "pdf", "svg")
 
 

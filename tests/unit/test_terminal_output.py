@@ -144,3 +144,13 @@ def test_show_reads_every_kind_of_file_the_tool_writes(tmp_path, run_file):
     out = subprocess.run(_stochpend("show", str(other)), capture_output=True, text=True)
     assert out.returncode == 2 and "not a file stochpend writes" in out.stderr
     assert len(out.stderr.strip().splitlines()) == 1
+
+
+def test_list_names_every_piece_on_stdout():
+    from stochpend import noises, oscillators
+
+    out = subprocess.run(_stochpend("list"), capture_output=True, text=True, check=True)
+    for name in (*noises.names(), *oscillators.names(), "force", "position"):
+        assert f" {name} " in out.stdout, name
+    assert "Eq. (18)" in out.stdout and "eqOU" not in out.stdout  # the paper's numbers
+    assert out.stderr == ""
