@@ -679,14 +679,18 @@ def warnings_for(ds: Any, fmt: Callable[[float, float], str],
         value = np.asarray(ds[name].values, dtype=float)
         visible = [i for i in hits if i in shown_set]
         pool = visible or list(hits)
-        i = max(pool, key=lambda j: (abs(b[j]) - verdicts.width * b_se[j]) / se[j])
-        where = "" if visible else " (not among the rows shown)"
         with np.errstate(invalid="ignore", divide="ignore"):
+            # the lowest excess over the standard error; a run without spread (D = 0) has SE 0
+            excess = (np.abs(b) - verdicts.width * b_se) / se
+            i = max(pool, key=lambda j: excess[j] if np.isfinite(excess[j]) else math.inf)
             frac = abs(b[i] / value[i]) if value[i] != 0 else math.inf
         size = f"{100 * frac:.2g} % of the value, " if math.isfinite(frac) else ""
+        where = "" if visible else " (not among the rows shown)"
+        n_se = (f"{abs(b[i]) / se[i]:.2g} standard errors" if se[i] > 0
+                else "the run has no spread: its standard error is 0")
         lines.append(
             f"{LABELS.get(name, name)} at t={times[i]:.4g}{where}: discretisation bias "
-            f"{fmt(float(b[i]), float(b_se[i]))} ({size}{abs(b[i]) / se[i]:.2g} standard errors; "
+            f"{fmt(float(b[i]), float(b_se[i]))} ({size}{n_se}; "
             f"significant in {hits.size} of {times.size} times at a {100 * FAMILY_ALPHA:g} % "
             f"family-wise level over {verdicts.n_tests} tests): rerun with --accuracy auto "
             "(or a smaller --h-max/--step-c)")

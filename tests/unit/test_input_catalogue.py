@@ -69,7 +69,7 @@ CLI_CASES = [
     ("show-text-file", ["show", "{d}/notes.txt"], ["path=", "NetCDF"]),
     ("show-truncated-netcdf", ["show", "{d}/truncated.nc"], ["path=", "NetCDF"]),
     ("show-png", ["show", "{d}/image.png"], ["path=", "NetCDF"]),
-    ("show-foreign-netcdf", ["show", "{d}/foreign.nc"], ["path=", "mean_E"]),
+    ("show-foreign-netcdf", ["show", "{d}/foreign.nc"], ["path=", "not a file stochpend writes"]),
     ("show-missing-file", ["show", "{d}/nothing.nc"], ["path=", "no such file"]),
     ("show-directory", ["show", "{d}"], ["path=", "directory"]),
     ("show-no-argument", ["show"], ["'path'", "missing"]),
