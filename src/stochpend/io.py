@@ -3,50 +3,19 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
+from stochpend._files import WriteError, check_output, reason, write_atomic
+
 __all__ = ["WriteError", "check_output_path", "open_results", "reason", "to_netcdf"]
 
 
-class WriteError(OSError):
-    """A file could not be written (disk full, I/O error, permission): one line saying which
-    file, why, and what was kept. ``errno`` is the operating system's error number."""
-
-    def __init__(self, message: str, errno: int | None = None) -> None:
-        super().__init__(message)
-        self.errno = errno
-
-    def __str__(self) -> str:
-        return str(self.args[0])
-
-
-def reason(error: BaseException) -> str:
-    """The operating system's one-line reason for ``error`` ("No space left on device"); HDF5's
-    multi-line messages are cut to that."""
-    errno = getattr(error, "errno", None)
-    if isinstance(errno, int) and errno > 0:
-        return os.strerror(errno)
-    text = " ".join(str(error).split())
-    return f"{type(error).__name__}: {text}" if text else type(error).__name__
-
-
-def check_output_path(path: str | os.PathLike, *, overwrite: bool = False, name: str = "out") -> Path:
-    """Refuse, before any work, an output that exists (without overwrite) or cannot be written."""
-    p = Path(path)
-    if p.exists() and not overwrite:
-        raise ValueError(f"{name}={str(p)!r} is not accepted: the file exists (pass --overwrite to replace it)")
-    if p.exists() and p.is_dir():
-        raise ValueError(f"{name}={str(p)!r} is not accepted: it is a directory, not a file")
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise ValueError(f"{name}={str(p)!r} is not accepted: the directory {str(parent)!r} does not exist")
-    if not os.access(parent, os.W_OK):
-        raise ValueError(f"{name}={str(p)!r} is not accepted: the directory {str(parent)!r} is not writable")
-    return p
+# The preflight check and the atomic write every output goes through live in stochpend._files;
+# they are re-exported here, where callers have always found them.
+check_output_path = check_output
 
 
 def _clean_attrs(attrs: dict) -> dict:
@@ -66,52 +35,22 @@ def _clean_attrs(attrs: dict) -> dict:
 def to_netcdf(ds: xr.Dataset, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
     """Write ``ds`` to ``path`` atomically: a temporary file in the same directory, then rename.
 
-    A crash or a full disk never leaves a half-written result under ``path``. Without
-    ``overwrite`` the file is put in place with a hard link, which fails if ``path`` exists:
-    of two processes finishing at once, one writes and the other is refused (``ValueError``),
-    never a silent overwrite. A write that fails (full disk, I/O error) raises
-    :class:`WriteError` (an ``OSError``) with one line; nothing is left behind.
+    The NetCDF file is built in memory first and written with ``os.write``: libhdf5 writing
+    its own file dies with SIGSEGV when the disk fills during the flush, where a plain write
+    raises ``OSError``. A crash or a full disk never leaves a half-written result under
+    ``path``. Without ``overwrite`` an existing ``path`` is refused (``ValueError``), also one
+    that another process wrote while this one ran; only a regular file is ever replaced. A
+    write that fails (full disk, I/O error) raises :class:`WriteError` (an ``OSError``) with one
+    line; nothing is left behind.
     """
-    p = check_output_path(path, overwrite=overwrite)
+    # The directory is the write's to find missing (WriteError, exit 1): this may run after the work.
+    p = check_output(path, overwrite=overwrite, directory=False)
     ds = ds.copy()
     ds.attrs = _clean_attrs(ds.attrs)
     for v in ds.variables.values():
         v.attrs = _clean_attrs(v.attrs)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent if str(p.parent) else ".")
-    os.close(fd)
-    try:
-        try:
-            ds.to_netcdf(tmp, engine="h5netcdf")
-            # mkstemp creates the file 0600; give it the permissions a plain open() would have.
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)
-            _put_in_place(tmp, p, overwrite)
-        except OSError as exc:
-            if isinstance(exc, FileExistsError) and not overwrite:
-                raise ValueError(f"out={str(p)!r} is not accepted: the file exists (another process wrote it "
-                                 "while this one ran; pass --overwrite to replace it)") from None
-            raise WriteError(f"cannot write out={str(p)!r}: {reason(exc)}; nothing was written there",
-                             getattr(exc, "errno", None)) from None
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return p
-
-
-def _put_in_place(tmp: str, p: Path, overwrite: bool) -> None:
-    """Rename ``tmp`` to ``p``; without ``overwrite``, atomically refuse an existing ``p``."""
-    if overwrite:
-        os.replace(tmp, p)
-        return
-    try:
-        os.link(tmp, p)  # FileExistsError if another process got there first
-    except FileExistsError:
-        raise
-    except OSError:  # a file system without hard links: check, then rename (a small race)
-        if p.exists():
-            raise FileExistsError(p) from None
-        os.replace(tmp, p)
+    image = ds.to_netcdf(engine="h5netcdf")
+    return write_atomic(p, image, overwrite=overwrite)
 
 
 def open_results(path: str | os.PathLike) -> xr.Dataset:
