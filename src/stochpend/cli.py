@@ -24,8 +24,10 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 from stochpend._cli_types import integer, usage_message
+from stochpend._terminal import markup
 
-console = Console(stderr=True, width=None if sys.stderr.isatty() else 140)
+# sys.stderr is None when file descriptor 2 is closed (`2>&-`): Rich then prints nothing.
+console = Console(stderr=True, width=None if sys.stderr is not None and sys.stderr.isatty() else 140)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -58,8 +60,11 @@ class OneLineErrorsGroup(TyperGroup):
             fail(usage_message(exc))
 
     def invoke(self, ctx: Any) -> Any:
+        from stochpend._files import signals_interrupt
+
         try:
-            return super().invoke(ctx)
+            with signals_interrupt():  # SIGTERM, SIGHUP: unwind, remove temporaries, exit 128+n
+                return super().invoke(ctx)
         except typer.TyperException as exc:
             if type(exc).__name__ == "NoArgsIsHelpError":
                 raise
@@ -94,9 +99,9 @@ def handles_errors(fn: F) -> F:
             if "--debug" in sys.argv:
                 raise
             fail(" ".join(str(exc).split()) or type(exc).__name__, code=1)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:
             console.print("[yellow]interrupted[/]")
-            raise typer.Exit(130) from None
+            raise typer.Exit(128 + getattr(exc, "signum", 2)) from None
 
     return wrapper  # type: ignore[return-value]
 
@@ -402,7 +407,7 @@ def simulate(
         if growth.startswith(("finite-time blow-up", "exponential")):
             console.print(f"[yellow]growth of <E>: {growth}[/]")
         if out is not None:
-            console.print(f"wrote {out}")
+            console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
 
 
 @app.command()

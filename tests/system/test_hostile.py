@@ -1,0 +1,365 @@
+"""Hostile inputs and real faults, from the case list behind the hostile-files issue
+(``shared/reports/hostile-cases.md``; case ids in each docstring).
+
+Real processes, real signals and, where this machine lets us mount one, a real small tmpfs
+that fills *during* the write (not a free-space check beforehand). Every run is tiny.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import signal
+import stat
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from stochpend import checkpoint as ck
+from stochpend import cli, io
+from stochpend.params import SimulationConfig
+
+pytestmark = pytest.mark.system
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+TINY = ["--paths", "200", "--t-max", "2", "--n-times", "2", "--seed", "3"]
+#: A run of a few seconds on one thread, long enough to be signalled mid-run.
+LONG = ["--paths", "40000", "--t-max", "400", "--n-times", "3", "--seed", "7", "--threads", "1"]
+
+
+def _env() -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
+    env["PYTHONPATH"] = os.pathsep.join([str(SRC), *filter(None, [env.get("PYTHONPATH")])])
+    return env
+
+
+def _cmd(*args: str) -> list[str]:
+    return [sys.executable, "-m", "stochpend", *args]
+
+
+def _run(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run(_cmd(*args), capture_output=True, text=True, cwd=cwd, env=_env(), timeout=timeout)
+
+
+def _one_line(text: str) -> str:
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    assert len(lines) == 1, text
+    assert "Traceback" not in text
+    return lines[0]
+
+
+# -- a real full disk ------------------------------------------------------------------------
+def _mount_prefix() -> list[str] | None:
+    """A command prefix that gives a private mount namespace where ``mount -t tmpfs`` works:
+    as root directly, otherwise through an unprivileged user namespace; None if neither."""
+    if shutil.which("unshare") is None:
+        return None
+    for prefix in (["unshare", "--mount", "--propagation", "private"],
+                   ["unshare", "--user", "--map-root-user", "--mount"]):
+        r = subprocess.run([*prefix, "sh", "-c", "d=$(mktemp -d) && mount -t tmpfs -o size=64k tmpfs $d"],
+                           capture_output=True)
+        if r.returncode == 0:
+            return prefix
+    return None
+
+
+MOUNT = _mount_prefix()
+needs_tmpfs = pytest.mark.skipif(MOUNT is None, reason="cannot mount a tmpfs here (not root, no user namespaces)")
+
+
+def _on_full_disk(tmp_path: Path, size: str, args: list[str]) -> tuple[int, str, list[str], Path]:
+    """Run ``stochpend ARGS`` (``{disk}`` in them is the tmpfs) with a tmpfs of ``size`` at
+    ``disk``; returns the exit status, stderr, the tmpfs's listing (recursive, with sizes) and
+    the directory the run's files outside the tmpfs live in."""
+    disk, saved = tmp_path / "disk", tmp_path / "saved"
+    disk.mkdir()
+    saved.mkdir()
+    cmd = " ".join(f"'{a.format(disk=disk)}'" for a in _cmd(*args))
+    script = (f"mount -t tmpfs -o size={size} tmpfs {disk} && cd {tmp_path} && "
+              f"{cmd} 2> {saved}/err; echo $? > {saved}/rc; "
+              f"find {disk} -mindepth 1 -printf '%P %s %y\\n' > {saved}/listing")
+    subprocess.run([*MOUNT, "sh", "-c", script], env=_env(), timeout=600, check=True)
+    listing = (saved / "listing").read_text().splitlines()
+    return int((saved / "rc").read_text()), (saved / "err").read_text(), listing, saved
+
+
+SWEEP = 'description = "tiny"\n[base]\npaths = 200\nt_max = 2\nn_times = 2\n[grid]\nD = [1.0, 2.0]\n'
+
+FULL_DISK = {  # each result is larger than the 40 KiB tmpfs, so the disk fills during its write
+    "simulate": ["simulate", *TINY, "--quiet", "--out", "{disk}/a.nc"],
+    "sweep": ["sweep", "small.toml", "--quiet", "--out", "{disk}/a.nc"],
+    "bfpe": ["bfpe", "--t-max", "100", "--n-cells", "100", "--quiet", "--out", "{disk}/a.nc"],
+    "reduced": ["reduced", "--paths", "100", "--t-max", "10", "--quiet", "--out", "{disk}/a.nc"],
+}
+
+
+@needs_tmpfs
+@pytest.mark.parametrize("command", list(FULL_DISK))
+def test_full_disk_during_the_write_is_one_line_and_exit_1(tmp_path, command):
+    """F01-F04: on a 40 KiB tmpfs every NetCDF write died with SIGSEGV (exit 139) inside libhdf5,
+    bfpe and reduced after 30-100 traceback lines."""
+    (tmp_path / "small.toml").write_text(SWEEP)
+    rc, err, listing, _ = _on_full_disk(tmp_path, "40k", FULL_DISK[command])
+    assert rc == 1, err
+    line = _one_line(err)
+    assert line.startswith("error: cannot write out=") and "No space left on device" in line, line
+    assert line.endswith("nothing was written there"), line
+    assert listing == [], "a partial or temporary file was left on the full disk"
+
+
+@needs_tmpfs
+def test_full_disk_at_the_end_of_a_checkpointed_run_keeps_the_checkpoint(tmp_path):
+    """F05: the result cannot be written; the finished run is kept in the checkpoint (on
+    another disk) and exit code 1, not 139; resuming it elsewhere writes the result."""
+    ckpt = tmp_path / "f5.ckpt"
+    rc, err, listing, _ = _on_full_disk(tmp_path, "40k", ["simulate", *TINY, "--quiet", "--checkpoint",
+                                                          str(ckpt), "--out", "{disk}/a.nc"])
+    assert rc == 1, err
+    line = _one_line(err)
+    assert "No space left on device" in line and f"the finished run is kept in {str(ckpt)!r}" in line, line
+    assert listing == []
+    r = _run("resume", str(ckpt), "--out", str(tmp_path / "f5.nc"), "--quiet", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "f5.nc").is_file() and not ckpt.exists()
+
+
+@needs_tmpfs
+def test_full_disk_in_reproduce_leaves_no_empty_file(tmp_path):
+    """F06, F06b: reproduce wrote its figures, tables and report in place, so a full disk left
+    a 0-byte report.html, and the error named no file."""
+    rc, err, listing, _ = _on_full_disk(tmp_path, "1365k", ["reproduce", "fig1", "--quick", "--out", "{disk}/r"])
+    assert rc == 1, err
+    last = err.strip().splitlines()[-1]
+    assert "Traceback" not in err
+    assert last.startswith("error: cannot write out=") and "No space left on device" in last, last
+    files = [entry.split() for entry in listing if entry.endswith(" f")]
+    assert files, listing
+    assert all(int(size) > 0 for _, size, _ in files), listing
+    assert not [name for name, _, _ in files if name.endswith(".tmp")], listing
+
+
+# -- outputs that must not be replaced, and names refused before any work ------------------------
+def _invoke(args: list[str]):
+    return CliRunner().invoke(cli.app, args)
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "dangling-symlink", "symlink", "directory"])
+def test_out_that_is_not_a_regular_file_is_never_replaced(tmp_path, kind):
+    """X01, X03: --overwrite replaced a device node or FIFO by a regular file (as root, --out
+    /dev/null --overwrite would replace the system's /dev/null); X02: a dangling symlink was
+    refused only after the work, as 'another process wrote it'."""
+    out = tmp_path / "out.nc"
+    if kind == "fifo":
+        os.mkfifo(out)
+    elif kind == "device":
+        try:
+            os.mknod(out, stat.S_IFCHR | 0o666, os.makedev(1, 3))
+        except PermissionError:
+            pytest.skip("creating a device node needs root")
+    elif kind == "dangling-symlink":
+        out.symlink_to(tmp_path / "nowhere" / "target")
+    elif kind == "symlink":
+        (tmp_path / "real.nc").write_text("a user's file")
+        out.symlink_to(tmp_path / "real.nc")
+    else:
+        out.mkdir()
+    before = os.lstat(out)
+    for extra in ([], ["--overwrite"]):
+        t0 = time.monotonic()
+        # --paths 1e9 would run for hours: a refusal after any work would never come back.
+        result = _invoke(["simulate", "--paths", "1e9", "--t-max", "1", "--quiet", "--out", str(out), *extra])
+        assert time.monotonic() - t0 < 30
+        assert result.exit_code == 2, result.output
+        line = _one_line(result.output)
+        assert line.startswith(f"error: out={str(out)!r} is not accepted: it is "), line
+        after = os.lstat(out)
+        assert (after.st_ino, after.st_mode) == (before.st_ino, before.st_mode)
+    if kind == "symlink":
+        assert (tmp_path / "real.nc").read_text() == "a user's file"
+
+
+def test_non_utf8_out_is_refused_before_any_work(tmp_path):
+    """E09, E09b, E10: a name that is not UTF-8 was refused after the whole run (exit 2, no
+    parameter named) and a checkpointed run could then never be written."""
+    out = tmp_path / os.fsdecode(b"r\xff.nc")
+    for cmd in (["simulate", "--paths", "1e9", "--t-max", "1", "--out", str(out)],
+                ["simulate", *TINY, "--checkpoint", str(out)],
+                ["sweep", str(tmp_path / "s.toml"), "--out", str(out)]):
+        (tmp_path / "s.toml").write_text(SWEEP)
+        result = _invoke(cmd)
+        assert result.exit_code == 2, result.output
+        line = _one_line(result.output)
+        assert "is not accepted: the name is not valid UTF-8" in line and "\\udcff" in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+def test_out_directory_removed_during_the_run_is_a_failure_not_bad_input(tmp_path, monkeypatch):
+    """F09: the --out directory removed mid-run was reported as bad input (exit 2)."""
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    real = io.to_netcdf
+
+    def remove_then_write(ds, path, **kwargs):
+        shutil.rmtree(gone)  # the fault strikes after the work, before the write
+        return real(ds, path, **kwargs)
+
+    monkeypatch.setattr(io, "to_netcdf", remove_then_write)
+    result = _invoke(["simulate", *TINY, "--quiet", "--out", str(gone / "x.nc")])
+    assert result.exit_code == 1, result.output
+    line = _one_line(result.output)
+    assert line == f"error: cannot write out={str(gone / 'x.nc')!r}: its directory does not exist (any more); " \
+                   "nothing was written there", line
+
+
+def test_markup_in_a_file_name_is_printed_as_written(tmp_path):
+    """S06: --out 'run[old].nc' was reported as 'wrote run.nc'; S07: 'd[/]x.nc' gave a
+    MarkupError traceback after the result was written."""
+    (tmp_path / "d[").mkdir()
+    for name in ("run[old].nc", "d[/]x.nc"):
+        out = tmp_path / name
+        result = _invoke(["simulate", *TINY, "--bias-paths", "0", "--out", str(out)])
+        assert result.exit_code == 0, result.output
+        assert out.is_file()
+        assert result.output.rstrip().splitlines()[-1] == f"wrote {out}"
+
+
+def test_closed_stderr(tmp_path):
+    """O2, O7, O9: with file descriptor 2 closed every command failed at import (exit 1), so a
+    detached --quiet run did no work and bad input gave 1, not 2."""
+    def closed(*args: str) -> int:
+        cmd = " ".join(f"'{a}'" for a in _cmd(*args))
+        return subprocess.run(["sh", "-c", f"{cmd} 2>&-"], cwd=tmp_path, env=_env(), timeout=300).returncode
+
+    assert closed("simulate", "--paths", "0") == 2
+    assert closed("simulate", *TINY, "--quiet", "--out", "closed.nc") == 0
+    assert (tmp_path / "closed.nc").is_file()
+
+
+# -- one run per checkpoint, and signals -------------------------------------------------------
+def _start(args: list[str], cwd: Path) -> subprocess.Popen:
+    # SIGHUP delivered even when this suite runs under nohup (an ignored signal stays ignored).
+    return subprocess.Popen(_cmd(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=cwd, env=_env(), preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_DFL))
+
+
+def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 120) -> None:
+    deadline = time.monotonic() + timeout
+    while not path.exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, f"{path} did not appear"
+        time.sleep(0.05)
+
+
+def test_one_run_per_checkpoint_and_signals_save_it(tmp_path):
+    """F13: two runs on one --checkpoint overwrote each other's state and the winner deleted
+    it; I2: SIGHUP killed a checkpointed run without saving; F12: two resumes both computed and
+    the loser claimed a deleted file kept the run; X08: resume CK --out CK --overwrite destroyed
+    the finished run and exited 0."""
+    ckpt, lock = tmp_path / "run.ckpt", ck.lock_path(tmp_path / "run.ckpt")
+    a = _start(["simulate", *LONG, "--checkpoint", "run.ckpt", "--checkpoint-every", "1h", "--out", "a.nc",
+                "--quiet"], tmp_path)
+    _wait_for(lock, a)
+    b = _run("simulate", *LONG, "--checkpoint", "run.ckpt", "--out", "b.nc", "--quiet", cwd=tmp_path)
+    assert b.returncode == 2, b.stderr
+    line = _one_line(b.stderr)
+    assert line.startswith("error: checkpoint='run.ckpt' is not accepted: it is in use by "
+                           f"pid {a.pid} on host "), line
+    a.send_signal(signal.SIGHUP)  # the SSH session dropped: save the state, then exit 128 + 1
+    _, err = a.communicate(timeout=120)
+    assert a.returncode == 128 + signal.SIGHUP, err
+    assert err.splitlines()[-1] == "interrupted: state saved to run.ckpt; continue with: stochpend resume run.ckpt"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.ckpt"], "a temporary or lock file was left"
+
+    first = _start(["resume", "run.ckpt", "--quiet"], tmp_path)
+    _wait_for(lock, first)
+    second = _run("resume", "run.ckpt", "--quiet", cwd=tmp_path)
+    assert second.returncode == 2, second.stderr
+    assert f"it is in use by pid {first.pid} on host " in _one_line(second.stderr)
+    first.send_signal(signal.SIGTERM)
+    _, err = first.communicate(timeout=120)
+    assert first.returncode == 128 + signal.SIGTERM, err
+    assert not (tmp_path / "a.nc").exists() and ckpt.is_file()
+    saved = ckpt.read_bytes()
+
+    r = _run("resume", "run.ckpt", "--out", "run.ckpt", "--overwrite", cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    assert "it is the checkpoint itself" in _one_line(r.stderr)
+    assert ckpt.read_bytes() == saved
+
+
+# -- the trust boundary: a checkpoint someone hands you -------------------------------------------
+SMALL = {"noise": "ou", "D": 1.0, "tau": 1.0, "omega": 1.0, "paths": 300, "t_max": 20.0, "n_times": 4, "seed": 5}
+
+
+class _StopAfterOne(ck.FileCheckpointer):
+    def maybe_save(self, state):
+        self.save(state)
+        raise KeyboardInterrupt
+
+
+@pytest.fixture(scope="module")
+def handed_over(tmp_path_factory):
+    """A mid-run checkpoint whose recorded output is run.nc beside it."""
+    folder = tmp_path_factory.mktemp("ckpt")
+    config = SimulationConfig.build(**SMALL)
+    path = folder / "run.ckpt"
+    cp = _StopAfterOne(path, None, config=config, out=folder / "run.nc", chunk_paths=90,
+                       command_line="stochpend simulate --out run.nc")
+    with pytest.raises(KeyboardInterrupt):
+        ck.run_checkpointed(config, checkpoint_path=path, every_s=None, checkpointer=cp, chunk_paths=90,
+                            out=folder / "run.nc")
+    return path.read_bytes()
+
+
+def _crafted(data: bytes, dest: Path, **changes) -> Path:
+    """``data`` with header fields changed and a valid SHA-256, as an attacker would make it."""
+    n = len(ck.MAGIC)
+    (head_len,) = struct.unpack_from("<Q", data, n)
+    header = json.loads(data[n + 8:n + 8 + head_len])
+    header.update(changes)
+    head = json.dumps(header).encode()
+    body = ck.MAGIC + struct.pack("<Q", len(head)) + head + data[n + 8 + head_len:-32]
+    dest.write_bytes(body + hashlib.sha256(body).digest())
+    return dest
+
+
+def test_a_crafted_checkpoint_cannot_choose_or_overwrite_the_destination(tmp_path, handed_over):
+    """S01, S02: a checkpoint with `out` set to a user's file and `overwrite` true replaced
+    that file, and 'resuming ...' showed the checkpoint's own command line."""
+    victim = tmp_path / "home" / "victim.txt"
+    victim.parent.mkdir()
+    victim.write_text("precious user data")
+    work = tmp_path / "work"
+    work.mkdir()
+    evil = _crafted(handed_over, work / "evil.ckpt", out=str(victim), overwrite=True)
+    result = _invoke(["resume", str(evil)])
+    assert result.exit_code == 2, result.output
+    line = _one_line(result.output)
+    assert "outside the checkpoint's own directory; pass --out FILE" in line, line
+    # The same name inside the checkpoint's own directory: used, but not overwritten on its say.
+    (work / "victim.txt").write_text("precious user data")
+    evil = _crafted(handed_over, work / "evil2.ckpt", out=str(work / "victim.txt"), overwrite=True)
+    result = _invoke(["resume", str(evil)])
+    assert result.exit_code == 2 and "the file exists (pass --overwrite" in _one_line(result.output)
+    assert victim.read_text() == (work / "victim.txt").read_text() == "precious user data"
+
+
+def test_text_from_a_checkpoint_is_escaped(tmp_path, handed_over):
+    """S03: command_line '[/]' gave a MarkupError traceback; S04: escape sequences (window
+    title, clear screen) and [link=...] from the header reached the terminal."""
+    hostile = "stochpend [/] \x1b]0;PWNED\x07\x1b[2J[link=https://evil.example]x[/link]"
+    path = _crafted(handed_over, tmp_path / "run.ckpt", out=str(tmp_path / "run.nc"), command_line=hostile)
+    result = _invoke(["resume", str(path)])
+    assert result.exit_code == 0, result.output
+    first = result.output.splitlines()[0]
+    assert "\x1b" not in result.output and "\x07" not in result.output
+    assert first.startswith("resuming stochpend [/] \\x1b]0;PWNED\\x07\\x1b[2J[link=https://evil.example]x[/link]")
+    assert first.endswith(f"; writing {tmp_path / 'run.nc'}"), first
+    assert (tmp_path / "run.nc").is_file()
