@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import re
 import sys
 from pathlib import Path
@@ -61,15 +62,17 @@ _TOKEN = re.compile(rf"\s*({_NUMBER})\s*(ms|sec|min|s|m|h|d)?\s*")
 def parse_duration(text: str, name: str = "checkpoint_every") -> float:
     """'30s', '5m', '1h', '1h30m', '0.2s', '90' (seconds) -> seconds (> 0)."""
     accepted = "a duration > 0 such as 30s, 5m, 1h or 1h30m (a bare number is seconds)"
-    pos, total, parts = 0, 0.0, 0
+    pos, total, parts, bare = 0, 0.0, 0, 0
     while pos < len(text):
         m = _TOKEN.match(text, pos)
         if m is None or m.end() == pos:
             raise ValueError(f"{name}={text!r} is not accepted: {accepted}")
         total += float(m.group(1)) * _UNITS[m.group(2) or "s"]
         parts += 1
+        bare += m.group(2) is None
         pos = m.end()
-    if parts == 0 or not math.isfinite(total) or total <= 0:
+    # A number without a unit only alone ('90'): '1.5.5s' or '1 2 3' are typing errors, not sums.
+    if parts == 0 or (bare and parts > 1) or not math.isfinite(total) or total <= 0:
         raise ValueError(f"{name}={text!r} is not accepted: {accepted}")
     return total
 
@@ -251,7 +254,7 @@ def sweep_table(ds: Any) -> Table:
     swept = list(sets[0]["params"]) if sets else []
     noise = ds.attrs.get("noise")
     table = Table(title=f"stochpend sweep: {len(sets)} parameter sets"
-                        + (f" ({ds.attrs['description']})" if ds.attrs.get("description") else ""))
+                        + (f" ({markup(ds.attrs['description'])})" if ds.attrs.get("description") else ""))
     noises = set(ds["noise"].values.ravel().tolist()) if "noise" in ds.variables else {noise}
     scaled = {frozenset({"ou"}): "<E2>/(Dt/tau^2)", frozenset({"white"}): "<E>/(Dt/4)"}.get(
         frozenset(noises), "<E2>/(Dt/tau^2) (ou), <E>/(Dt/4) (white)")
@@ -312,8 +315,12 @@ def sweep_command(
 
     backend = resolve_backend(backend, note=cli.note)
     check_precision(precision, backend)
-    if workers is not None and workers < 1:
-        cli.fail(f"workers={workers!r} is not accepted: an integer >= 1")
+    # Processes or threads on this machine: no more than it has CPUs (--workers 1e6 would start a
+    # million processes). A remote scheduler's workers are its own.
+    local = scheduler is None or not scheduler.startswith(("tcp://", "tls://", "inproc://", "ucx://"))
+    most = os.cpu_count() or 1
+    if workers is not None and (workers < 1 or (local and workers > most)):
+        cli.fail(f"workers={workers!r} is not accepted: an integer in [1, {most}] (this machine's CPUs)")
     progress = SweepProgressBar(enabled=not quiet and cli.console.is_terminal, quiet=quiet)
     try:
         ds = sweep(plan, scheduler=scheduler, workers=workers, progress=progress,
@@ -327,7 +334,7 @@ def sweep_command(
     if not quiet:
         cli.console.print(sweep_table(ds))
         if out is not None:
-            cli.console.print(f"wrote {out}")
+            cli.console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
 
 
 def _check_resources(plan: Any, spec: Path, max_path_steps: float | None) -> None:

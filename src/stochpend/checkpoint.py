@@ -30,6 +30,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import math
 import os
 import signal
 import struct
@@ -228,27 +229,67 @@ def read(path: str | os.PathLike) -> Checkpoint:
     p = Path(path)
     if not p.is_file():
         raise _refuse(p, "no such file")
+    # The file is read whole, and its arrays copied out of it: it must fit twice (a sparse 64 GiB
+    # file with the magic bytes would otherwise end in a MemoryError).
+    from stochpend import resources
+
+    size, have = p.stat().st_size, resources.available_memory()
+    if have is not None and 2 * size > have:
+        raise _refuse(p, f"it is {resources.format_bytes(size)}, and reading it needs twice that, more than "
+                         f"the {resources.format_bytes(have)} of memory available")
     data = p.read_bytes()
     if len(data) < len(MAGIC) + _LEN.size + _DIGEST or not data.startswith(MAGIC):
         if MAGIC.startswith(data[: len(MAGIC)]) and len(data) > 0:
             raise _refuse(p, "the file is truncated (a partial stochpend checkpoint)")
         raise _refuse(p, "not a stochpend checkpoint (wrong magic bytes)")
-    body, digest = data[:-_DIGEST], data[-_DIGEST:]
+    body, digest = memoryview(data)[:-_DIGEST], data[-_DIGEST:]
     if hashlib.sha256(body).digest() != digest:
         raise _refuse(p, "checksum mismatch: the file is truncated or corrupted")
     (head_len,) = _LEN.unpack_from(body, len(MAGIC))
     start = len(MAGIC) + _LEN.size
     if start + head_len > len(body):
         raise _refuse(p, "header length beyond the end of the file")
-    try:
-        header = json.loads(body[start:start + head_len].decode())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise _refuse(p, f"unreadable header ({exc})") from None
-    payload = memoryview(body)[start + head_len:]
+    try:  # the writer never writes NaN or Infinity (allow_nan=False): refuse them here too
+        header = json.loads(bytes(body[start:start + head_len]).decode(), parse_constant=_no_constant)
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        why = "nested too deeply" if isinstance(exc, RecursionError) else str(exc)
+        raise _refuse(p, f"unreadable header ({why})") from None
+    payload = body[start + head_len:]
     try:
         return _from_header(p, header, payload)
-    except (KeyError, TypeError, AttributeError) as exc:
+    except (KeyError, TypeError, AttributeError, OverflowError, ValueError) as exc:
+        if isinstance(exc, ValueError) and str(exc).startswith("checkpoint="):
+            raise
         raise _refuse(p, f"malformed header ({type(exc).__name__}: {exc})") from None
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a valid value")
+
+
+def _check_settings(p: Path, header: dict[str, Any]) -> None:
+    """The run's settings in the header have the types the writer gives them (a crafted but
+    correctly checksummed file fails here in one line, not later in a traceback)."""
+    def positive_int(v: Any) -> bool:
+        return v is None or (isinstance(v, int) and not isinstance(v, bool) and v >= 1)
+
+    def number(v: Any, *, none: bool) -> bool:
+        return (none and v is None) or (isinstance(v, int | float) and not isinstance(v, bool)
+                                        and math.isfinite(v) and v >= 0)
+
+    checks = {
+        "threads": positive_int(header.get("threads")),
+        "chunk_paths": positive_int(header.get("chunk_paths")),
+        "every_s": number(header.get("every_s"), none=True) and header.get("every_s") != 0,
+        "elapsed_s": number(header.get("elapsed_s", 0.0), none=False),
+        "resumed": positive_int(header.get("resumed", 0) or None),
+        "out": header.get("out") is None or isinstance(header.get("out"), str),
+        "command_line": header.get("command_line") is None or isinstance(header.get("command_line"), str),
+        "done_work": number(header["run"].get("done_work"), none=False),
+    }
+    bad = [k for k, ok in checks.items() if not ok]
+    if bad:
+        raise _refuse(p, f"malformed header: {bad[0]}={header.get(bad[0], header['run'].get(bad[0]))!r}")
 
 
 def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkpoint:
@@ -277,7 +318,9 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     r = {k: run[k] for k in _RUN_FIELDS}
     n_times = len(config.times)
     bs = config.batch_size
-    ok = (0 <= r["first_batch"] <= r["b0"] < r["b1"] <= r["stop_batch"] <= config.n_batches
+    ok = (all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < 2**63
+              for k, v in r.items() if k != "done_work")
+          and 0 <= r["first_batch"] <= r["b0"] < r["b1"] <= r["stop_batch"] <= config.n_batches
           and 0 <= r["j"] <= n_times and r["path_steps"] >= 0)
     if not ok:
         raise _refuse(p, f"inconsistent run position {r}")
@@ -315,6 +358,7 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     if missing:
         raise _refuse(p, f"missing arrays {sorted(missing)}")
 
+    _check_settings(p, header)
     acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"])
     scalars = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
     backend = header.get("backend", "cpu")

@@ -214,10 +214,11 @@ def summary_table(ds: Any, max_rows: int = 12) -> Table:
     model = potential if potential != "power" else f"U = x^{2 * int(attrs.get('power_n', 2))}/{2 * int(attrs.get('power_n', 2))}"
     if potential != "pendulum":
         model += f" ({attrs.get('coupling', 'force')} coupling)"
-    title = f"stochpend: {model}, {noise} noise, D={D:g}" + (f", tau={float(tau):g}" if tau != "none" else "")
+    # Attributes come from a file: escaped (terminal control characters, Rich markup).
+    title = f"stochpend: {markup(model)}, {markup(noise)} noise, D={D:g}" + (f", tau={float(tau):g}" if tau != "none" else "")
     if attrs.get("omega_noise", "none") != "none":
         title += f", W={float(attrs['omega_noise']):g}"
-    title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {attrs.get('seed')}"
+    title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {markup(attrs.get('seed'))}"
     table = Table(title=title)
     scaled = "<E2>/(Dt/tau^2)" if noise == "ou" else "<E>/(Dt/4)"
     has_bias = "mean_E_bias" in ds
@@ -381,7 +382,7 @@ def simulate(
         # Checks the checkpoint path before any work; writes --out itself (as 'stochpend
         # resume' does), then removes the checkpoint; Ctrl-C saves it and exits 130.
         ds = simulate_with_checkpoint(
-            config, checkpoint_path=checkpoint, every_s=parse_duration(checkpoint_every or "5m"),
+            config, checkpoint_path=checkpoint, every_s=parse_duration("5m" if checkpoint_every is None else checkpoint_every),
             out=out, overwrite=overwrite, progress=progress, threads=threads, backend=backend,
             precision=precision,
         )
@@ -424,8 +425,14 @@ def show(
     ds = io.open_results(path)
     if "mean_E" not in ds:
         raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend simulation result (no mean_E)")
-    console.print(summary_table(ds, max_rows=rows))
-    for line in bias_warnings(ds):
+    try:  # the table is built whole before anything is printed
+        table, warnings = summary_table(ds, max_rows=rows), bias_warnings(ds)
+    except (KeyError, AttributeError, TypeError, ValueError, OverflowError, IndexError) as exc:
+        why = " ".join(str(exc).split()) or type(exc).__name__
+        raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend simulation result this "
+                         f"command can show ({why})") from None
+    console.print(table)
+    for line in warnings:
         console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
 
 

@@ -53,15 +53,73 @@ def to_netcdf(ds: xr.Dataset, path: str | os.PathLike, *, overwrite: bool = Fals
     return write_atomic(p, image, overwrite=overwrite)
 
 
+#: A results file nests no deeper and holds no more objects than this (xarray writes a flat file).
+_MAX_DEPTH, _MAX_OBJECTS = 8, 100_000
+#: Declared data beyond the file's own size by more than this is refused before any allocation.
+_SLACK_BYTES = 1 << 20
+
+
+def _check_hdf5(p: Path) -> None:
+    """Refuse, before xarray reads anything, what a crafted HDF5 file can use against a reader:
+    data stored in other files (external storage: a FIFO hangs the reader, a private file's
+    bytes are shown as numbers), links to elsewhere (external, soft: loops), virtual datasets,
+    and datasets declaring more data than the file holds (1e11 elements in 71 KB ask for 745 GiB).
+    A file whose datasets' filters (compression) hide their size is refused the same way: the
+    tool writes none."""
+    import h5py
+
+    size = p.stat().st_size
+    declared = 0
+    objects = 0
+
+    def refuse(why: str) -> ValueError:
+        return ValueError(f"path={str(p)!r} is not accepted: {why}")
+
+    def walk(group: h5py.Group, depth: int) -> None:
+        nonlocal declared, objects
+        if depth > _MAX_DEPTH:
+            raise refuse(f"groups nested deeper than {_MAX_DEPTH}")
+        for name in group:
+            objects += 1
+            if objects > _MAX_OBJECTS:
+                raise refuse(f"more than {_MAX_OBJECTS} objects")
+            where = f"{group.name.rstrip('/')}/{name}"
+            if not isinstance(group.get(name, getlink=True), h5py.HardLink):
+                raise refuse(f"{where!r} is a link to another place or file")
+            obj = group[name]
+            if isinstance(obj, h5py.Group):
+                walk(obj, depth + 1)
+            elif isinstance(obj, h5py.Dataset):
+                if obj.external:
+                    raise refuse(f"{where!r} keeps its data in another file")
+                if obj.is_virtual:
+                    raise refuse(f"{where!r} is a virtual dataset (data in other files)")
+                declared += int(obj.size) * obj.dtype.itemsize
+        if declared > size + _SLACK_BYTES:
+            raise refuse(f"it declares {declared:.3g} bytes of data in a file of {size} bytes")
+
+    with h5py.File(p, "r") as f:
+        walk(f, 0)
+
+
 def open_results(path: str | os.PathLike) -> xr.Dataset:
-    """Open a results file written by :func:`to_netcdf` (loaded into memory, file closed)."""
+    """Open a results file written by :func:`to_netcdf` (loaded into memory, file closed).
+
+    Only a regular file is read (a FIFO or device would hang or never end), and only after
+    :func:`_check_hdf5` found nothing in it that reads other files or asks for more memory than
+    the file holds. Every refusal is one ``ValueError`` line naming the file.
+    """
     p = Path(path)
     if p.is_dir():
         raise ValueError(f"path={str(p)!r} is not accepted: it is a directory, not a results file")
     if not p.is_file():
         raise ValueError(f"path={str(p)!r} is not accepted: no such file")
     try:
+        _check_hdf5(p)
         with xr.open_dataset(p, engine="h5netcdf") as ds:
             return ds.load()
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"path={str(p)!r} is not accepted: not a readable NetCDF results file ({exc})") from None
+    except (ValueError, OSError, KeyError, TypeError, RuntimeError, RecursionError) as exc:
+        if isinstance(exc, ValueError) and str(exc).startswith(f"path={str(p)!r}"):
+            raise
+        why = " ".join(str(exc).split()) or type(exc).__name__
+        raise ValueError(f"path={str(p)!r} is not accepted: not a readable NetCDF results file ({why})") from None

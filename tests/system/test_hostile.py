@@ -363,3 +363,210 @@ def test_text_from_a_checkpoint_is_escaped(tmp_path, handed_over):
     assert first.startswith("resuming stochpend [/] \\x1b]0;PWNED\\x07\\x1b[2J[link=https://evil.example]x[/link]")
     assert first.endswith(f"; writing {tmp_path / 'run.nc'}"), first
     assert (tmp_path / "run.nc").is_file()
+
+
+def _crafted_raw(data: bytes, dest: Path, edit) -> Path:
+    """``data`` with its header text passed through ``edit`` and a valid SHA-256."""
+    n = len(ck.MAGIC)
+    (head_len,) = struct.unpack_from("<Q", data, n)
+    head = edit(data[n + 8:n + 8 + head_len].decode()).encode()
+    body = ck.MAGIC + struct.pack("<Q", len(head)) + head + data[n + 8 + head_len:-32]
+    dest.write_bytes(body + hashlib.sha256(body).digest())
+    return dest
+
+
+def _set(path: list[str], value: str):
+    """An edit of the header text setting the field at ``path`` to the raw JSON ``value``."""
+    def edit(text: str) -> str:
+        header = json.loads(text)
+        target = header
+        for key in path[:-1]:
+            target = target[key] if not isinstance(target, list) else target[int(key)]
+        target[path[-1] if not isinstance(target, list) else int(path[-1])] = "@@"
+        return json.dumps(header).replace('"@@"', value)
+    return edit
+
+
+MALFORMED = {  # case id: (edit, what the one line names)
+    "S08": (_set(["arrays", "0", "offset"], "Infinity"), "Infinity is not a valid value"),
+    "S09": (_set(["run", "path_steps"], "Infinity"), "Infinity is not a valid value"),
+    "S10": (_set(["extra"], "[" * 100_000 + "]" * 100_000), "nested too deeply"),
+    "S11": (_set(["threads"], '"abc"'), "malformed header: threads='abc'"),
+    "S12": (_set(["every_s"], '"abc"'), "malformed header: every_s='abc'"),
+    "S14": (_set(["elapsed_s"], '"abc"'), "malformed header: elapsed_s='abc'"),
+    "S18": (_set(["run", "done_work"], "NaN"), "NaN is not a valid value"),
+    "S09b": (_set(["run", "path_steps"], "1" + "0" * 400), "inconsistent run position"),
+}
+
+
+@pytest.mark.parametrize("case", list(MALFORMED))
+def test_malformed_but_checksummed_checkpoint_is_one_line(tmp_path, handed_over, case):
+    """S08-S12, S14, S18: header fields with Infinity, NaN, deep nesting or wrong types, under
+    a valid SHA-256, gave tracebacks or failed after the work had started."""
+    edit, needle = MALFORMED[case]
+    path = _crafted_raw(handed_over, tmp_path / "c.ckpt", edit)
+    result = _invoke(["resume", str(path), "--out", str(tmp_path / "o.nc")])
+    assert result.exit_code == 2, result.output
+    line = _one_line(result.output)
+    assert line.startswith(f"error: checkpoint={str(path)!r} is not accepted: ") and needle in line, line
+    assert not (tmp_path / "o.nc").exists()
+
+
+# -- show and open_results on crafted NetCDF files ---------------------------------------------
+@pytest.fixture(scope="module")
+def crafted_nc(tmp_path_factory):
+    """The crafted results files of the case list (N01-N16), beside a genuine one."""
+    import h5py
+    import numpy as np
+    import xarray as xr
+
+    d = tmp_path_factory.mktemp("nc")
+    result = _invoke(["simulate", *TINY, "--n-times", "5", "--quiet", "--out", str(d / "base.nc")])
+    assert result.exit_code == 0, result.output
+    base = io.open_results(d / "base.nc")
+
+    def save(ds, name):
+        ds.to_netcdf(d / name, engine="h5netcdf")
+
+    def with_attr(name, key, value):
+        ds = base.copy()
+        ds.attrs[key] = value
+        save(ds, name)
+
+    with_attr("N01.nc", "noise", "ou\x1b]0;PWNED\x07\x1b[2J\x1b[1;31mFAKE")
+    with_attr("N02.nc", "noise", "ou [/]")
+    with_attr("N03.nc", "paths", np.inf)
+    with_attr("N04.nc", "D", "abc")
+    with_attr("N05.nc", "seed", "[link=https://evil.example]click me[/link]")
+    save(base.drop_vars("mean_E_stderr"), "N06.nc")
+    save(xr.Dataset({"mean_E": ("x", np.arange(3.0))}), "N07.nc")
+    with_attr("N08.nc", "n_batches", np.inf)
+    shutil.copy(d / "base.nc", d / "N09.nc")
+    with h5py.File(d / "N09.nc", "a") as f:  # 1e11 declared elements, no data written
+        f.create_dataset("junk", shape=(10**11,), dtype="f8", chunks=(10**6,), maxshape=(None,))
+    os.mkfifo(d / "fifo")
+    (d / "secret.txt").write_text("a private file " * 8)
+    for name, target in (("N11.nc", d / "fifo"), ("N12.nc", d / "secret.txt")):
+        base.drop_vars("mean_E").to_netcdf(d / name, engine="h5netcdf")
+        with h5py.File(d / name, "a") as f:
+            ds = f.create_dataset("mean_E", shape=(5,), dtype="<f8", external=[(str(target), 0, h5py.h5f.UNLIMITED)])
+            ds.dims[0].attach_scale(f["time"])
+    shutil.copy(d / "base.nc", d / "N15.nc")
+    with h5py.File(d / "N15.nc", "a") as f:
+        f["loop"] = h5py.SoftLink("/loop")
+    shutil.copy(d / "base.nc", d / "N16.nc")
+    with h5py.File(d / "N16.nc", "a") as f:
+        f["other"] = h5py.ExternalLink(str(d / "base.nc"), "/mean_E")
+    return d
+
+
+REFUSED_NC = {  # case id: what the one line says
+    "N03": "cannot convert float infinity to integer", "N04": "could not convert string to float",
+    "N06": "mean_E_stderr", "N07": "'time'", "N08": "cannot convert float infinity to integer",
+    "N09": "it declares 8e+11 bytes of data in a file of ", "N11": "'/mean_E' keeps its data in another file",
+    "N12": "'/mean_E' keeps its data in another file", "N15": "'/loop' is a link to another place or file",
+    "N16": "'/other' is a link to another place or file",
+}
+
+
+@pytest.mark.parametrize("case", list(REFUSED_NC))
+def test_show_refuses_a_crafted_results_file_in_one_line(crafted_nc, case):
+    """N09-N12, N15, N16: a crafted file made show hang (data in a FIFO), print a private
+    file's bytes as numbers, ask for 745 GiB, or end in tracebacks; N03-N08: tracebacks."""
+    path = crafted_nc / f"{case}.nc"
+    proc = subprocess.run(_cmd("show", str(path)), capture_output=True, text=True, env=_env(), timeout=60)
+    assert proc.returncode == 2, proc.stderr
+    line = _one_line(proc.stderr)
+    assert line.startswith(f"error: path={str(path)!r} is not accepted: ") and REFUSED_NC[case] in line, line
+    assert proc.stdout == ""
+
+
+@pytest.mark.parametrize("case", ["N01", "N02", "N05"])
+def test_show_escapes_text_from_the_file(crafted_nc, case):
+    """N01: escape sequences from an attribute reached the terminal; N02: '[/]' gave a
+    MarkupError traceback; N05: [link=...] became a hyperlink and its text vanished."""
+    result = _invoke(["show", str(crafted_nc / f"{case}.nc")])
+    assert result.exit_code == 0, result.output
+    assert "\x1b" not in result.output and "\x07" not in result.output
+    title = {"N01": "ou\\x1b]0;PWNED\\x07\\x1b[2J\\x1b[1;31mFAKE noise", "N02": "ou [/] noise",
+             "N05": "seed [link=https://evil.example]click me[/link]"}[case]
+    assert title in result.output, result.output
+
+
+# -- sweeps: bounded before expanding, text escaped, TOML that cannot be parsed ----------------
+def test_sweep_grid_is_counted_before_it_is_expanded(tmp_path):
+    """W11c: a 742-byte TOML of 5 axes x 25 values expanded to 9.8 million parameter sets
+    (3.7 GB, 173 s) before a MemoryError traceback."""
+    lines = ["[base]", "paths = 2", "t_max = 0.05", "n_times = 1", "[grid]"]
+    for axis in ("D", "tau", "omega", "seed", "Omega0"):
+        values = ", ".join(str(i) if axis == "seed" else f"{1 + i}.0" for i in range(25))
+        lines.append(f"{axis} = [{values}]")
+    (tmp_path / "g.toml").write_text("\n".join(lines) + "\n")
+    t0 = time.monotonic()
+    result = _invoke(["sweep", str(tmp_path / "g.toml"), "--out", str(tmp_path / "g.nc")])
+    assert time.monotonic() - t0 < 10
+    assert result.exit_code == 2, result.output
+    assert _one_line(result.output) == ("error: g.toml: grid is not accepted: 25 D x 25 tau x 25 omega x 25 seed "
+                                        "x 25 Omega0 make 9.77e+06 parameter sets, more than 100,000; split it "
+                                        "into several sweeps")
+
+
+@pytest.mark.parametrize("case", ["W06", "W06b", "W16"])
+def test_sweep_toml_that_cannot_be_parsed_is_one_line(tmp_path, case):
+    """W06, W06b: deeply nested TOML gave a 3000-line RecursionError traceback; W16: a
+    5000-digit integer gave a line naming neither the file nor the key."""
+    text = {"W06": "[base]\npaths=10\n[grid]\nD = " + "[" * 5000 + "1" + "]" * 5000 + "\n",
+            "W06b": "[base]\npaths=10\n[grid]\nx = " + "{a=" * 3000 + "1" + "}" * 3000 + "\n",
+            "W16": "[base]\npaths = " + "9" * 5000 + "\n[grid]\nD = [1.0]\n"}[case]
+    (tmp_path / "bad.toml").write_text(text)
+    result = _invoke(["sweep", str(tmp_path / "bad.toml")])
+    assert result.exit_code == 2, result.output
+    line = _one_line(result.output)
+    assert line.startswith(f"error: sweep={str(tmp_path / 'bad.toml')!r} is not accepted: invalid TOML"), line
+
+
+def test_sweep_description_is_escaped(tmp_path):
+    """W03: description '[/]' gave a MarkupError after the sweep was written; W04: escape
+    sequences reached the terminal; W05: '[draft]' vanished."""
+    text = SWEEP.replace('"tiny"', '"Fig [/] [draft] \\u001b]0;PWNED\\u0007"')
+    (tmp_path / "m.toml").write_text(text)
+    result = _invoke(["sweep", str(tmp_path / "m.toml"), "--out", str(tmp_path / "m.nc")])
+    assert result.exit_code == 0, result.output
+    assert "(Fig [/] [draft] \\x1b]0;PWNED\\x07)" in result.output
+    assert "\x1b" not in result.output
+
+
+def test_sweep_workers_bounded_by_the_machine(tmp_path):
+    """W24: --workers 1e6 went straight to LocalCluster(n_workers=1000000)."""
+    (tmp_path / "s.toml").write_text(SWEEP)
+    result = _invoke(["sweep", str(tmp_path / "s.toml"), "--scheduler", "local", "--workers", "1e6"])
+    assert result.exit_code == 2, result.output
+    assert f"workers=1000000 is not accepted: an integer in [1, {os.cpu_count()}]" in _one_line(result.output)
+
+
+# -- bounded work, strict parsing --------------------------------------------------------------
+@pytest.mark.parametrize("case", ["R03b", "R02", "B01", "R10g", "R10h", "R10i"])
+def test_work_and_settings_refused_before_any_work(tmp_path, case):
+    """R03b: the work limit ignored that every path stops at every output time (1e14
+    path-steps estimated as 20); R02: --step-c 1e-300 was reported as a blow-up; B01: bfpe
+    --n-cells 1e7 --steps-per-decade 1e5 ran for days with no estimate; R10g-i:
+    --checkpoint-every '1.5.5s', '1 2 3' and '' were read as 2 s, 6 s and 5 min."""
+    args, needle = {
+        "R03b": (["simulate", "--paths", "1e9", "--t-max", "1e-9", "--n-times", "1e5"],
+                 "paths=1000000000 is not accepted: the run needs at least 1e+14 path-steps (paths x output times"),
+        "R02": (["simulate", "--step-c", "1e-300", "--paths", "1", "--t-max", "1", "--n-times", "1"],
+                "step_c=1e-300 is not accepted: 0 (fixed step) or a number >= 1e-06"),
+        "B01": (["bfpe", "--n-cells", "1e7", "--t-max", "10", "--steps-per-decade", "1e5"],
+                "n_cells=10000000 is not accepted: the solve needs about 6e+12 cell-steps"),
+        "R10g": ([*TINY, "--checkpoint", "x.ckpt", "--checkpoint-every", "1.5.5s"], "checkpoint_every='1.5.5s'"),
+        "R10h": ([*TINY, "--checkpoint", "x.ckpt", "--checkpoint-every", "1 2 3"], "checkpoint_every='1 2 3'"),
+        "R10i": ([*TINY, "--checkpoint", "x.ckpt", "--checkpoint-every", ""], "checkpoint_every=''"),
+    }[case]
+    if case.startswith("R10"):
+        args = ["simulate", *args]
+    t0 = time.monotonic()
+    result = _invoke([*args, "--out", str(tmp_path / "o.nc")])
+    assert time.monotonic() - t0 < 10
+    assert result.exit_code == 2, result.output
+    assert needle in _one_line(result.output)
+    assert list(tmp_path.iterdir()) == []
