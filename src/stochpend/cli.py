@@ -62,6 +62,7 @@ class OneLineErrorsGroup(TyperGroup):
     def invoke(self, ctx: Any) -> Any:
         from stochpend._files import signals_interrupt
 
+        _check_numba_threads()
         try:
             with signals_interrupt():  # SIGTERM, SIGHUP: unwind, remove temporaries, exit 128+n
                 return super().invoke(ctx)
@@ -69,6 +70,26 @@ class OneLineErrorsGroup(TyperGroup):
             if type(exc).__name__ == "NoArgsIsHelpError":
                 raise
             fail(usage_message(exc))
+
+
+#: NUMBA_NUM_THREADS above this starts no run (1e6 made Numba's thread pool die with SIGSEGV).
+MAX_NUMBA_THREADS = 4096
+
+
+def _check_numba_threads() -> None:
+    """NUMBA_NUM_THREADS is read when Numba is imported: 0 gave a traceback, 1e6 a segfault."""
+    import os
+
+    text = os.environ.get("NUMBA_NUM_THREADS")
+    if text is None or not text.strip():
+        return
+    try:
+        n = int(text)
+    except ValueError:
+        return  # Numba ignores it with its own warning and uses the CPU count
+    if not 1 <= n <= MAX_NUMBA_THREADS:
+        fail(f"NUMBA_NUM_THREADS={text!r} is not accepted: an integer in [1, {MAX_NUMBA_THREADS}] "
+             "(the environment variable; or unset it to use every CPU)")
 
 
 app = typer.Typer(

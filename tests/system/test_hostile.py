@@ -570,3 +570,41 @@ def test_work_and_settings_refused_before_any_work(tmp_path, case):
     assert result.exit_code == 2, result.output
     assert needle in _one_line(result.output)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_checkpoint_larger_than_memory_is_refused_before_reading(tmp_path):
+    """S20, S21: a sparse 64 GiB file with the magic bytes was read whole: MemoryError traceback."""
+    path = tmp_path / "big.ckpt"
+    with open(path, "wb") as f:
+        f.write(ck.MAGIC)
+        f.truncate(1 << 40)  # 1 TiB, sparse: more than twice any memory here
+    result = _invoke(["resume", str(path)])
+    assert result.exit_code == 2, result.output
+    line = _one_line(result.output)
+    assert "is not accepted: it is 1.0 TiB, and reading it needs twice that" in line, line
+
+
+def test_absurd_numba_thread_count_is_one_line():
+    """E03: NUMBA_NUM_THREADS=1000000 made simulate die with SIGSEGV and no message."""
+    env = {**_env(), "NUMBA_NUM_THREADS": "1000000"}
+    proc = subprocess.run(_cmd("simulate", *TINY, "--quiet"), capture_output=True, text=True, env=env, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert _one_line(proc.stderr).startswith("error: NUMBA_NUM_THREADS='1000000' is not accepted: an integer in [1, ")
+
+
+@pytest.mark.skipif(MOUNT is None or os.geteuid() != 0, reason="needs root to bind-mount the package read-only")
+def test_read_only_install_and_home_fall_back_to_a_temporary_cache(tmp_path):
+    """E05: with the package and HOME read-only every simulation failed with 'cannot cache
+    function ...: no locator available'. Compiles cold (~16 s here)."""
+    home = tmp_path / "home"
+    home.mkdir()
+    cmd = " ".join(f"'{a}'" for a in _cmd("simulate", "--paths", "50", "--t-max", "1", "--n-times", "2",
+                                              "--quiet", "--out", str(tmp_path / "ro.nc")))
+    script = (f"mount --bind {SRC} {SRC} && mount -o remount,bind,ro {SRC} && "
+              f"mount --bind {home} {home} && mount -o remount,bind,ro {home} && HOME={home} {cmd}")
+    env = {k: v for k, v in _env().items() if k != "NUMBA_CACHE_DIR"}
+    proc = subprocess.run([*MOUNT, "sh", "-c", script], capture_output=True, text=True, env=env, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    line = _one_line(proc.stderr)
+    assert line.startswith("note: no writable Numba cache") and "set NUMBA_CACHE_DIR to keep them" in line, line
+    assert (tmp_path / "ro.nc").is_file()
