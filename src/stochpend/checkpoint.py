@@ -592,6 +592,13 @@ def _plain_holder(fd: int) -> str:
     return plain(text) if text else "another process"
 
 
+def check_threads(threads: Any) -> None:
+    """Refuse a thread count this machine cannot run (``None``: the default)."""
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
+                                or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS):
+        raise ValueError(f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]")
+
+
 def check_not_checkpoint(out: str | os.PathLike, checkpoint_path: str | os.PathLike) -> None:
     """Refuse an output that is the checkpoint itself (``resume CK --out CK --overwrite`` wrote
     the result over the checkpoint, then removed it: nothing was left)."""
@@ -653,9 +660,7 @@ def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, 
     if out_p is not None:
         io.check_output_path(out_p, overwrite=overwrite)
         check_not_checkpoint(out_p, checkpoint_path)
-    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
-                                or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS):
-        raise ValueError(f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]")
+    check_threads(threads)
     if checkpointer is None:
         checkpointer = FileCheckpointer(
             checkpoint_path, every_s, config=config, out=out_p, overwrite=overwrite, threads=threads,

@@ -608,3 +608,75 @@ def test_read_only_install_and_home_fall_back_to_a_temporary_cache(tmp_path):
     line = _one_line(proc.stderr)
     assert line.startswith("note: no writable Numba cache") and "set NUMBA_CACHE_DIR to keep them" in line, line
     assert (tmp_path / "ro.nc").is_file()
+
+
+def test_resume_refuses_bad_threads_in_one_line(tmp_path, handed_over):
+    """X06: `resume --threads 1e6` printed its 'resuming ...' line before the error."""
+    path = tmp_path / "run.ckpt"
+    path.write_bytes(handed_over)
+    result = _invoke(["resume", str(path), "--threads", "1e6", "--out", str(tmp_path / "o.nc")])
+    assert result.exit_code == 2, result.output
+    assert _one_line(result.output).startswith("error: threads=1000000 is not accepted: an integer in [1, ")
+
+
+@pytest.mark.parametrize("kind", ["directory", "device"])
+def test_checkpoint_that_is_not_a_regular_file_says_what_it_is(tmp_path, kind):
+    """X04, X05: --checkpoint naming a directory or /dev/null said 'the file exists; continue
+    that run with stochpend resume ...'."""
+    path = tmp_path / "adir" if kind == "directory" else Path("/dev/null")
+    if kind == "directory":
+        path.mkdir()
+    result = _invoke(["simulate", *TINY, "--checkpoint", str(path)])
+    assert result.exit_code == 2, result.output
+    what = "a directory, not a file" if kind == "directory" else "a device, not a regular file"
+    assert _one_line(result.output) == f"error: checkpoint={str(path)!r} is not accepted: it is {what}"
+
+
+@pytest.mark.parametrize("checkpointed", [False, True])
+def test_sigterm_during_the_final_write_leaves_no_temporary_file(tmp_path, monkeypatch, checkpointed):
+    """Issue 20 item 7 (no id in the case list): SIGTERM during the final write left a 0-byte
+    `.x.nc.*.tmp` beside the output. A real SIGTERM, delivered half-way through the write."""
+    from stochpend import _files
+
+    real = io.write_atomic
+
+    def half_then_sigterm(path, data, **kwargs):
+        def put(fd):
+            view = memoryview(data).cast("B")
+            _files.write_all(fd, view[: len(view) // 2])
+            os.kill(os.getpid(), signal.SIGTERM)
+            _files.write_all(fd, view[len(view) // 2:])
+        return real(path, put, **kwargs)
+
+    monkeypatch.setattr(io, "write_atomic", half_then_sigterm)
+    extra = ["--checkpoint", str(tmp_path / "x.ckpt")] if checkpointed else []
+    result = _invoke(["simulate", *TINY, "--quiet", *extra, "--out", str(tmp_path / "x.nc")])
+    assert result.exit_code == 128 + signal.SIGTERM, result.output
+    assert "Traceback" not in result.output
+    left = sorted(p.name for p in tmp_path.iterdir())
+    assert left == (["x.ckpt"] if checkpointed else []), left
+    if checkpointed:
+        assert "the last checkpoint is kept: continue with: stochpend resume" in result.output
+
+
+def test_sigterm_during_the_bias_phase_says_so_and_keeps_the_checkpoint(tmp_path, monkeypatch):
+    """F15: SIGTERM during the final bias estimate (outside the deferred-signal window) killed
+    the run silently, exit 143 and no word. A real SIGTERM, sent as the bias phase starts."""
+    from stochpend import bias
+
+    real = bias.estimate
+
+    def sigterm_then_estimate(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(bias, "estimate", sigterm_then_estimate)
+    ckpt = tmp_path / "b.ckpt"
+    result = _invoke(["simulate", *TINY, "--quiet", "--checkpoint", str(ckpt), "--out", str(tmp_path / "b.nc")])
+    assert result.exit_code == 128 + signal.SIGTERM, result.output
+    assert _one_line(result.output) == ("interrupted by signal 15 (no new checkpoint); the last checkpoint is "
+                                        f"kept: continue with: stochpend resume {ckpt}")
+    monkeypatch.setattr(bias, "estimate", real)
+    result = _invoke(["resume", str(ckpt), "--quiet"])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "b.nc").is_file() and not ckpt.exists()
