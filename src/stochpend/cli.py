@@ -120,6 +120,13 @@ def handles_errors(fn: F) -> F:
             if "--debug" in sys.argv:
                 raise
             fail(" ".join(str(exc).split()) or type(exc).__name__, code=1)
+        except ArithmeticError as exc:  # values each valid alone, beyond the floats together
+            if "--debug" in sys.argv:
+                raise
+            given = [a for a in sys.argv[1:] if a.startswith("--") and a not in ("--quiet", "--debug")]
+            fail(f"the values of {' '.join(given) or 'the defaults'} are not accepted: "
+                 f"a result lies beyond the floating-point range ({type(exc).__name__}: {exc}); "
+                 "use less extreme values")
         except KeyboardInterrupt as exc:
             console.print("[yellow]interrupted[/]")
             raise typer.Exit(128 + getattr(exc, "signum", 2)) from None

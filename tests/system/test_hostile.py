@@ -680,3 +680,20 @@ def test_sigterm_during_the_bias_phase_says_so_and_keeps_the_checkpoint(tmp_path
     result = _invoke(["resume", str(ckpt), "--quiet"])
     assert result.exit_code == 0, result.output
     assert (tmp_path / "b.nc").is_file() and not ckpt.exists()
+
+
+@pytest.mark.parametrize("case", ["T03", "D04", "K02", "K03"])
+def test_values_beyond_the_floats_are_one_line(case):
+    """T03, D04, K02, K03: ZeroDivisionError and OverflowError tracebacks from values each
+    accepted alone (theory --D 1e308 --tau 1e-308, reduced --tau 1e-300, scaling --n 1e400)."""
+    args, names = {
+        "T03": (["theory", "--D", "1e308", "--tau", "1e-308"], "--D --tau"),
+        "D04": (["reduced", "--tau", "1e-300", "--paths", "100", "--t-max", "10"], "--tau --paths --t-max"),
+        "K02": (["scaling", "--n", "1e1000"], "--n"),
+        "K03": (["scaling", "--n", "1e400"], "--n"),
+    }[case]
+    proc = subprocess.run(_cmd(*args), capture_output=True, text=True, env=_env(), timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    line = _one_line(proc.stderr)
+    assert line.startswith(f"error: the values of {names} are not accepted: a result lies beyond the "
+                           "floating-point range"), line
