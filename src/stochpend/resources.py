@@ -155,10 +155,26 @@ def _memory_bound() -> tuple[int | None, str]:
             machine = None
     else:
         machine = int(psutil.virtual_memory().available)
-    group = cgroup_headroom()
-    if group is not None and (machine is None or group < machine):
-        return group, "this process's memory limit (cgroup) leaves"
-    return machine, "this machine has"
+    bounds = [(machine, "this machine has"), (cgroup_headroom(), "this process's memory limit (cgroup) leaves"),
+              (address_space_headroom(), "this process's address-space limit (ulimit -v) leaves")]
+    known = [b for b in bounds if b[0] is not None]
+    return min(known, key=lambda b: b[0]) if known else (None, "this machine has")
+
+
+def address_space_headroom() -> int | None:
+    """Bytes this process may still map under its address-space limit (``ulimit -v``, RLIMIT_AS,
+    common on shared login nodes), or None without one: beyond it every allocation fails."""
+    try:
+        import resource
+
+        limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if limit == resource.RLIM_INFINITY:
+            return None
+        import psutil
+
+        return max(0, int(limit) - int(psutil.Process().memory_info().vms))
+    except (ImportError, OSError, ValueError):  # pragma: no cover - no resource module or /proc
+        return None
 
 
 #: A cgroup v1 limit at or above this is "no limit" (the kernel writes 2**63 rounded to pages).

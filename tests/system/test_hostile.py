@@ -697,3 +697,19 @@ def test_values_beyond_the_floats_are_one_line(case):
     line = _one_line(proc.stderr)
     assert line.startswith(f"error: the values of {names} are not accepted: a result lies beyond the "
                            "floating-point range"), line
+
+
+def test_bfpe_that_cannot_fit_under_ulimit_is_refused_before_work(tmp_path):
+    """B08: under `ulimit -v 3000000` bfpe --n-cells 1e6 --n-times 1000 (8 GB of laws) failed
+    after 44 s with a MemoryError traceback."""
+    cmd = " ".join(f"'{a}'" for a in _cmd("bfpe", "--n-cells", "1e6", "--n-times", "1000", "--t-max", "10",
+                                          "--quiet", "--out", str(tmp_path / "b8.nc")))
+    t0 = time.monotonic()
+    proc = subprocess.run(["sh", "-c", f"ulimit -v 3000000; {cmd}"], capture_output=True, text=True,
+                          env=_env(), timeout=120)
+    assert time.monotonic() - t0 < 30
+    assert proc.returncode == 2, proc.stderr
+    line = _one_line(proc.stderr)
+    assert line.startswith("error: n_times=1000 is not accepted: the solve keeps n_times x n_cells = 1000 x "
+                           "1000000 laws, 7.6 GiB in all, more than the "), line
+    assert list(tmp_path.iterdir()) == []
