@@ -150,6 +150,7 @@ def resume_command(
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the result here instead of the original command's --out.")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing output file.")] = False,
     threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps, as for 'simulate' (default 1e13; give the original run's value again: it is not read from the file).")] = None,
     break_lock: Annotated[bool, typer.Option("--break-lock", help="Take the checkpoint's lock from a run on another host that is gone, or run without a lock on a file system that has none.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
@@ -158,22 +159,24 @@ def resume_command(
     from stochpend import checkpoint as ck
 
     with ck.owned(checkpoint, break_lock=break_lock):  # one resume at a time, refused in one line
-        _resume_owned(checkpoint, out, overwrite, threads, quiet)
+        _resume_owned(checkpoint, out, overwrite, threads, quiet, max_path_steps)
 
 
-def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: int | None, quiet: bool) -> None:
+def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: int | None, quiet: bool,
+                  max_path_steps: float | None) -> None:
     from stochpend import checkpoint as ck
     from stochpend import io
 
     cli = _cli()
     state = ck.read(checkpoint)  # verifies checksum, version and configuration first
+    ck.check_work(state, max_path_steps)
     # The checkpoint names its output only within its own directory, and never overwrites by
     # its own say: --overwrite must be on this command line.
     target = out if out is not None else (None if state.out is None else ck.own_out(checkpoint, state.out))
     if target is not None:
         io.check_output_path(target, overwrite=overwrite)
         ck.check_not_checkpoint(target, checkpoint)
-    kwargs: dict[str, Any] = {"out": target, "overwrite": overwrite}
+    kwargs: dict[str, Any] = {"out": target, "overwrite": overwrite, "max_path_steps": max_path_steps}
     if threads is not None:
         ck.check_threads(threads)  # before the 'resuming' line: a refusal is its only line
         kwargs["threads"] = threads

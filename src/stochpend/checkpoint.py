@@ -592,6 +592,17 @@ def _plain_holder(fd: int) -> str:
     return plain(text) if text else "another process"
 
 
+def check_work(ckpt: Checkpoint, max_path_steps: float | None = None) -> None:
+    """Refuse, before any work, resuming a run whose configuration needs more memory than is
+    available or more work than the limit (``max_path_steps`` as ``stochpend simulate``'s; the
+    limit the original run was given is not taken from the file, which anyone may have edited:
+    a crafted ``t_max = 1e300`` must not run for ever)."""
+    from stochpend import resources
+
+    resources.check(ckpt.config, backend=ckpt.state.backend, precision=ckpt.state.precision,
+                    max_path_steps=max_path_steps)
+
+
 def check_threads(threads: Any) -> None:
     """Refuse a thread count this machine cannot run (``None``: the default)."""
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
@@ -729,17 +740,21 @@ def resume(
     threads: Any = _KEEP,
     progress: Progress | None = None,
     break_lock: bool = False,
+    max_path_steps: float | None = None,
 ) -> xr.Dataset:
     """Continue the run saved in ``path``; write its result where the original command would have.
 
     ``every_s`` and ``threads`` default to those of the original run; ``out`` to the original
     run's output only as a name in the checkpoint's own directory (``out=None`` writes
     nothing); an existing output is replaced only with ``overwrite=True`` given here, never on
-    the checkpoint's say. The checkpoint is locked (:func:`owned`) while this runs. Checkpoints keep being written to ``path`` at the same
+    the checkpoint's say. The checkpoint is locked (:func:`owned`) while this runs. The run's
+    memory and work are checked first (:func:`check_work`, ``max_path_steps``). Checkpoints keep being written to ``path`` at the same
     interval; the file is removed once the result is written.
     """
     with owned(path, break_lock=break_lock):
-        return _resume_owned(path, read(path), out=out, overwrite=overwrite, every_s=every_s,
+        ckpt = read(path)
+        check_work(ckpt, max_path_steps)
+        return _resume_owned(path, ckpt, out=out, overwrite=overwrite, every_s=every_s,
                              threads=threads, progress=progress)
 
 

@@ -713,3 +713,22 @@ def test_bfpe_that_cannot_fit_under_ulimit_is_refused_before_work(tmp_path):
     assert line.startswith("error: n_times=1000 is not accepted: the solve keeps n_times x n_cells = 1000 x "
                            "1000000 laws, 7.6 GiB in all, more than the "), line
     assert list(tmp_path.iterdir()) == []
+
+
+def test_resume_checks_the_work_before_any(tmp_path, handed_over):
+    """S27: a checkpoint with t_max = 1e300 (configuration hash recomputed) was resumed with no
+    work check, and ran until killed."""
+    def edit(text: str) -> str:
+        header = json.loads(text)
+        header["config"]["t_max"] = 1e300
+        header["config_sha256"] = ck.config_hash(ck.config_from_json(header["config"]))
+        return json.dumps(header)
+
+    path = _crafted_raw(handed_over, tmp_path / "c.ckpt", edit)
+    t0 = time.monotonic()
+    result = _invoke(["resume", str(path), "--out", str(tmp_path / "o.nc")])
+    assert time.monotonic() - t0 < 10
+    assert result.exit_code == 2, result.output
+    line = _one_line(result.output)
+    assert line.startswith("error: t_max=1e+300 is not accepted: the run needs at least ") and \
+        "--max-path-steps" in line, line
