@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import re
 import sys
 from pathlib import Path
@@ -23,6 +24,7 @@ import typer
 from rich.table import Table
 
 from stochpend._cli_types import integer
+from stochpend._terminal import markup
 
 __all__ = [
     "SweepProgressBar",
@@ -60,15 +62,17 @@ _TOKEN = re.compile(rf"\s*({_NUMBER})\s*(ms|sec|min|s|m|h|d)?\s*")
 def parse_duration(text: str, name: str = "checkpoint_every") -> float:
     """'30s', '5m', '1h', '1h30m', '0.2s', '90' (seconds) -> seconds (> 0)."""
     accepted = "a duration > 0 such as 30s, 5m, 1h or 1h30m (a bare number is seconds)"
-    pos, total, parts = 0, 0.0, 0
+    pos, total, parts, bare = 0, 0.0, 0, 0
     while pos < len(text):
         m = _TOKEN.match(text, pos)
         if m is None or m.end() == pos:
             raise ValueError(f"{name}={text!r} is not accepted: {accepted}")
         total += float(m.group(1)) * _UNITS[m.group(2) or "s"]
         parts += 1
+        bare += m.group(2) is None
         pos = m.end()
-    if parts == 0 or not math.isfinite(total) or total <= 0:
+    # A number without a unit only alone ('90'): '1.5.5s' or '1 2 3' are typing errors, not sums.
+    if parts == 0 or (bare and parts > 1) or not math.isfinite(total) or total <= 0:
         raise ValueError(f"{name}={text!r} is not accepted: {accepted}")
     return total
 
@@ -102,14 +106,18 @@ def simulate_with_checkpoint(
     check_precision(precision, backend)
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
-    checkpoint.check_checkpoint_path(checkpoint_path, out=out)
-    if command_line is None:
-        command_line = " ".join(["stochpend", *sys.argv[1:]])
-    return _interruptible(
-        checkpoint.run_checkpointed, config, checkpoint_path=checkpoint_path, every_s=every_s,
-        out=out, overwrite=overwrite, threads=threads, progress=progress, command_line=command_line,
-        backend=backend, precision=precision,
-    )
+    # The name and the place first (the lock file goes beside it); whether it exists is checked
+    # under the lock, so that of two runs started together the second hears who holds it.
+    io.check_output_path(checkpoint_path, overwrite=True, name="checkpoint")
+    with checkpoint.owned(checkpoint_path):  # a second run on this checkpoint is refused
+        checkpoint.check_checkpoint_path(checkpoint_path, out=out)
+        if command_line is None:
+            command_line = " ".join(["stochpend", *sys.argv[1:]])
+        return _interruptible(
+            checkpoint.run_checkpointed, config, checkpoint_path=checkpoint_path, every_s=every_s,
+            out=out, overwrite=overwrite, threads=threads, progress=progress, command_line=command_line,
+            backend=backend, precision=precision,
+        )
 
 
 def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) -> Any:
@@ -122,15 +130,18 @@ def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) ->
     except CheckpointInterrupt as exc:
         if progress is not None:
             progress.finish()
-        cli.console.print(f"[yellow]interrupted:[/] state saved to {exc.path}; continue with: "
-                          f"stochpend resume {exc.path}", highlight=False, soft_wrap=True)
+        cli.console.print(f"[yellow]interrupted:[/] state saved to {markup(exc.path)}; continue with: "
+                          f"stochpend resume {markup(exc.path)}", highlight=False, soft_wrap=True)
         raise typer.Exit(exc.exit_code) from None
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         if progress is not None:
             progress.finish()
-        last = f"; the last checkpoint is {checkpoint_path}" if Path(checkpoint_path).exists() else ""
-        cli.console.print(f"[yellow]interrupted[/] (no new checkpoint){last}", highlight=False, soft_wrap=True)
-        raise typer.Exit(130) from None
+        last = (f"; the last checkpoint is kept: continue with: stochpend resume {markup(checkpoint_path)}"
+                if Path(checkpoint_path).exists() else "")
+        signum = getattr(exc, "signum", 2)
+        cli.console.print(f"[yellow]interrupted[/] by signal {signum} (no new checkpoint){last}",
+                          highlight=False, soft_wrap=True)
+        raise typer.Exit(128 + signum) from None
 
 
 @handles_errors
@@ -139,33 +150,49 @@ def resume_command(
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the result here instead of the original command's --out.")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing output file.")] = False,
     threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps, as for 'simulate' (default 1e13; give the original run's value again: it is not read from the file).")] = None,
+    break_lock: Annotated[bool, typer.Option("--break-lock", help="Take the checkpoint's lock from a run on another host that is gone, or run without a lock on a file system that has none.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
 ) -> None:
     """Continue an interrupted 'simulate --checkpoint' run; write its result where it would have."""
     from stochpend import checkpoint as ck
+
+    with ck.owned(checkpoint, break_lock=break_lock):  # one resume at a time, refused in one line
+        _resume_owned(checkpoint, out, overwrite, threads, quiet, max_path_steps)
+
+
+def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: int | None, quiet: bool,
+                  max_path_steps: float | None) -> None:
+    from stochpend import checkpoint as ck
     from stochpend import io
 
     cli = _cli()
     state = ck.read(checkpoint)  # verifies checksum, version and configuration first
-    target = state.out if out is None else out
-    ow = overwrite or (out is None and state.overwrite)
+    ck.check_work(state, max_path_steps)
+    # The checkpoint names its output only within its own directory, and never overwrites by
+    # its own say: --overwrite must be on this command line.
+    target = out if out is not None else (None if state.out is None else ck.own_out(checkpoint, state.out))
     if target is not None:
-        io.check_output_path(target, overwrite=ow)
+        io.check_output_path(target, overwrite=overwrite)
+        ck.check_not_checkpoint(target, checkpoint)
+    kwargs: dict[str, Any] = {"out": target, "overwrite": overwrite, "max_path_steps": max_path_steps}
+    if threads is not None:
+        ck.check_threads(threads)  # before the 'resuming' line: a refusal is its only line
+        kwargs["threads"] = threads
+    # The real destination, before any work (the recorded command line is only a reminder).
+    dest = "writing no file" if target is None else f"writing {markup(target)}"
     if not quiet:
         st = state.state
         done = (st.done_work + float(st.t.sum())) / (state.config.paths * state.config.t_max)
-        cli.console.print(f"resuming {state.command_line or 'run'} from {checkpoint} "
-                          f"({100 * done:.0f}% done)", highlight=False, soft_wrap=True)
-    kwargs: dict[str, Any] = {"out": target, "overwrite": ow}
-    if threads is not None:
-        kwargs["threads"] = threads
+        cli.console.print(f"resuming {markup(state.command_line or 'run')} from {markup(checkpoint)} "
+                          f"({100 * done:.0f}% done); {dest}", highlight=False, soft_wrap=True)
     progress = cli.RichProgress(enabled=not quiet and cli.console.is_terminal, long_run=True)
     ds = _interruptible(_resume, checkpoint_path=checkpoint, progress=progress, **kwargs)
     if not quiet:
         cli.results.print(cli.summary_table(ds, width=cli.results.width))
         if target is not None:
-            cli.console.print(f"wrote {target}")
+            cli.console.print(f"wrote {markup(target)}", highlight=False, soft_wrap=True)
 
 
 def _resume(*, checkpoint_path: Path, **kwargs: Any) -> Any:
@@ -231,7 +258,7 @@ def sweep_table(ds: Any) -> Table:
     swept = list(sets[0]["params"]) if sets else []
     noise = ds.attrs.get("noise")
     table = Table(title=f"stochpend sweep: {len(sets)} parameter sets"
-                        + (f" ({ds.attrs['description']})" if ds.attrs.get("description") else ""))
+                        + (f" ({markup(ds.attrs['description'])})" if ds.attrs.get("description") else ""))
     noises = set(ds["noise"].values.ravel().tolist()) if "noise" in ds.variables else {noise}
     scaled = {frozenset({"ou"}): "<E2>/(Dt/tau^2)", frozenset({"white"}): "<E>/(Dt/4)"}.get(
         frozenset(noises), "<E2>/(Dt/tau^2) (ou), <E>/(Dt/4) (white)")
@@ -292,8 +319,12 @@ def sweep_command(
 
     backend = resolve_backend(backend, note=cli.note)
     check_precision(precision, backend)
-    if workers is not None and workers < 1:
-        cli.fail(f"workers={workers!r} is not accepted: an integer >= 1")
+    # Processes or threads on this machine: no more than it has CPUs (--workers 1e6 would start a
+    # million processes). A remote scheduler's workers are its own.
+    local = scheduler is None or not scheduler.startswith(("tcp://", "tls://", "inproc://", "ucx://"))
+    most = os.cpu_count() or 1
+    if workers is not None and (workers < 1 or (local and workers > most)):
+        cli.fail(f"workers={workers!r} is not accepted: an integer in [1, {most}] (this machine's CPUs)")
     progress = SweepProgressBar(enabled=not quiet and cli.console.is_terminal, quiet=quiet)
     try:
         ds = sweep(plan, scheduler=scheduler, workers=workers, progress=progress,
@@ -307,7 +338,7 @@ def sweep_command(
     if not quiet:
         cli.results.print(sweep_table(ds))
         if out is not None:
-            cli.console.print(f"wrote {out}")
+            cli.console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
 
 
 def _check_resources(plan: Any, spec: Path, max_path_steps: float | None) -> None:

@@ -105,6 +105,7 @@ def bfpe_command(
     n_times: Annotated[int, typer.Option("--n-times", parser=integer, help="Number of log-spaced output times from t_max/1000 to t_max.")] = 40,
     n_cells: Annotated[int, typer.Option("--n-cells", parser=integer, help="Finite-volume cells on the half line Omega >= 0.")] = 1000,
     steps_per_decade: Annotated[int, typer.Option("--steps-per-decade", parser=integer, help="Time steps per decade of t.")] = 100,
+    max_cell_steps: Annotated[float | None, typer.Option("--max-cell-steps", help="Refuse solves needing more than this many cell-steps, n_cells x time steps (default 1e11, about 1.4 h; inf: no limit).")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the solution as NetCDF (atomically).")] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No table.")] = False,
@@ -117,7 +118,7 @@ def bfpe_command(
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
     ds = solve_bfpe(D=D, tau=tau, t_max=t_max, n_times=n_times, n_cells=n_cells,
-                    steps_per_decade=steps_per_decade)
+                    steps_per_decade=steps_per_decade, max_cell_steps=max_cell_steps)
     ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
     if out is not None:
         io.to_netcdf(ds, out, overwrite=overwrite)

@@ -43,6 +43,54 @@ def salt_unique_ids() -> None:
 salt_unique_ids()
 
 
+def _writable(directory: Path) -> bool:
+    """Whether a cache could be written under ``directory`` (made if missing), as Numba tries."""
+    import tempfile
+
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=directory).close()
+        return True
+    except OSError:
+        return False
+
+
+def fall_back_to_a_temporary_cache() -> None:
+    """With no writable kernel cache (a read-only install and an unwritable HOME: HPC modules,
+    containers), Numba refuses every ``cache=True`` kernel ("no locator available"). Then
+    cache in a private temporary directory, with a one-line note: the kernels compile once
+    per process instead of once per machine. Runs before any kernel is decorated."""
+    import os
+    import sys
+    import tempfile
+
+    import numba
+    from numba.misc.appdirs import AppDirs
+
+    if numba.config.CACHE_DIR:
+        return
+    if _writable(_PACKAGE / "_backends" / "__pycache__"):
+        return
+    if _writable(Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)):
+        return
+    try:
+        directory = tempfile.mkdtemp(prefix="stochpend-numba-cache-")
+    except OSError:
+        return  # nothing writable at all: Numba's own error says so
+    import atexit
+    import shutil
+
+    atexit.register(shutil.rmtree, directory, ignore_errors=True)
+    numba.config.CACHE_DIR = directory
+    os.environ["NUMBA_CACHE_DIR"] = directory  # Dask workers and other children too
+    if sys.stderr is not None:
+        print(f"note: no writable Numba cache (read-only {_PACKAGE} and user cache); kernels are "
+              f"cached in {directory} for this run (set NUMBA_CACHE_DIR to keep them)", file=sys.stderr)
+
+
+fall_back_to_a_temporary_cache()
+
+
 def drop_stale_cache(module_file: str) -> None:
     """Delete ``module_file``'s Numba cache if it or a shared source changed since it was built."""
     module = Path(module_file).resolve()

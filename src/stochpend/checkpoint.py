@@ -30,10 +30,10 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import math
 import os
 import signal
 import struct
-import tempfile
 import threading
 import time as _time
 from collections.abc import Iterator
@@ -45,7 +45,7 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import __version__, bias, io
+from stochpend import __version__, _files, bias, io
 from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
 from stochpend.runner import BACKENDS, RunState, run_batches
@@ -202,32 +202,17 @@ def write(path: str | os.PathLike, ckpt: Checkpoint) -> Path:
         "arrays": table,
     }
     head = json.dumps(header, sort_keys=True, allow_nan=False).encode()
-    digest = hashlib.sha256()
-    parent = p.parent if str(p.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            for chunk in (MAGIC, _LEN.pack(len(head)), head):
-                f.write(chunk)
-                digest.update(chunk)
-            for a in arrays.values():
-                buf = memoryview(a.reshape(-1)).cast("B")
-                f.write(buf)
-                digest.update(buf)
-            f.write(digest.digest())
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    with contextlib.suppress(OSError):  # make the rename itself durable (POSIX)
-        dfd = os.open(parent, os.O_RDONLY)
-        try:
-            os.fsync(dfd)
-        finally:
-            os.close(dfd)
+
+    def put(fd: int) -> None:
+        digest = hashlib.sha256()
+        for chunk in (MAGIC, _LEN.pack(len(head)), head,
+                      *(memoryview(a.reshape(-1)).cast("B") for a in arrays.values())):
+            _files.write_all(fd, chunk)
+            digest.update(chunk)
+        _files.write_all(fd, digest.digest())
+
+    # Only a regular file is replaced; a failed write leaves the previous checkpoint as it was.
+    _files.write_atomic(p, put, overwrite=True, name="checkpoint")
     return p
 
 
@@ -244,27 +229,67 @@ def read(path: str | os.PathLike) -> Checkpoint:
     p = Path(path)
     if not p.is_file():
         raise _refuse(p, "no such file")
+    # The file is read whole, and its arrays copied out of it: it must fit twice (a sparse 64 GiB
+    # file with the magic bytes would otherwise end in a MemoryError).
+    from stochpend import resources
+
+    size, have = p.stat().st_size, resources.available_memory()
+    if have is not None and 2 * size > have:
+        raise _refuse(p, f"it is {resources.format_bytes(size)}, and reading it needs twice that, more than "
+                         f"the {resources.format_bytes(have)} of memory available")
     data = p.read_bytes()
     if len(data) < len(MAGIC) + _LEN.size + _DIGEST or not data.startswith(MAGIC):
         if MAGIC.startswith(data[: len(MAGIC)]) and len(data) > 0:
             raise _refuse(p, "the file is truncated (a partial stochpend checkpoint)")
         raise _refuse(p, "not a stochpend checkpoint (wrong magic bytes)")
-    body, digest = data[:-_DIGEST], data[-_DIGEST:]
+    body, digest = memoryview(data)[:-_DIGEST], data[-_DIGEST:]
     if hashlib.sha256(body).digest() != digest:
         raise _refuse(p, "checksum mismatch: the file is truncated or corrupted")
     (head_len,) = _LEN.unpack_from(body, len(MAGIC))
     start = len(MAGIC) + _LEN.size
     if start + head_len > len(body):
         raise _refuse(p, "header length beyond the end of the file")
-    try:
-        header = json.loads(body[start:start + head_len].decode())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise _refuse(p, f"unreadable header ({exc})") from None
-    payload = memoryview(body)[start + head_len:]
+    try:  # the writer never writes NaN or Infinity (allow_nan=False): refuse them here too
+        header = json.loads(bytes(body[start:start + head_len]).decode(), parse_constant=_no_constant)
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        why = "nested too deeply" if isinstance(exc, RecursionError) else str(exc)
+        raise _refuse(p, f"unreadable header ({why})") from None
+    payload = body[start + head_len:]
     try:
         return _from_header(p, header, payload)
-    except (KeyError, TypeError, AttributeError) as exc:
+    except (KeyError, TypeError, AttributeError, OverflowError, ValueError) as exc:
+        if isinstance(exc, ValueError) and str(exc).startswith("checkpoint="):
+            raise
         raise _refuse(p, f"malformed header ({type(exc).__name__}: {exc})") from None
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a valid value")
+
+
+def _check_settings(p: Path, header: dict[str, Any]) -> None:
+    """The run's settings in the header have the types the writer gives them (a crafted but
+    correctly checksummed file fails here in one line, not later in a traceback)."""
+    def positive_int(v: Any) -> bool:
+        return v is None or (isinstance(v, int) and not isinstance(v, bool) and v >= 1)
+
+    def number(v: Any, *, none: bool) -> bool:
+        return (none and v is None) or (isinstance(v, int | float) and not isinstance(v, bool)
+                                        and math.isfinite(v) and v >= 0)
+
+    checks = {
+        "threads": positive_int(header.get("threads")),
+        "chunk_paths": positive_int(header.get("chunk_paths")),
+        "every_s": number(header.get("every_s"), none=True) and header.get("every_s") != 0,
+        "elapsed_s": number(header.get("elapsed_s", 0.0), none=False),
+        "resumed": positive_int(header.get("resumed", 0) or None),
+        "out": header.get("out") is None or isinstance(header.get("out"), str),
+        "command_line": header.get("command_line") is None or isinstance(header.get("command_line"), str),
+        "done_work": number(header["run"].get("done_work"), none=False),
+    }
+    bad = [k for k, ok in checks.items() if not ok]
+    if bad:
+        raise _refuse(p, f"malformed header: {bad[0]}={header.get(bad[0], header['run'].get(bad[0]))!r}")
 
 
 def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkpoint:
@@ -293,7 +318,9 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     r = {k: run[k] for k in _RUN_FIELDS}
     n_times = len(config.times)
     bs = config.batch_size
-    ok = (0 <= r["first_batch"] <= r["b0"] < r["b1"] <= r["stop_batch"] <= config.n_batches
+    ok = (all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < 2**63
+              for k, v in r.items() if k != "done_work")
+          and 0 <= r["first_batch"] <= r["b0"] < r["b1"] <= r["stop_batch"] <= config.n_batches
           and 0 <= r["j"] <= n_times and r["path_steps"] >= 0)
     if not ok:
         raise _refuse(p, f"inconsistent run position {r}")
@@ -331,6 +358,7 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     if missing:
         raise _refuse(p, f"missing arrays {sorted(missing)}")
 
+    _check_settings(p, header)
     acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"])
     scalars = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
     backend = header.get("backend", "cpu")
@@ -425,7 +453,7 @@ class FileCheckpointer:
 
 @contextlib.contextmanager
 def deferred_signals(checkpointer: FileCheckpointer) -> Iterator[None]:
-    """First Ctrl-C or SIGTERM: ask the checkpointer to save and stop at the next kernel boundary.
+    """First Ctrl-C, SIGTERM or SIGHUP: ask the checkpointer to save and stop at the next kernel boundary.
 
     A second Ctrl-C raises ``KeyboardInterrupt`` at once (no new checkpoint). A signal that was
     ignored when the run started (``SIG_IGN``, e.g. SIGINT in a background job) stays ignored.
@@ -442,7 +470,8 @@ def deferred_signals(checkpointer: FileCheckpointer) -> Iterator[None]:
         checkpointer.request_stop(signum)
 
     previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
+    # SIGHUP too: a dropped SSH session must not lose the work since the last checkpoint.
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         if signal.getsignal(sig) is not signal.SIG_IGN:
             previous[sig] = signal.signal(sig, handler)
     try:
@@ -455,19 +484,148 @@ def deferred_signals(checkpointer: FileCheckpointer) -> Iterator[None]:
 def check_checkpoint_path(path: str | os.PathLike, *, out: Path | None = None) -> Path:
     """Refuse, before any work, a checkpoint path that exists or cannot be written."""
     p = Path(path)
-    if p.exists():
+    if os.path.lexists(p) and p.is_file() and not p.is_symlink():
         raise ValueError(
             f"checkpoint={str(p)!r} is not accepted: the file exists; continue that run with "
             f"`stochpend resume {p}`, or delete the file"
         )
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise ValueError(f"checkpoint={str(p)!r} is not accepted: the directory {str(parent)!r} does not exist")
-    if not os.access(parent, os.W_OK):
-        raise ValueError(f"checkpoint={str(p)!r} is not accepted: the directory {str(parent)!r} is not writable")
-    if out is not None and Path(out).resolve() == p.resolve():
+    _files.check_output(p, name="checkpoint")
+    if out is not None and Path(out).absolute().resolve() == p.absolute().resolve():
         raise ValueError(f"checkpoint={str(p)!r} is not accepted: it is the same file as --out")
     return p
+
+
+# -- ownership: one run (or resume) per checkpoint ---------------------------------------------
+_HELD: dict[str, int] = {}  # lock paths this process holds -> depth
+
+
+def lock_path(path: str | os.PathLike) -> Path:
+    """The lock file of a checkpoint: ``.NAME-lock`` beside it (the checkpoint itself is
+    replaced by a rename at every save, so it cannot carry the lock)."""
+    p = Path(path)
+    return p.parent / f".{p.name}-lock"
+
+
+@contextlib.contextmanager
+def owned(path: str | os.PathLike, *, break_lock: bool = False) -> Iterator[None]:
+    """Hold the exclusive lock of checkpoint ``path`` for the run's life.
+
+    ``fcntl.flock`` on ``.NAME-lock``, which records the holder's host and pid; the kernel
+    releases it when the holder dies (even by ``kill -9``), so a lock is never stale on this
+    host. A second run or resume of the same checkpoint is refused (``ValueError``, one line
+    naming the holder). ``break_lock`` takes the lock from a holder on another host (a shared
+    file system) or runs without one on a file system that has no locks. Re-entrant within a
+    process (the CLI takes it before reading the checkpoint, the API again around the run).
+    """
+    import fcntl
+    import socket
+
+    p = Path(path)
+    lp = lock_path(p)
+    key = str(lp.absolute())
+    if key in _HELD:
+        _HELD[key] += 1
+        try:
+            yield
+        finally:
+            _HELD[key] -= 1
+        return
+    fd = None
+    for _ in range(10):
+        try:
+            fd = os.open(lp, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+        except OSError as exc:
+            raise _refuse(p, f"its lock file {str(lp)!r} cannot be opened ({io.reason(exc)})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _plain_holder(fd)
+            os.close(fd)
+            fd = None
+            if break_lock:
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(lp)
+                continue
+            raise _refuse(p, f"it is in use by {holder}; wait until that run ends (a lock dies with "
+                             "its process), or pass --break-lock if it was held from another host "
+                             "that is gone") from None
+        except OSError as exc:  # a file system without locks (some NFS mounts)
+            os.close(fd)
+            fd = None
+            if not break_lock:
+                raise _refuse(p, f"its file system cannot lock it ({io.reason(exc)}); pass --break-lock "
+                                 "to run without a lock (then make sure no other run uses it)") from None
+            break
+        # The holder before us may have removed the lock file between our open and our lock.
+        try:
+            same = os.stat(lp).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+        fd = None
+    else:
+        raise _refuse(p, f"its lock file {str(lp)!r} keeps being replaced by other processes")
+    if fd is not None:
+        os.ftruncate(fd, 0)
+        os.write(fd, f"pid {os.getpid()} on host {socket.gethostname()} since "
+                     f"{_time.strftime('%Y-%m-%dT%H:%M:%SZ', _time.gmtime())}".encode())
+    _HELD[key] = 1
+    try:
+        yield
+    finally:
+        del _HELD[key]
+        if fd is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(lp)  # while still holding it: the next run creates a fresh one
+            os.close(fd)
+
+
+def _plain_holder(fd: int) -> str:
+    from stochpend._terminal import plain
+
+    try:
+        text = os.pread(fd, 200, 0).decode("utf-8", "replace").strip()
+    except OSError:
+        text = ""
+    return plain(text) if text else "another process"
+
+
+def check_work(ckpt: Checkpoint, max_path_steps: float | None = None) -> None:
+    """Refuse, before any work, resuming a run whose configuration needs more memory than is
+    available or more work than the limit (``max_path_steps`` as ``stochpend simulate``'s; the
+    limit the original run was given is not taken from the file, which anyone may have edited:
+    a crafted ``t_max = 1e300`` must not run for ever)."""
+    from stochpend import resources
+
+    resources.check(ckpt.config, backend=ckpt.state.backend, precision=ckpt.state.precision,
+                    max_path_steps=max_path_steps)
+
+
+def check_threads(threads: Any) -> None:
+    """Refuse a thread count this machine cannot run (``None``: the default)."""
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
+                                or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS):
+        raise ValueError(f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]")
+
+
+def check_not_checkpoint(out: str | os.PathLike, checkpoint_path: str | os.PathLike) -> None:
+    """Refuse an output that is the checkpoint itself (``resume CK --out CK --overwrite`` wrote
+    the result over the checkpoint, then removed it: nothing was left)."""
+    if Path(out).absolute().resolve() == Path(checkpoint_path).absolute().resolve():
+        raise ValueError(f"out={str(out)!r} is not accepted: it is the checkpoint itself, which "
+                         "holds the run until its result is written; choose another file")
+
+
+def own_out(path: str | os.PathLike, recorded: Path) -> Path:
+    """The output a checkpoint names for itself, trusted only as a name in the checkpoint's own
+    directory: a checkpoint someone hands you must not choose where its result goes."""
+    ck_dir = Path(path).absolute().parent
+    if Path(recorded).absolute().parent.resolve() != ck_dir.resolve():
+        raise _refuse(Path(path), f"it names out={str(recorded)!r}, outside the checkpoint's own "
+                                  "directory; pass --out FILE to say where the result goes")
+    return ck_dir / Path(recorded).name
 
 
 def run_checkpointed(
@@ -485,6 +643,7 @@ def run_checkpointed(
     backend: str = "cpu",
     precision: str = "float64",
     _resume: Checkpoint | None = None,
+    break_lock: bool = False,
 ) -> xr.Dataset:
     """Run ``config`` saving checkpoints to ``checkpoint_path``; write ``out``; return the result.
 
@@ -493,14 +652,26 @@ def run_checkpointed(
     On success the result is written to ``out`` (when given) and the checkpoint file is
     removed. The numbers equal those of :func:`stochpend.simulate.run` on the same ``backend``
     and ``precision`` exactly; a resumed run continues on the backend and precision it ran on.
+    The run holds the checkpoint's lock (:func:`owned`) from start to end; ``break_lock`` as there.
     """
+    with owned(checkpoint_path, break_lock=break_lock):
+        return _run_owned(config, checkpoint_path=checkpoint_path, every_s=every_s, out=out,
+                          overwrite=overwrite, threads=threads, chunk_paths=chunk_paths,
+                          progress=progress, command_line=command_line, checkpointer=checkpointer,
+                          backend=backend, precision=precision, _resume=_resume)
+
+
+def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, every_s: float | None,
+               out: str | os.PathLike | None, overwrite: bool, threads: int | None,
+               chunk_paths: int | None, progress: Progress | None, command_line: str | None,
+               checkpointer: FileCheckpointer | None, backend: str, precision: str,
+               _resume: Checkpoint | None) -> xr.Dataset:
     progress = progress or NoProgress()
     out_p = None if out is None else Path(out).absolute()
     if out_p is not None:
         io.check_output_path(out_p, overwrite=overwrite)
-    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
-                                or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS):
-        raise ValueError(f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]")
+        check_not_checkpoint(out_p, checkpoint_path)
+    check_threads(threads)
     if checkpointer is None:
         checkpointer = FileCheckpointer(
             checkpoint_path, every_s, config=config, out=out_p, overwrite=overwrite, threads=threads,
@@ -541,14 +712,17 @@ def run_checkpointed(
     ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
     bias.attach(ds, estimate)
     if out_p is not None:
-        keep = (f"; the finished run is kept in {str(checkpointer.path)!r}: `stochpend resume "
-                f"{checkpointer.path}` writes it (add --out FILE to write it elsewhere)")
         try:
             io.to_netcdf(ds, out_p, overwrite=overwrite)
-        except io.WriteError as exc:
-            raise io.WriteError(f"{exc}{keep}", exc.errno) from None
-        except ValueError as exc:  # the file appeared meanwhile
-            raise ValueError(f"{exc}{keep}") from None
+        except (OSError, ValueError) as exc:  # a full disk, a directory gone; a file that appeared
+            if checkpointer.path.is_file():  # claim only what is true now
+                keep = (f"; the finished run is kept in {str(checkpointer.path)!r}: `stochpend resume "
+                        f"{checkpointer.path}` writes it (add --out FILE to write it elsewhere)")
+            else:
+                keep = f"; the checkpoint {str(checkpointer.path)!r} is gone too: the run is lost"
+            if isinstance(exc, ValueError):
+                raise ValueError(f"{exc}{keep}") from None
+            raise io.WriteError(f"{exc}{keep}", getattr(exc, "errno", None)) from None
     with contextlib.suppress(FileNotFoundError):
         os.unlink(checkpointer.path)
     return ds
@@ -565,14 +739,27 @@ def resume(
     every_s: Any = _KEEP,
     threads: Any = _KEEP,
     progress: Progress | None = None,
+    break_lock: bool = False,
+    max_path_steps: float | None = None,
 ) -> xr.Dataset:
     """Continue the run saved in ``path``; write its result where the original command would have.
 
-    ``out``, ``overwrite``, ``every_s`` and ``threads`` default to those of the original run
-    (``out=None`` writes nothing). Checkpoints keep being written to ``path`` at the same
+    ``every_s`` and ``threads`` default to those of the original run; ``out`` to the original
+    run's output only as a name in the checkpoint's own directory (``out=None`` writes
+    nothing); an existing output is replaced only with ``overwrite=True`` given here, never on
+    the checkpoint's say. The checkpoint is locked (:func:`owned`) while this runs. The run's
+    memory and work are checked first (:func:`check_work`, ``max_path_steps``). Checkpoints keep being written to ``path`` at the same
     interval; the file is removed once the result is written.
     """
-    ckpt = read(path)
+    with owned(path, break_lock=break_lock):
+        ckpt = read(path)
+        check_work(ckpt, max_path_steps)
+        return _resume_owned(path, ckpt, out=out, overwrite=overwrite, every_s=every_s,
+                             threads=threads, progress=progress)
+
+
+def _resume_owned(path: str | os.PathLike, ckpt: Checkpoint, *, out: Any, overwrite: bool | None,
+                  every_s: Any, threads: Any, progress: Progress | None) -> xr.Dataset:
     if ckpt.state.backend != "cpu":
         from stochpend.simulate import resolve_backend
 
@@ -583,8 +770,13 @@ def resume(
                                       f"usable here ({exc})") from None
     if threads is _KEEP:  # the machine that resumes may have fewer threads
         threads = None if ckpt.threads is None else min(ckpt.threads, numba.config.NUMBA_NUM_THREADS)
-    out_p = ckpt.out if out is _KEEP else (None if out is None else Path(out))
-    ow = ckpt.overwrite if overwrite is None else overwrite
+    # The trust boundary: the checkpoint's own `out` only as a name in its own directory, and
+    # never an overwrite on its say (only the caller's `overwrite`).
+    if out is _KEEP:
+        out_p = None if ckpt.out is None else own_out(path, ckpt.out)
+    else:
+        out_p = None if out is None else Path(out)
+    ow = bool(overwrite)
     return run_checkpointed(
         ckpt.config, checkpoint_path=path,
         every_s=ckpt.every_s if every_s is _KEEP else every_s,

@@ -25,12 +25,14 @@ from typer.core import TyperGroup
 
 from stochpend._cli_types import integer, usage_message
 from stochpend._notation import ve
+from stochpend._terminal import markup
 
+# sys.stderr is None when file descriptor 2 is closed (`2>&-`): Rich then prints nothing.
 #: Progress, notes, warnings and errors: standard error.
-console = Console(stderr=True, width=None if sys.stderr.isatty() else 140)
+console = Console(stderr=True, width=None if sys.stderr is not None and sys.stderr.isatty() else 140)
 #: Results (tables): standard output, so that ``stochpend show run.nc > table.txt`` and pipes
 #: get them; not wrapped when it is not a terminal.
-results = Console(width=None if sys.stdout.isatty() else 200)
+results = Console(width=None if sys.stdout is not None and sys.stdout.isatty() else 200)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -63,12 +65,36 @@ class OneLineErrorsGroup(TyperGroup):
             fail(usage_message(exc))
 
     def invoke(self, ctx: Any) -> Any:
+        from stochpend._files import signals_interrupt
+
+        _check_numba_threads()
         try:
-            return super().invoke(ctx)
+            with signals_interrupt():  # SIGTERM, SIGHUP: unwind, remove temporaries, exit 128+n
+                return super().invoke(ctx)
         except typer.TyperException as exc:
             if type(exc).__name__ == "NoArgsIsHelpError":
                 raise
             fail(usage_message(exc))
+
+
+#: NUMBA_NUM_THREADS above this starts no run (1e6 made Numba's thread pool die with SIGSEGV).
+MAX_NUMBA_THREADS = 4096
+
+
+def _check_numba_threads() -> None:
+    """NUMBA_NUM_THREADS is read when Numba is imported: 0 gave a traceback, 1e6 a segfault."""
+    import os
+
+    text = os.environ.get("NUMBA_NUM_THREADS")
+    if text is None or not text.strip():
+        return
+    try:
+        n = int(text)
+    except ValueError:
+        return  # Numba ignores it with its own warning and uses the CPU count
+    if not 1 <= n <= MAX_NUMBA_THREADS:
+        fail(f"NUMBA_NUM_THREADS={text!r} is not accepted: an integer in [1, {MAX_NUMBA_THREADS}] "
+             "(the environment variable; or unset it to use every CPU)")
 
 
 app = typer.Typer(
@@ -116,9 +142,16 @@ def handles_errors(fn: F) -> F:
             if "--debug" in sys.argv:
                 raise
             fail(" ".join(str(exc).split()) or type(exc).__name__, code=1)
-        except KeyboardInterrupt:
+        except ArithmeticError as exc:  # values each valid alone, beyond the floats together
+            if "--debug" in sys.argv:
+                raise
+            given = [a for a in sys.argv[1:] if a.startswith("--") and a not in ("--quiet", "--debug")]
+            fail(f"the values of {' '.join(given) or 'the defaults'} are not accepted: "
+                 f"a result lies beyond the floating-point range ({type(exc).__name__}: {exc}); "
+                 "use less extreme values")
+        except KeyboardInterrupt as exc:
             console.print("[yellow]interrupted[/]")
-            raise typer.Exit(130) from None
+            raise typer.Exit(128 + getattr(exc, "signum", 2)) from None
 
     return wrapper  # type: ignore[return-value]
 
@@ -264,10 +297,11 @@ def summary_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Tabl
     model = potential if potential != "power" else f"U = x^{2 * int(attrs.get('power_n', 2))}/{2 * int(attrs.get('power_n', 2))}"
     if potential != "pendulum":
         model += f" ({attrs.get('coupling', 'force')} coupling)"
-    title = f"stochpend: {model}, {noise} noise, D={D:g}" + (f", tau={float(tau):g}" if tau != "none" else "")
+    # Attributes come from a file: escaped (terminal control characters, Rich markup).
+    title = f"stochpend: {markup(model)}, {markup(noise)} noise, D={D:g}" + (f", tau={float(tau):g}" if tau != "none" else "")
     if attrs.get("omega_noise", "none") != "none":
         title += f", W={float(attrs['omega_noise']):g}"
-    title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {attrs.get('seed')}"
+    title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {markup(attrs.get('seed'))}"
     scaled = _scaled_column(ds)
     has_bias = "mean_E_bias" in ds
     idx = shown_rows(ds, max_rows)
@@ -461,7 +495,7 @@ def simulate(
         # Checks the checkpoint path before any work; writes --out itself (as 'stochpend
         # resume' does), then removes the checkpoint; Ctrl-C saves it and exits 130.
         ds = simulate_with_checkpoint(
-            config, checkpoint_path=checkpoint, every_s=parse_duration(checkpoint_every or "5m"),
+            config, checkpoint_path=checkpoint, every_s=parse_duration("5m" if checkpoint_every is None else checkpoint_every),
             out=out, overwrite=overwrite, progress=progress, threads=threads, backend=backend,
             precision=precision,
         )
@@ -497,7 +531,7 @@ def simulate(
         if growth.startswith(("finite-time blow-up", "exponential")):
             console.print(f"[yellow]growth of <E>: {growth}[/]")
         if out is not None:
-            console.print(f"wrote {out}")
+            console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
 
 
 def result_kind(ds: Any) -> str | None:
@@ -543,12 +577,20 @@ def show(
 
         results.print(bfpe_table(ds, max_rows=rows))
         return
-    results.print(summary_table(ds, max_rows=rows, width=results.width))
-    if kind == "reduced":
-        from stochpend._cli_theory import reduced_table
+    try:  # the tables are built whole before anything is printed
+        tables = [summary_table(ds, max_rows=rows, width=results.width)]
+        if kind == "reduced":
+            from stochpend._cli_theory import reduced_table
 
-        results.print(reduced_table(ds))
-    for line in bias_warnings(ds, shown_rows(ds, rows)):
+            tables.append(reduced_table(ds))
+        warned = bias_warnings(ds, shown_rows(ds, rows))
+    except (KeyError, AttributeError, TypeError, ValueError, OverflowError, IndexError) as exc:
+        why = " ".join(str(exc).split()) or type(exc).__name__
+        raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend result this "
+                         f"command can show ({why})") from None
+    for table in tables:
+        results.print(table)
+    for line in warned:
         console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
     for line in bias_notes(ds):
         note(line)

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from stochpend._files import write_atomic
 from stochpend.figures._common import COLUMNS, DASH, describe_attrs, fmt_num
 from stochpend.paper import with_numbers
 
@@ -215,5 +216,4 @@ def build_report(result: Any) -> str:
 def write_report(result: Any, path: str | Path | None = None) -> Path:
     """Write the report (default ``result.report``) and return its path."""
     p = Path(path) if path is not None else Path(result.report)
-    p.write_text(build_report(result), encoding="utf-8")
-    return p
+    return write_atomic(p, build_report(result).encode("utf-8"), overwrite=True)

@@ -24,6 +24,7 @@ import platform
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from io import BytesIO, StringIO
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -31,6 +32,7 @@ import numpy as np
 import xarray as xr
 
 from stochpend import __version__
+from stochpend._files import write_atomic
 from stochpend.figures import CASES, FIGURES
 from stochpend.figures._common import COLUMNS, SUM_COMPONENTS, Row, RunSpec
 from stochpend.progress import NoProgress, Progress
@@ -475,18 +477,25 @@ def _draw_and_tabulate(module: Any, out: Path, specs: list[RunSpec], datasets: d
     fig = module.draw(datasets, theory)
     png = out / f"{module.NAME}.png"
     pdf = out / f"{module.NAME}.pdf"
-    fig.savefig(png, dpi=150)
+    # Each file is drawn into memory, then put in place atomically: a full disk leaves the
+    # previous file or none, never a truncated one.
+    image = BytesIO()
+    fig.savefig(image, format="png", dpi=150)
+    write_atomic(png, image.getbuffer(), overwrite=True)
     # The constrained layout is solved (in figure coordinates) by the first save: freeze it, so
     # that the PDF does not solve it again (half of the drawing time).
     fig.set_layout_engine("none")
-    fig.savefig(pdf, metadata={"CreationDate": None})
+    image = BytesIO()
+    fig.savefig(image, format="pdf", metadata={"CreationDate": None})
+    write_atomic(pdf, image.getbuffer(), overwrite=True)
     rows = module.table(datasets, theory)
     table_csv = out / f"{module.NAME}_table.csv"
-    with open(table_csv, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(COLUMNS)
-        for r in rows:
-            w.writerow(r.cells())
+    text = StringIO(newline="")
+    w = csv.writer(text)
+    w.writerow(COLUMNS)
+    for r in rows:
+        w.writerow(r.cells())
+    write_atomic(table_csv, text.getvalue().encode("utf-8"), overwrite=True)
     return FigureResult(module.NAME, module.TITLE, module.caption(specs), png, pdf, table_csv, rows,
                         fig_runs, time.perf_counter() - started, FIT_METHOD)
 
@@ -528,7 +537,7 @@ def _write_tables_md(result: ReproduceResult) -> None:
     for f in result.figures.values():
         parts.append(f"## {f.title}\n\n{f.caption}\n\n{markdown_table(f.rows)}\n")
     parts.append(FIT_METHOD + "\n")
-    result.tables_md.write_text("\n".join(parts), encoding="utf-8")
+    write_atomic(result.tables_md, "\n".join(parts).encode("utf-8"), overwrite=True)
 
 
 def _jsonable(x: Any) -> Any:
@@ -569,4 +578,5 @@ def _write_results_json(result: ReproduceResult) -> None:
             for name, r in result.runs.items()
         },
     }
-    result.results_json.write_text(json.dumps(_jsonable(doc), indent=1, ensure_ascii=False), encoding="utf-8")
+    write_atomic(result.results_json, json.dumps(_jsonable(doc), indent=1, ensure_ascii=False).encode("utf-8"),
+                 overwrite=True)

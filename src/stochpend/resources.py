@@ -29,7 +29,7 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from stochpend.params import DEFAULT_H_MAX, SimulationConfig, short_repr
+from stochpend.params import DEFAULT_H_MAX, DEFAULT_STEP_C, SimulationConfig, short_repr
 
 __all__ = [
     "DEFAULT_MAX_PATH_STEPS",
@@ -73,6 +73,8 @@ N_SUMS = 9
 _DEFAULT_PATHS = 10_000
 _DEFAULT_T_MAX = 1000.0
 _DEFAULT_N_TIMES = 40
+#: The smallest step control accepted from a user.
+MIN_STEP_C = 1e-6
 _DEFAULT_HIST_BINS = 100
 _DEFAULT_N_BATCHES = 100
 
@@ -92,13 +94,14 @@ class Estimate:
     rate: float = 0.0  # assumed path-steps per second
     #: (part of memory, bytes, the parameter that sets it), largest first
     parts: tuple[tuple[str, int, str], ...] = field(default=())
+    formula: str = "paths x t_max / h_max"  # what min_path_steps counts
 
     def describe(self) -> str:
         """One line: the work, the rough duration and the memory."""
         mem = f"peak memory {format_bytes(self.memory_bytes)}"
         if self.device_bytes:
             mem += f" (and {format_bytes(self.device_bytes)} on the GPU)"
-        return (f"at least {self.min_path_steps:.3g} path-steps (paths x t_max / h_max), roughly "
+        return (f"at least {self.min_path_steps:.3g} path-steps ({self.formula}), roughly "
                 f"{format_seconds(self.seconds)} on {self.workers} at ~{self.rate:.2g} path-steps/s; {mem}")
 
 
@@ -152,10 +155,26 @@ def _memory_bound() -> tuple[int | None, str]:
             machine = None
     else:
         machine = int(psutil.virtual_memory().available)
-    group = cgroup_headroom()
-    if group is not None and (machine is None or group < machine):
-        return group, "this process's memory limit (cgroup) leaves"
-    return machine, "this machine has"
+    bounds = [(machine, "this machine has"), (cgroup_headroom(), "this process's memory limit (cgroup) leaves"),
+              (address_space_headroom(), "this process's address-space limit (ulimit -v) leaves")]
+    known = [b for b in bounds if b[0] is not None]
+    return min(known, key=lambda b: b[0]) if known else (None, "this machine has")
+
+
+def address_space_headroom() -> int | None:
+    """Bytes this process may still map under its address-space limit (``ulimit -v``, RLIMIT_AS,
+    common on shared login nodes), or None without one: beyond it every allocation fails."""
+    try:
+        import resource
+
+        limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if limit == resource.RLIM_INFINITY:
+            return None
+        import psutil
+
+        return max(0, int(limit) - int(psutil.Process().memory_info().vms))
+    except (ImportError, OSError, ValueError):  # pragma: no cover - no resource module or /proc
+        return None
 
 
 #: A cgroup v1 limit at or above this is "no limit" (the kernel writes 2**63 rounded to pages).
@@ -299,13 +318,24 @@ def estimate(
     if cuda:  # the state lives on the GPU
         device = next(b for label, b, _ in parts if label == "path state")
         parts = [p for p in parts if p[0] != "path state"]
-    min_steps = float(config.paths) * config.t_max / config.h_max
+    min_steps, formula = _min_path_steps(config)
     rate, workers = _rate(cuda, threads)
     return Estimate(
         memory_bytes=int(sum(p[1] for p in parts)), min_path_steps=min_steps, seconds=min_steps / rate,
         device_bytes=int(device), chunk_paths=int(chunk), backend="cuda" if cuda else "cpu",
-        precision=precision, workers=workers, rate=rate, parts=tuple(parts),
+        precision=precision, workers=workers, rate=rate, parts=tuple(parts), formula=formula,
     )
+
+
+def _min_path_steps(config: Any) -> tuple[float, str]:
+    """A lower bound on the path-steps of a stepped run, and what it counts: no step is longer
+    than h_max, and every path stops at every output time (a step ends there), so at least
+    ``max(paths x t_max / h_max, paths x output times)``."""
+    by_step = float(config.paths) * config.t_max / config.h_max
+    by_times = float(config.paths) * len(config.times)
+    if by_times > by_step:
+        return by_times, "paths x output times"
+    return by_step, "paths x t_max / h_max"
 
 
 #: Per-path state of the reduced dynamics (stochpend.reduced): the energy variable, the status,
@@ -333,13 +363,13 @@ def estimate_reduced(config: Any, *, chunk_paths: int | None = None, threads: in
     if keep_energies:
         parts = sorted([*parts, ("per-path energies", 8 * config.paths, "paths")], key=lambda p: -p[1])
     if config.order == "second":
-        min_steps = float(config.paths) * config.t_max / config.h_max
+        min_steps, formula = _min_path_steps(config)
     else:
-        min_steps = float(config.paths) * len(config.times)
+        min_steps, formula = float(config.paths) * len(config.times), "paths x output times"
     rate, workers = _rate(False, threads)
     return Estimate(
         memory_bytes=int(sum(p[1] for p in parts)), min_path_steps=min_steps, seconds=min_steps / rate,
-        chunk_paths=int(chunk), workers=workers, rate=rate, parts=tuple(parts),
+        chunk_paths=int(chunk), workers=workers, rate=rate, parts=tuple(parts), formula=formula,
     )
 
 
@@ -410,6 +440,11 @@ def check(
     h_max``.
     """
     limit = work_limit(max_path_steps)
+    if 0 < config.step_c < MIN_STEP_C:
+        # Far below any accuracy need (1e-300): every path would exhaust its step budget, which
+        # the run would then report as a physical blow-up. (--accuracy auto refines below it.)
+        raise ValueError(f"step_c={config.step_c!r} is not accepted: 0 (fixed step) or a number >= "
+                         f"{MIN_STEP_C:g}; the default is {DEFAULT_STEP_C:g}")
     est = estimate(config, backend=backend, precision=precision, chunk_paths=chunk_paths, threads=threads)
     values = {"hist_bins": config.hist_bins, "n_times": len(config.times), "n_batches": config.n_batches,
               "chunk_paths": est.chunk_paths, "paths": config.paths, "t_max": config.t_max,
@@ -417,8 +452,14 @@ def check(
     # The work first: a run that would never end is refused as such, whatever else it needs.
     factors = {"paths": config.paths / _DEFAULT_PATHS, "t_max": config.t_max / _DEFAULT_T_MAX,
                "h_max": DEFAULT_H_MAX / config.h_max}
-    _refuse_work(est, limit, factors, values,
-                 f"paths x t_max / h_max = {config.paths} x {config.t_max:g} / {config.h_max:g}")
+    if est.formula == "paths x output times":
+        factors = {"paths": config.paths / _DEFAULT_PATHS, "n_times": len(config.times) / _DEFAULT_N_TIMES}
+        formula = f"paths x output times = {config.paths} x {len(config.times)}"
+        advice = "use fewer paths or output times"
+    else:
+        formula = f"paths x t_max / h_max = {config.paths} x {config.t_max:g} / {config.h_max:g}"
+        advice = "use fewer paths, a shorter t_max or a larger h_max"
+    _refuse_work(est, limit, factors, values, formula, advice)
     _refuse_memory(est, values)
     return est
 
@@ -433,7 +474,7 @@ def check_reduced(config: Any, *, chunk_paths: int | None = None, max_path_steps
               "chunk_paths": est.chunk_paths, "paths": config.paths, "t_max": config.t_max,
               "h_max": config.h_max}
     _refuse_memory(est, values)
-    if config.order == "second":
+    if config.order == "second" and est.formula != "paths x output times":
         factors = {"paths": config.paths / _DEFAULT_PATHS, "t_max": config.t_max / _DEFAULT_T_MAX,
                    "h_max": 0.05 * config.tau / config.h_max}
         formula = f"paths x t_max / h_max = {config.paths} x {config.t_max:g} / {config.h_max:g}"

@@ -213,6 +213,18 @@ def _coord_array(values: list[Any]) -> np.ndarray:
     return np.asarray(values)
 
 
+#: The most parameter sets one sweep may hold: each is validated (~60 us, ~1 KB) before any work,
+#: and a 742-byte grid of 5 axes x 25 values would otherwise expand to 9.8 million (3.7 GB).
+MAX_SETS = 100_000
+
+
+def _check_count(n: int, source: str, key: str, how: str) -> None:
+    """Refuse a sweep of more than :data:`MAX_SETS` sets, counted before anything is expanded."""
+    if n > MAX_SETS:
+        raise ValueError(f"{source}: {key} is not accepted: {how} make {n:.3g} parameter sets, more than "
+                         f"{MAX_SETS:,}; split it into several sweeps")
+
+
 def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepSpec) -> SweepSpec:
     """Parse and validate a sweep (a TOML file or the same structure as a dict).
 
@@ -235,8 +247,9 @@ def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepSpec) -> SweepS
             data = tomllib.loads(text)
         except UnicodeDecodeError as exc:
             raise ValueError(f"sweep={str(p)!r} is not accepted: not UTF-8 text ({exc})") from None
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"sweep={str(p)!r} is not accepted: invalid TOML ({exc})") from None
+        except (ValueError, RecursionError) as exc:  # TOMLDecodeError; an integer of 5000 digits
+            why = "nested too deeply" if isinstance(exc, RecursionError) else " ".join(str(exc).split())
+            raise ValueError(f"sweep={str(p)!r} is not accepted: invalid TOML ({why})") from None
 
     for key in data:
         if key not in TOP_LEVEL:
@@ -263,6 +276,7 @@ def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepSpec) -> SweepS
                 raise ValueError(f"{source}: grid.{key} is not accepted: {key} is also set in [base]")
         dims = tuple(grid)
         shape = tuple(len(v) for v in grid.values())
+        _check_count(math.prod(shape), source, "grid", " x ".join(f"{len(v)} {k}" for k, v in grid.items()))
         raw_sets = [dict(zip(dims, combo, strict=True)) for combo in itertools.product(*grid.values())]
         configs = []
         for params in raw_sets:
@@ -278,6 +292,7 @@ def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepSpec) -> SweepS
         cases = data["case"]
         if not isinstance(cases, list) or not cases:
             raise ValueError(f"{source}: case is not accepted: a non-empty list of tables ([[case]] ...)")
+        _check_count(len(cases), source, "case", f"{len(cases)} [[case]] tables")
         raw_sets = [_check_params(c, f"case[{i}]", source) for i, c in enumerate(cases)]
         configs = [_build({**base, **params}, source, f"case[{i}]") for i, params in enumerate(raw_sets)]
         dims = ("case",)

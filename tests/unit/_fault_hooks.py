@@ -24,19 +24,17 @@ from pathlib import Path
 
 
 def _kill_in_out_write() -> None:
-    import xarray as xr
+    from stochpend import _files, io
 
-    original = xr.Dataset.to_netcdf
+    def write_atomic(path, data, **kwargs):
+        def half(fd):  # half of the result reaches its temporary file, then the crash
+            view = memoryview(data).cast("B")
+            _files.write_all(fd, view[: len(view) // 2])
+            os.kill(os.getpid(), signal.SIGKILL)
 
-    def to_netcdf(self, path=None, *args, **kwargs):
-        result = original(self, path, *args, **kwargs)
-        size = os.path.getsize(path)
-        with open(path, "r+b") as f:
-            f.truncate(size // 2)
-        os.kill(os.getpid(), signal.SIGKILL)
-        return result
+        return _files.write_atomic(path, half, **kwargs)
 
-    xr.Dataset.to_netcdf = to_netcdf
+    io.write_atomic = write_atomic
 
 
 def _kill_in_checkpoint_write(n: int) -> None:
@@ -63,22 +61,22 @@ def _kill_in_checkpoint_write(n: int) -> None:
 
 
 def _barrier(folder: str) -> None:
-    import xarray as xr
+    from stochpend import _files
 
-    original = xr.Dataset.to_netcdf
+    original = _files._put_in_place
     here = Path(folder)
 
-    def to_netcdf(self, path=None, *args, **kwargs):
-        result = original(self, path, *args, **kwargs)
-        (here / f"arrived-{os.getpid()}").touch()
-        deadline = time.monotonic() + 120
-        while len(list(here.glob("arrived-*"))) < 2:
-            if time.monotonic() > deadline:
-                raise SystemExit("barrier: the other process never arrived")
-            time.sleep(0.01)
-        return result
+    def put_in_place(tmp, p, overwrite, name):
+        if name == "out":  # the result's temporary file is complete: wait for the other process
+            (here / f"arrived-{os.getpid()}").touch()
+            deadline = time.monotonic() + 120
+            while len(list(here.glob("arrived-*"))) < 2:
+                if time.monotonic() > deadline:
+                    raise SystemExit("barrier: the other process never arrived")
+                time.sleep(0.01)
+        return original(tmp, p, overwrite, name)
 
-    xr.Dataset.to_netcdf = to_netcdf
+    _files._put_in_place = put_in_place
 
 
 def main(argv: list[str]) -> None:

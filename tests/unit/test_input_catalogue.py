@@ -80,7 +80,8 @@ CLI_CASES = [
     ("sweep-missing-file", ["sweep", "{d}/nothing.toml"], ["sweep=", "no such file"]),
     ("sweep-set-paths-zero", ["sweep", "{d}/paths0.toml"], ["paths=0", "integer in [1"]),
     ("sweep-set-huge", ["sweep", "{d}/huge.toml"], ["paths=1000000000000000", "path-steps", "set 1 of 2"]),
-    ("sweep-workers-zero", ["sweep", "{d}/small.toml", "--workers", "0"], ["workers=0", "integer >= 1"]),
+    ("sweep-workers-zero", ["sweep", "{d}/small.toml", "--workers", "0"], ["workers=0", "an integer in [1, "]),
+    ("sweep-workers-huge", ["sweep", "{d}/small.toml", "--workers", "1e6"], ["workers=1000000", "this machine's CPUs"]),
     ("sweep-out-exists", ["sweep", "{d}/small.toml", "--out", "{d}/existing.nc"], ["out=", "--overwrite"]),
     # resume: anything but a checkpoint
     ("resume-netcdf", ["resume", "{d}/foreign.nc"], ["checkpoint=", "not a stochpend checkpoint"]),

@@ -161,6 +161,13 @@ def _step_nodes(s_start: float, s_targets: NDArray[np.float64], ratio: float) ->
 #: Largest grids accepted: beyond them the arrays (the step nodes are stored per decade) or
 #: the time would be absurd (an out-of-memory traceback, or a run that does not end).
 MAX_N_CELLS = 10_000_000
+#: Largest solve accepted without ``max_cell_steps``: ~1.4 h at the measured rate.
+DEFAULT_MAX_CELL_STEPS = 1e11
+#: Cell-steps per second of the solve, measured on the 2-core development machine (1e6 cells,
+#: t_max = 10: 7.4e8 cell-steps in 35 s). Only for the estimate in a refusal.
+CELL_STEPS_PER_S = 2e7
+#: Floats per cell held at once besides the stored laws (grid, state, the banded solve).
+_WORK_FLOATS_PER_CELL = 24
 MAX_STEPS_PER_DECADE = 100_000
 MAX_N_TIMES = 1_000_000
 MAX_N_OMEGA = 1_000_000
@@ -187,6 +194,33 @@ def _integer(name: str, value: Any, accepted: str, minimum: int, maximum: int | 
     return v
 
 
+def _check_cost(n_cells: int, n_times: int, n_steps: int, max_cell_steps: float | None) -> None:
+    """Refuse, before any work, a solve that cannot fit in memory or would not end."""
+    from stochpend import resources
+
+    accepted = "max_cell_steps must be a number > 0 (inf: no limit)"
+    try:
+        limit = DEFAULT_MAX_CELL_STEPS if max_cell_steps is None else float(max_cell_steps)
+    except (TypeError, ValueError):
+        _fail("max_cell_steps", max_cell_steps, accepted)
+    if isinstance(max_cell_steps, bool) or not limit > 0:  # NaN too
+        _fail("max_cell_steps", max_cell_steps, accepted)
+    need = float(n_cells) * (n_times + _WORK_FLOATS_PER_CELL) * 8
+    have = resources.available_memory()
+    if have is not None and need > have:
+        name = "n_times" if n_times > _WORK_FLOATS_PER_CELL else "n_cells"
+        raise ValueError(f"{name}={n_times if name == 'n_times' else n_cells} is not accepted: the solve keeps "
+                         f"n_times x n_cells = {n_times} x {n_cells} laws, {resources.format_bytes(need)} in all, "
+                         f"more than the {resources.format_bytes(have)} available; use fewer cells or output times")
+    work = float(n_cells) * n_steps
+    if work > limit:
+        raise ValueError(f"n_cells={n_cells} is not accepted: the solve needs about {work:.3g} cell-steps "
+                         f"(n_cells x time steps = {n_cells} x {n_steps}), roughly "
+                         f"{resources.format_seconds(work / CELL_STEPS_PER_S)}, above the limit of {limit:.3g}; "
+                         "use fewer cells or steps per decade, or raise the limit with max_cell_steps= "
+                         "(--max-cell-steps)")
+
+
 def solve_bfpe(
     *,
     D: float,
@@ -201,6 +235,7 @@ def solve_bfpe(
     tail_exponent: float = 200.0,
     n_Omega: int = 201,
     u_max: float = 5.0,
+    max_cell_steps: float | None = None,
 ) -> xr.Dataset:
     """Solve the averaged B.F.P.E., Eq. `avbfpe`, for a start at ``Omega_0 = 0`` (omega = 0).
 
@@ -236,6 +271,11 @@ def solve_bfpe(
         Points of the output law ``P_Omega`` (symmetric about 0; default 201).
     u_max : float, optional
         The output law is sampled on ``Omega = u <Omega^2>^{1/2}``, ``u in [-u_max, u_max]``.
+    max_cell_steps : float, optional
+        Refuse, before any work, a solve needing more than this many cell-steps (``n_cells`` x
+        time steps; default :data:`DEFAULT_MAX_CELL_STEPS`, ``math.inf``: no limit). A solve
+        whose laws at the output times (``n_times x n_cells`` floats) do not fit in memory is
+        refused too.
 
     Returns
     -------
@@ -316,6 +356,8 @@ def solve_bfpe(
     s_out = grid_t / t_c
     s_max = t_max / t_c
     sigma0 = math.sqrt(s0 / 2.0)  # initial std of x
+    _check_cost(n_cells, grid_t.size, math.ceil(steps_per_decade * math.log10(s_max / s0)) + grid_t.size,
+                max_cell_steps)
     # Far tail (heuristic bound, checked a posteriori by `boundary_flux`): the diffusion
     # coefficient (1 + x^2)^-1 is below both 1 (white law, exp(-x^2/s)) and x^-2 (similarity
     # law, exp(-x^4/(4 s))). Put the wall beyond where the smaller bound is exp(-tail_exponent).
