@@ -567,23 +567,23 @@ def show(
     if kind is None:
         raise ValueError(f"path={str(path)!r} is not accepted: not a file stochpend writes (a simulation, "
                          "checkpointed run, sweep, reduced run or B.F.P.E. solution)")
-    if kind == "sweep":
-        from stochpend._cli_scale import sweep_table
-
-        results.print(sweep_table(ds))
-        return
-    if kind == "bfpe":
-        from stochpend._cli_theory import bfpe_table
-
-        results.print(bfpe_table(ds, max_rows=rows))
-        return
+    warned: list[str] = []
     try:  # the tables are built whole before anything is printed
-        tables = [summary_table(ds, max_rows=rows, width=results.width)]
-        if kind == "reduced":
-            from stochpend._cli_theory import reduced_table
+        if kind == "sweep":
+            from stochpend._cli_scale import sweep_table
 
-            tables.append(reduced_table(ds))
-        warned = bias_warnings(ds, shown_rows(ds, rows))
+            tables = [sweep_table(ds)]
+        elif kind == "bfpe":
+            from stochpend._cli_theory import bfpe_table
+
+            tables = [bfpe_table(ds, max_rows=rows)]
+        else:
+            tables = [summary_table(ds, max_rows=rows, width=results.width)]
+            if kind == "reduced":
+                from stochpend._cli_theory import reduced_table
+
+                tables.append(reduced_table(ds))
+            warned = bias_warnings(ds, shown_rows(ds, rows))
     except (KeyError, AttributeError, TypeError, ValueError, OverflowError, IndexError) as exc:
         why = " ".join(str(exc).split()) or type(exc).__name__
         raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend result this "
