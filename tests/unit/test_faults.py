@@ -437,7 +437,10 @@ def test_real_full_disk_on_a_tiny_tmpfs(tmp_path, references):
 
 # -- a Dask worker lost mid-sweep ---------------------------------------------------------------
 @pytest.mark.dask
-@pytest.mark.parametrize("backend", ["cpu", "cuda"])
+# The CUDA-simulator variant passed with a warm kernel cache (8 min 43 s suite) but ran past its
+# helper's 240 s watchdog in a fresh clone's cold cache on 2026-11-25, leaving a Dask worker
+# holding the pipes: moved to the slow suite until that is understood (closing note).
+@pytest.mark.parametrize("backend", ["cpu", pytest.param("cuda", marks=pytest.mark.slow)])
 def test_worker_killed_mid_sweep_changes_nothing(tmp_path, backend):
     pytest.importorskip("distributed", reason="the `dask` extra is not installed")
     report_path = tmp_path / "report.json"
