@@ -11,6 +11,7 @@ from typing import Annotated, Any
 
 import typer
 
+from stochpend._terminal import plain
 from stochpend._cli_types import integer
 from stochpend.cli import console, handles_errors, note, results
 
@@ -69,9 +70,10 @@ class RichReproduceProgress:
 
     def log(self, message: str) -> None:
         if self._progress is not None:
-            self._progress.console.print(message, highlight=False, soft_wrap=True)
+            # Lines name files (paths the user chose): plain text, never markup.
+            self._progress.console.print(plain(message), markup=False, highlight=False, soft_wrap=True)
         else:
-            console.print(message, highlight=False, soft_wrap=True)
+            console.print(plain(message), markup=False, highlight=False, soft_wrap=True)
 
 
 class _SimulationBar:

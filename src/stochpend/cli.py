@@ -551,22 +551,107 @@ def result_kind(ds: Any) -> str | None:
     return "reduced" if title.startswith("stochpend reduced dynamics") else "simulation"
 
 
+def open_result(path: Path) -> tuple[Any, list[str]]:
+    """:func:`stochpend.io.open_results` and its notes (a file without a checksum), for the
+    caller to print once it knows the file is one it can use."""
+    import warnings
+
+    from stochpend import io
+    from stochpend._warnings import StochpendWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", StochpendWarning)
+        ds = io.open_results(path)
+    return ds, [str(w.message) for w in caught if issubclass(w.category, StochpendWarning)]
+
+
+#: What `show --format` writes.
+SHOW_FORMATS = ("table", "csv", "json")
+
+
+def _csv_text(ds: Any) -> tuple[str, list[str]]:
+    """(CSV text, variables left out): every variable over the dimensions of ``mean_E`` (one
+    row per output time, or per parameter set and time), full precision. Names and text cells
+    come from a file and are made safe for a terminal (:func:`stochpend._terminal.plain`)."""
+    import csv
+    import io as _text_io
+
+    from stochpend._terminal import plain
+
+    dims = ds["mean_E"].dims
+    names = [str(n) for n in ds.data_vars if ds[n].dims == dims]
+    left_out = sorted(plain(n) for n in ds.data_vars if ds[n].dims != dims)
+    frame = ds[names].to_dataframe().reset_index()
+    buffer = _text_io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow([plain(c) for c in frame.columns])
+    for row in frame.itertuples(index=False):
+        writer.writerow([plain(v) if isinstance(v, str) else repr(float(v)) if isinstance(v, float) else v
+                         for v in row])
+    return buffer.getvalue(), left_out
+
+
+def _json_text(ds: Any) -> str:
+    """The whole result as JSON (xarray's ``to_dict``: dims, coords, data_vars, attrs); NaN and
+    infinities as null, every non-ASCII or control character escaped."""
+    import json
+
+    import numpy as np
+
+    def clean(x: Any) -> Any:
+        if isinstance(x, dict):
+            return {str(k): clean(v) for k, v in x.items()}
+        if isinstance(x, list | tuple):
+            return [clean(v) for v in x]
+        if isinstance(x, np.ndarray):
+            return clean(x.tolist())
+        if isinstance(x, np.generic):
+            return clean(x.item())
+        if isinstance(x, float) and not np.isfinite(x):
+            return None
+        if isinstance(x, bytes):
+            return x.decode("utf-8", "backslashreplace")
+        return x
+
+    return json.dumps(clean(ds.to_dict(data="list")), ensure_ascii=True, allow_nan=False)
+
+
 @app.command()
 @handles_errors
 def show(
     path: Annotated[Path, typer.Argument(help="A file stochpend wrote: simulate, resume, sweep, reduced or bfpe --out.")],
     rows: Annotated[int, typer.Option(parser=integer, help="Maximum number of output times shown (default 12).")] = 12,
+    format: Annotated[str, typer.Option("--format", help="table (for reading), csv (every output time, full "
+                                        "precision) or json (the whole file: data, coordinates, attributes).")] = "table",
 ) -> None:
     """Print the table of a saved result (a run, a sweep, a reduced run or a B.F.P.E. solution)."""
-    from stochpend import io
-
     if rows < 1:
         raise ValueError(f"rows={rows!r} is not accepted: an integer >= 1")
-    ds = io.open_results(path)
+    if format not in SHOW_FORMATS:
+        raise ValueError(f"--format={format!r} is not accepted: one of {', '.join(SHOW_FORMATS)}")
+    ds, notes = open_result(path)
     kind = result_kind(ds)
     if kind is None:
         raise ValueError(f"path={str(path)!r} is not accepted: not a file stochpend writes (a simulation, "
                          "checkpointed run, sweep, reduced run or B.F.P.E. solution)")
+    for line in notes:
+        note(line)
+    if format != "table":
+        try:
+            if format == "json":
+                text, left_out = _json_text(ds) + "\n", []
+            else:
+                text, left_out = _csv_text(ds)
+        except (KeyError, AttributeError, TypeError, ValueError, OverflowError, IndexError) as exc:
+            why = " ".join(str(exc).split()) or type(exc).__name__
+            raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend result this "
+                             f"command can write as {format} ({why})") from None
+        sys.stdout.write(text)
+        sys.stdout.flush()
+        if left_out:
+            note(f"the CSV holds the variables over ({', '.join(ds['mean_E'].dims)}); "
+                 f"{', '.join(left_out)} are in --format json")
+        return
     warned: list[str] = []
     try:  # the tables are built whole before anything is printed
         if kind == "sweep":
@@ -650,9 +735,11 @@ def plot(
         raise ValueError(f"--band={band!r} is not accepted: a number >= 0 (standard errors)")
     target = out if out is not None else Path(path).with_suffix("." + format)
     io.check_output_path(target, overwrite=overwrite, name="out")
-    ds = io.open_results(path)
+    ds, notes = open_result(path)
     if "mean_E" not in ds:
         raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend simulation result (no mean_E)")
+    for line in notes:
+        note(line)
     import io as _bytes_io
 
     buffer = _bytes_io.BytesIO()

@@ -1,8 +1,19 @@
-"""Results files: NetCDF (h5netcdf engine), written atomically."""
+"""Results files: NetCDF (h5netcdf engine), written atomically, with a checksum over what they say.
+
+Every file :func:`to_netcdf` writes carries ``checksum_sha256``: a SHA-256 over every data
+variable, coordinate and attribute as a reader decodes them (names, dimensions, dtypes, shapes,
+values; NaN payloads made canonical, since a decoder need not keep them). :func:`open_results`
+recomputes it: a flipped byte anywhere in those is :class:`DamagedResults` (an ``OSError``, exit 1
+on the command line); a file written before checksums existed opens with a
+:class:`~stochpend.StochpendWarning` saying its numbers are not verified.
+"""
 
 from __future__ import annotations
 
+import hashlib
+import io as _io
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +21,75 @@ import xarray as xr
 
 from stochpend._files import WriteError, check_output, reason, write_atomic
 
-__all__ = ["WriteError", "check_output_path", "open_results", "reason", "to_netcdf"]
+__all__ = ["CHECKSUM_ATTR", "DamagedResults", "WriteError", "check_output_path", "checksum", "open_results",
+           "reason", "to_netcdf"]
+
+#: The attribute holding a results file's checksum ("sha256:" and 64 hex digits).
+CHECKSUM_ATTR = "checksum_sha256"
+#: Salt of the checksum's layout: a change of layout changes every checksum.
+_CHECKSUM_SCHEME = b"stochpend results checksum 1\0"
+
+
+class DamagedResults(OSError):
+    """A results file whose contents do not match its checksum: changed or damaged after it
+    was written. One line naming the file (exit 1 on the command line)."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+def _canonical(values: np.ndarray) -> tuple[bytes, bytes]:
+    """(kind tag, bytes) of an array as a reader sees it, independent of byte order, of how
+    strings are held (fixed width or objects) and of NaN payloads."""
+    a = np.asarray(values)
+    if a.dtype.kind in "USO":
+        items = [x.decode("utf-8", "surrogateescape") if isinstance(x, bytes) else str(x) for x in a.ravel().tolist()]
+        return b"U", b"".join(len(t).to_bytes(8, "little") + t for t in (x.encode("utf-8", "surrogatepass") for x in items))
+    if a.dtype.kind == "b":
+        return b"b", np.ascontiguousarray(a, dtype=np.uint8).tobytes()
+    if a.dtype.kind in "fc":
+        a = np.where(np.isnan(a), np.array(np.nan, dtype=a.dtype), a) if np.isnan(a).any() else a
+    tag = f"{a.dtype.kind}{a.dtype.itemsize}".encode()
+    return tag, np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<")).tobytes()
+
+
+def _attr_value(value: object) -> tuple[bytes, bytes]:
+    """An attribute's value as a reader sees it: text, or numbers widened to 64 bits and
+    flattened (a one-element array and a scalar read back alike)."""
+    if isinstance(value, str | bytes):
+        return _canonical(np.array([value], dtype=object))
+    a = np.atleast_1d(np.asarray(value))
+    if a.dtype.kind in "USO":
+        return _canonical(a)
+    if a.dtype.kind in "biu":
+        return b"i", np.ascontiguousarray(a.ravel(), dtype="<i8").tobytes() if a.dtype.kind != "u" else \
+            np.ascontiguousarray(a.ravel(), dtype="<u8").tobytes()
+    return _canonical(a.ravel().astype(np.complex128 if a.dtype.kind == "c" else np.float64))
+
+
+def checksum(ds: xr.Dataset) -> str:
+    """``"sha256:<hex>"`` over ``ds``'s variables (data and coordinates: name, dimensions,
+    dtype, shape, values, attributes) and its attributes, :data:`CHECKSUM_ATTR` excepted."""
+    h = hashlib.sha256(_CHECKSUM_SCHEME)
+
+    def put(tag: bytes, data: bytes) -> None:
+        h.update(tag + len(data).to_bytes(8, "little"))
+        h.update(data)
+
+    def put_attrs(attrs: dict) -> None:
+        for key in sorted(str(k) for k in attrs if k != CHECKSUM_ATTR):
+            put(b"k", key.encode("utf-8", "surrogatepass"))
+            put(*_attr_value(attrs[key]))
+
+    put_attrs(ds.attrs)
+    for name in sorted(str(n) for n in ds.variables):
+        var = ds.variables[name]
+        put(b"n", name.encode("utf-8", "surrogatepass"))
+        put(b"d", "\0".join(str(d) for d in var.dims).encode("utf-8", "surrogatepass"))
+        put(b"s", np.asarray(var.shape, dtype="<i8").tobytes())
+        put(*_canonical(var.values))
+        put_attrs(var.attrs)
+    return "sha256:" + h.hexdigest()
 
 
 # The preflight check and the atomic write every output goes through live in stochpend._files;
@@ -49,6 +128,12 @@ def to_netcdf(ds: xr.Dataset, path: str | os.PathLike, *, overwrite: bool = Fals
     ds.attrs = _clean_attrs(ds.attrs)
     for v in ds.variables.values():
         v.attrs = _clean_attrs(v.attrs)
+    ds.attrs.pop(CHECKSUM_ATTR, None)
+    image = ds.to_netcdf(engine="h5netcdf")
+    # The checksum is taken over the file as a reader decodes it (encodings, fill values and
+    # string types as xarray reads them back), so that what open_results recomputes is the same.
+    with xr.open_dataset(_io.BytesIO(image), engine="h5netcdf") as back:
+        ds.attrs[CHECKSUM_ATTR] = checksum(back.load())
     image = ds.to_netcdf(engine="h5netcdf")
     return write_atomic(p, image, overwrite=overwrite)
 
@@ -110,12 +195,16 @@ def _check_hdf5(p: Path) -> None:
         walk(f, 0)
 
 
-def open_results(path: str | os.PathLike) -> xr.Dataset:
+def open_results(path: str | os.PathLike, *, verify: bool = True) -> xr.Dataset:
     """Open a results file written by :func:`to_netcdf` (loaded into memory, file closed).
 
     Only a regular file is read (a FIFO or device would hang or never end), and only after
     :func:`_check_hdf5` found nothing in it that reads other files or asks for more memory than
-    the file holds. Every refusal is one ``ValueError`` line naming the file.
+    the file holds. Every refusal is one ``ValueError`` line naming the file. With ``verify``
+    (the default) the file's checksum is recomputed: a mismatch raises :class:`DamagedResults`
+    (an ``OSError``), a file without one (written before checksums existed) opens with a
+    :class:`~stochpend.StochpendWarning`. Verifying costs one SHA-256 pass over the decoded
+    data (docs/cli.md gives the figure for a large sweep file).
     """
     p = Path(path)
     if p.is_dir():
@@ -125,9 +214,30 @@ def open_results(path: str | os.PathLike) -> xr.Dataset:
     try:
         _check_hdf5(p)
         with xr.open_dataset(p, engine="h5netcdf") as ds:
-            return ds.load()
+            ds = ds.load()
     except (ValueError, OSError, KeyError, TypeError, RuntimeError, RecursionError) as exc:
         if isinstance(exc, ValueError) and str(exc).startswith(f"path={str(p)!r}"):
             raise
         why = " ".join(str(exc).split()) or type(exc).__name__
         raise ValueError(f"path={str(p)!r} is not accepted: not a readable NetCDF results file ({why})") from None
+    if verify:
+        _verify(p, ds)
+    return ds
+
+
+def _verify(p: Path, ds: xr.Dataset) -> None:
+    stored = ds.attrs.get(CHECKSUM_ATTR)
+    if stored is None:
+        from stochpend._warnings import StochpendWarning
+
+        warnings.warn(f"{str(p)!r} carries no checksum (written before results had one): its numbers "
+                      "are not verified", StochpendWarning, stacklevel=3)
+        return
+    try:
+        actual = checksum(ds)
+    except (ValueError, TypeError, OverflowError, UnicodeError) as exc:
+        raise DamagedResults(f"{str(p)!r} is damaged: its contents cannot be checksummed "
+                             f"({type(exc).__name__}); its numbers cannot be trusted") from None
+    if not isinstance(stored, str) or stored != actual:
+        raise DamagedResults(f"{str(p)!r} is damaged: its contents do not match its checksum (changed "
+                             "or corrupted after stochpend wrote it); its numbers cannot be trusted")

@@ -22,7 +22,7 @@ import json
 import math
 import platform
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from io import BytesIO, StringIO
 from pathlib import Path
@@ -268,7 +268,7 @@ def reproduce(
     for name_specs in specs.values():
         for s in name_specs:
             unique.setdefault(_run_path(out, s, where), s)
-    preloaded = {} if force else {p: _load_cached(p, s, where) for p, s in unique.items()}
+    preloaded = {} if force else {p: _load_cached(p, s, where, log) for p, s in unique.items()}
     to_simulate = {p: s for p, s in unique.items() if preloaded.get(p) is None}
     total_work = float(sum(s.paths * s.t_max for s in to_simulate.values()))
     for line in _cost_lines(specs, estimates, set(to_simulate.values()), out, where):
@@ -394,14 +394,25 @@ def _run_path(out: Path, spec: RunSpec, where: tuple[str, str] = ("cpu", "float6
     return out / "runs" / f"{spec.key}-n{spec.paths}-T{spec.t_max:g}-{spec.cache_key(__version__, *where)[:12]}.nc"
 
 
-def _load_cached(path: Path, spec: RunSpec, where: tuple[str, str] = ("cpu", "float64")) -> xr.Dataset | None:
-    """The stored run if it exists and its stored hash matches the spec; else None."""
+def _load_cached(path: Path, spec: RunSpec, where: tuple[str, str] = ("cpu", "float64"),
+                 log: Callable[[str], None] = lambda message: None) -> xr.Dataset | None:
+    """The stored run if it exists, its checksum holds and its stored hash matches the spec;
+    else None (it is simulated again). A damaged or unverifiable stored run is never reused:
+    ``log`` says so."""
     if not path.is_file():
         return None
+    import warnings
+
     from stochpend import io
+    from stochpend._warnings import StochpendWarning
 
     try:
-        ds = io.open_results(path)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", StochpendWarning)  # no checksum: not reused
+            ds = io.open_results(path)
+    except (io.DamagedResults, StochpendWarning) as exc:
+        log(f"note: {exc}; simulating it again")
+        return None
     except ValueError:
         return None
     if ds.attrs.get("reproduce_cache_key") != spec.cache_key(__version__, *where) or "batch_sums" not in ds:

@@ -349,3 +349,37 @@ def test_plotting_functions_draw_on_new_or_given_axes(tiny) -> None:
     assert [line.get_label() for line in ax2.lines] == ["S, x", "F, x"]
     with pytest.raises(ValueError, match="which='nope'"):
         plotting.plot_ratio(ds, "nope")
+
+
+def test_a_damaged_stored_run_is_simulated_again_not_reused(tiny, tmp_path) -> None:
+    """P04: a flipped byte in a stored run's data made reproduce reuse it silently (a table cell
+    changed). Its checksum now fails: the run is simulated again, with a note, and the table is
+    the undamaged one."""
+    import shutil
+
+    import h5py
+
+    result, _ = tiny
+    out = tmp_path / "copy"
+    shutil.copytree(result.out, out)
+    run = next(r for r in result.figures["fig1"].runs)
+    path = out / run.path.relative_to(result.out)
+    with h5py.File(path, "r") as f:
+        offset = f["batch_sums"].id.get_offset()
+    data = bytearray(path.read_bytes())
+    data[offset + 100] ^= 0x40
+    path.write_bytes(bytes(data))
+    lines: list[str] = []
+
+    class Log:
+        def start(self, total, description): ...
+        def update(self, done): ...
+        def finish(self): ...
+        def log(self, message): lines.append(message)
+
+    again = reproduce("fig1", out=out, progress=Log(), **TINY)
+    statuses = {r.key: r.status for r in again.figures["fig1"].runs}
+    assert statuses[run.key] == "simulated"
+    assert [s for k, s in statuses.items() if k != run.key] == ["cached"] * (len(statuses) - 1)
+    assert any("is damaged" in line and "simulating it again" in line for line in lines), lines
+    assert [r.cells() for r in again.figures["fig1"].rows] == [r.cells() for r in result.figures["fig1"].rows]
