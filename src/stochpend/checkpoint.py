@@ -48,7 +48,7 @@ import xarray as xr
 from stochpend import __version__, _files, bias, io
 from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
-from stochpend.runner import BACKENDS, RunState, run_batches
+from stochpend.runner import BACKENDS, RunState, path_dtypes, run_batches
 from stochpend.simulate import provenance
 from stochpend.stats import N_SUMS, EnsembleSums
 from stochpend.sweep import BUILD
@@ -334,7 +334,13 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
         "acc_hist": (n_times, n_cols),
         "acc_filled": (config.n_batches,),
     })
-    fixed = {**_CHUNK_ARRAYS, **_ACC_ARRAYS}
+    backend = header.get("backend", "cpu")
+    precision = header.get("precision", "float64")
+    if backend not in BACKENDS or precision not in ("float64", "float32"):
+        raise _refuse(p, f"unknown backend {backend!r} or precision {precision!r}")
+    # Every array has the one dtype its engine holds it in (S15, S16: an '<i8' position or a
+    # '|b1' status, same size, was accepted and reinterpreted as garbage).
+    fixed = {**_CHUNK_ARRAYS, **_ACC_ARRAYS, **path_dtypes(backend, precision)}
     arrays: dict[str, np.ndarray] = {}
     for entry in header["arrays"]:
         name = entry["name"]
@@ -344,10 +350,9 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
             dtype = np.dtype(entry["dtype"])
         except TypeError:
             raise _refuse(p, f"array {name!r} has dtype {entry['dtype']!r}") from None
-        ok_dtype = dtype.str == np.dtype(fixed[name]).str if name in fixed else (
-            dtype.kind in _NUMERIC_KINDS and dtype.byteorder in "<|=")
+        ok_dtype = dtype.str == np.dtype(fixed[name]).str
         if not ok_dtype or tuple(entry["shape"]) != shapes[name]:
-            expected = np.dtype(fixed[name]).str if name in fixed else "a little-endian number"
+            expected = np.dtype(fixed[name]).str
             raise _refuse(p, f"array {name!r} has dtype {entry['dtype']} and shape {tuple(entry['shape'])}, "
                              f"expected {expected} and {shapes[name]}")
         off, nbytes = int(entry["offset"]), int(entry["nbytes"])
@@ -361,10 +366,6 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     _check_settings(p, header)
     acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"])
     scalars = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
-    backend = header.get("backend", "cpu")
-    precision = header.get("precision", "float64")
-    if backend not in BACKENDS or precision not in ("float64", "float32"):
-        raise _refuse(p, f"unknown backend {backend!r} or precision {precision!r}")
     state = RunState(**scalars, **{name: arrays[name] for name in _PATH_ARRAYS},
                      chunk_sums=arrays["chunk_sums"], chunk_hist=arrays["chunk_hist"], acc=acc,
                      backend=backend, precision=precision)

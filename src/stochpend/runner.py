@@ -81,6 +81,17 @@ CHUNK_ARRAYS = ("x", "Omega", "xi", "t", "k", "status", "t_comp", "xi_aux", "chu
                 "chunk_hist")
 
 
+def path_dtypes(backend: str, precision: str) -> dict[str, np.dtype]:
+    """The dtype of each per-path array of a chunk, as the ``backend``'s engine holds it (and a
+    checkpoint must store it): the state (x, Omega, xi) in the run's precision (float32 exists
+    on the CUDA backend only); times and the noise's second variable in float64; the step
+    counter ``k`` uint64; ``status`` uint8."""
+    real = np.dtype(np.float32 if backend == "cuda" and precision == "float32" else np.float64)
+    f64 = np.dtype(np.float64)
+    return {"x": real, "Omega": real, "xi": real, "xi_aux": f64, "t": f64, "t_comp": f64,
+            "k": np.dtype(np.uint64), "status": np.dtype(np.uint8)}
+
+
 class Checkpointer(Protocol):
     """Called between kernel calls with the live state; may write it to disk."""
 

@@ -387,7 +387,19 @@ def _set(path: list[str], value: str):
     return edit
 
 
+def _array_dtype(name: str, dtype: str):
+    """An edit declaring the array ``name`` with ``dtype`` (same size: the bytes still fit)."""
+    def edit(text: str) -> str:
+        header = json.loads(text)
+        (entry,) = [a for a in header["arrays"] if a["name"] == name]
+        entry["dtype"] = dtype
+        return json.dumps(header)
+    return edit
+
+
 MALFORMED = {  # case id: (edit, what the one line names)
+    "S15": (_array_dtype("x", "<i8"), "array 'x' has dtype <i8 and shape"),
+    "S16": (_array_dtype("status", "|b1"), "array 'status' has dtype |b1 and shape"),
     "S08": (_set(["arrays", "0", "offset"], "Infinity"), "Infinity is not a valid value"),
     "S09": (_set(["run", "path_steps"], "Infinity"), "Infinity is not a valid value"),
     "S10": (_set(["extra"], "[" * 100_000 + "]" * 100_000), "nested too deeply"),
@@ -402,7 +414,8 @@ MALFORMED = {  # case id: (edit, what the one line names)
 @pytest.mark.parametrize("case", list(MALFORMED))
 def test_malformed_but_checksummed_checkpoint_is_one_line(tmp_path, handed_over, case):
     """S08-S12, S14, S18: header fields with Infinity, NaN, deep nesting or wrong types, under
-    a valid SHA-256, gave tracebacks or failed after the work had started."""
+    a valid SHA-256, gave tracebacks or failed after the work had started; S15, S16: a per-path
+    array declared with another dtype of the same size was accepted and reinterpreted."""
     edit, needle = MALFORMED[case]
     path = _crafted_raw(handed_over, tmp_path / "c.ckpt", edit)
     result = _invoke(["resume", str(path), "--out", str(tmp_path / "o.nc")])

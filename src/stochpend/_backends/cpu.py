@@ -488,14 +488,10 @@ class Engine:
         return DEFAULT_CHUNK_PATHS
 
     def _allocate(self, n: int, nb: int) -> None:
-        self.x = np.empty(n)
-        self.Omega = np.empty(n)
-        self.xi = np.empty(n)
-        self.xi_aux = np.empty(n)
-        self.t = np.empty(n)
-        self.t_comp = np.empty(n)
-        self.k = np.empty(n, dtype=np.uint64)
-        self.status = np.empty(n, dtype=np.uint8)
+        from stochpend.runner import path_dtypes
+
+        for name, dtype in path_dtypes("cpu", "float64").items():
+            setattr(self, name, np.empty(n, dtype=dtype))
         self.chunk_sums = np.zeros((nb, self.n_times, N_SUMS))
         self.chunk_hist = np.zeros((self.n_times, self.n_cols), dtype=np.int64)
 

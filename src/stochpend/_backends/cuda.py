@@ -472,19 +472,14 @@ class Engine:
         self.init = init_kernel(spec)
         self.advance_k = advance_kernel(spec)
         self.accumulate_k = accumulate_kernel(spec)
-        real = np.float32 if spec.precision == "float32" else np.float64
         self.capacity = capacity
         self.n_times = len(config.times)
         self.n_cols = config.hist_bins + 2
         with _quiet():
-            self.d_x = cuda.device_array(capacity, dtype=real)
-            self.d_Omega = cuda.device_array(capacity, dtype=real)
-            self.d_xi = cuda.device_array(capacity, dtype=real)
-            self.d_xi_aux = cuda.device_array(capacity, dtype=np.float64)
-            self.d_t = cuda.device_array(capacity, dtype=np.float64)
-            self.d_t_comp = cuda.device_array(capacity, dtype=np.float64)
-            self.d_k = cuda.device_array(capacity, dtype=np.uint64)
-            self.d_status = cuda.device_array(capacity, dtype=np.uint8)
+            from stochpend.runner import path_dtypes
+
+            for name, dtype in path_dtypes("cuda", spec.precision).items():
+                setattr(self, "d_" + name, cuda.device_array(capacity, dtype=dtype))
             self.flag = cuda.device_array(1, dtype=np.int32)
             self.d_sums = cuda.device_array((n_chunk_batches, self.n_times, N_SUMS), dtype=np.float64)
             self.d_hist = cuda.device_array((self.n_times, self.n_cols), dtype=np.int64)
