@@ -128,12 +128,14 @@ def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) ->
     try:
         return fn(*args, checkpoint_path=checkpoint_path, **kwargs)
     except CheckpointInterrupt as exc:
+        cli._stop_listening()  # saved: a second Ctrl-C now only repeats the exit (I3)
         if progress is not None:
             progress.finish()
         cli.console.print(f"[yellow]interrupted:[/] state saved to {markup(exc.path)}; continue with: "
                           f"stochpend resume {markup(exc.path)}", highlight=False, soft_wrap=True)
         raise typer.Exit(exc.exit_code) from None
     except KeyboardInterrupt as exc:
+        cli._stop_listening()
         if progress is not None:
             progress.finish()
         last = (f"; the last checkpoint is kept: continue with: stochpend resume {markup(checkpoint_path)}"

@@ -21,7 +21,8 @@ import typer
 from rich.table import Table
 
 from stochpend._cli_types import integer
-from stochpend.cli import _fmt, console, handles_errors, parse_times, results, summary_table
+from stochpend._terminal import markup
+from stochpend.cli import _fmt, console, handles_errors, note, parse_times, results, summary_table
 
 __all__ = ["bfpe_command", "bfpe_table", "reduced_command", "reduced_table", "theory_command", "theory_table"]
 
@@ -125,7 +126,7 @@ def bfpe_command(
     if not quiet:
         results.print(bfpe_table(ds))
         if out is not None:
-            console.print(f"wrote {out}")
+            console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
 
 
 def reduced_table(ds: Any) -> Table:
@@ -192,7 +193,16 @@ def reduced_command(
         "D": D, "tau": tau, "omega": omega, "paths": paths, "t_max": t_max, "times": parse_times(times),
         "n_times": n_times, "seed": seed, "E0": E0, "h_max": h_max,
     }
-    ReducedConfig.build(order, **kwargs)  # validate before the JIT compiles
+    config = ReducedConfig.build(order, **kwargs)  # validate before the JIT compiles
+    from stochpend import resources
+
+    # As simulate does (D02): a long run says what it will cost before it starts.
+    estimate = resources.check_reduced(config, max_path_steps=max_path_steps, threads=threads)
+    if estimate.seconds > resources.LONG_RUN_S:
+        console.print(f"estimate: {markup(estimate.describe())}", highlight=False, soft_wrap=True)
+    if order == "zeroth" and E0 == 0:
+        note("the zeroth order keeps every energy at E0 (no randomness); from --E0 0 every statistic "
+             "is 0 and S, F and the closed forms' ratios are undefined (nan): give --E0 > 0")
     ds = simulate_reduced(order, threads=threads, max_path_steps=max_path_steps, **kwargs)
     ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
     if out is not None:
@@ -203,7 +213,7 @@ def reduced_command(
         if int(ds.nonfinite_paths[-1]) > 0:
             console.print(f"[yellow]{int(ds.nonfinite_paths[-1])} paths went non-finite and are excluded.[/]")
         if out is not None:
-            console.print(f"wrote {out}")
+            console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
 
 
 @handles_errors

@@ -75,6 +75,22 @@ class OneLineErrorsGroup(TyperGroup):
             if type(exc).__name__ == "NoArgsIsHelpError":
                 raise
             fail(usage_message(exc))
+        except KeyboardInterrupt as exc:
+            # A second Ctrl-C while the first was being handled (I3): still exit 128 + n, not
+            # Click's "Aborted!" or death by the signal.
+            _stop_listening()
+            raise typer.Exit(128 + getattr(exc, "signum", 2)) from None
+
+
+def _stop_listening() -> None:
+    """Ignore further Ctrl-C and SIGTERM/SIGHUP: the command is already exiting after one."""
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        try:
+            signal.signal(sig, signal.SIG_IGN)
+        except (ValueError, OSError):  # not the main thread
+            pass
 
 
 #: NUMBA_NUM_THREADS above this starts no run (1e6 made Numba's thread pool die with SIGSEGV).
@@ -132,8 +148,23 @@ def handles_errors(fn: F) -> F:
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
+        import warnings
+
         try:
-            return fn(*args, **kwargs)
+            # NumPy's and other libraries' warnings (an overflow while checking extreme input)
+            # are caught: a refusal is one line, not a warning's two lines and then the error
+            # (T04, D01); a command that succeeds prints each once, as one note line.
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("default")
+                value = fn(*args, **kwargs)
+            seen: set[str] = set()
+            for w in caught:
+                text = " ".join(str(w.message).split())
+                line = text if w.category.__name__ == "StochpendWarning" else f"{w.category.__name__}: {text}"
+                if line not in seen:
+                    seen.add(line)
+                    note(line)
+            return value
         except ValueError as exc:
             if "--debug" in sys.argv:
                 raise
@@ -150,6 +181,7 @@ def handles_errors(fn: F) -> F:
                  f"a result lies beyond the floating-point range ({type(exc).__name__}: {exc}); "
                  "use less extreme values")
         except KeyboardInterrupt as exc:
+            _stop_listening()
             console.print("[yellow]interrupted[/]")
             raise typer.Exit(128 + getattr(exc, "signum", 2)) from None
 
@@ -745,7 +777,7 @@ def plot(
     buffer = _bytes_io.BytesIO()
     plotting.plot_run(ds, band=band).savefig(buffer, format=format, dpi=150)
     written = io.write_bytes_atomic(buffer.getvalue(), target, overwrite=overwrite)
-    console.print(f"wrote {escape(str(written))}", highlight=False)
+    console.print(f"wrote {markup(written)}", highlight=False, soft_wrap=True)
 
 
 @app.command()

@@ -106,6 +106,10 @@ def _clean_attrs(attrs: dict) -> dict:
             out[k] = "none"
         elif isinstance(v, dict | list | tuple):
             out[k] = repr(v)
+        elif isinstance(v, str):
+            # Text that is not valid Unicode (a lone surrogate from an undecodable command-line
+            # byte, kept in an old checkpoint) is written escaped, never refused (E09c).
+            out[k] = v.encode("utf-8", "backslashreplace").decode("utf-8")
         else:
             out[k] = v
     return out

@@ -365,6 +365,29 @@ def test_text_from_a_checkpoint_is_escaped(tmp_path, handed_over):
     assert (tmp_path / "run.nc").is_file()
 
 
+def test_a_checkpoint_whose_command_line_is_not_unicode_can_be_written(tmp_path, handed_over):
+    """E09c: a checkpoint from before names were checked kept a lone surrogate (an undecodable
+    byte of the command line): `resume --out ok.nc`, the advice given, failed the same way
+    forever. The text is now written escaped."""
+    path = _crafted(handed_over, tmp_path / "k.ckpt", out=str(tmp_path / "r.nc"),
+                    command_line="stochpend simulate --out r\udcff.nc")
+    result = _invoke(["resume", str(path), "--out", str(tmp_path / "ok.nc")])
+    assert result.exit_code == 0, result.output
+    ds = io.open_results(tmp_path / "ok.nc")
+    texts = " ".join(str(v) for v in ds.attrs.values())
+    assert "r\\udcff.nc" in texts, texts
+
+
+def test_a_refusal_is_one_line_without_numpy_warnings_before_it():
+    """T04, D01: NumPy's overflow warnings (two lines each) came before the error line."""
+    for args in (["theory", "--bfpe", "--t", "1e308"],
+                 ["reduced", "--order", "second", "--h-max", "1e-300", "--paths", "10", "--t-max", "1"]):
+        proc = subprocess.run(_cmd(*args), capture_output=True, text=True, env=_env(), timeout=120)
+        assert proc.returncode == 2, proc.stderr
+        assert _one_line(proc.stderr).startswith("error: "), proc.stderr
+        assert "Warning" not in proc.stderr
+
+
 def _crafted_raw(data: bytes, dest: Path, edit) -> Path:
     """``data`` with its header text passed through ``edit`` and a valid SHA-256."""
     n = len(ck.MAGIC)

@@ -200,6 +200,25 @@ def test_signal_mid_run_then_resume_is_exact(tmp_path, references, backend, faul
     assert ds.attrs["resumed"] == 1
 
 
+@pytest.mark.parametrize("gap_s", [0.0, 0.3])
+def test_a_second_ctrl_c_still_saves_and_exits_130(tmp_path, references, gap_s):
+    """I3: Ctrl-C, then Ctrl-C again 0.3 s later (an impatient user): the state is saved once,
+    and the exit is 130 with the one line, never death by the signal or Click's 'Aborted!'."""
+    ckpt, out = tmp_path / "run.ckpt", tmp_path / "run.nc"
+    proc = _start("cpu-adaptive", ckpt, out)
+    _wait_for_checkpoint(proc, ckpt)
+    proc.send_signal(signal.SIGINT)
+    time.sleep(gap_s)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "Aborted" not in err
+    assert err.splitlines()[-1].startswith("interrupted"), err
+    r = _resume(ckpt, "cpu-adaptive")
+    assert r.returncode == 0, r.stderr
+    _assert_identical(references["cpu-adaptive"], io.open_results(out))
+
+
 # -- crashes inside a write (the same code on every backend: io and checkpoint) -------------------
 #: A run of a fraction of a second: these faults strike in the writes, not mid-run.
 SMALL = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=300, t_max=20.0, times=_times(2.0, 10), seed=5)
