@@ -626,12 +626,14 @@ def test_a_checkpoint_larger_than_memory_is_refused_before_reading(tmp_path):
     assert "is not accepted: it is 1.0 TiB, and reading it needs twice that" in line, line
 
 
-def test_absurd_numba_thread_count_is_one_line():
-    """E03: NUMBA_NUM_THREADS=1000000 made simulate die with SIGSEGV and no message."""
-    env = {**_env(), "NUMBA_NUM_THREADS": "1000000"}
+@pytest.mark.parametrize("value", ["1000000", "0"])
+def test_absurd_numba_thread_count_is_one_line(value):
+    """E03: NUMBA_NUM_THREADS=1000000 made simulate die with SIGSEGV and no message; E01: 0
+    gave a traceback at import (Numba is now imported after the CLI's check)."""
+    env = {**_env(), "NUMBA_NUM_THREADS": value}
     proc = subprocess.run(_cmd("simulate", *TINY, "--quiet"), capture_output=True, text=True, env=env, timeout=120)
     assert proc.returncode == 2, proc.stderr
-    assert _one_line(proc.stderr).startswith("error: NUMBA_NUM_THREADS='1000000' is not accepted: an integer in [1, ")
+    assert _one_line(proc.stderr).startswith(f"error: NUMBA_NUM_THREADS={value!r} is not accepted: an integer in [1, ")
 
 
 @pytest.mark.skipif(MOUNT is None or os.geteuid() != 0, reason="needs root to bind-mount the package read-only")
