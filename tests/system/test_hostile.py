@@ -776,3 +776,16 @@ def test_resume_checks_the_work_before_any(tmp_path, handed_over):
     line = _one_line(result.output)
     assert line.startswith("error: t_max=1e+300 is not accepted: the run needs at least ") and \
         "--max-path-steps" in line, line
+
+
+def test_a_long_reduced_run_says_its_estimate_before_it_starts():
+    """D02: `reduced --paths 1e9` (about 25 min) started with no 'estimate:' line, unlike
+    simulate. The line comes first; the run is then stopped."""
+    proc = subprocess.Popen(_cmd("reduced", "--order", "first", "--paths", "1e9", "--t-max", "10", "--quiet"),
+                            stderr=subprocess.PIPE, text=True, env=_env())
+    try:
+        first = proc.stderr.readline()
+    finally:
+        proc.kill()
+        proc.communicate(timeout=60)
+    assert first.startswith("estimate: at least 4e+10 path-steps (paths x output times), roughly "), first
