@@ -557,13 +557,55 @@ def simulate(
             note(line)
         if int(ds.nonfinite_paths[-1]) > 0:
             console.print(f"[yellow]{int(ds.nonfinite_paths[-1])} paths went non-finite (or ran away) and are excluded.[/]")
-        from stochpend.exponents import diagnose_growth
-
-        growth = diagnose_growth(ds, detail=True)
-        if growth.startswith(("finite-time blow-up", "exponential")):
-            console.print(f"[yellow]growth of <E>: {growth}[/]")
+        for kind, line in growth_lines(ds):
+            if kind == "warning":
+                console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
+            else:
+                note(line)
         if out is not None:
             console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
+
+
+def growth_lines(ds: Any) -> list[tuple[str, str]]:
+    """What a run's growth of <E> says beside the model's predicted law (:func:`stochpend.
+    theory.scaling.predicted_exponent`), as ("warning" | "note", line) pairs.
+
+    A finite-time blow-up (non-finite paths) is a warning. An accelerating growth
+    (:func:`stochpend.exponents.diagnose_growth` "exponential") is a warning only where it
+    contradicts the prediction: none where the model predicts exponential growth; where it
+    predicts t^nu and the late log-log slope is still below nu + 4 standard errors, a note that
+    the run is approaching the law (a quartic oscillator's slope climbs towards 1 over decades);
+    a warning where the slope is beyond it, or where no law is predicted (a user's model)."""
+    from stochpend.exponents import diagnose_growth, fit_exponent
+    from stochpend.theory.scaling import predicted_exponent
+
+    growth = diagnose_growth(ds, detail=True)
+    if growth.startswith("finite-time blow-up"):
+        return [("warning", f"growth of <E>: {growth}")]
+    if not growth.startswith("exponential"):
+        return []
+    attrs = ds.attrs
+    try:
+        law = predicted_exponent(str(attrs.get("potential", "pendulum")), str(attrs.get("noise", "ou")),
+                                 str(attrs.get("coupling", "force")), int(attrs.get("power_n", 2)))
+    except (ValueError, TypeError, KeyError):
+        law = None
+    if law is None or law.growth not in ("power", "exponential"):
+        return [("warning", f"growth of <E>: {growth}")]
+    if law.growth == "exponential":
+        return []
+    t = np.asarray(ds["time"].values, dtype=float)
+    late = t[-max(3, t.size // 4):]
+    try:
+        fit = fit_exponent(ds, float(late[0]), float(late[-1]))
+    except ValueError:
+        return [("warning", f"growth of <E>: {growth}")]
+    nu = float(law.exponent)
+    if fit.exponent < nu + 4 * fit.se:
+        return [("note", f"the late log-log slope of <E> is {fit.exponent:.3g} +- {fit.se:.2g} and still rising "
+                         f"towards the predicted t^{nu:.4g} ({law.regime}): a longer --t-max reaches the law")]
+    return [("warning", f"growth of <E> faster than the predicted t^{nu:.4g}: late log-log slope "
+                        f"{fit.exponent:.3g} +- {fit.se:.2g}, still rising ({growth.split(': ', 1)[-1]})")]
 
 
 def result_kind(ds: Any) -> str | None:

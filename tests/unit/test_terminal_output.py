@@ -155,3 +155,27 @@ def test_list_names_every_piece_on_stdout():
         assert f" {name} " in out.stdout, name
     assert "Eq. (18)" in out.stdout and "eqOU" not in out.stdout  # the paper's numbers
     assert out.stderr == ""
+
+
+def test_growth_is_judged_against_the_models_predicted_law():
+    """Issue 20, item 8: the quartic with position coupling and OU noise (predicted t^1) was
+    reported as 'exponential growth' while its late slope was 0.3 and climbing; the pendulum
+    with white noise (t^1, reached) says nothing; a slope beyond the law is a warning."""
+    import stochpend
+    from stochpend.cli import growth_lines
+
+    quartic = stochpend.simulate(potential="power", power_n=2, coupling="position", noise="ou", D=1.0, tau=1.0,
+                                 omega=1.0, paths=2000, t_max=100.0, n_times=12, seed=1)
+    lines = growth_lines(quartic)
+    assert [k for k, _ in lines] == ["note"] and "rising towards the predicted t^1" in lines[0][1], lines
+    pendulum = stochpend.simulate(noise="white", D=1.0, omega=1.0, paths=500, t_max=100.0, n_times=12, seed=1)
+    assert growth_lines(pendulum) == []
+    # The same accelerating data read against a slower law (the pendulum's OU t^1/2 is not it,
+    # so claim the quartic's attributes say pendulum/ou): beyond t^1/2 + 4 SE -> a warning.
+    relabelled = quartic.copy()
+    relabelled.attrs.update(potential="pendulum", coupling="force")
+    kinds = [k for k, _ in growth_lines(relabelled)]
+    # the late slope 0.3 is below 1/2: still a note; a user's model (no law) gets the warning
+    assert kinds == ["note"]
+    relabelled.attrs.update(potential="my-model")
+    assert [k for k, _ in growth_lines(relabelled)] == ["warning"]
