@@ -21,7 +21,7 @@ import typer
 from rich.table import Table
 
 from stochpend._cli_types import integer
-from stochpend.cli import _fmt, console, handles_errors, parse_times, results, summary_table
+from stochpend.cli import MAX_POWER_N, _fmt, console, handles_errors, parse_times, results, summary_table
 from stochpend.paper import eq
 
 __all__ = ["bfpe_command", "bfpe_table", "reduced_command", "reduced_table", "theory_command", "theory_table"]
@@ -57,17 +57,21 @@ def theory_command(
     D: Annotated[float, typer.Option("--D", help="Noise amplitude D >= 0.")] = 1.0,
     tau: Annotated[float, typer.Option("--tau", help="OU correlation time tau > 0 (ignored for white noise).")] = 1.0,
     omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency omega >= 0 (the asymptotic laws do not depend on it).")] = 1.0,
-    t: Annotated[float, typer.Option("--t", help="Time at which the predictions are evaluated, >= 0.")] = 1000.0,
+    time: Annotated[float, typer.Option("--time", help="Time at which the predictions are evaluated, >= 0.")] = 1000.0,
+    t: Annotated[float | None, typer.Option("--t", hidden=True, help="Former name of --time.")] = None,
     bfpe: Annotated[bool, typer.Option("--bfpe", help=f"Also solve the averaged Best Fokker-Planck Equation (omega = 0, {eq('avbfpe')}) up to that time.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
-    """Print the paper's predictions at time t: every regime, its equation and where it is valid."""
+    """Print the paper's predictions at a time: every regime, its equation and where it is valid."""
     from stochpend.theory import predictions
 
-    rows = predictions(noise=noise, D=D, tau=tau if noise.lower() != "white" else None, omega=omega, t=t,
+    if t is not None:  # --t, the former name, still works
+        time = t
+
+    rows = predictions(noise=noise, D=D, tau=tau if noise.lower() != "white" else None, omega=omega, t=time,
                        bfpe=bfpe)
     params = f"D={D:g}" + (f", tau={tau:g}" if noise.lower() == "ou" else "") + f", omega={omega:g}"
-    results.print(theory_table(rows, title=f"Predictions at t = {t:g}: {noise.lower()} noise, {params}"))
+    results.print(theory_table(rows, title=f"Predictions at t = {time:g}: {noise.lower()} noise, {params}"))
 
 
 def bfpe_table(ds: Any, max_rows: int = 12) -> Table:
@@ -212,15 +216,17 @@ def reduced_command(
 
 @handles_errors
 def scaling_command(
-    n: Annotated[int, typer.Option("--n", parser=integer, help="Exponent n of the power potential U = x^2n/2n (n >= 2).")] = 2,
+    n: Annotated[int, typer.Option("--n", parser=integer, help=f"Exponent n of the power potential U = x^2n/2n, an integer in [2, {MAX_POWER_N}] (n = 1 is the harmonic row).")] = 2,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
     """Print the predicted long-time growth of <E> for every oscillator, coupling and noise
     (stochpend.theory.scaling; derivations in docs/scaling.md)."""
     from stochpend.theory.scaling import NOISES, predicted_exponent
 
-    if isinstance(n, bool) or n < 2:
-        raise ValueError(f"n={n!r} is not accepted: an integer >= 2 (n = 1 is the harmonic potential)")
+    if isinstance(n, bool) or not 2 <= n <= MAX_POWER_N:
+        shown = repr(n) if len(repr(n)) <= 80 else repr(n)[:76] + " ..."
+        raise ValueError(f"n={shown} is not accepted: an integer in [2, {MAX_POWER_N}] (n = 1 is the "
+                         "harmonic potential, its own row)")
     models = [("pendulum", "force", "pendulum, U = -cos x"), ("harmonic", "force", "harmonic, U = x^2/2"),
               ("power", "position", f"U = x^{2 * n}/{2 * n}, noise on x"),
               ("power", "force", f"U = x^{2 * n}/{2 * n}, noise on the force")]

@@ -54,7 +54,7 @@ _ACCEPTED_BY_ERROR = {
 
 def usage_message(exc: Any) -> str:
     """One line for a Click/Typer usage error, in the project's form where a value was bad:
-    ``paths='1e15.5' is not accepted: an integer, ...``."""
+    ``--paths '1e15.5' is not accepted: an integer, ...``."""
     param = getattr(exc, "param", None)
     name = getattr(param, "name", None)
     cause = getattr(exc, "__cause__", None)
@@ -72,7 +72,9 @@ def usage_message(exc: Any) -> str:
             accepted = _ACCEPTED_BY_ERROR.get(err.get("type", ""), str(err.get("msg", "")))
         value = err["input"]
         shown = repr(value) if len(repr(value)) <= 80 else repr(value)[:76] + " ..."
-        return " ".join(f"{name}={shown} is not accepted: {accepted}".split())
+        longs = [o for o in getattr(param, "opts", ()) if o.startswith("--")]
+        named = f"{longs[0]} " if longs else f"{name}="  # an option by its flag, an argument by name
+        return " ".join(f"{named}{shown} is not accepted: {accepted}".split())
     try:
         message = exc.format_message()
     except Exception:

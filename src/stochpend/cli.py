@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 import sys
 import time
 from collections.abc import Callable
@@ -49,9 +50,66 @@ def note(message: str) -> None:
 
 
 def fail(message: str, code: int = 2) -> None:
-    """Print one red line and exit."""
+    """Print one red line and exit; a refusal the Python API words with its argument names
+    (``h_max=0.0 is not accepted: h_max must be ...``) names the running command's options
+    instead (``--h-max 0.0 is not accepted: ...``), see :func:`cli_message`."""
+    message = cli_message(message, _option_names())
     console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
     raise typer.Exit(code)
+
+
+#: Arguments of the Python API that a command's option of another name sets (API name: the
+#: command's parameter): simulate's --n is power_n, theory's --time is t.
+_API_NAMES = {"power_n": "n", "t": "time"}
+
+
+def _option_names() -> dict[str, str]:
+    """``{python name: '--option'}`` of the running command (empty outside one)."""
+    try:  # Typer >= 0.29 carries its own copy of Click
+        from typer._click.globals import get_current_context
+    except ImportError:  # a Typer that uses Click itself
+        from click import get_current_context
+    ctx = get_current_context(silent=True)
+    names: dict[str, str] = {}
+    if ctx is None:
+        return names
+    for param in ctx.command.params:
+        longs = [o for o in getattr(param, "opts", ()) if o.startswith("--")]
+        if longs and not getattr(param, "hidden", False) and param.name:
+            names[param.name] = longs[0]
+    for api, name in _API_NAMES.items():
+        if name in names and api not in names:
+            names[api] = names[name]
+    for name, source in ctx.meta.get("stochpend.config_keys", {}).items():
+        names[name] = f"{source}: {name}="  # set by --config FILE: the file's key, as written
+    return names
+
+
+_ASSIGNED = re.compile(r"(?<![\w.:-])([A-Za-z_]\w*)=")
+
+
+def cli_message(message: str, names: dict[str, str]) -> str:
+    """A one-line refusal of the Python API in the command line's words: ``NAME=VALUE is not
+    accepted: NAME must be X`` -> ``--option VALUE is not accepted: X``; further ``NAME=VALUE``
+    that name an option become ``--option VALUE``. Messages that do not start with an option's
+    name (a file's key, an argument) are unchanged."""
+    # "raise the limit with max_path_steps= (--max-path-steps)": the option alone
+    message = re.sub(r"\b\w+= \((--[\w-]+)\)", r"\1", message)
+    m = _ASSIGNED.match(message)
+    if not m or m.group(1) not in names:
+        return message
+    name = m.group(1)
+    rest = message[m.end():].replace(f"is not accepted: {name} must be ", "is not accepted: ", 1)
+    if not names[name].endswith("="):
+        rest = rest.replace(f"is not accepted: {name} ", f"is not accepted: {names[name]} ", 1)
+
+    def option(match: re.Match[str]) -> str:
+        opt = names.get(match.group(1))
+        if opt is None:
+            return match.group(0)
+        return opt if opt.endswith("=") else opt + " "
+
+    return option(m) + _ASSIGNED.sub(option, rest)
 
 
 def _plain_flags(params: list[Any]) -> list[Any]:

@@ -138,3 +138,63 @@ def test_help_cites_equation_numbers_not_source_labels() -> None:
 def test_simulate_noise_help_cites_eq_18_and_4() -> None:
     row = " ".join(_help("simulate").split())
     assert "'ou' (Ornstein-Uhlenbeck, eq. 18)" in row and "'white' (Gaussian white noise, eq. 4)" in row
+
+
+# -- 4. errors name the command line's options --------------------------------------------------
+def _error_line(args: list[str]) -> str:
+    result = CliRunner().invoke(cli.app, args)
+    lines = [ln for ln in result.output.splitlines() if ln.strip()]
+    assert result.exit_code == 2, result.output
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
+    assert "Traceback" not in result.output
+    return lines[0]
+
+
+@pytest.mark.parametrize("args,expected", [
+    (["simulate", "--h-max", "0"], "error: --h-max 0.0 is not accepted: a finite number > 0"),
+    (["simulate", "--backend", "cpux"], "error: --backend 'cpux' is not accepted: one of cpu"),
+    (["simulate", "--n", "0"], "error: --n 0 is not accepted: an integer in [1, 1000]"),
+    (["simulate", "--tau", "-1"], "error: --tau -1.0 is not accepted: a finite number > 0"),
+    (["simulate", "--paths", "1e15.5"], "error: --paths '1e15.5' is not accepted: an integer"),
+    (["simulate", "--omega-noise", "2"], "error: --omega-noise 2.0 is not accepted: --omega-noise applies to --noise 'harmonic'"),
+    (["scaling", "--n", "0"], "error: --n 0 is not accepted: an integer in [2, 1000]"),
+    (["theory", "--time", "-5"], "error: --time -5.0 is not accepted: a finite number >= 0"),
+])
+def test_errors_name_cli_options(args: list[str], expected: str) -> None:
+    line = _error_line(args)
+    assert line.startswith(expected), line
+    for python_name in ("h_max", "power_n", "omega_noise=", "backend=", "t="):
+        assert python_name not in line, line
+
+
+def test_the_python_api_keeps_its_argument_names() -> None:
+    import stochpend
+
+    with pytest.raises(ValueError, match=r"^h_max=0\.0 is not accepted"):
+        stochpend.simulate(h_max=0.0)
+
+
+def test_cli_message_leaves_file_keys_and_arguments_alone() -> None:
+    names = {"h_max": "--h-max", "noise": "--noise"}
+    assert cli.cli_message("run.toml: h_max=0.0 is not accepted: x", names) == "run.toml: h_max=0.0 is not accepted: x"
+    assert cli.cli_message("path='x' is not accepted: y", names) == "path='x' is not accepted: y"
+    assert cli.cli_message("tau=-1.0 is not accepted: use noise='white'", {"tau": "--tau", "noise": "--noise"}) \
+        == "--tau -1.0 is not accepted: use --noise 'white'"
+
+
+# -- 5. one name and one range per parameter ----------------------------------------------------
+def test_theory_takes_time_and_keeps_t_as_hidden_alias() -> None:
+    for option in ("--time", "--t"):
+        result = CliRunner().invoke(cli.app, ["theory", "--noise", "white", "--D", "2", option, "3"], env=WIDE)
+        assert result.exit_code == 0, result.output
+        assert "Predictions at t = 3" in result.output
+    text = _help("theory")
+    assert re.search(r"^│ --time\s", text, re.M) and not re.search(r"^│ --t\s", text, re.M)
+
+
+@pytest.mark.parametrize("command,low", [("simulate", 1), ("scaling", 2)])
+def test_n_states_the_range_the_command_accepts(command: str, low: int) -> None:
+    shown = " ".join(_help(command).split())
+    assert f"an integer in [{low}, 1000]" in shown
+    assert f"[{low}, 1000]" in _error_line([command, "--n", str(low - 1)])
+    assert f"[{low}, 1000]" in _error_line([command, "--n", "1001"])
