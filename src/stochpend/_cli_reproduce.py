@@ -11,7 +11,7 @@ from typing import Annotated, Any
 
 import typer
 
-from stochpend._cli_types import integer
+from stochpend._cli_types import file_name, integer
 from stochpend.cli import console, handles_errors, note, results
 
 __all__ = ["RichReproduceProgress", "reproduce_command"]
@@ -107,7 +107,7 @@ def reproduce_command(
                         "(e.g. 'fig4 --t-max 1e5 --paths 1000' shows the tau = 0.01 crossover).",
         show_default="per run, see docs/reproduction.md")] = None,
     out: Annotated[Path, typer.Option(
-        "--out", "-o", help="Output directory: runs/*.nc, figN.png/.pdf, tables, report.html.")] = Path("stochpend-reproduce"),
+        "--out", "-o", parser=file_name, help="Output directory: runs/*.nc, figN.png/.pdf, tables, report.html.")] = Path("stochpend-reproduce"),
     quick: Annotated[bool, typer.Option(
         "--quick", help="Small ensembles and short times (t_max = 100): a smoke test, not a reproduction.")] = False,
     force: Annotated[bool, typer.Option(

@@ -23,7 +23,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from stochpend._cli_types import integer
+from stochpend._cli_types import file_name, integer
 from stochpend._terminal import markup
 
 __all__ = [
@@ -146,8 +146,8 @@ def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) ->
 
 @handles_errors
 def resume_command(
-    checkpoint: Annotated[Path, typer.Argument(help="A checkpoint written by 'stochpend simulate --checkpoint'.")],
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the result here instead of the original command's --out.", show_default="the original command's --out")] = None,
+    checkpoint: Annotated[Path, typer.Argument(parser=file_name, help="A checkpoint written by 'stochpend simulate --checkpoint'.")],
+    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="Write the result here instead of the original command's --out.", show_default="the original command's --out")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing output file.")] = False,
     threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).", show_default="every CPU")] = None,
     max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps, as for 'simulate' (give the original run's value again: it is not read from the file).", show_default="1e13")] = None,
@@ -293,8 +293,8 @@ def sweep_table(ds: Any) -> Table:
 
 @handles_errors
 def sweep_command(
-    spec: Annotated[Path, typer.Argument(help="The sweep, a TOML file: [base], then [grid] or [[case]] (docs/scale-out.md).")],
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).", show_default="none: no file")] = None,
+    spec: Annotated[Path, typer.Argument(parser=file_name, help="The sweep, a TOML file: [base], then [grid] or [[case]] (docs/scale-out.md).")],
+    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="Write the results as NetCDF (atomically).", show_default="none: no file")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
     scheduler: Annotated[str | None, typer.Option(help="Where tasks run: default in this process; 'threads' or 'sync' (Dask, no server); 'local' (a Dask LocalCluster); or a scheduler address, e.g. tcp://HOST:8786.", show_default="none: this process")] = None,
     workers: Annotated[int | None, typer.Option(parser=integer, help="Threads ('threads') or worker processes ('local'), >= 1.", show_default="the CPU count")] = None,
@@ -371,7 +371,7 @@ _runner.command("resume")(resume_command)
 @_runner.command("simulate-ckpt")
 @handles_errors
 def _simulate_ckpt_command(
-    checkpoint: Annotated[Path, typer.Option(help="Checkpoint file.")],
+    checkpoint: Annotated[Path, typer.Option(parser=file_name, help="Checkpoint file.")],
     checkpoint_every: Annotated[str, typer.Option("--checkpoint-every", help="Interval, e.g. 30s, 5m, 1h.")] = "5m",
     noise: Annotated[str, typer.Option(help="'ou' or 'white'.")] = "ou",
     D: Annotated[float, typer.Option("--D", help="Noise amplitude.")] = 1.0,
@@ -382,7 +382,7 @@ def _simulate_ckpt_command(
     n_times: Annotated[int, typer.Option("--n-times", parser=integer, help="Number of output times.")] = 40,
     seed: Annotated[int, typer.Option(parser=integer, help="Seed.")] = 0,
     threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads.")] = None,
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="NetCDF output.")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="NetCDF output.")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,

@@ -20,7 +20,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from stochpend._cli_types import integer
+from stochpend._cli_types import file_name, integer
 from stochpend.cli import MAX_POWER_N, _fmt, console, handles_errors, parse_times, results, summary_table
 from stochpend.paper import eq
 
@@ -111,7 +111,7 @@ def bfpe_command(
     n_cells: Annotated[int, typer.Option("--n-cells", parser=integer, help="Finite-volume cells on the half line Omega >= 0.")] = 1000,
     steps_per_decade: Annotated[int, typer.Option("--steps-per-decade", parser=integer, help="Time steps per decade of t.")] = 100,
     max_cell_steps: Annotated[float | None, typer.Option("--max-cell-steps", help="Refuse solves needing more than this many cell-steps, n_cells x time steps (1e11: about 1.4 h; inf: no limit).", show_default="1e11")] = None,
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the solution as NetCDF (atomically).", show_default="none: no file")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="Write the solution as NetCDF (atomically).", show_default="none: no file")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
@@ -180,7 +180,7 @@ def reduced_command(
     h_max: Annotated[float | None, typer.Option("--h-max", help="Second-order time step, > 0.", show_default="0.05 tau")] = None,
     threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).", show_default="every CPU")] = None,
     max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps (paths x t_max / h_max for the second order, paths x output times otherwise; inf: no limit).", show_default="1e13")] = None,
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).", show_default="none: no file")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="Write the results as NetCDF (atomically).", show_default="none: no file")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,

@@ -7,9 +7,10 @@ No Rich and no import of :mod:`stochpend.cli`, so that every command module can 
 from __future__ import annotations
 
 from decimal import Decimal, InvalidOperation
+from pathlib import Path
 from typing import Any
 
-__all__ = ["INTEGER_ACCEPTED", "integer", "usage_message"]
+__all__ = ["INTEGER_ACCEPTED", "file_name", "integer", "usage_message"]
 
 INTEGER_ACCEPTED = "an integer, e.g. 10000, 1e4 or 2.5e3 (scientific notation for whole numbers)"
 
@@ -38,6 +39,16 @@ def integer(value: Any) -> int:
     if not d.is_finite() or d.adjusted() > 1000 or d != d.to_integral_value():
         raise ValueError(INTEGER_ACCEPTED)
     return int(d)
+
+
+def file_name(value: Any) -> Path:
+    """Parser of the file and folder options: ``''`` is refused (``Path('')`` is ``'.'``, the
+    current folder, and the refusal then talked about '.')."""
+    if isinstance(value, Path):
+        return value
+    if str(value) == "":
+        raise ValueError("the name is empty; give a file name")
+    return Path(value)
 
 
 #: What a value of each kind must be, by Pydantic error type (Typer validates with Pydantic).

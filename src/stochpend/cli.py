@@ -24,7 +24,7 @@ from rich.markup import escape
 from rich.table import Table
 from typer.core import TyperCommand, TyperGroup
 
-from stochpend._cli_types import integer, usage_message
+from stochpend._cli_types import file_name, integer, usage_message
 from stochpend._notation import ve
 from stochpend.paper import eq
 from stochpend._terminal import markup
@@ -541,9 +541,9 @@ def simulate(
     accuracy: Annotated[str, typer.Option(help="'fixed': the step control as given; 'auto': refine it until every estimated |bias| is within half a standard error.")] = "fixed",
     rtol: Annotated[float | None, typer.Option("--rtol", help="With --accuracy auto (implied): accept a bias up to this fraction of each value instead.", show_default="none: half a standard error")] = None,
     max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps, paths x t_max / h_max (1e13: hours on a GPU; inf: no limit).", show_default="1e13")] = None,
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).", show_default="none: no file")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="Write the results as NetCDF (atomically).", show_default="none: no file")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
-    checkpoint: Annotated[Path | None, typer.Option(help="Save the run's state to this file periodically and on Ctrl-C; continue with 'stochpend resume FILE'.", show_default="none: no checkpoint")] = None,
+    checkpoint: Annotated[Path | None, typer.Option(parser=file_name, help="Save the run's state to this file periodically and on Ctrl-C; continue with 'stochpend resume FILE'.", show_default="none: no checkpoint")] = None,
     checkpoint_every: Annotated[str | None, typer.Option("--checkpoint-every", help="Checkpoint interval, e.g. 30s, 5m, 1h (needs --checkpoint).", show_default="5m")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
@@ -660,7 +660,7 @@ def result_kind(ds: Any) -> str | None:
 @app.command()
 @handles_errors
 def show(
-    path: Annotated[Path, typer.Argument(help="A file stochpend wrote: simulate, resume, sweep, reduced or bfpe --out.")],
+    path: Annotated[Path, typer.Argument(parser=file_name, help="A file stochpend wrote: simulate, resume, sweep, reduced or bfpe --out.")],
     rows: Annotated[int, typer.Option(parser=integer, help="Maximum number of output times shown, >= 1.")] = 12,
 ) -> None:
     """Print the table of a saved result (a run, a sweep, a reduced run or a B.F.P.E. solution)."""
@@ -735,8 +735,8 @@ PLOT_FORMATS = ("png", "pdf", "svg")
 @app.command()
 @handles_errors
 def plot(
-    path: Annotated[Path, typer.Argument(help="A results file written by 'stochpend simulate --out'.")],
-    out: Annotated[Path | None, typer.Option("--out", help="The figure to write.", show_default="the results file's name with the format's extension")] = None,
+    path: Annotated[Path, typer.Argument(parser=file_name, help="A results file written by 'stochpend simulate --out'.")],
+    out: Annotated[Path | None, typer.Option("--out", parser=file_name, help="The figure to write.", show_default="the results file's name with the format's extension")] = None,
     format: Annotated[str | None, typer.Option("--format", help="png, pdf or svg.", show_default="from --out's extension, else png")] = None,
     band: Annotated[float, typer.Option("--band", help="Width of the shaded band in standard errors, >= 0 (0: none).")] = 2.0,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing figure file.")] = False,

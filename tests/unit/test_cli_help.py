@@ -198,3 +198,15 @@ def test_n_states_the_range_the_command_accepts(command: str, low: int) -> None:
     assert f"an integer in [{low}, 1000]" in shown
     assert f"[{low}, 1000]" in _error_line([command, "--n", str(low - 1)])
     assert f"[{low}, 1000]" in _error_line([command, "--n", "1001"])
+
+
+# -- 6. an empty name is an empty name -----------------------------------------------------------
+@pytest.mark.parametrize("args,named", [
+    (["simulate", "--out", ""], "--out ''"), (["show", ""], "path=''"), (["sweep", ""], "spec=''"),
+    (["simulate", "--checkpoint", ""], "--checkpoint ''"), (["bfpe", "--out", ""], "--out ''"),
+    (["reproduce", "--out", ""], "--out ''"), (["plot", ""], "path=''"),
+])
+def test_empty_file_name_is_refused_as_empty(args: list[str], named: str) -> None:
+    line = _error_line(args)
+    assert line == f"error: {named} is not accepted: the name is empty; give a file name", line
+    assert "'.'" not in line
