@@ -11,8 +11,8 @@ from typing import Annotated, Any
 
 import typer
 
+from stochpend._cli_types import file_name, integer
 from stochpend._terminal import plain
-from stochpend._cli_types import integer
 from stochpend.cli import console, handles_errors, note, results
 
 __all__ = ["RichReproduceProgress", "reproduce_command"]
@@ -103,22 +103,23 @@ def reproduce_command(
         help="Figures to reproduce: fig1, fig2, fig3, fig4, exponents (the scaling-exponent table, docs/scaling.md) or all (default all); "
              "or a long run for a GPU: fig4-crossover (tau = 0.01 to t = 1e5), fig2-long ((D, tau) = (1, 10) to t = 1e5).")] = None,
     paths: Annotated[int | None, typer.Option(
-        parser=integer, help="Realizations per run (default 10000, as in the paper; 500 with --quick).")] = None,
+        parser=integer, help="Realizations per run.", show_default="10000, as in the paper; 500 with --quick")] = None,
     t_max: Annotated[float | None, typer.Option(
-        "--t-max", help="Final time of every run of the chosen figures (default: per run, see docs/reproduction.md; "
-                        "e.g. 'fig4 --t-max 1e5 --paths 1000' shows the tau = 0.01 crossover).")] = None,
+        "--t-max", help="Final time of every run of the chosen figures "
+                        "(e.g. 'fig4 --t-max 1e5 --paths 1000' shows the tau = 0.01 crossover).",
+        show_default="per run, see docs/reproduction.md")] = None,
     out: Annotated[Path, typer.Option(
-        "--out", "-o", help="Output directory: runs/*.nc, figN.png/.pdf, tables, report.html.")] = Path("stochpend-reproduce"),
+        "--out", "-o", parser=file_name, help="Output directory: runs/*.nc, figN.png/.pdf, tables, report.html.")] = Path("stochpend-reproduce"),
     quick: Annotated[bool, typer.Option(
-        help="Small ensembles and short times (t_max = 100): a smoke test, not a reproduction.")] = False,
+        "--quick", help="Small ensembles and short times (t_max = 100): a smoke test, not a reproduction.")] = False,
     force: Annotated[bool, typer.Option(
-        help="Simulate again even when a stored run matches (default: reuse cached NetCDF).")] = False,
-    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
-    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps each, paths x t_max / h_max (default 1e13; inf: no limit).")] = None,
+        "--force", help="Simulate again even when a stored run matches (default: reuse cached NetCDF).")] = False,
+    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).", show_default="every CPU")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps each, paths x t_max / h_max (inf: no limit).", show_default="1e13")] = None,
     backend: Annotated[str, typer.Option(help="cpu, cuda (an NVIDIA GPU) or auto (the GPU when one is usable).")] = "cpu",
     precision: Annotated[str, typer.Option(help="float64 or float32 (float32 needs --backend cuda).")] = "float64",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars and no tables.")] = False,
-    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
     """Reproduce the paper's figures: simulate (or reuse), draw PNG/PDF, tabulate, write report.html."""
     from rich.table import Table

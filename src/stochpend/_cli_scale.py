@@ -23,7 +23,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from stochpend._cli_types import integer
+from stochpend._cli_types import file_name, integer
 from stochpend._terminal import markup
 
 __all__ = [
@@ -148,14 +148,14 @@ def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) ->
 
 @handles_errors
 def resume_command(
-    checkpoint: Annotated[Path, typer.Argument(help="A checkpoint written by 'stochpend simulate --checkpoint'.")],
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the result here instead of the original command's --out.")] = None,
-    overwrite: Annotated[bool, typer.Option(help="Replace an existing output file.")] = False,
-    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
-    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps, as for 'simulate' (default 1e13; give the original run's value again: it is not read from the file).")] = None,
+    checkpoint: Annotated[Path, typer.Argument(parser=file_name, help="A checkpoint written by 'stochpend simulate --checkpoint'.")],
+    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="Write the result here instead of the original command's --out.", show_default="the original command's --out")] = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing output file.")] = False,
+    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).", show_default="every CPU")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps, as for 'simulate' (give the original run's value again: it is not read from the file).", show_default="1e13")] = None,
     break_lock: Annotated[bool, typer.Option("--break-lock", help="Take the checkpoint's lock from a run on another host that is gone, or run without a lock on a file system that has none.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
-    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
     """Continue an interrupted 'simulate --checkpoint' run; write its result where it would have."""
     from stochpend import checkpoint as ck
@@ -295,17 +295,17 @@ def sweep_table(ds: Any) -> Table:
 
 @handles_errors
 def sweep_command(
-    spec: Annotated[Path, typer.Argument(help="The sweep, a TOML file: [base], then [grid] or [[case]] (docs/scale-out.md).")],
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
-    overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
-    scheduler: Annotated[str | None, typer.Option(help="Where tasks run: default in this process; 'threads' or 'sync' (Dask, no server); 'local' (a Dask LocalCluster); or a scheduler address, e.g. tcp://HOST:8786.")] = None,
-    workers: Annotated[int | None, typer.Option(parser=integer, help="Threads ('threads') or worker processes ('local'); default: the CPU count.")] = None,
-    tasks_per_set: Annotated[int | None, typer.Option("--tasks-per-set", parser=integer, help="Blocks of batches per parameter set (results do not depend on it).")] = None,
-    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse sweeps needing more than this many path-steps in all, the sum of paths x t_max / h_max (default 1e13; inf: no limit).")] = None,
+    spec: Annotated[Path, typer.Argument(parser=file_name, help="The sweep, a TOML file: [base], then [grid] or [[case]] (docs/scale-out.md).")],
+    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="Write the results as NetCDF (atomically).", show_default="none: no file")] = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
+    scheduler: Annotated[str | None, typer.Option(help="Where tasks run: default in this process; 'threads' or 'sync' (Dask, no server); 'local' (a Dask LocalCluster); or a scheduler address, e.g. tcp://HOST:8786.", show_default="none: this process")] = None,
+    workers: Annotated[int | None, typer.Option(parser=integer, help="Threads ('threads') or worker processes ('local'), >= 1.", show_default="the CPU count")] = None,
+    tasks_per_set: Annotated[int | None, typer.Option("--tasks-per-set", parser=integer, help="Blocks of batches per parameter set, >= 1 (results do not depend on it).", show_default="about 8 per worker thread")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse sweeps needing more than this many path-steps in all, the sum of paths x t_max / h_max (inf: no limit).", show_default="1e13")] = None,
     backend: Annotated[str, typer.Option(help="Where each block runs: cpu, cuda (the GPU of the process or Dask worker running it) or auto.")] = "cpu",
     precision: Annotated[str, typer.Option(help="float64 or float32 (float32 needs --backend cuda).")] = "float64",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
-    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
     """Run a grid or list of parameter sets (TOML) as one job; save one NetCDF with the swept dims."""
     from stochpend import io
@@ -373,7 +373,7 @@ _runner.command("resume")(resume_command)
 @_runner.command("simulate-ckpt")
 @handles_errors
 def _simulate_ckpt_command(
-    checkpoint: Annotated[Path, typer.Option(help="Checkpoint file.")],
+    checkpoint: Annotated[Path, typer.Option(parser=file_name, help="Checkpoint file.")],
     checkpoint_every: Annotated[str, typer.Option("--checkpoint-every", help="Interval, e.g. 30s, 5m, 1h.")] = "5m",
     noise: Annotated[str, typer.Option(help="'ou' or 'white'.")] = "ou",
     D: Annotated[float, typer.Option("--D", help="Noise amplitude.")] = 1.0,
@@ -384,10 +384,10 @@ def _simulate_ckpt_command(
     n_times: Annotated[int, typer.Option("--n-times", parser=integer, help="Number of output times.")] = 40,
     seed: Annotated[int, typer.Option(parser=integer, help="Seed.")] = 0,
     threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads.")] = None,
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="NetCDF output.")] = None,
-    overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
+    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="NetCDF output.")] = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
-    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
     """simulate with --checkpoint (a subset of the options of 'stochpend simulate')."""
     from stochpend.params import SimulationConfig

@@ -20,9 +20,10 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from stochpend._cli_types import integer
+from stochpend._cli_types import file_name, integer
 from stochpend._terminal import markup
-from stochpend.cli import _fmt, console, handles_errors, note, parse_times, results, summary_table
+from stochpend.cli import MAX_POWER_N, _fmt, console, handles_errors, note, parse_times, results, summary_table
+from stochpend.paper import eq
 
 __all__ = ["bfpe_command", "bfpe_table", "reduced_command", "reduced_table", "theory_command", "theory_table"]
 
@@ -53,21 +54,25 @@ def theory_table(rows: list[Any], *, title: str) -> Table:
 
 @handles_errors
 def theory_command(
-    noise: Annotated[str, typer.Option(help="Noise: 'ou' (Ornstein-Uhlenbeck, eqOU) or 'white' (defbruitblanc).")] = "ou",
+    noise: Annotated[str, typer.Option(help=f"Noise: 'ou' (Ornstein-Uhlenbeck, {eq('eqOU')}) or 'white' (Gaussian white noise, {eq('defbruitblanc')}).")] = "ou",
     D: Annotated[float, typer.Option("--D", help="Noise amplitude D >= 0.")] = 1.0,
     tau: Annotated[float, typer.Option("--tau", help="OU correlation time tau > 0 (ignored for white noise).")] = 1.0,
     omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency omega >= 0 (the asymptotic laws do not depend on it).")] = 1.0,
-    t: Annotated[float, typer.Option("--t", help="Time at which the predictions are evaluated, >= 0.")] = 1000.0,
-    bfpe: Annotated[bool, typer.Option("--bfpe", help="Also solve the averaged B.F.P.E. (avbfpe, omega = 0) up to t.")] = False,
-    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+    time: Annotated[float, typer.Option("--time", help="Time at which the predictions are evaluated, >= 0.")] = 1000.0,
+    t: Annotated[float | None, typer.Option("--t", hidden=True, help="Former name of --time.")] = None,
+    bfpe: Annotated[bool, typer.Option("--bfpe", help=f"Also solve the averaged Best Fokker-Planck Equation (omega = 0, {eq('avbfpe')}) up to that time.")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
-    """Print the paper's predictions at time t: every regime, its equation and where it is valid."""
+    """Print the paper's predictions at a time: every regime, its equation and where it is valid."""
     from stochpend.theory import predictions
 
-    rows = predictions(noise=noise, D=D, tau=tau if noise.lower() != "white" else None, omega=omega, t=t,
+    if t is not None:  # --t, the former name, still works
+        time = t
+
+    rows = predictions(noise=noise, D=D, tau=tau if noise.lower() != "white" else None, omega=omega, t=time,
                        bfpe=bfpe)
     params = f"D={D:g}" + (f", tau={tau:g}" if noise.lower() == "ou" else "") + f", omega={omega:g}"
-    results.print(theory_table(rows, title=f"Predictions at t = {t:g}: {noise.lower()} noise, {params}"))
+    results.print(theory_table(rows, title=f"Predictions at t = {time:g}: {noise.lower()} noise, {params}"))
 
 
 def bfpe_table(ds: Any, max_rows: int = 12) -> Table:
@@ -106,13 +111,13 @@ def bfpe_command(
     n_times: Annotated[int, typer.Option("--n-times", parser=integer, help="Number of log-spaced output times from t_max/1000 to t_max.")] = 40,
     n_cells: Annotated[int, typer.Option("--n-cells", parser=integer, help="Finite-volume cells on the half line Omega >= 0.")] = 1000,
     steps_per_decade: Annotated[int, typer.Option("--steps-per-decade", parser=integer, help="Time steps per decade of t.")] = 100,
-    max_cell_steps: Annotated[float | None, typer.Option("--max-cell-steps", help="Refuse solves needing more than this many cell-steps, n_cells x time steps (default 1e11, about 1.4 h; inf: no limit).")] = None,
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the solution as NetCDF (atomically).")] = None,
-    overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
+    max_cell_steps: Annotated[float | None, typer.Option("--max-cell-steps", help="Refuse solves needing more than this many cell-steps, n_cells x time steps (1e11: about 1.4 h; inf: no limit).", show_default="1e11")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="Write the solution as NetCDF (atomically).", show_default="none: no file")] = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No table.")] = False,
-    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
-    """Solve the averaged Best Fokker-Planck Equation (avbfpe, omega = 0) from Omega = 0."""
+    """Solve the averaged Best Fokker-Planck Equation (omega = 0, eq. {avbfpe}) from Omega = 0."""
     from stochpend import io
     from stochpend.theory import solve_bfpe
 
@@ -127,6 +132,9 @@ def bfpe_command(
         results.print(bfpe_table(ds))
         if out is not None:
             console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
+
+
+bfpe_command.__doc__ = (bfpe_command.__doc__ or "").replace("eq. {avbfpe}", eq("avbfpe"))
 
 
 def reduced_table(ds: Any) -> Table:
@@ -160,23 +168,23 @@ def reduced_table(ds: Any) -> Table:
 
 @handles_errors
 def reduced_command(
-    order: Annotated[str, typer.Option(help="zeroth (average0), first (average1), second (average2 + ZOU) or asymptotic (average2eta).")] = "asymptotic",
+    order: Annotated[str, typer.Option(help=f"Order of the averaging: zeroth (the energy is conserved, {eq('average0')}), first ({eq('average1')}), second (with its Ornstein-Uhlenbeck variable, {eq('average2', 'ZOU')}) or asymptotic (t >> t_c, {eq('average2eta')}).")] = "asymptotic",
     D: Annotated[float, typer.Option("--D", help="OU noise amplitude D > 0.")] = 1.0,
     tau: Annotated[float, typer.Option("--tau", help="OU correlation time tau > 0.")] = 1.0,
     omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency omega >= 0 (enters the second order only).")] = 1.0,
     paths: Annotated[int, typer.Option(parser=integer, help="Number of realizations (1e6 is accepted).")] = 10_000,
     t_max: Annotated[float, typer.Option("--t-max", help="Final time.")] = 1000.0,
-    n_times: Annotated[int | None, typer.Option("--n-times", parser=integer, help="Number of log-spaced output times from t_max/1000 to t_max (default 40; not with --times).")] = None,
-    times: Annotated[str | None, typer.Option(help="Explicit output times, comma-separated, e.g. 10,100,1000.")] = None,
+    n_times: Annotated[int | None, typer.Option("--n-times", parser=integer, help="Number of log-spaced output times from t_max/1000 to t_max (not with --times).", show_default="40")] = None,
+    times: Annotated[str | None, typer.Option(help="Explicit output times, comma-separated, e.g. 10,100,1000.", show_default="none: see --n-times")] = None,
     seed: Annotated[int, typer.Option(parser=integer, help="Seed in [0, 2^64) (the reduced dynamics have their own Philox stream).")] = 0,
     E0: Annotated[float, typer.Option("--E0", help="Initial energy E0 >= 0.")] = 0.0,
-    h_max: Annotated[float | None, typer.Option("--h-max", help="Second-order time step (default 0.05 tau).")] = None,
-    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
-    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps (paths x t_max / h_max for the second order, paths x output times otherwise; default 1e13; inf: no limit).")] = None,
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
-    overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
+    h_max: Annotated[float | None, typer.Option("--h-max", help="Second-order time step, > 0.", show_default="0.05 tau")] = None,
+    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).", show_default="every CPU")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps (paths x t_max / h_max for the second order, paths x output times otherwise; inf: no limit).", show_default="1e13")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="Write the results as NetCDF (atomically).", show_default="none: no file")] = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No table.")] = False,
-    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
     """Simulate the reduced (averaged) energy dynamics and compare with the closed forms."""
     from stochpend import io
@@ -218,15 +226,17 @@ def reduced_command(
 
 @handles_errors
 def scaling_command(
-    n: Annotated[int, typer.Option("--n", parser=integer, help="Exponent n of the power potential U = x^2n/2n (n >= 2).")] = 2,
-    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+    n: Annotated[int, typer.Option("--n", parser=integer, help=f"Exponent n of the power potential U = x^2n/2n, an integer in [2, {MAX_POWER_N}] (n = 1 is the harmonic row).")] = 2,
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
     """Print the predicted long-time growth of <E> for every oscillator, coupling and noise
     (stochpend.theory.scaling; derivations in docs/scaling.md)."""
     from stochpend.theory.scaling import NOISES, predicted_exponent
 
-    if isinstance(n, bool) or n < 2:
-        raise ValueError(f"n={n!r} is not accepted: an integer >= 2 (n = 1 is the harmonic potential)")
+    if isinstance(n, bool) or not 2 <= n <= MAX_POWER_N:
+        shown = repr(n) if len(repr(n)) <= 80 else repr(n)[:76] + " ..."
+        raise ValueError(f"n={shown} is not accepted: an integer in [2, {MAX_POWER_N}] (n = 1 is the "
+                         "harmonic potential, its own row)")
     models = [("pendulum", "force", "pendulum, U = -cos x"), ("harmonic", "force", "harmonic, U = x^2/2"),
               ("power", "position", f"U = x^{2 * n}/{2 * n}, noise on x"),
               ("power", "force", f"U = x^{2 * n}/{2 * n}, noise on the force")]

@@ -7,9 +7,10 @@ No Rich and no import of :mod:`stochpend.cli`, so that every command module can 
 from __future__ import annotations
 
 from decimal import Decimal, InvalidOperation
+from pathlib import Path
 from typing import Any
 
-__all__ = ["INTEGER_ACCEPTED", "integer", "usage_message"]
+__all__ = ["INTEGER_ACCEPTED", "file_name", "integer", "usage_message"]
 
 INTEGER_ACCEPTED = "an integer, e.g. 10000, 1e4 or 2.5e3 (scientific notation for whole numbers)"
 
@@ -40,6 +41,16 @@ def integer(value: Any) -> int:
     return int(d)
 
 
+def file_name(value: Any) -> Path:
+    """Parser of the file and folder options: ``''`` is refused (``Path('')`` is ``'.'``, the
+    current folder, and the refusal then talked about '.')."""
+    if isinstance(value, Path):
+        return value
+    if str(value) == "":
+        raise ValueError("the name is empty; give a file name")
+    return Path(value)
+
+
 #: What a value of each kind must be, by Pydantic error type (Typer validates with Pydantic).
 _ACCEPTED_BY_ERROR = {
     "int_parsing": "an integer",
@@ -54,7 +65,7 @@ _ACCEPTED_BY_ERROR = {
 
 def usage_message(exc: Any) -> str:
     """One line for a Click/Typer usage error, in the project's form where a value was bad:
-    ``paths='1e15.5' is not accepted: an integer, ...``."""
+    ``--paths '1e15.5' is not accepted: an integer, ...``."""
     param = getattr(exc, "param", None)
     name = getattr(param, "name", None)
     cause = getattr(exc, "__cause__", None)
@@ -72,7 +83,9 @@ def usage_message(exc: Any) -> str:
             accepted = _ACCEPTED_BY_ERROR.get(err.get("type", ""), str(err.get("msg", "")))
         value = err["input"]
         shown = repr(value) if len(repr(value)) <= 80 else repr(value)[:76] + " ..."
-        return " ".join(f"{name}={shown} is not accepted: {accepted}".split())
+        longs = [o for o in getattr(param, "opts", ()) if o.startswith("--")]
+        named = f"{longs[0]} " if longs else f"{name}="  # an option by its flag, an argument by name
+        return " ".join(f"{named}{shown} is not accepted: {accepted}".split())
     try:
         message = exc.format_message()
     except Exception:

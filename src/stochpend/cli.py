@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 import sys
 import time
 from collections.abc import Callable
@@ -21,10 +22,11 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
-from typer.core import TyperGroup
+from typer.core import TyperCommand, TyperGroup
 
-from stochpend._cli_types import integer, usage_message
+from stochpend._cli_types import file_name, integer, usage_message
 from stochpend._notation import ve
+from stochpend.paper import eq
 from stochpend._terminal import markup
 
 # sys.stderr is None when file descriptor 2 is closed (`2>&-`): Rich then prints nothing.
@@ -36,6 +38,11 @@ results = Console(width=None if sys.stdout is not None and sys.stdout.isatty() e
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+# stochpend.params's defaults and limits, as the help shows them (importing params would load
+# Numba before '--help'; tests/unit/test_cli_help.py checks that they agree).
+DEFAULT_H_MAX, DEFAULT_STEP_C, DEFAULT_HIST_BINS = 0.05, 0.1, 100
+MAX_OMEGA, MAX_POWER_N = 1e150, 1000
+
 
 def note(message: str) -> None:
     """Print one yellow line (a fallback the user should know about)."""
@@ -43,9 +50,101 @@ def note(message: str) -> None:
 
 
 def fail(message: str, code: int = 2) -> None:
-    """Print one red line and exit."""
+    """Print one red line and exit; a refusal the Python API words with its argument names
+    (``h_max=0.0 is not accepted: h_max must be ...``) names the running command's options
+    instead (``--h-max 0.0 is not accepted: ...``), see :func:`cli_message`."""
+    message = cli_message(message, _option_names())
     console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
     raise typer.Exit(code)
+
+
+#: Arguments of the Python API that a command's option of another name sets (API name: the
+#: command's parameter): simulate's --n is power_n, theory's --time is t.
+_API_NAMES = {"power_n": "n", "t": "time"}
+
+
+def _option_names() -> dict[str, str]:
+    """``{python name: '--option'}`` of the running command (empty outside one)."""
+    try:  # Typer >= 0.29 carries its own copy of Click
+        from typer._click.globals import get_current_context
+    except ImportError:  # a Typer that uses Click itself
+        from click import get_current_context
+    ctx = get_current_context(silent=True)
+    names: dict[str, str] = {}
+    if ctx is None:
+        return names
+    for param in ctx.command.params:
+        longs = [o for o in getattr(param, "opts", ()) if o.startswith("--")]
+        if longs and not getattr(param, "hidden", False) and param.name:
+            names[param.name] = longs[0]
+    for api, name in _API_NAMES.items():
+        if name in names and api not in names:
+            names[api] = names[name]
+    for name, source in ctx.meta.get("stochpend.config_keys", {}).items():
+        names[name] = f"{source}: {name}="  # set by --config FILE: the file's key, as written
+    return names
+
+
+_ASSIGNED = re.compile(r"(?<![\w.:-])([A-Za-z_]\w*)=")
+
+
+def cli_message(message: str, names: dict[str, str]) -> str:
+    """A one-line refusal of the Python API in the command line's words: ``NAME=VALUE is not
+    accepted: NAME must be X`` -> ``--option VALUE is not accepted: X``; further ``NAME=VALUE``
+    that name an option become ``--option VALUE``. Messages that do not start with an option's
+    name (a file's key, an argument) are unchanged."""
+    # "raise the limit with max_path_steps= (--max-path-steps)": the option alone
+    message = re.sub(r"\b\w+= \((--[\w-]+)\)", r"\1", message)
+    m = _ASSIGNED.match(message)
+    if not m or m.group(1) not in names:
+        return message
+    name = m.group(1)
+    rest = message[m.end():].replace(f"is not accepted: {name} must be ", "is not accepted: ", 1)
+    if not names[name].endswith("="):
+        rest = rest.replace(f"is not accepted: {name} ", f"is not accepted: {names[name]} ", 1)
+
+    def option(match: re.Match[str]) -> str:
+        opt = names.get(match.group(1))
+        if opt is None:
+            return match.group(0)
+        return opt if opt.endswith("=") else opt + " "
+
+    return option(m) + _ASSIGNED.sub(option, rest)
+
+
+def _plain_flags(params: list[Any]) -> list[Any]:
+    """Boolean flags show no ``<bool>`` metavar in the help (they take no value); a default
+    given as text (``show_default="every CPU"``, for an option whose None stands for it) is
+    shown as ``[default: every CPU]``, without the parentheses Typer adds."""
+    for param in params:
+        if getattr(param, "is_flag", False) and param.metavar is None:
+            param.metavar = ""
+        text = getattr(param, "show_default", None)
+        if isinstance(text, str):
+            param._get_default_string = lambda *args, _text=text, **kwargs: _text
+    return params
+
+
+def _escape_help(command: Any) -> None:
+    """Help text is literal: Rich markup in it is escaped, once, when the command is built
+    ("a TOML file: [base], then [grid]" lost its bracketed words to Rich markup)."""
+    for param in getattr(command, "params", ()):
+        if getattr(param, "help", None):
+            param.help = escape(param.help)
+    for attr in ("help", "short_help"):
+        if getattr(command, attr, None):
+            setattr(command, attr, escape(getattr(command, attr)))
+
+
+class HelpCommand(TyperCommand):
+    """Every subcommand's class: literal help text and flags without a metavar."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        _escape_help(self)
+
+    def get_params(self, ctx: Any) -> list[Any]:
+        return _plain_flags(super().get_params(ctx))
 
 
 class OneLineErrorsGroup(TyperGroup):
@@ -55,6 +154,13 @@ class OneLineErrorsGroup(TyperGroup):
     Both hooks are needed: the group's own arguments are parsed in ``make_context``, a
     subcommand's options in ``invoke``.
     """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        _escape_help(self)
+
+    def get_params(self, ctx: Any) -> list[Any]:
+        return _plain_flags(super().get_params(ctx))
 
     def make_context(self, *args: Any, **kwargs: Any) -> Any:
         try:
@@ -442,37 +548,37 @@ def bias_notes(ds: Any) -> list[str]:
 @app.command()
 @handles_errors
 def simulate(
-    noise: Annotated[str, typer.Option(help="Noise: 'ou' (Ornstein-Uhlenbeck, eqOU), 'white' (defbruitblanc), 'dichotomous' (telegraph +-sqrt(D/2tau), same correlation as OU) or 'harmonic' (spectrum ~ nu^-4); docs/models.md.")] = "ou",
+    noise: Annotated[str, typer.Option(help=f"Noise: 'ou' (Ornstein-Uhlenbeck, {eq('eqOU')}), 'white' (Gaussian white noise, {eq('defbruitblanc')}), 'dichotomous' (telegraph +-sqrt(D/2tau), same correlation as OU) or 'harmonic' (spectrum ~ nu^-4); docs/models.md.")] = "ou",
     D: Annotated[float, typer.Option("--D", help="Noise amplitude D >= 0 (every noise has spectral density D at zero frequency).")] = 1.0,
     tau: Annotated[float, typer.Option("--tau", help="Correlation time tau > 0 of the colored noises (ignored for white noise).")] = 1.0,
-    omega_noise: Annotated[float | None, typer.Option("--omega-noise", help="Harmonic noise only: its oscillator frequency W (default 2/tau, critical damping).")] = None,
-    omega: Annotated[float, typer.Option("--omega", help="Oscillator frequency omega >= 0.")] = 1.0,
+    omega_noise: Annotated[float | None, typer.Option("--omega-noise", help="Harmonic noise only: its oscillator frequency W > 0.", show_default="2/tau, critical damping")] = None,
+    omega: Annotated[float, typer.Option("--omega", help=f"Oscillator frequency omega in [0, {MAX_OMEGA:g}] ({eq('dynOmega')}).")] = 1.0,
     potential: Annotated[str, typer.Option(help="Oscillator: 'pendulum' (U = -cos x), 'harmonic' (x^2/2) or 'power' (x^2n/2n, see --n).")] = "pendulum",
-    n: Annotated[int, typer.Option("--n", parser=integer, help="Exponent n of the power potential U = x^2n/2n (n >= 1).")] = 2,
+    n: Annotated[int, typer.Option("--n", parser=integer, help=f"Exponent n of the power potential U = x^2n/2n, an integer in [1, {MAX_POWER_N}].")] = 2,
     coupling: Annotated[str, typer.Option(help="The noise multiplies the force U'(x) ('force', the pendulum's) or x ('position', the random-frequency oscillator).")] = "force",
     paths: Annotated[int, typer.Option(parser=integer, help="Number of realizations (1e6 is accepted).")] = 10_000,
     t_max: Annotated[float, typer.Option("--t-max", help="Final time (units of the paper).")] = 1000.0,
-    n_times: Annotated[int | None, typer.Option("--n-times", parser=integer, help="Number of log-spaced output times from t_max/1000 to t_max (default 40; not with --times).")] = None,
-    times: Annotated[str | None, typer.Option(help="Explicit output times, comma-separated, e.g. 10,100,1000.")] = None,
+    n_times: Annotated[int | None, typer.Option("--n-times", parser=integer, help="Number of log-spaced output times from t_max/1000 to t_max (not with --times).", show_default="40")] = None,
+    times: Annotated[str | None, typer.Option(help="Explicit output times, comma-separated, e.g. 10,100,1000.", show_default="none: see --n-times")] = None,
     seed: Annotated[int, typer.Option(parser=integer, help="Seed in [0, 2^64): fixes every number, whatever threads or chunks.")] = 0,
     theta0: Annotated[str, typer.Option("--theta0", help="Initial angle (radians) or 'uniform' on [-pi, pi).")] = "uniform",
     Omega0: Annotated[float, typer.Option("--Omega0", help="Initial angular velocity.")] = 0.0,
-    h_max: Annotated[float | None, typer.Option("--h-max", help="Largest time step.")] = None,
-    step_c: Annotated[float | None, typer.Option("--step-c", help="Step control c: h <= c/|Omega| and c/sqrt(|omega^2+xi|); 0 = fixed step.")] = None,
-    hist_bins: Annotated[int | None, typer.Option("--hist-bins", parser=integer, help="Energy histogram bins.")] = None,
+    h_max: Annotated[float | None, typer.Option("--h-max", help="Largest time step, > 0.", show_default=f"{DEFAULT_H_MAX:g}")] = None,
+    step_c: Annotated[float | None, typer.Option("--step-c", help="Step control c >= 0: h <= c/|Omega| and c/sqrt(|omega^2+xi|); 0 = fixed step.", show_default=f"{DEFAULT_STEP_C:g}")] = None,
+    hist_bins: Annotated[int | None, typer.Option("--hist-bins", parser=integer, help="Energy histogram bins, >= 1.", show_default=f"{DEFAULT_HIST_BINS}")] = None,
     backend: Annotated[str, typer.Option(help="Where to run: cpu, cuda, or auto (the GPU when usable).")] = "cpu",
-    precision: Annotated[str, typer.Option(help="float64 (default) or float32 (CUDA backend only).")] = "float64",
-    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).")] = None,
-    bias_paths: Annotated[int | None, typer.Option("--bias-paths", parser=integer, help="Coupled coarse/fine pairs estimating each statistic's discretisation bias (default: paths/32, at least 256; 0: none).")] = None,
+    precision: Annotated[str, typer.Option(help="float64 or float32 (CUDA backend only).")] = "float64",
+    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).", show_default="every CPU")] = None,
+    bias_paths: Annotated[int | None, typer.Option("--bias-paths", parser=integer, help="Coupled coarse/fine pairs estimating each statistic's discretisation bias (0: none).", show_default="paths/32, at least 256")] = None,
     accuracy: Annotated[str, typer.Option(help="'fixed': the step control as given; 'auto': refine it until every estimated |bias| is within half a standard error.")] = "fixed",
-    rtol: Annotated[float | None, typer.Option("--rtol", help="With --accuracy auto (implied): accept a bias up to this fraction of each value instead.")] = None,
-    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps, paths x t_max / h_max (default 1e13, hours on a GPU; inf: no limit).")] = None,
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="Write the results as NetCDF (atomically).")] = None,
-    overwrite: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
-    checkpoint: Annotated[Path | None, typer.Option(help="Save the run's state to this file periodically and on Ctrl-C; continue with 'stochpend resume FILE'.")] = None,
-    checkpoint_every: Annotated[str | None, typer.Option("--checkpoint-every", help="Checkpoint interval, e.g. 30s, 5m, 1h (default 5m; needs --checkpoint).")] = None,
+    rtol: Annotated[float | None, typer.Option("--rtol", help="With --accuracy auto (implied): accept a bias up to this fraction of each value instead.", show_default="none: half a standard error")] = None,
+    max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps, paths x t_max / h_max (1e13: hours on a GPU; inf: no limit).", show_default="1e13")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="Write the results as NetCDF (atomically).", show_default="none: no file")] = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
+    checkpoint: Annotated[Path | None, typer.Option(parser=file_name, help="Save the run's state to this file periodically and on Ctrl-C; continue with 'stochpend resume FILE'.", show_default="none: no checkpoint")] = None,
+    checkpoint_every: Annotated[str | None, typer.Option("--checkpoint-every", help="Checkpoint interval, e.g. 30s, 5m, 1h (needs --checkpoint).", show_default="5m")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
-    debug: Annotated[bool, typer.Option(help="Show tracebacks.")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
     """Simulate an ensemble and print the energy statistics (optionally save them as NetCDF)."""
     from stochpend import io, params, resources
@@ -693,8 +799,8 @@ def _json_text(ds: Any) -> str:
 @app.command()
 @handles_errors
 def show(
-    path: Annotated[Path, typer.Argument(help="A file stochpend wrote: simulate, resume, sweep, reduced or bfpe --out.")],
-    rows: Annotated[int, typer.Option(parser=integer, help="Maximum number of output times shown (default 12).")] = 12,
+    path: Annotated[Path, typer.Argument(parser=file_name, help="A file stochpend wrote: simulate, resume, sweep, reduced or bfpe --out.")],
+    rows: Annotated[int, typer.Option(parser=integer, help="Maximum number of output times shown, >= 1.")] = 12,
     format: Annotated[str, typer.Option("--format", help="table (for reading), csv (every output time, full "
                                         "precision) or json (the whole file: data, coordinates, attributes).")] = "table",
 ) -> None:
@@ -788,10 +894,10 @@ PLOT_FORMATS = ("png", "pdf", "svg")
 @app.command()
 @handles_errors
 def plot(
-    path: Annotated[Path, typer.Argument(help="A results file written by 'stochpend simulate --out'.")],
-    out: Annotated[Path | None, typer.Option("--out", help="The figure to write (default: the results file's name with the format's extension).")] = None,
-    format: Annotated[str | None, typer.Option("--format", help="png, pdf or svg (default: from --out's extension, else png).")] = None,
-    band: Annotated[float, typer.Option("--band", help="Width of the shaded band in standard errors (default 2; 0: none).")] = 2.0,
+    path: Annotated[Path, typer.Argument(parser=file_name, help="A results file written by 'stochpend simulate --out'.")],
+    out: Annotated[Path | None, typer.Option("--out", parser=file_name, help="The figure to write.", show_default="the results file's name with the format's extension")] = None,
+    format: Annotated[str | None, typer.Option("--format", help="png, pdf or svg.", show_default="from --out's extension, else png")] = None,
+    band: Annotated[float, typer.Option("--band", help="Width of the shaded band in standard errors, >= 0 (0: none).")] = 2.0,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing figure file.")] = False,
 ) -> None:
     """Plot <E>(t) of a saved run, log-log, with its error band and the predicted law."""
@@ -884,3 +990,9 @@ app.command("reduced")(reduced_command)
 from stochpend._cli_reproduce import reproduce_command  # noqa: E402
 
 app.command("reproduce")(reproduce_command)
+
+# Every command: literal help text, flags without a metavar (HelpCommand).
+for _info in app.registered_commands:
+    if _info.cls in (None, TyperCommand):
+        _info.cls = HelpCommand
+

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["EQUATIONS", "cite", "number_equations", "with_numbers"]
+__all__ = ["EQUATIONS", "cite", "eq", "number_equations", "with_numbers"]
 
 _ENV = re.compile(r"\\begin\{(equation|eqnarray)\}(.*?)\\end\{\1\}", re.S)
 _LABEL = re.compile(r"\\label\{([^}]*)\}")
@@ -66,6 +66,14 @@ def cite(label: str) -> str:
     """``"Eq. (49) [eq:scalEcolor]"`` for a label of the paper, the label alone if unknown."""
     number = EQUATIONS.get(label)
     return f"Eq. ({number}) [{label}]" if number else label
+
+
+def eq(*labels: str) -> str:
+    """``"eq. 18"`` for one label, ``"eqs. 49, 50"`` for several: the printed numbers, in the
+    form the command line's help cites them ("... (eq. 18)"). An unknown label is a KeyError, so
+    that a typo fails when the help is built, not in front of a reader."""
+    numbers = [EQUATIONS[label] for label in labels]
+    return ("eq. " if len(numbers) == 1 else "eqs. ") + ", ".join(numbers)
 
 
 #: Labels that are also ordinary words of the text ("OU noise"): never replaced in prose.

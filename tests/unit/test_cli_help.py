@@ -1,0 +1,212 @@
+"""The command line's help and messages (issue 20, item 6): help text that Rich does not eat,
+every option's default, plain words citing the paper's equation numbers, errors that name the
+command line's options, one name and one range per parameter, shell completion, and
+``simulate --config``."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from typing import Any
+
+import pytest
+import typer.core
+import typer.main
+from typer._click import Context
+from typer.testing import CliRunner
+
+from stochpend import cli
+from stochpend.paper import EQUATIONS
+
+WIDE = {"COLUMNS": "2000", "TERMINAL_WIDTH": "2000"}
+
+
+def _group() -> Any:
+    return typer.main.get_command(cli.app)
+
+
+def _commands() -> list[tuple[str, Any, Context]]:
+    """(name, command, context) of every subcommand."""
+    group = _group()
+    parent = Context(group, info_name="stochpend")
+    return [(name, cmd, Context(cmd, info_name=name, parent=parent)) for name, cmd in group.commands.items()]
+
+
+def _help(*args: str) -> str:
+    result = CliRunner().invoke(cli.app, [*args, "--help"], env=WIDE)
+    assert result.exit_code == 0, result.output
+    return result.output
+
+
+def _literal(text: str) -> str:
+    """Help text as written (the command class escapes Rich markup once: ``\\[base]``)."""
+    return re.sub(r"\\(\[)", r"\1", text)
+
+
+def _texts() -> list[tuple[str, str]]:
+    """(where, help text as written) of every command and every parameter."""
+    out = []
+    for name, cmd, ctx in _commands():
+        out.append((name, _literal(cmd.help or "")))
+        for p in cmd.get_params(ctx):
+            if getattr(p, "help", None):
+                out.append((f"{name} {p.opts[0]}", _literal(p.help)))
+    return out
+
+
+NAMES = [name for name, _, _ in _commands()]
+
+
+# -- 1. no markup loss -------------------------------------------------------------------------
+@pytest.mark.parametrize("name", NAMES)
+def test_bracketed_help_text_is_shown(name: str) -> None:
+    shown = " ".join(_help(name).split())
+    _, cmd, ctx = next(c for c in _commands() if c[0] == name)
+    texts = [_literal(p.help) for p in cmd.get_params(ctx) if getattr(p, "help", None)]
+    texts.append(_literal(cmd.help or ""))
+    for text in texts:
+        for segment in re.findall(r"\[[^\]]*\]+", text):
+            assert segment in shown, (name, segment)
+
+
+def test_sweep_help_names_the_tables() -> None:
+    assert "a TOML file: [base], then [grid] or [[case]]" in " ".join(_help("sweep").split())
+
+
+# -- 2. defaults and flags --------------------------------------------------------------------
+@pytest.mark.parametrize("name", NAMES)
+def test_every_option_shows_its_default(name: str) -> None:
+    lines = _help(name).splitlines()
+    _, cmd, ctx = next(c for c in _commands() if c[0] == name)
+    for p in cmd.get_params(ctx):
+        if not isinstance(p, typer.core.TyperOption) or p.is_flag or p.hidden:
+            continue
+        row = [ln for ln in lines if re.match(rf"^│ {re.escape(p.opts[0])}\s", ln)]
+        assert len(row) == 1, (name, p.opts, lines)
+        assert "[default: " in row[0] and "[default: (" not in row[0], (name, row[0])
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_flags_take_no_value(name: str) -> None:
+    text = _help(name)
+    assert "<bool>" not in text
+    assert "--no-" not in text
+
+
+def test_root_help_has_no_bool_metavar() -> None:
+    assert "<bool>" not in _help()
+
+
+def test_help_defaults_match_the_api() -> None:
+    from stochpend import params
+
+    assert (cli.DEFAULT_H_MAX, cli.DEFAULT_STEP_C, cli.DEFAULT_HIST_BINS) == (
+        params.DEFAULT_H_MAX, params.DEFAULT_STEP_C, params.DEFAULT_HIST_BINS)
+    assert (cli.MAX_OMEGA, cli.MAX_POWER_N) == (params.MAX_OMEGA, params.MAX_POWER_N)
+    simulate = _help("simulate")
+    for option, default in (("--h-max", "0.05"), ("--step-c", "0.1"), ("--hist-bins", "100")):
+        row = next(ln for ln in simulate.splitlines() if re.match(rf"^│ {option}\s", ln))
+        assert f"[default: {default}]" in row, row
+
+
+def test_help_does_not_import_numba() -> None:
+    code = ("import sys; from typer.testing import CliRunner; from stochpend import cli; "
+            "CliRunner().invoke(cli.app, ['simulate', '--help']); print('numba' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+# -- 3. plain words, the paper's equation numbers ----------------------------------------------
+#: Labels that are also words of the command line: the 'bfpe' command, 'OU' noise.
+_NOT_LABELS = {"OU", "bfpe"}
+_LABEL = re.compile(r"(?<![\w:.-])(" + "|".join(
+    re.escape(k) for k in sorted(set(EQUATIONS) - _NOT_LABELS, key=len, reverse=True)) + r")(?![\w:])")
+
+
+def test_help_cites_equation_numbers_not_source_labels() -> None:
+    for where, text in _texts():
+        assert not _LABEL.search(text), (where, _LABEL.search(text).group(1), text)
+    cited = {m for _, text in _texts() for m in re.findall(r"\beqs?\. ([A0-9, ]+)", text)}
+    assert cited, "no help text cites an equation"
+    numbers = set(EQUATIONS.values())
+    for group in cited:
+        for n in group.split(","):
+            assert n.strip() in numbers, group
+
+
+def test_simulate_noise_help_cites_eq_18_and_4() -> None:
+    row = " ".join(_help("simulate").split())
+    assert "'ou' (Ornstein-Uhlenbeck, eq. 18)" in row and "'white' (Gaussian white noise, eq. 4)" in row
+
+
+# -- 4. errors name the command line's options --------------------------------------------------
+def _error_line(args: list[str]) -> str:
+    result = CliRunner().invoke(cli.app, args)
+    lines = [ln for ln in result.output.splitlines() if ln.strip()]
+    assert result.exit_code == 2, result.output
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
+    assert "Traceback" not in result.output
+    return lines[0]
+
+
+@pytest.mark.parametrize("args,expected", [
+    (["simulate", "--h-max", "0"], "error: --h-max 0.0 is not accepted: a finite number > 0"),
+    (["simulate", "--backend", "cpux"], "error: --backend 'cpux' is not accepted: one of cpu"),
+    (["simulate", "--n", "0"], "error: --n 0 is not accepted: an integer in [1, 1000]"),
+    (["simulate", "--tau", "-1"], "error: --tau -1.0 is not accepted: a finite number > 0"),
+    (["simulate", "--paths", "1e15.5"], "error: --paths '1e15.5' is not accepted: an integer"),
+    (["simulate", "--omega-noise", "2"], "error: --omega-noise 2.0 is not accepted: --omega-noise applies to --noise 'harmonic'"),
+    (["scaling", "--n", "0"], "error: --n 0 is not accepted: an integer in [2, 1000]"),
+    (["theory", "--time", "-5"], "error: --time -5.0 is not accepted: a finite number >= 0"),
+])
+def test_errors_name_cli_options(args: list[str], expected: str) -> None:
+    line = _error_line(args)
+    assert line.startswith(expected), line
+    for python_name in ("h_max", "power_n", "omega_noise=", "backend=", "t="):
+        assert python_name not in line, line
+
+
+def test_the_python_api_keeps_its_argument_names() -> None:
+    import stochpend
+
+    with pytest.raises(ValueError, match=r"^h_max=0\.0 is not accepted"):
+        stochpend.simulate(h_max=0.0)
+
+
+def test_cli_message_leaves_file_keys_and_arguments_alone() -> None:
+    names = {"h_max": "--h-max", "noise": "--noise"}
+    assert cli.cli_message("run.toml: h_max=0.0 is not accepted: x", names) == "run.toml: h_max=0.0 is not accepted: x"
+    assert cli.cli_message("path='x' is not accepted: y", names) == "path='x' is not accepted: y"
+    assert cli.cli_message("tau=-1.0 is not accepted: use noise='white'", {"tau": "--tau", "noise": "--noise"}) \
+        == "--tau -1.0 is not accepted: use --noise 'white'"
+
+
+# -- 5. one name and one range per parameter ----------------------------------------------------
+def test_theory_takes_time_and_keeps_t_as_hidden_alias() -> None:
+    for option in ("--time", "--t"):
+        result = CliRunner().invoke(cli.app, ["theory", "--noise", "white", "--D", "2", option, "3"], env=WIDE)
+        assert result.exit_code == 0, result.output
+        assert "Predictions at t = 3" in result.output
+    text = _help("theory")
+    assert re.search(r"^│ --time\s", text, re.M) and not re.search(r"^│ --t\s", text, re.M)
+
+
+@pytest.mark.parametrize("command,low", [("simulate", 1), ("scaling", 2)])
+def test_n_states_the_range_the_command_accepts(command: str, low: int) -> None:
+    shown = " ".join(_help(command).split())
+    assert f"an integer in [{low}, 1000]" in shown
+    assert f"[{low}, 1000]" in _error_line([command, "--n", str(low - 1)])
+    assert f"[{low}, 1000]" in _error_line([command, "--n", "1001"])
+
+
+# -- 6. an empty name is an empty name -----------------------------------------------------------
+@pytest.mark.parametrize("args,named", [
+    (["simulate", "--out", ""], "--out ''"), (["show", ""], "path=''"), (["sweep", ""], "spec=''"),
+    (["simulate", "--checkpoint", ""], "--checkpoint ''"), (["bfpe", "--out", ""], "--out ''"),
+    (["reproduce", "--out", ""], "--out ''"), (["plot", ""], "path=''"),
+])
+def test_empty_file_name_is_refused_as_empty(args: list[str], named: str) -> None:
+    line = _error_line(args)
+    assert line == f"error: {named} is not accepted: the name is empty; give a file name", line
+    assert "'.'" not in line
