@@ -6,6 +6,8 @@ No Rich and no import of :mod:`stochpend.cli`, so that every command module can 
 
 from __future__ import annotations
 
+import sys
+
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Any
@@ -85,6 +87,11 @@ def usage_message(exc: Any) -> str:
         shown = repr(value) if len(repr(value)) <= 80 else repr(value)[:76] + " ..."
         longs = [o for o in getattr(param, "opts", ()) if o.startswith("--")]
         named = f"{longs[0]} " if longs else f"{name}="  # an option by its flag, an argument by name
+        ctx = getattr(exc, "ctx", None)
+        source, keys = (getattr(ctx, "meta", None) or {}).get("stochpend.config_file", ("", set()))
+        if name in keys and ctx is not None and (ctx.params or {}).get(name) is None \
+                and f"{longs[0] if longs else ''}" not in sys.argv:  # the value came from --config FILE
+            named = f"{source}: {name}="
         return " ".join(f"{named}{shown} is not accepted: {accepted}".split())
     try:
         message = exc.format_message()

@@ -224,7 +224,7 @@ app = typer.Typer(
     help="Ensembles of the stochastic pendulum with parametric white or Ornstein-Uhlenbeck noise "
     "(Mallick & Marcq 2004): simulate, compare with theory, reproduce the paper.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,
     pretty_exceptions_enable=False,
     cls=OneLineErrorsGroup,
 )
@@ -545,6 +545,68 @@ def bias_notes(ds: Any) -> list[str]:
             f"ensembles of {need:.2g} paths each, at the step and at half of it, would be needed"]
 
 
+#: What a `simulate --config` file may set: physics and numerics (and where they run), by the
+#: options' names. Never what to overwrite or where to write (`out`, `overwrite`, `checkpoint`),
+#: nor code to load: those come from the command line that runs.
+CONFIG_KEYS = ("noise", "D", "tau", "omega_noise", "omega", "potential", "n", "coupling", "paths", "t_max",
+               "n_times", "times", "seed", "theta0", "Omega0", "h_max", "step_c", "hist_bins", "bias_paths",
+               "accuracy", "rtol", "max_path_steps", "backend", "precision", "threads")
+_CONFIG_REFUSED = {"out": "the output file is named on the command line (--out)",
+                   "overwrite": "only the command line that runs may allow overwriting (--overwrite)",
+                   "checkpoint": "the checkpoint file is named on the command line (--checkpoint)",
+                   "checkpoint_every": "checkpointing is set on the command line (--checkpoint-every)",
+                   "config": "a configuration file does not name another",
+                   "config_file": "a configuration file does not name another",
+                   "quiet": "output is set on the command line", "debug": "output is set on the command line"}
+
+
+def _config_value(key: str, value: Any, source: str) -> str:
+    """A configuration file's value as the text the option would be given on the command line."""
+    if key == "times" and isinstance(value, list):
+        value = ",".join(repr(v) if isinstance(v, float) else str(v) for v in value)
+    if isinstance(value, bool) or not isinstance(value, str | int | float):
+        raise ValueError(f"{source}: {key}={value!r} is not accepted: a number or a string"
+                         + (" (times: a list of numbers)" if key == "times" else ""))
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def _load_config(ctx: typer.Context, value: Path | None) -> Path | None:
+    """`--config FILE` (eager): the file's keys become the command's defaults (Click's
+    ``default_map``), so that an option given on the command line overrides them; refusals name
+    the file and its key."""
+    if value is None or ctx.resilient_parsing:
+        return value
+    from stochpend._toml import read_toml
+
+    try:
+        text, data = read_toml(value, "--config")
+        source = value.name
+        defaults: dict[str, str] = {}
+        for raw_key, item in data.items():
+            key = raw_key.replace("-", "_")
+            if key in _CONFIG_REFUSED:
+                raise ValueError(f"{source}: {raw_key} is not accepted in a configuration file: {_CONFIG_REFUSED[key]}")
+            if key not in CONFIG_KEYS:
+                raise ValueError(f"{source}: {raw_key} is not accepted: unknown key; accepted: {', '.join(CONFIG_KEYS)}")
+            defaults[key] = _config_value(raw_key, item, source)
+    except ValueError as exc:
+        fail(str(exc))
+    ctx.default_map = {**(ctx.default_map or {}), **defaults}
+    ctx.meta["stochpend.config_file"] = (value.name, set(defaults))
+    ctx.meta["stochpend.config_text"] = text
+    return value
+
+
+def _config_keys_in_use(ctx: typer.Context) -> None:
+    """Errors about a value the configuration file set name the file's key, not the option."""
+    source, keys = ctx.meta.get("stochpend.config_file", ("", set()))
+    used = {}
+    for key in keys:
+        if ctx.get_parameter_source(key) is not None and ctx.get_parameter_source(key).name == "DEFAULT_MAP":
+            used[key] = source
+    ctx.meta["stochpend.config_keys"] = used
+
+
 @app.command()
 @handles_errors
 def simulate(
@@ -579,9 +641,18 @@ def simulate(
     checkpoint_every: Annotated[str | None, typer.Option("--checkpoint-every", help="Checkpoint interval, e.g. 30s, 5m, 1h (needs --checkpoint).", show_default="5m")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
+    config_file: Annotated[Path | None, typer.Option("--config", parser=file_name, is_eager=True, callback=_load_config,
+                                                help="A TOML file of physics and numerics options, by their names here "
+                                                "(noise, D, tau, t_max, paths, h_max, ...); options on the command "
+                                                "line override it. It cannot set --out, --overwrite or --checkpoint.",
+                                                show_default="none")] = None,
+    ctx: typer.Context = None,  # type: ignore[assignment]
 ) -> None:
     """Simulate an ensemble and print the energy statistics (optionally save them as NetCDF)."""
     from stochpend import io, params, resources
+
+    if ctx is not None:
+        _config_keys_in_use(ctx)
     from stochpend.simulate import resolve_backend
     from stochpend.simulate import simulate as run_simulation
 
@@ -653,6 +724,9 @@ def simulate(
                 accuracy=accuracy, rtol=rtol, **kwargs,
             )
         ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
+        if config_file is not None and ctx is not None:  # provenance: the file as it was read
+            ds.attrs["config_file"] = str(config_file)
+            ds.attrs["config_text"] = ctx.meta.get("stochpend.config_text", "")
         if out is not None:
             io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:

@@ -41,7 +41,6 @@ import json
 import math
 import os
 import time as _time
-import tomllib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -238,18 +237,11 @@ def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepSpec) -> SweepS
         source = "sweep"
         text = json.dumps(data, sort_keys=True, default=str)
     else:
+        from stochpend._toml import read_toml
+
         p = Path(spec)
         source = p.name
-        if not p.is_file():
-            raise ValueError(f"sweep={str(p)!r} is not accepted: no such file")
-        try:
-            text = p.read_text(encoding="utf-8")
-            data = tomllib.loads(text)
-        except UnicodeDecodeError as exc:
-            raise ValueError(f"sweep={str(p)!r} is not accepted: not UTF-8 text ({exc})") from None
-        except (ValueError, RecursionError) as exc:  # TOMLDecodeError; an integer of 5000 digits
-            why = "nested too deeply" if isinstance(exc, RecursionError) else " ".join(str(exc).split())
-            raise ValueError(f"sweep={str(p)!r} is not accepted: invalid TOML ({why})") from None
+        text, data = read_toml(p, "sweep")
 
     for key in data:
         if key not in TOP_LEVEL:

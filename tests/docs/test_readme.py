@@ -27,7 +27,7 @@ from typer.testing import CliRunner
 README = Path(__file__).resolve().parents[2] / "README.md"
 
 PARSE_ONLY = ("--backend cuda", "--paths 1e8", "reproduce all", "tcp://", "resume big.ckpt",
-              "--precision float32")
+              "--precision float32", "--install-completion")
 
 
 def _blocks() -> list[tuple[str, str]]:
@@ -73,6 +73,7 @@ def test_readme_command_lines_run_or_parse(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "sweep.toml").write_text('[base]\nnoise = "ou"\npaths = 100\nt_max = 2.0\n'
                                          'n_times = 3\n[grid]\nD = [0.5, 1.0]\n')
+    (tmp_path / "run.toml").write_text('noise = "ou"\nD = 1.0\ntau = 1.0\nt_max = 20.0\nn_times = 4\n')
     block = _blocks()[2][1]
     runner = CliRunner()
     ran = parsed = 0

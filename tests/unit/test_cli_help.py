@@ -10,6 +10,7 @@ import subprocess
 import sys
 from typing import Any
 
+import numpy as np
 import pytest
 import typer.core
 import typer.main
@@ -210,3 +211,64 @@ def test_empty_file_name_is_refused_as_empty(args: list[str], named: str) -> Non
     line = _error_line(args)
     assert line == f"error: {named} is not accepted: the name is empty; give a file name", line
     assert "'.'" not in line
+
+
+# -- shell completion ------------------------------------------------------------------------
+def test_completion_script_and_completions():
+    """`stochpend --show-completion bash` prints a script; the script's protocol completes
+    commands and options."""
+    import os
+
+    result = CliRunner().invoke(cli.app, ["--show-completion", "bash"], prog_name="stochpend")
+    assert result.exit_code == 0 and "_stochpend_completion" in result.output, result.output
+    env = {**os.environ, "COMP_WORDS": "stochpend simulate --noi", "COMP_CWORD": "2",
+           "_STOCHPEND_COMPLETE": "complete_bash"}
+    code = "import sys; sys.argv[0] = 'stochpend'; from stochpend.cli import app; app(prog_name='stochpend')"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
+    assert proc.stdout.split() == ["--noise"], (proc.stdout, proc.stderr)
+
+
+# -- simulate --config run.toml ----------------------------------------------------------------
+def _config(tmp_path, text: str):
+    path = tmp_path / "run.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_config_file_sets_options_and_the_command_line_overrides(tmp_path):
+    import stochpend
+    from stochpend import io
+
+    cfg = _config(tmp_path, 'noise = "white"\nD = 0.5\npaths = 120\nt-max = 5.0\nn_times = 3\nseed = 7\n')
+    r = CliRunner().invoke(cli.app, ["simulate", "--config", str(cfg), "--quiet", "--out", str(tmp_path / "a.nc")])
+    assert r.exit_code == 0, r.output
+    a = io.open_results(tmp_path / "a.nc")
+    direct = stochpend.simulate(noise="white", D=0.5, paths=120, t_max=5.0, n_times=3, seed=7)
+    assert np.array_equal(a["mean_E"].values, direct["mean_E"].values)
+    assert a.attrs["config_text"] == cfg.read_text() and a.attrs["config_file"] == str(cfg)
+    r = CliRunner().invoke(cli.app, ["simulate", "--config", str(cfg), "--paths", "64", "--quiet",
+                                     "--out", str(tmp_path / "b.nc")])
+    assert r.exit_code == 0, r.output
+    b = io.open_results(tmp_path / "b.nc")
+    assert int(b.attrs["paths"]) == 64 and float(b.attrs["D"]) == 0.5
+
+
+@pytest.mark.parametrize("text,needle", [
+    ("overwrite = true\n", "run.toml: overwrite is not accepted in a configuration file: only the command line"),
+    ('out = "/home/someone/precious.nc"\n', "run.toml: out is not accepted in a configuration file"),
+    ('checkpoint = "x.ckpt"\n', "run.toml: checkpoint is not accepted in a configuration file"),
+    ("tmax = 3\n", "run.toml: tmax is not accepted: unknown key; accepted: noise, D, tau"),
+    ("D = -1\n", "run.toml: D=-1.0 is not accepted"),
+    ("paths = [1, 2]\n", "run.toml: paths=[1, 2] is not accepted: a number or a string"),
+    ("paths = 'abc'\n", "run.toml: paths='abc' is not accepted: an integer"),
+    ("D = [\n", "--config='"),
+])
+def test_config_file_refusals_are_one_line_naming_the_key(tmp_path, text, needle):
+    cfg = _config(tmp_path, text)
+    r = CliRunner().invoke(cli.app, ["simulate", "--config", str(cfg), "--quiet", "--paths", "10", "--t-max", "1"]
+                           if "paths" not in text and "D = -1" not in text else
+                           ["simulate", "--config", str(cfg), "--quiet", "--t-max", "1"])
+    assert r.exit_code == 2, r.output
+    lines = r.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and needle in lines[0], r.output
+    assert not list(tmp_path.glob("*.nc"))
