@@ -188,8 +188,17 @@ class OneLineErrorsGroup(TyperGroup):
             raise typer.Exit(128 + getattr(exc, "signum", 2)) from None
 
 
+#: Whether this process is the command line's own (``main``), not a Python caller of ``app``
+#: (a test's CliRunner): only then may a command change the process's signal dispositions.
+_OWNS_PROCESS = False
+
+
 def _stop_listening() -> None:
-    """Ignore further Ctrl-C and SIGTERM/SIGHUP: the command is already exiting after one."""
+    """Ignore further Ctrl-C and SIGTERM/SIGHUP: the command is already exiting after one. Only
+    in the tool's own process: an ignored signal would outlive the call in a caller's process,
+    and its child processes would inherit it."""
+    if not _OWNS_PROCESS:
+        return
     import signal
 
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
@@ -1046,6 +1055,9 @@ app.command("resume")(resume_command)
 
 
 def main() -> None:  # pragma: no cover
+    """The ``stochpend`` command (the console script and ``python -m stochpend``)."""
+    global _OWNS_PROCESS
+    _OWNS_PROCESS = True
     app()
 
 

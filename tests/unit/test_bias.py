@@ -162,11 +162,11 @@ def test_auto_refines_a_coarse_step_and_accepts_a_loose_tolerance():
 @pytest.mark.parametrize(
     ("args", "needle"),
     [
-        (["--accuracy", "best"], "accuracy='best' is not accepted: one of fixed, auto"),
-        (["--rtol", "2"], "rtol=2.0 is not accepted: a number in (0, 1)"),
-        (["--rtol", "nan"], "rtol=nan is not accepted"),
-        (["--bias-paths", "1"], "bias_paths=1 is not accepted: an integer >= 2"),
-        (["--accuracy", "auto", "--checkpoint", "ck.npz"], "accuracy='auto' is not accepted with --checkpoint"),
+        (["--accuracy", "best"], "--accuracy 'best' is not accepted: one of fixed, auto"),
+        (["--rtol", "2"], "--rtol 2.0 is not accepted: a number in (0, 1)"),
+        (["--rtol", "nan"], "--rtol nan is not accepted"),
+        (["--bias-paths", "1"], "--bias-paths 1 is not accepted: an integer >= 2"),
+        (["--accuracy", "auto", "--checkpoint", "ck.npz"], "--accuracy 'auto' is not accepted with --checkpoint"),
     ],
 )
 def test_cli_refuses_bad_accuracy_options(args, needle, tmp_path, monkeypatch):

@@ -292,7 +292,7 @@ def test_two_runs_finishing_on_one_out(tmp_path, seed_references, overwrite):
     assert loser != winners[0]
     line = _one_line(results[loser][0][1])
     ckpt = tmp_path / f"run{loser}.ckpt"
-    assert line == (f"error: out={str(out)!r} is not accepted: the file exists (another process wrote it "
+    assert line == (f"error: --out {str(out)!r} is not accepted: the file exists (another process wrote it "
                     f"while this one ran; pass --overwrite to replace it); the finished run is kept in "
                     f"{str(ckpt)!r}: `stochpend resume {ckpt}` writes it (add --out FILE to write it "
                     "elsewhere)"), line

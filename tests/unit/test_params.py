@@ -58,28 +58,28 @@ def test_fixed_point_refusal_only_at_rest():
 
 
 BAD_CLI = [
-    (["--D", "-1"], "D=-1.0"),
-    (["--tau", "0"], "tau=0.0"),
-    (["--omega", "-1"], "omega=-1.0"),
-    (["--paths", "0"], "paths=0"),
-    (["--t-max", "0"], "t_max=0.0"),
-    (["--seed", "-3"], "seed=-3"),
-    (["--D", "nan"], "D=nan"),
-    (["--t-max", "inf"], "t_max=inf"),
-    (["--noise", "pink"], "noise='pink'"),
-    (["--times", "10,5"], "times="),
-    (["--times", "1,2000"], "times="),
-    (["--times", "a,b"], "times='a,b'"),
-    (["--theta0", "0"], "theta0=0.0"),
-    (["--theta0", "north"], "theta0='north'"),
-    (["--out", "/nonexistent-dir/x.nc"], "out="),
-    (["--potential", "cubic"], "potential='cubic'"),
-    (["--coupling", "velocity"], "coupling='velocity'"),
-    (["--coupling", "position"], "coupling='position'"),  # the pendulum's angle is periodic
-    (["--potential", "power", "--n", "0"], "power_n=0"),
-    (["--noise", "ou", "--omega-noise", "2"], "omega_noise=2.0"),
-    (["--noise", "harmonic", "--omega-noise", "0"], "omega_noise=0.0"),
-    (["--noise", "dichotomous", "--tau", "-1"], "tau=-1.0"),
+    (["--D", "-1"], "--D -1.0"),
+    (["--tau", "0"], "--tau 0.0"),
+    (["--omega", "-1"], "--omega -1.0"),
+    (["--paths", "0"], "--paths 0"),
+    (["--t-max", "0"], "--t-max 0.0"),
+    (["--seed", "-3"], "--seed -3"),
+    (["--D", "nan"], "--D nan"),
+    (["--t-max", "inf"], "--t-max inf"),
+    (["--noise", "pink"], "--noise 'pink'"),
+    (["--times", "10,5"], "--times "),
+    (["--times", "1,2000"], "--times "),
+    (["--times", "a,b"], "--times 'a,b'"),
+    (["--theta0", "0"], "--theta0 0.0"),
+    (["--theta0", "north"], "--theta0 'north'"),
+    (["--out", "/nonexistent-dir/x.nc"], "--out "),
+    (["--potential", "cubic"], "--potential 'cubic'"),
+    (["--coupling", "velocity"], "--coupling 'velocity'"),
+    (["--coupling", "position"], "--coupling 'position'"),  # the pendulum's angle is periodic
+    (["--potential", "power", "--n", "0"], "--n 0"),
+    (["--noise", "ou", "--omega-noise", "2"], "--omega-noise 2.0"),
+    (["--noise", "harmonic", "--omega-noise", "0"], "--omega-noise 0.0"),
+    (["--noise", "dichotomous", "--tau", "-1"], "--tau -1.0"),
 ]
 
 
@@ -127,7 +127,7 @@ def test_cuda_refused_with_reason_where_there_is_no_gpu():
     result = CliRunner().invoke(app, ["simulate", "--paths", "10", "--t-max", "1", "--backend", "cuda"])
     assert result.exit_code == 2
     lines = [ln for ln in result.output.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "backend='cuda'" in lines[0] and "stochpend[cuda]" in lines[0], result.output
+    assert len(lines) == 1 and "--backend 'cuda'" in lines[0] and "stochpend[cuda]" in lines[0], result.output
     # auto falls back to the CPU
     ds = stochpend.simulate(paths=10, t_max=0.5, n_times=1, backend="auto")
     assert ds.attrs["backend"] == "cpu"

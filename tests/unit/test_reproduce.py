@@ -194,7 +194,7 @@ def test_cli_reproduce_on_an_unusable_gpu_is_one_line(tmp_path, monkeypatch) -> 
                                       "--out", str(tmp_path / "x")])
     assert res.exit_code == 2
     lines = [line for line in res.output.splitlines() if line.strip()]
-    assert len(lines) == 1 and "backend='cuda' is not accepted" in lines[0], res.output
+    assert len(lines) == 1 and "--backend 'cuda' is not accepted" in lines[0], res.output
     assert not (tmp_path / "x").exists()
 
 

@@ -213,7 +213,7 @@ def test_missing_file_and_bad_arguments(tmp_path):
         sweep(p, scheduler="bogus")
     with pytest.raises(ValueError, match="tasks_per_set=0 is not accepted"):
         sweep(p, tasks_per_set=0)
-    with pytest.raises(ValueError, match="workers=0 is not accepted"):
+    with pytest.raises(ValueError, match="--workers 0 is not accepted"):
         sweep(p, workers=0)
 
 
@@ -248,8 +248,8 @@ def test_cli_sweep_writes_netcdf(tmp_path, app):
     [
         (GRID.replace("tau = [0.1, 1, 10]", "taux = [0.1, 1]"), [], "grid.taux is not accepted"),
         (GRID.replace("D = [1, 10]", "D = [1, -10]"), [], "D=-10.0 is not accepted"),
-        (GRID, ["--scheduler", "nowhere"], "scheduler='nowhere' is not accepted"),
-        (GRID, ["--workers", "0"], "workers=0 is not accepted"),
+        (GRID, ["--scheduler", "nowhere"], "--scheduler 'nowhere' is not accepted"),
+        (GRID, ["--workers", "0"], "--workers 0 is not accepted"),
     ],
 )
 def test_cli_refusals_exit_2(tmp_path, app, text, args, needle):
