@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from stochpend._files import write_atomic
-from stochpend.figures._common import COLUMNS, DASH, describe_attrs, fmt_num
+from stochpend.figures._common import COLUMNS, DASH, describe_attrs, fmt_num, fmt_se
 from stochpend.paper import with_numbers
 
 __all__ = ["build_report", "write_report"]
@@ -98,7 +98,7 @@ def _fmt_float(x: Any, spec: str = ".3g") -> str:
 
 def _runs_table(records: list[Any]) -> str:
     header = ["File", "Physics", "Paths", "Times", "Seed", "Batches", "Status", "Wall time (s)",
-              "Path-steps", "Non-finite paths", "Created"]
+              "Path-steps", "Non-finite paths", "Bias of ⟨E⟩ at the last t", "Created"]
     rows = []
     for r in records:
         a = r.attrs
@@ -114,9 +114,22 @@ def _runs_table(records: list[Any]) -> str:
             _fmt_float(a.get("wall_time_s"), ".1f"),
             _fmt_float(a.get("path_steps"), ".3g"),
             str(r.nonfinite_paths),
+            _bias_text(getattr(r, "late_bias", None)),
             str(a.get("created", DASH)),
         ])
     return _table(header, rows)
+
+
+def _bias_text(late: tuple[float, float, int] | None) -> str:
+    """The discretisation bias of <E> at a run's last output time, with what the estimate
+    says (stochpend.bias.assess): 'certified small', 'significant' or 'unresolved'."""
+    from stochpend import bias
+
+    if late is None:
+        return DASH
+    value, error, verdict = late
+    word = {bias.CERTIFIED_SMALL: "certified small", bias.SIGNIFICANT: "significant"}.get(verdict, "unresolved")
+    return f"{fmt_se(value, error)} ({word})"
 
 
 def _image(path: Path, alt: str) -> str:

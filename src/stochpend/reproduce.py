@@ -85,6 +85,9 @@ class RunRecord:
     status: str  # "simulated", "cached" (read from disk) or "shared" (used by an earlier figure)
     attrs: dict[str, Any]
     nonfinite_paths: int
+    #: The discretisation bias of <E> at the run's last output time: (bias, its error, verdict
+    #: of stochpend.bias.assess), or None for a run without the estimate.
+    late_bias: tuple[float, float, int] | None = None
 
     @property
     def wall_time_s(self) -> float:
@@ -304,7 +307,7 @@ def reproduce(
                         status = "simulated"
                     loaded[path] = ds
                 rec = RunRecord(s.key, s, path, s.cache_key(__version__, *where), status, dict(ds.attrs),
-                                int(ds["nonfinite_paths"].values[-1]))
+                                int(ds["nonfinite_paths"].values[-1]), _late_bias(ds))
                 records.setdefault(path, rec)
                 fig_runs.append(rec)
                 datasets[s.key] = ds
@@ -394,6 +397,17 @@ def _run_path(out: Path, spec: RunSpec, where: tuple[str, str] = ("cpu", "float6
     return out / "runs" / f"{spec.key}-n{spec.paths}-T{spec.t_max:g}-{spec.cache_key(__version__, *where)[:12]}.nc"
 
 
+def _late_bias(ds: xr.Dataset) -> tuple[float, float, int] | None:
+    """(bias, error, verdict) of <E> at the last output time (the report's runs table)."""
+    from stochpend import bias
+
+    if "mean_E_bias" not in ds:
+        return None
+    assessment = bias.assess_dataset(ds)
+    verdict = int(assessment.verdict["mean_E"][-1]) if assessment is not None else bias.INCONCLUSIVE
+    return float(ds["mean_E_bias"].values[-1]), float(ds["mean_E_bias_stderr"].values[-1]), verdict
+
+
 def _load_cached(path: Path, spec: RunSpec, where: tuple[str, str] = ("cpu", "float64"),
                  log: Callable[[str], None] = lambda message: None) -> xr.Dataset | None:
     """The stored run if it exists, its checksum holds and its stored hash matches the spec;
@@ -450,6 +464,7 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None,
     """
     import numba
 
+    from stochpend import bias
     from stochpend.params import SimulationConfig, hist_edges
     from stochpend.runner import run_batches
     from stochpend.simulate import provenance
@@ -462,12 +477,18 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None,
     try:
         sums, path_steps = run_batches(config, 0, config.n_batches, backend=where[0],
                                        precision=where[1], progress=progress)
+        wall_main = time.perf_counter() - started
+        # The discretisation bias as simulate estimates it (its default subsample of coupled
+        # pairs): the report gives it beside the late-time values.
+        est = bias.estimate(config, bias.default_bias_paths(config.paths), backend=where[0])
     finally:
         numba.set_num_threads(previous)
     wall = time.perf_counter() - started
     attrs = provenance(config, backend=where[0], precision=where[1], threads=threads or previous,
                        wall_time_s=wall, path_steps=path_steps)
+    attrs["simulation_wall_time_s"] = wall_main
     ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
+    bias.attach(ds, est, None)
     ds["batch_sums"] = (
         ("batch", "time", "sum_component"),
         np.asarray(sums.sums, dtype=np.float64),

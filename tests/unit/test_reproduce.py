@@ -52,6 +52,9 @@ def _check_complete(result) -> None:
     for label in ("eq:scalEblanc", "eq:scalEcolor", "tpcross", "avbfpe", "eq:skewEcolor"):
         assert label not in html, label
     assert "Eqs. (9)–(11)" in html and "Eq. (54)" in html and "Eq. (58)" in html
+    # the bias of <E> at each run's last time, beside its late values, with the estimate's verdict
+    assert "Bias of ⟨E⟩ at the last t" in html
+    assert sum(html.count(w) for w in ("(certified small)", "(significant)", "(unresolved)")) >= len(result.runs)
 
 
 def test_tiny_reproduce_all_produces_every_file_and_fills_every_table(tiny) -> None:
