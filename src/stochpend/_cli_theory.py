@@ -38,15 +38,19 @@ def _num(v: float) -> str:
 
 def theory_table(rows: list[Any], *, title: str) -> Table:
     """A rich table of :class:`stochpend.theory.Prediction` rows, one section per regime."""
+    from stochpend.paper import with_numbers
+
+    # Text columns fold rather than end in '…' at 80 columns; the equation is the paper's number.
     table = Table(title=title, show_lines=False)
-    for col, kw in (("regime", {}), ("quantity", {"no_wrap": True}), ("value", {"justify": "right", "no_wrap": True}),
-                    ("equation", {}), ("valid for", {}), ("note", {})):
-        table.add_column(col, **kw)
+    for col, kw in (("regime", {"ratio": 3}), ("quantity", {"no_wrap": True}),
+                    ("value", {"justify": "right", "no_wrap": True}), ("equation", {"ratio": 2}),
+                    ("valid for", {"ratio": 3}), ("note", {"ratio": 4})):
+        table.add_column(col, overflow="fold", **kw)
     previous = None
     for r in rows:
         if previous is not None and r.regime != previous:
             table.add_section()
-        table.add_row(r.regime if r.regime != previous else "", r.quantity, _num(r.value), r.equation,
+        table.add_row(r.regime if r.regime != previous else "", r.quantity, _num(r.value), with_numbers(r.equation),
                       r.validity, r.note)
         previous = r.regime
     return table
