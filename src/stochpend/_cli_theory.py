@@ -79,30 +79,49 @@ def theory_command(
     results.print(theory_table(rows, title=f"Predictions at t = {time:g}: {noise.lower()} noise, {params}"))
 
 
-def bfpe_table(ds: Any, max_rows: int = 12) -> Table:
-    """Short table of a :func:`stochpend.theory.solve_bfpe` result."""
+def bfpe_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Table:
+    """Short table of a :func:`stochpend.theory.solve_bfpe` result, fitted to ``width`` columns
+    (a terminal's; None: no limit): columns that do not fit are left out, the least needed
+    first, and the caption says which (numbers are never cut or folded)."""
     D = float(ds.attrs["D"])
     tau = float(ds.attrs["tau"])
-    table = Table(title=f"Averaged B.F.P.E. (avbfpe, omega = 0): D={D:g}, tau={tau:g}, t_c={1 / (D * tau**2):.4g}")
-    for col in ("t", "t/t_c", "<E>", "<E>/(Dt/tau^2)^1/2", "<E2>/(Dt/tau^2)", "phi", "S", "F", "identity res."):
-        table.add_column(col, justify="right", no_wrap=True)
     n = ds.sizes["time"]
     shown = min(max_rows, n)
     idx = sorted({round(k * (n - 1) / max(shown - 1, 1)) for k in range(shown)})
+    columns: dict[str, list[str]] = {name: [] for name in (
+        "t", "t/t_c", "<E>", "<E>/(Dt/tau^2)^1/2", "<E2>/(Dt/tau^2)", "phi", "S", "F", "identity res.")}
     for i in idx:
         r = ds.isel(time=i)
         t = float(r.time)
         x = D * t / tau**2
-        table.add_row(
-            f"{t:.4g}", f"{D * tau**2 * t:.4g}", _num(float(r.mean_E)), _num(float(r.mean_E) / math.sqrt(x)),
-            _num(float(r.mean_E2) / x), _num(float(r.phi)), _num(float(r.skewness)), _num(float(r.flatness)),
-            f"{float(r.identity_residual):.1e}",
-        )
+        cells = (f"{t:.4g}", f"{D * tau**2 * t:.4g}", _num(float(r.mean_E)), _num(float(r.mean_E) / math.sqrt(x)),
+                 _num(float(r.mean_E2) / x), _num(float(r.phi)), _num(float(r.skewness)), _num(float(r.flatness)),
+                 f"{float(r.identity_residual):.1e}")
+        for name, cell in zip(columns, cells, strict=True):
+            columns[name].append(cell)
+
+    def needed(names: list[str]) -> int:
+        return 1 + sum(3 + max(len(name), *(len(c) for c in columns[name])) for name in names)
+
+    names = list(columns)
+    dropped: list[str] = []
+    for name in ("identity res.", "t/t_c", "<E2>/(Dt/tau^2)", "phi"):
+        if width is None or needed(names) <= width:
+            break
+        names.remove(name)
+        dropped.append(name)
+    table = Table(title=f"Averaged B.F.P.E. ({eq('avbfpe')}, omega = 0): D={D:g}, tau={tau:g}, "
+                        f"t_c={1 / (D * tau**2):.4g}")
+    for name in names:
+        table.add_column(name, justify="right", no_wrap=True)
+    for row in zip(*(columns[name] for name in names), strict=True):
+        table.add_row(*row)
     from stochpend.theory import laws
 
     table.caption = (
         f"t >> t_c limits (second-order averaging): {laws.OU2_MEAN_PREFACTOR:.6f}, {laws.OU2_MEAN_E2_PREFACTOR:g}, "
         f"phi {laws.PHI_INF:.6f}, S {laws.OU2_SKEWNESS:.6f}, F {laws.OU2_FLATNESS:g}."
+        + (f" Not shown at this width: {', '.join(dropped)} (--format csv has all)." if dropped else "")
     )
     return table
 
@@ -133,7 +152,7 @@ def bfpe_command(
     if out is not None:
         io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
-        results.print(bfpe_table(ds))
+        results.print(bfpe_table(ds, width=results.width))
         if out is not None:
             console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
 

@@ -924,7 +924,7 @@ def show(
         elif kind == "bfpe":
             from stochpend._cli_theory import bfpe_table
 
-            tables = [bfpe_table(ds, max_rows=rows)]
+            tables = [bfpe_table(ds, max_rows=rows, width=results.width)]
         else:
             tables = [summary_table(ds, max_rows=rows, width=results.width)]
             if kind == "reduced":
