@@ -461,6 +461,17 @@ def accumulate_kernel(spec: Spec):
     return accumulate
 
 
+def compiled_kernels(spec: Spec, *, pairs: bool = True) -> dict[str, object]:
+    """The Numba dispatchers a run of ``spec`` calls, by kind (``resources.COMPILE_S``):
+    ``init``, ``advance``, ``accumulate`` and, with ``pairs`` (the bias estimate), ``pairs``.
+    Nothing is compiled here."""
+    out = {"init": init_kernel(spec), "advance": advance_kernel(spec),
+           "accumulate": accumulate_kernel(spec)}
+    if pairs:
+        out["pairs"] = pair_advance_kernel(spec)
+    return {kind: getattr(kernel, "kernel", kernel) for kind, kernel in out.items()}
+
+
 def kernels(spec: Spec) -> SimpleNamespace:
     """``init``, ``advance`` and ``accumulate`` for ``spec`` (compiled on first call)."""
     return SimpleNamespace(init=init_kernel(spec), advance=advance_kernel(spec),
