@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 from types import SimpleNamespace
 
 import numba
@@ -90,14 +91,15 @@ def spec_for(config, precision: str = "float64") -> Spec:
 def init_kernel(spec: Spec):
     """``init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
     uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W)``: initial conditions of global
-    paths path0 .. path0 + len(x) - 1 (draws 0 and 1); depends on the noise only."""
+    paths path0 .. path0 + len(x) - 1 (draws 0 and 1); depends on the noise only. The paths
+    are shared among the threads in ranges (:func:`_ranges`)."""
     init_path = integrator.initial_state(spec.noise)
 
-    @numba.njit(parallel=True, cache=spec.noise.builtin)
+    @numba.njit(nogil=True, cache=spec.noise.builtin)
     @own_index(spec.noise.name)
-    def init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
+    def init(lo, hi, x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
              uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W):  # pragma: no cover
-        for i in prange(x.shape[0]):
+        for i in range(lo, hi):
             x[i], Omega[i], xi[i], xi_aux[i] = init_path(
                 key0, key1, _U64(path0 + i), theta0, uniform_theta0, Omega0, xi0,
                 stationary_xi0, D, tau, W)
@@ -106,7 +108,26 @@ def init_kernel(spec: Spec):
             k[i] = 0
             status[i] = 0
 
-    return init
+    return _ranges(init)
+
+
+def _ranges(kernel, items: int = 0):
+    """A kernel over items ``lo .. hi - 1`` (rows of its argument ``items``) as one over all:
+    one contiguous range per Numba thread (``numba.get_num_threads()``), run on threads
+    (:func:`_on_workers`). For kernels whose items are independent (paths, batches), so the
+    numbers do not depend on the split. A plain ``nogil`` kernel, not a ``parallel=True`` one:
+    Numba's parallel lowering compiles such a kernel and what it calls twice over (about 1 s
+    more each on a cold cache)."""
+
+    def run(*args):
+        n_items = args[items].shape[0]
+        nw = max(1, min(numba.get_num_threads(), n_items))
+        size = -(-n_items // nw)
+        _on_workers(lambda w: kernel(min(w * size, n_items), min((w + 1) * size, n_items),
+                                     *args), nw)
+
+    run.kernel = kernel
+    return run
 
 
 @functools.lru_cache(maxsize=None)
@@ -118,7 +139,7 @@ def advance_kernel(spec: Spec):
     if spec.fast_math and integrator.build(spec).lockstep:
         return _with_scratch(_lockstep_kernel(spec), (6, BLOCK), (2, BLOCK), (0, BLOCK))
     if integrator.lanes_supported(spec):
-        return _with_scratch(_lanes_kernel(spec), (integrator.LANE_F_ROWS, integrator.LANE_COUNT),
+        return _with_workers(_lanes_kernel(spec), (integrator.LANE_F_ROWS, integrator.LANE_COUNT),
                              (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
                              (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
     return path_kernel(spec)
@@ -208,31 +229,100 @@ def _take(typingctx, counter):
 
 
 def _lanes_kernel(spec: Spec):
+    """One worker of the lane machine (``build_lanes``): takes pieces of the paths from the
+    shared counter ``next_piece`` until none is left; :func:`_with_workers` runs ``nw`` of them
+    on threads. A plain ``nogil`` function, not a ``parallel=True`` one: Numba's parallel
+    lowering compiles the driver twice over (about 2 s more on a cold cache) for a loop over
+    the workers that Python threads run as well."""
     advance_range = integrator.build_lanes(spec).advance_range
 
-    @numba.njit(parallel=True, cache=spec.cacheable, error_model="numpy")
+    @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label)
     def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
-                path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js,
-                next_piece):  # pragma: no cover - compiled
+                path0, D, tau, W, omega2, n, h_max, step_c, f, u, j, next_piece,
+                nw):  # pragma: no cover - compiled
         n_paths = x.shape[0]
-        nw = _workers(n_paths, fs.shape[0])
         n_pieces, size = _pieces(n_paths, nw)
         rk0, rk1 = rng.round_keys(key0, key1)  # the same for every path
         steps_taken = 0
         unfinished = 0
-        for w in prange(nw):
+        piece = _take(next_piece)
+        while piece < n_pieces:
+            s, uf = advance_range(piece * size, min((piece + 1) * size, n_paths), x, Omega, xi,
+                                  xi_aux, t, t_comp, k, status, t_target, max_steps, rk0, rk1,
+                                  path0, D, tau, W, omega2, n, h_max, step_c, f, u, j)
+            steps_taken += s
+            unfinished += uf
             piece = _take(next_piece)
-            while piece < n_pieces:
-                s, u = advance_range(piece * size, min((piece + 1) * size, n_paths), x, Omega,
-                                     xi, xi_aux, t, t_comp, k, status, t_target, max_steps, rk0,
-                                     rk1, path0, D, tau, W, omega2, n, h_max, step_c, fs[w],
-                                     us[w], js[w])
-                steps_taken += s
-                unfinished += u
-                piece = _take(next_piece)
         return steps_taken, unfinished
 
+    return advance
+
+
+_POOL = None
+
+
+def _pool():
+    """The threads that run the lane workers beside the calling thread (made on first use, and
+    again in a forked child, whose copy of the pool has no threads)."""
+    global _POOL
+    if _POOL is None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL = ThreadPoolExecutor(max_workers=max(1, numba.config.NUMBA_NUM_THREADS - 1),
+                                   thread_name_prefix="stochpend-lanes")
+    return _POOL
+
+
+def _forget_pool() -> None:
+    global _POOL
+    _POOL = None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool)
+
+
+def _on_workers(call, nw: int) -> list:
+    """``[call(w) for w in range(nw)]``, worker 0 on this thread and the others on the pool
+    (the kernels release the GIL). Returns only when every worker has returned, also on
+    Ctrl-C, so no worker is still writing the arrays when the caller goes on (a checkpoint, an
+    error)."""
+    if nw == 1:
+        return [call(0)]
+    from concurrent.futures import wait
+
+    futures = [_pool().submit(call, w) for w in range(1, nw)]
+    try:
+        first = call(0)
+    finally:
+        interrupted = None
+        while True:
+            try:
+                wait(futures)
+                break
+            except BaseException as exc:  # noqa: BLE001 - re-raised once the workers are done
+                interrupted = exc
+        if interrupted is not None:
+            raise interrupted
+    return [first, *(future.result() for future in futures)]
+
+
+def _with_workers(kernel, f_shape, u_shape, i_shape):
+    """``advance`` with the driver's signature for a lane worker ``kernel``: one worker per Numba
+    thread (``numba.get_num_threads()``, which ``threads=`` sets), at most one per path, each
+    with its own scratch (a few kB, allocated here so that the kernel allocates nothing)."""
+
+    def advance(*args):
+        nw = max(1, min(numba.get_num_threads(), args[0].shape[0]))
+        fs = np.empty((nw, *f_shape))
+        us = np.empty((nw, *u_shape), dtype=np.uint64)
+        js = np.empty((nw, *i_shape), dtype=np.int64)
+        next_piece = np.zeros(1, dtype=np.int64)
+        done = _on_workers(lambda w: kernel(*args, fs[w], us[w], js[w], next_piece, nw), nw)
+        return sum(d[0] for d in done), sum(d[1] for d in done)
+
+    advance.kernel = kernel
     return advance
 
 
@@ -246,21 +336,10 @@ def pair_advance_kernel(spec: Spec):
     math, so the pairs cost what the run's own paths cost per step; else one pair at a time
     (``Integrator.advance_pair``), as the run's paths go one at a time."""
     if integrator.lanes_supported(spec):
-        kernel = _pair_lanes_kernel(spec)
-
-        def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-                    key0, key1, path0, D, tau, W, omega2, n, h_max, step_c):
-            workers = numba.get_num_threads()
-            fs = np.empty((workers, integrator.PAIR_LANE_F_ROWS, integrator.LANE_COUNT))
-            us = np.empty((workers, integrator.LANE_U_ROWS, integrator.LANE_COUNT), dtype=np.uint64)
-            js = np.empty((workers, integrator.LANE_I_ROWS, integrator.LANE_COUNT), dtype=np.int64)
-            next_piece = np.zeros(1, dtype=np.int64)
-            return kernel(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
-                          max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, fs,
-                          us, js, next_piece)
-
-        advance.kernel = kernel
-        return advance
+        return _with_workers(_pair_lanes_kernel(spec),
+                             (integrator.PAIR_LANE_F_ROWS, integrator.LANE_COUNT),
+                             (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
+                             (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
     return _pair_path_kernel(spec)
 
 
@@ -285,29 +364,27 @@ def _pair_path_kernel(spec: Spec):
 
 
 def _pair_lanes_kernel(spec: Spec):
+    """One worker of the pair lane machine (``build_pair_lanes``), as :func:`_lanes_kernel`."""
     advance_range = integrator.build_pair_lanes(spec).advance_range
 
-    @numba.njit(parallel=True, cache=spec.cacheable, error_model="numpy")
+    @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label + "/pairs")
     def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-                key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js,
-                next_piece):  # pragma: no cover - compiled
+                key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, f, u, j, next_piece,
+                nw):  # pragma: no cover - compiled
         n_paths = x.shape[0]
-        nw = _workers(n_paths, fs.shape[0])
         n_pieces, size = _pieces(n_paths, nw)
         rk0, rk1 = rng.round_keys(key0, key1)
         draws = 0
         unfinished = 0
-        for w in prange(nw):
+        piece = _take(next_piece)
+        while piece < n_pieces:
+            s, uf = advance_range(piece * size, min((piece + 1) * size, n_paths), x, Omega, xf,
+                                  Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
+                                  rk0, rk1, path0, D, tau, W, omega2, n, h_max, step_c, f, u, j)
+            draws += s
+            unfinished += uf
             piece = _take(next_piece)
-            while piece < n_pieces:
-                s, u = advance_range(piece * size, min((piece + 1) * size, n_paths), x, Omega,
-                                     xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
-                                     max_steps, rk0, rk1, path0, D, tau, W, omega2, n, h_max,
-                                     step_c, fs[w], us[w], js[w])
-                draws += s
-                unfinished += u
-                piece = _take(next_piece)
         return draws, unfinished
 
     return advance
@@ -421,13 +498,13 @@ def accumulate_kernel(spec: Spec):
     """
     path_values = integrator.statistics(spec.oscillator, spec.coupling)
 
-    @numba.njit(parallel=True, cache=spec.oscillator.builtin)
+    @numba.njit(nogil=True, cache=spec.oscillator.builtin)
     @own_index(f"{spec.oscillator.name}/{spec.coupling}")
-    def accumulate(x, Omega, status, omega2, n, batch_size, edges, sums,
+    def accumulate(b_lo, b_hi, x, Omega, status, omega2, n, batch_size, edges, sums,
                    hist):  # pragma: no cover - compiled
         n_paths = x.shape[0]
         n_edges = edges.shape[0]
-        for b in prange(sums.shape[0]):
+        for b in range(b_lo, b_hi):
             for c in range(sums.shape[1]):
                 sums[b, c] = 0.0
             for c in range(hist.shape[1]):
@@ -458,7 +535,7 @@ def accumulate_kernel(spec: Spec):
                 else:
                     hist[b, np.searchsorted(edges, E, side="right")] += 1
 
-    return accumulate
+    return _ranges(accumulate, items=7)  # the batches, rows of sums
 
 
 def compiled_kernels(spec: Spec, *, pairs: bool = True) -> dict[str, object]:
@@ -515,8 +592,10 @@ class Engine:
         c = self.config
         self.p0, self.n, self.nb = p0, n, nb
         self._allocate(n, nb)
+        # path0 as uint64, as the bias estimate's pairs pass theirs (from 2**63): one compiled
+        # init for both (path0 + i is the same uint64 either way).
         self.kernels.init(self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k,
-                          self.status, self.key0, self.key1, p0,
+                          self.status, self.key0, self.key1, _U64(p0),
                           0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
                           0.0 if c.xi0 is None else c.xi0, c.xi0 is None, c.D, c.tau_or_zero,
                           c.omega_noise_or_zero)
