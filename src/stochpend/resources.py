@@ -62,10 +62,13 @@ CPU_PATH_STEPS_PER_S_PER_CORE = 1.4e7
 #: step): a hint only. ``python benchmarks/gpu_bench.py`` measures both.
 GPU_PATH_STEPS_PER_S = 1e10
 #: Seconds Numba takes to compile each CPU kernel of a run on its first use (a cold kernel
-#: cache; measured on 2 cores, benchmarks/startup.py): the initial conditions, the step loop,
-#: the statistics, and the bias estimate's coupled pairs. Loading a cached kernel takes
+#: cache; measured on a shared 2-core machine, compile_time_s of benchmarks/startup.py's demo:
+#: 0.6, 3.7, 0.8 and 3.1 s, and 1.1 and 0.7 s for the one-path drivers): the initial
+#: conditions, the step loop (SIMD lanes or lock-step blocks, or one path at a time), the
+#: statistics, and the bias estimate's coupled pairs. Loading a cached kernel takes
 #: milliseconds.
-COMPILE_S = {"init": 1.0, "advance": 4.0, "accumulate": 1.0, "pairs": 3.0}
+COMPILE_S = {"init": 1.0, "advance": 4.0, "accumulate": 1.0, "pairs": 3.0,
+             "advance_one_path": 1.5, "pairs_one_path": 1.0}
 #: Paths per chunk by default: ``stochpend.simulate.DEFAULT_CHUNK_PATHS`` (CPU) and
 #: ``stochpend._backends.cuda.DEFAULT_CHUNK_PATHS`` (GPU; also capped by the free device memory).
 CPU_CHUNK_PATHS = 1 << 20

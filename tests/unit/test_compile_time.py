@@ -110,8 +110,10 @@ def test_the_estimate_line_counts_the_compile_time():
     # Every kernel a run calls is counted once, in kinds resources.COMPILE_S knows.
     from stochpend._backends import cpu
 
-    kinds = cpu.compiled_kernels(cpu.spec_for(config), pairs=True)
-    assert set(kinds) == set(resources.COMPILE_S)
+    kinds = set(cpu.compiled_kernels(cpu.spec_for(config), pairs=True))
+    other = SimulationConfig.build(noise="dichotomous", paths=64, t_max=1.0, n_times=2, seed=1)
+    kinds |= set(cpu.compiled_kernels(cpu.spec_for(other), pairs=True))
+    assert kinds == set(resources.COMPILE_S)
     counted: set = set()
     first = resources.compile_seconds(config, counted=counted)
     assert resources.compile_seconds(config, counted=counted) == 0.0  # counted already

@@ -524,12 +524,15 @@ def accumulate_kernel(spec: Spec):
 
 def compiled_kernels(spec: Spec, *, pairs: bool = True) -> dict[str, object]:
     """The Numba dispatchers a run of ``spec`` calls, by kind (``resources.COMPILE_S``):
-    ``init``, ``advance``, ``accumulate`` and, with ``pairs`` (the bias estimate), ``pairs``.
-    Nothing is compiled here."""
-    out = {"init": init_kernel(spec), "advance": advance_kernel(spec),
+    ``init``, ``advance``, ``accumulate`` and, with ``pairs`` (the bias estimate), ``pairs``;
+    ``advance_one_path`` and ``pairs_one_path`` for a Spec without a SIMD driver. Nothing is
+    compiled here."""
+    one_path = advance_kernel(spec) is path_kernel(spec)  # no SIMD driver: less to compile
+    suffix = "_one_path" if one_path else ""
+    out = {"init": init_kernel(spec), "advance" + suffix: advance_kernel(spec),
            "accumulate": accumulate_kernel(spec)}
     if pairs:
-        out["pairs"] = pair_advance_kernel(spec)
+        out["pairs" + suffix] = pair_advance_kernel(spec)
     return {kind: getattr(kernel, "kernel", kernel) for kind, kernel in out.items()}
 
 
