@@ -131,3 +131,64 @@ def own_index(key: str):
         return fn
 
     return rename
+
+
+def in_cache(kernel) -> bool:
+    """Whether calling the Numba dispatcher ``kernel`` will not compile: compiled (or loaded)
+    in this process already, or with an index in Numba's on-disk cache (one per Spec, see
+    :func:`own_index`; :func:`drop_stale_cache` removes stale ones at import). A kernel that is
+    not cacheable (a user's model) is compiled once per process."""
+    import os
+
+    if getattr(kernel, "overloads", None):
+        return True
+    cache_file = getattr(getattr(kernel, "_cache", None), "_cache_file", None)
+    index = getattr(cache_file, "_index_path", None)
+    return index is not None and os.path.isfile(index)
+
+
+class CompileClock:
+    """Seconds Numba spent compiling (not loading from its cache) while installed; the first
+    compile calls ``on_first_compile`` once, before that compile runs.
+
+    A Numba ``numba:compile`` event fires only on a cache miss, around the compile itself, so a
+    run whose kernels are cached reports 0 s and says nothing. Nested compiles (a kernel's
+    inlined pieces) count once, inside their caller's interval. Use as a context manager.
+    """
+
+    def __init__(self, on_first_compile=None) -> None:
+        self.seconds = 0.0
+        self._depth = 0
+        self._since = 0.0
+        self._on_first = on_first_compile
+        self._listener = None
+
+    def __enter__(self) -> CompileClock:
+        import time
+
+        from numba.core import event
+
+        clock = self
+
+        class _Listener(event.Listener):
+            def on_start(self, ev) -> None:
+                if clock._depth == 0:
+                    if clock._on_first is not None:
+                        first, clock._on_first = clock._on_first, None
+                        first()
+                    clock._since = time.perf_counter()
+                clock._depth += 1
+
+            def on_end(self, ev) -> None:
+                clock._depth -= 1
+                if clock._depth == 0:
+                    clock.seconds += time.perf_counter() - clock._since
+
+        self._listener = _Listener()
+        event.register("numba:compile", self._listener)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        from numba.core import event
+
+        event.unregister("numba:compile", self._listener)

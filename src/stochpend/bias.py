@@ -29,19 +29,16 @@ h_max (the same leading term: the two step sequences differ by O(h) along a path
 
 from __future__ import annotations
 
-import functools
 import math
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-import numba
 import numpy as np
-from numba import prange
 
 from stochpend import integrator, rng, stats
-from stochpend._jitcache import drop_stale_cache, own_index
+from stochpend._jitcache import CompileClock, drop_stale_cache
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig
 from stochpend.progress import NoProgress, Progress
@@ -145,48 +142,27 @@ def pair_spec(config: SimulationConfig, backend: str = "cpu") -> Spec:
     return cpu.spec_for(config, "float64")
 
 
-@functools.lru_cache(maxsize=None)
-def _accumulate_kernel(oscillator: Any, coupling: str, builtin: bool):
-    path_values = integrator.statistics(oscillator, coupling)
+#: The histogram edges :func:`_accumulate_pairs` gives the run's kernel: one bin, every energy.
+_NO_EDGES = np.array([np.inf])
 
-    @numba.njit(parallel=True, cache=builtin)
-    @own_index(f"{oscillator.name}/{coupling}/pairs")
-    def accumulate(x, Omega, xf, Omegaf, status, omega2, n, batch_size,
-                   sums):  # pragma: no cover
-        """sums[b, 0 or 1, :]: the power sums of the coarse (0) and fine (1) members of batch
-        b's pairs, both over the same pairs: a pair is counted only when both members are."""
-        n_paths = x.shape[0]
-        for b in prange(sums.shape[0]):
-            for m in range(2):
-                for c in range(N_SUMS):
-                    sums[b, m, c] = 0.0
-            for i in range(b * batch_size, min((b + 1) * batch_size, n_paths)):
-                if status[i] == 0:
-                    ok0, E0, E20, O20, G20 = path_values(np.float64(x[i]), np.float64(Omega[i]),
-                                                         omega2, n)
-                    ok1, E1, E21, O21, G21 = path_values(np.float64(xf[i]),
-                                                         np.float64(Omegaf[i]), omega2, n)
-                    if not (ok0 and ok1):
-                        status[i] = 1
-                if status[i] != 0:
-                    sums[b, 0, stats.S_NONFINITE] += 1.0
-                    sums[b, 1, stats.S_NONFINITE] += 1.0
-                    continue
-                for m in range(2):
-                    if m == 0:
-                        E, E2, O2, G2 = E0, E20, O20, G20
-                    else:
-                        E, E2, O2, G2 = E1, E21, O21, G21
-                    sums[b, m, stats.S_COUNT] += 1.0
-                    sums[b, m, stats.S_E1] += E
-                    sums[b, m, stats.S_E2] += E2
-                    sums[b, m, stats.S_E3] += E2 * E
-                    sums[b, m, stats.S_E4] += E2 * E2
-                    sums[b, m, stats.S_OMEGA2] += O2
-                    sums[b, m, stats.S_OMEGA4] += O2 * O2
-                    sums[b, m, stats.S_G2] += G2
 
-    return accumulate
+def _accumulate_pairs(accumulate: Any, x: np.ndarray, Omega: np.ndarray, xf: np.ndarray,
+                      Omegaf: np.ndarray, status: np.ndarray, omega2: float, n: int,
+                      batch_size: int, sums: np.ndarray, hist: np.ndarray) -> None:
+    """sums[b, 0 or 1, :]: the power sums of the coarse (0) and fine (1) members of batch b's
+    pairs, both over the same pairs: a pair is counted only when both members are (a member
+    whose moments overflow marks the pair non-finite in ``status``).
+
+    The run's own accumulate kernel (``cpu.accumulate_kernel``), once per member, so that a cold
+    kernel cache compiles one statistics kernel, not two: the coarse members (marking the pairs
+    whose coarse member overflows), the fine members (marking those whose fine member does),
+    and, only when the fine members marked a pair, the coarse members again, without it. Each
+    sum is added in path order, as the run's are: the numbers of a kernel of its own."""
+    accumulate(x, Omega, status, omega2, n, batch_size, _NO_EDGES, sums[:, 0], hist)
+    marked = np.count_nonzero(status)
+    accumulate(xf, Omegaf, status, omega2, n, batch_size, _NO_EDGES, sums[:, 1], hist)
+    if np.count_nonzero(status) != marked:
+        accumulate(x, Omega, status, omega2, n, batch_size, _NO_EDGES, sums[:, 0], hist)
 
 
 # -- the estimate -------------------------------------------------------------------------------
@@ -251,9 +227,17 @@ def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | Non
         raise ValueError(f"bias_paths={n_paths!r} is not accepted: an integer >= 2 (or 0: no "
                          "bias estimate)")
     progress = progress or NoProgress()
+    with CompileClock() as compile_clock:  # bias_wall_time_s leaves compiling out
+        return _estimate(config, n_paths, progress, chunk_pairs, backend, compile_clock)
+
+
+def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_pairs: int,
+              backend: str, compile_clock: CompileClock) -> BiasEstimate:
     started = _time.perf_counter()
     spec = pair_spec(config, backend)
-    accumulate = _accumulate_kernel(spec.oscillator, spec.coupling, spec.oscillator.builtin)
+    from stochpend._backends import cpu
+
+    accumulate = cpu.accumulate_kernel(spec)  # the run's own (compiled once for both)
     times = np.asarray(config.times, dtype=np.float64)
     n_batches = min(BIAS_BATCHES, n_paths)
     batch_size = -(-n_paths // n_batches)
@@ -270,12 +254,13 @@ def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | Non
         n = min(b1 * batch_size, n_paths) - p0
         pairs = (_GpuPairs if backend == "cuda" else _CpuPairs)(config, spec, p0, n)
         max_steps = max(1000, _WORK_PER_CALL // max(n, 1))
+        hist = np.zeros((b1 - b0, 2), dtype=np.int64)  # the run's kernel counts; not used
         for j, t_target in enumerate(times):
             while not pairs.advance(float(t_target), max_steps):
                 progress.update(done_work + pairs.time_sum())
             x, Omega, xf, Omegaf, status = pairs.members()
-            accumulate(x, Omega, xf, Omegaf, status, c.omega**2, c.power_n, batch_size,
-                       sums[b0:b1, j])
+            _accumulate_pairs(accumulate, x, Omega, xf, Omegaf, status, c.omega**2, c.power_n,
+                              batch_size, sums[b0:b1, j], hist)
             pairs.set_status(status)  # pairs whose moments overflowed stay excluded
             progress.update(done_work + n * float(t_target))
         draws += pairs.draws()
@@ -287,7 +272,7 @@ def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | Non
     bias, coarse = _statistics(sums)
     nonfinite = sums[:, :, 0, stats.S_NONFINITE].sum(axis=0).astype(np.int64)
     return BiasEstimate(times, bias, coarse, n_paths, path_steps,
-                        _time.perf_counter() - started, nonfinite, c.h_max, c.step_c, n_batches,
+                        _time.perf_counter() - started - compile_clock.seconds, nonfinite, c.h_max, c.step_c, n_batches,
                         _decorrelation(bias, coarse, times.size))
 
 

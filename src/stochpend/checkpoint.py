@@ -46,6 +46,7 @@ import numpy as np
 import xarray as xr
 
 from stochpend import __version__, _files, bias, io
+from stochpend._jitcache import CompileClock
 from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
 from stochpend.runner import BACKENDS, RunState, path_dtypes, run_batches
@@ -683,7 +684,9 @@ def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, 
     previous_threads = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(threads)
+    compile_clock = CompileClock()  # compiling is reported apart, as by simulate
     try:
+        compile_clock.__enter__()
         with deferred_signals(checkpointer):
             if _resume is None:
                 sums, path_steps = run_batches(config, 0, config.n_batches, backend=backend,
@@ -701,10 +704,14 @@ def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, 
         estimate = bias.estimate(config, bias.default_bias_paths(config.paths),
                                  progress=progress, backend=backend)
     finally:
+        compile_clock.__exit__(None, None, None)
         numba.set_num_threads(previous_threads)
+    # This process's compiling is left out (a resumed run's earlier sessions count in full).
     attrs = provenance(config, backend=backend, precision=precision,
-                       threads=threads or previous_threads, wall_time_s=checkpointer.elapsed_s(),
+                       threads=threads or previous_threads,
+                       wall_time_s=checkpointer.elapsed_s() - compile_clock.seconds,
                        path_steps=path_steps)
+    attrs["compile_time_s"] = compile_clock.seconds
     attrs["checkpoint"] = str(checkpointer.path)
     attrs["checkpoint_every_s"] = "none" if every_s is None else float(every_s)
     attrs["resumed"] = checkpointer.resumed

@@ -704,8 +704,11 @@ def simulate(
     # Memory and work, before any work: a run that cannot fit or would not end is refused.
     estimate = resources.check(config, backend=backend, precision=precision, max_path_steps=max_path_steps,
                                threads=threads)
+    # The kernels it will compile (a cold Numba cache) count: a first run is mostly compiling.
+    estimate = resources.with_compile(estimate, config, pairs=bias_paths != 0 or accuracy == "auto")
     # A long run prints its estimate when it starts (after the remaining checks), even with --quiet.
-    announce = f"estimate: {estimate.describe()}" if estimate.seconds > resources.LONG_RUN_S else None
+    announce = (f"estimate: {estimate.describe()}" if estimate.total_seconds > resources.LONG_RUN_S
+                else None)
     progress = RichProgress(enabled=not quiet and console.is_terminal, announce=announce)
     if checkpoint is not None:
         from stochpend._cli_scale import parse_duration, simulate_with_checkpoint

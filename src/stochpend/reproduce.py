@@ -347,9 +347,13 @@ def _cost_lines(specs: dict[str, list[RunSpec]], estimates: dict, to_simulate: s
     """One line per run to simulate, then the total: the lower bound on the work and a duration
     at the assumed rate (:func:`stochpend.resources.estimate`), and for the named long runs
     (:data:`stochpend.figures.CASES`) the cost model's figure too."""
+    from stochpend import resources
+    from stochpend.params import SimulationConfig
+
     lines = []
     lower = model = seconds = 0.0
     seen: set[Path] = set()
+    counted: set = set()  # kernels compiled for an earlier run of this call
     for name, name_specs in specs.items():
         estimator = getattr(_module(name), "expected_path_steps", None)
         for s in name_specs:
@@ -357,11 +361,15 @@ def _cost_lines(specs: dict[str, list[RunSpec]], estimates: dict, to_simulate: s
             if s not in to_simulate or path in seen:
                 continue
             seen.add(path)
-            est = estimates[name, s.key]
+            # A cold kernel cache: the first run of each model compiles its kernels (no pairs:
+            # reproduce runs without the bias estimate).
+            est = resources.with_compile(estimates[name, s.key],
+                                         SimulationConfig.build(**s.simulate_kwargs()), pairs=False,
+                                         counted=counted)
             steps = float(estimator(s)) if estimator is not None else est.min_path_steps
             lower += est.min_path_steps
             model += steps
-            seconds += steps / est.rate
+            seconds += steps / est.rate + est.compile_seconds
             text = f"cost: {name} {s.key} ({s.paths} paths to t = {s.t_max:g}): {est.describe()}"
             if estimator is not None:
                 from stochpend.resources import format_seconds
@@ -465,6 +473,7 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None,
     import numba
 
     from stochpend import bias
+    from stochpend._jitcache import CompileClock
     from stochpend.params import SimulationConfig, hist_edges
     from stochpend.runner import run_batches
     from stochpend.simulate import provenance
@@ -475,18 +484,20 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None,
         numba.set_num_threads(threads)
     started = time.perf_counter()
     try:
-        sums, path_steps = run_batches(config, 0, config.n_batches, backend=where[0],
-                                       precision=where[1], progress=progress)
-        wall_main = time.perf_counter() - started
-        # The discretisation bias as simulate estimates it (its default subsample of coupled
-        # pairs): the report gives it beside the late-time values.
-        est = bias.estimate(config, bias.default_bias_paths(config.paths), backend=where[0])
+        with CompileClock() as compile_clock:  # compiling is reported apart, as by simulate
+            sums, path_steps = run_batches(config, 0, config.n_batches, backend=where[0],
+                                           precision=where[1], progress=progress)
+            wall_main = time.perf_counter() - started - compile_clock.seconds
+            # The discretisation bias as simulate estimates it (its default subsample of coupled
+            # pairs): the report gives it beside the late-time values.
+            est = bias.estimate(config, bias.default_bias_paths(config.paths), backend=where[0])
     finally:
         numba.set_num_threads(previous)
-    wall = time.perf_counter() - started
+    wall = time.perf_counter() - started - compile_clock.seconds
     attrs = provenance(config, backend=where[0], precision=where[1], threads=threads or previous,
                        wall_time_s=wall, path_steps=path_steps)
     attrs["simulation_wall_time_s"] = wall_main
+    attrs["compile_time_s"] = compile_clock.seconds
     ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
     bias.attach(ds, est, None)
     ds["batch_sums"] = (

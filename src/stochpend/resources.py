@@ -61,6 +61,14 @@ CPU_PATH_STEPS_PER_S_PER_CORE = 1.4e7
 #: issue "Kernels at the hardware floor"); adaptive steps are unmeasured and slower (more work a
 #: step): a hint only. ``python benchmarks/gpu_bench.py`` measures both.
 GPU_PATH_STEPS_PER_S = 1e10
+#: Seconds Numba takes to compile each CPU kernel of a run on its first use (a cold kernel
+#: cache; measured on a shared 2-core machine, compile_time_s of benchmarks/startup.py's demo:
+#: 0.6, 3.7, 0.8 and 3.1 s, and 1.1 and 0.7 s for the one-path drivers): the initial
+#: conditions, the step loop (SIMD lanes or lock-step blocks, or one path at a time), the
+#: statistics, and the bias estimate's coupled pairs. Loading a cached kernel takes
+#: milliseconds.
+COMPILE_S = {"init": 1.0, "advance": 4.0, "accumulate": 1.0, "pairs": 3.0,
+             "advance_one_path": 1.5, "pairs_one_path": 1.0}
 #: Paths per chunk by default: ``stochpend.simulate.DEFAULT_CHUNK_PATHS`` (CPU) and
 #: ``stochpend._backends.cuda.DEFAULT_CHUNK_PATHS`` (GPU; also capped by the free device memory).
 CPU_CHUNK_PATHS = 1 << 20
@@ -95,14 +103,58 @@ class Estimate:
     #: (part of memory, bytes, the parameter that sets it), largest first
     parts: tuple[tuple[str, int, str], ...] = field(default=())
     formula: str = "paths x t_max / h_max"  # what min_path_steps counts
+    #: expected seconds compiling the kernels not in Numba's cache (:func:`compile_seconds`;
+    #: 0 unless the caller asked, see :func:`with_compile`)
+    compile_seconds: float = 0.0
+
+    @property
+    def total_seconds(self) -> float:
+        """The run's rough duration, compiling included."""
+        return self.seconds + self.compile_seconds
 
     def describe(self) -> str:
-        """One line: the work, the rough duration and the memory."""
+        """One line: the work, the rough duration (and the compiling) and the memory."""
         mem = f"peak memory {format_bytes(self.memory_bytes)}"
         if self.device_bytes:
             mem += f" (and {format_bytes(self.device_bytes)} on the GPU)"
+        comp = ""
+        if self.compile_seconds > 0:
+            comp = (f", plus ~{format_seconds(self.compile_seconds)} compiling kernels (first use, "
+                    "cached after)")
         return (f"at least {self.min_path_steps:.3g} path-steps ({self.formula}), roughly "
-                f"{format_seconds(self.seconds)} on {self.workers} at ~{self.rate:.2g} path-steps/s; {mem}")
+                f"{format_seconds(self.seconds)} on {self.workers} at ~{self.rate:.2g} path-steps/s"
+                f"{comp}; {mem}")
+
+
+def compile_seconds(config: Any, *, backend: str = "cpu", precision: str = "float64",
+                    pairs: bool = True, counted: set | None = None) -> float:
+    """Expected seconds compiling the CPU kernels that a run of ``config`` needs and Numba's
+    cache lacks (:data:`COMPILE_S` each; 0 when all are cached). ``pairs``: the run estimates
+    its bias (the coupled pairs' kernel). ``counted``: kernels counted already, for an earlier
+    run of the same process (updated). The GPU's kernels are not counted (CUDA compiles them at
+    launch). Imports the CPU backend (Numba); compiles nothing."""
+    if backend != "cpu":
+        return 0.0
+    from stochpend._backends import cpu
+    from stochpend._jitcache import in_cache
+
+    seconds = 0.0
+    for kind, kernel in cpu.compiled_kernels(cpu.spec_for(config, precision), pairs=pairs).items():
+        if in_cache(kernel) or (counted is not None and kernel in counted):
+            continue
+        seconds += COMPILE_S[kind]
+        if counted is not None:
+            counted.add(kernel)
+    return seconds
+
+
+def with_compile(est: Estimate, config: Any, *, pairs: bool = True,
+                 counted: set | None = None) -> Estimate:
+    """``est`` with the expected compile time of ``config``'s kernels (:func:`compile_seconds`)."""
+    import dataclasses
+
+    return dataclasses.replace(est, compile_seconds=compile_seconds(
+        config, backend=est.backend, precision=est.precision, pairs=pairs, counted=counted))
 
 
 def format_bytes(n: float) -> str:

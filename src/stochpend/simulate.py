@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import platform
+import sys
 import time as _time
 import warnings
 from collections.abc import Callable
@@ -21,6 +22,7 @@ from stochpend.params import (
     SimulationConfig,
     hist_edges,
 )
+from stochpend._jitcache import CompileClock
 from stochpend.progress import NoProgress, Progress
 from stochpend.progress import resolve as resolve_progress
 
@@ -277,8 +279,11 @@ def run(
     previous_threads = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(threads)
+    compile_clock = CompileClock(lambda: compile_note(config, backend, precision,
+                                                      pairs=bool(bias_paths) or accuracy == "auto"))
     started = _time.perf_counter()
     try:
+        compile_clock.__enter__()
         choice = None
         if accuracy == "auto":
             choice = bias.choose_level(config, bias_paths or bias.default_bias_paths(config.paths),
@@ -290,22 +295,38 @@ def run(
         sums, path_steps = runner.run_batches(config, 0, config.n_batches, backend=backend,
                                               precision=precision, chunk_paths=chunk_paths,
                                               progress=progress)
-        wall_main = _time.perf_counter() - started
+        wall_main = _time.perf_counter() - started - compile_clock.seconds
         est = None
         if choice is not None:
             est = choice.extrapolated()
         elif bias_paths:
             est = bias.estimate(config, bias_paths, progress=progress, backend=backend)
     finally:
+        compile_clock.__exit__(None, None, None)
         numba.set_num_threads(previous_threads)
-    wall = _time.perf_counter() - started
+    # Compiling (a cold kernel cache) is reported apart: wall_time_s and path_steps_per_s are
+    # the run's own, comparable between a first and a later run.
+    wall = _time.perf_counter() - started - compile_clock.seconds
     attrs = provenance(config, backend=backend, precision=precision,
                        threads=threads or previous_threads, wall_time_s=wall, path_steps=path_steps)
     attrs["simulation_wall_time_s"] = wall_main
+    attrs["compile_time_s"] = compile_clock.seconds
     ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
     if est is not None:
         bias.attach(ds, est, choice)
     return ds
+
+
+def compile_note(config: SimulationConfig, backend: str, precision: str, *,
+                 pairs: bool = True) -> None:
+    """Said once, on stderr, when a run's first kernel is not in Numba's cache: compiling is
+    about to take a while (a note, not a result; with its expected duration)."""
+    label = runner.spec_for(config, backend, precision).label
+    seconds = resources.compile_seconds(config, backend=backend, precision=precision,
+                                        pairs=pairs)
+    expected = f"~{resources.format_seconds(seconds)}, " if seconds > 0 else ""
+    print(f"compiling kernels for {label} (first use: {expected}cached after)", file=sys.stderr,
+          flush=True)
 
 
 def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_time_s: float,

@@ -209,6 +209,7 @@ def test_each_spec_has_its_own_cache_index():
         for adaptive in (True, False):
             spec = integrator.spec(noise, adaptive=adaptive)
             for kern in (cpu.advance_kernel(spec), cpu.pair_advance_kernel(spec)):
+                kern = kern.kernel  # the Numba dispatcher under the threads' wrapper
                 paths.add(kern._cache._cache_file._index_path)
     assert len(paths) == 8
 

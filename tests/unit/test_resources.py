@@ -114,24 +114,29 @@ def _start_then_stop(config, *, progress, **kwargs):
     raise _Started
 
 
-@pytest.mark.parametrize("args,long_run", [
-    (["--paths", "1e6", "--t-max", "1000"], True),  # 2e10 path-steps: minutes
-    (["--paths", "10", "--t-max", "1"], False),
+@pytest.mark.parametrize("args,long_run,compiling", [
+    (["--paths", "1e6", "--t-max", "1000"], True, 0.0),  # 2e10 path-steps: minutes
+    (["--paths", "10", "--t-max", "1"], False, 0.0),
+    # kernels not in Numba's cache: a short run is mostly compiling, and says so
+    (["--paths", "10", "--t-max", "1"], True, 12.0),
 ])
-def test_cli_announces_long_runs_even_when_quiet(args, long_run):
+def test_cli_announces_long_runs_even_when_quiet(args, long_run, compiling):
     from unittest import mock
 
     from typer.testing import CliRunner
 
     from stochpend.cli import app
 
-    with mock.patch("stochpend.simulate.run", _start_then_stop):
+    with (mock.patch("stochpend.simulate.run", _start_then_stop),
+          mock.patch("stochpend.resources.compile_seconds", lambda *a, **k: compiling)):
         result = CliRunner().invoke(app, ["simulate", "--quiet", *args])
     assert isinstance(result.exception, _Started), result.output
     lines = [ln for ln in result.output.splitlines() if ln.strip()]
     if long_run:
-        assert len(lines) == 1 and lines[0].startswith("estimate: at least 2e+10 path-steps"), result.output
+        assert len(lines) == 1 and lines[0].startswith("estimate: at least "), result.output
         assert "peak memory" in lines[0]
+        assert ("2e+10 path-steps" in lines[0]) == (not compiling)
+        assert ("plus ~12 s compiling kernels (first use, cached after)" in lines[0]) == bool(compiling)
     else:
         assert lines == [], result.output
 

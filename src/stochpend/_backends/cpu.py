@@ -1,12 +1,12 @@
-"""CPU drivers: the integrator's step loop run by Numba threads, and two SIMD drivers.
+"""CPU drivers: the integrator's step loop run on threads, and two SIMD drivers.
 
 The drivers only orchestrate: every step is :mod:`stochpend.integrator`'s, specialised for the
 run's :class:`~stochpend.integrator.Spec` and compiled once per Spec (cached on disk for the
 built-in oscillators and noises). They allocate nothing per step and call no Python; the SIMD
-drivers' per-worker scratch is allocated by their Python wrapper (:func:`_with_scratch`).
+drivers' per-worker scratch is allocated by their Python wrapper (:func:`_with_workers`).
 
 * ``init``: the initial conditions of a range of global paths, one thread per path range;
-* ``advance`` one path at a time (:func:`path_kernel`): ``prange`` over paths, each path its
+* ``advance`` one path at a time (:func:`path_kernel`): ranges of paths on threads, each path its
   own step control (``Integrator.advance_path``); the C library's math. Every model without a
   SIMD driver;
 * ``advance`` in **lanes** (:func:`_lanes_kernel`, the default: the pendulum with the noise on
@@ -30,6 +30,13 @@ bit against ``path_kernel`` of the same Spec). They differ from the C library's 
 per call, which the chaotic dynamics amplify: the ensembles agree statistically
 (tests/statistical/test_simd_agreement.py).
 
+Every kernel is a plain ``nogil`` Numba function over a range of paths (or batches, or one
+worker's pieces), run on one thread per Numba thread (``numba.get_num_threads()``) by its
+Python wrapper (:func:`_ranges`, :func:`_with_workers`), not a ``parallel=True`` one: Numba's
+parallel lowering compiles such a driver and everything it calls twice over, which made a
+first run (a cold kernel cache) spend twice as long compiling. The numbers do not depend on
+the threads either way.
+
 Each path's state lives in arrays of length n_paths: ``x`` (the angle theta for the pendulum),
 ``Omega``, the noise ``xi`` and its auxiliary ``xi_aux``, the time ``t`` and its Kahan
 compensation ``t_comp``, the step count ``k`` and a ``status`` (0: finite, 1: non-finite or
@@ -40,11 +47,12 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 from types import SimpleNamespace
 
 import numba
 import numpy as np
-from numba import prange, types
+from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
@@ -90,14 +98,15 @@ def spec_for(config, precision: str = "float64") -> Spec:
 def init_kernel(spec: Spec):
     """``init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
     uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W)``: initial conditions of global
-    paths path0 .. path0 + len(x) - 1 (draws 0 and 1); depends on the noise only."""
+    paths path0 .. path0 + len(x) - 1 (draws 0 and 1); depends on the noise only. The paths
+    are shared among the threads in ranges (:func:`_ranges`)."""
     init_path = integrator.initial_state(spec.noise)
 
-    @numba.njit(parallel=True, cache=spec.noise.builtin)
+    @numba.njit(nogil=True, cache=spec.noise.builtin)
     @own_index(spec.noise.name)
-    def init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
+    def init(lo, hi, x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
              uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W):  # pragma: no cover
-        for i in prange(x.shape[0]):
+        for i in range(lo, hi):
             x[i], Omega[i], xi[i], xi_aux[i] = init_path(
                 key0, key1, _U64(path0 + i), theta0, uniform_theta0, Omega0, xi0,
                 stationary_xi0, D, tau, W)
@@ -106,7 +115,30 @@ def init_kernel(spec: Spec):
             k[i] = 0
             status[i] = 0
 
-    return init
+    return _ranges(init)
+
+
+def _ranges(kernel, items: int = 0, summed: bool = False):
+    """A kernel over items ``lo .. hi - 1`` (rows of its argument ``items``) as one over all:
+    one contiguous range per Numba thread (``numba.get_num_threads()``), run on threads
+    (:func:`_on_workers`). For kernels whose items are independent (paths, batches), so the
+    numbers do not depend on the split. A plain ``nogil`` kernel, not a ``parallel=True`` one:
+    Numba's parallel lowering compiles such a kernel and what it calls twice over (about 1 s
+    more each on a cold cache). ``summed``: the kernel returns ``(steps, unfinished)``, and so
+    does the whole, summed over the ranges."""
+
+    def run(*args):
+        n_items = args[items].shape[0]
+        nw = max(1, min(numba.get_num_threads(), n_items))
+        size = -(-n_items // nw)
+        done = _on_workers(lambda w: kernel(min(w * size, n_items),
+                                            min((w + 1) * size, n_items), *args), nw)
+        if summed:  # (steps, unfinished) of each range
+            return sum(d[0] for d in done), sum(d[1] for d in done)
+        return None
+
+    run.kernel = kernel
+    return run
 
 
 @functools.lru_cache(maxsize=None)
@@ -116,9 +148,10 @@ def advance_kernel(spec: Spec):
     unfinished path towards ``t_target``, at most ``max_steps`` steps each (the SIMD drivers
     when the Spec allows them; see the module docstring)."""
     if spec.fast_math and integrator.build(spec).lockstep:
-        return _with_scratch(_lockstep_kernel(spec), (6, BLOCK), (2, BLOCK), (0, BLOCK))
+        return _with_workers(_lockstep_kernel(spec), (6, BLOCK), (2, BLOCK), (0, BLOCK),
+                             items=lambda n_paths: (n_paths + BLOCK - 1) // BLOCK)
     if integrator.lanes_supported(spec):
-        return _with_scratch(_lanes_kernel(spec), (integrator.LANE_F_ROWS, integrator.LANE_COUNT),
+        return _with_workers(_lanes_kernel(spec), (integrator.LANE_F_ROWS, integrator.LANE_COUNT),
                              (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
                              (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
     return path_kernel(spec)
@@ -126,18 +159,18 @@ def advance_kernel(spec: Spec):
 
 @functools.lru_cache(maxsize=None)
 def path_kernel(spec: Spec):
-    """``advance`` (the signature of :func:`advance_kernel`) one path at a time: ``prange`` over
+    """``advance`` (the signature of :func:`advance_kernel`) one path at a time: ranges of
     paths, each the integrator's ``advance_path``. The driver of every Spec without a SIMD one;
     for a fast-math Spec, the reference the SIMD drivers agree with bit for bit (tests)."""
     advance_path = integrator.build(spec).advance_path
 
-    @numba.njit(parallel=True, cache=spec.cacheable)
+    @numba.njit(nogil=True, cache=spec.cacheable)
     @own_index(spec.label)
-    def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
-                path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover - compiled
+    def advance(lo, hi, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0,
+                key1, path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover - compiled
         steps_taken = 0
         unfinished = 0
-        for i in prange(x.shape[0]):
+        for i in range(lo, hi):
             s, u = advance_path(i, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target,
                                 max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max,
                                 step_c)
@@ -145,35 +178,7 @@ def path_kernel(spec: Spec):
             unfinished += u
         return steps_taken, unfinished
 
-    return advance
-
-
-def _with_scratch(kernel, f_shape, u_shape, i_shape):
-    """``advance`` with the driver's signature: allocates the workers' scratch (a few kB, per
-    call, in Python) and calls ``kernel`` with it, so that the compiled kernel allocates
-    nothing. One worker per Numba thread (``numba.get_num_threads()``, which ``threads=``
-    sets), each with its row of the scratch; the workers take the pieces of the paths
-    (:func:`_pieces`) one after the other from the shared counter ``next_piece``."""
-
-    def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
-                path0, D, tau, W, omega2, n, h_max, step_c):
-        workers = numba.get_num_threads()
-        fs = np.empty((workers, *f_shape))
-        us = np.empty((workers, *u_shape), dtype=np.uint64)
-        js = np.empty((workers, *i_shape), dtype=np.int64)
-        next_piece = np.zeros(1, dtype=np.int64)
-        return kernel(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0,
-                      key1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js, next_piece)
-
-    advance.kernel = kernel
-    return advance
-
-
-@numba.njit(cache=True)
-def _workers(n_items, rows):  # pragma: no cover - compiled
-    """How many workers share n_items: one per scratch row, at most one per item (a path's
-    numbers do not depend on it)."""
-    return max(1, min(rows, n_items))
+    return _ranges(advance, summed=True)
 
 
 #: Pieces of work per worker: the workers take them one after the other, so that a worker that
@@ -208,31 +213,101 @@ def _take(typingctx, counter):
 
 
 def _lanes_kernel(spec: Spec):
+    """One worker of the lane machine (``build_lanes``): takes pieces of the paths from the
+    shared counter ``next_piece`` until none is left; :func:`_with_workers` runs ``nw`` of them
+    on threads. A plain ``nogil`` function, not a ``parallel=True`` one: Numba's parallel
+    lowering compiles the driver twice over (about 2 s more on a cold cache) for a loop over
+    the workers that Python threads run as well."""
     advance_range = integrator.build_lanes(spec).advance_range
 
-    @numba.njit(parallel=True, cache=spec.cacheable, error_model="numpy")
+    @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label)
     def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
-                path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js,
-                next_piece):  # pragma: no cover - compiled
+                path0, D, tau, W, omega2, n, h_max, step_c, f, u, j, next_piece,
+                nw):  # pragma: no cover - compiled
         n_paths = x.shape[0]
-        nw = _workers(n_paths, fs.shape[0])
         n_pieces, size = _pieces(n_paths, nw)
         rk0, rk1 = rng.round_keys(key0, key1)  # the same for every path
         steps_taken = 0
         unfinished = 0
-        for w in prange(nw):
+        piece = _take(next_piece)
+        while piece < n_pieces:
+            s, uf = advance_range(piece * size, min((piece + 1) * size, n_paths), x, Omega, xi,
+                                  xi_aux, t, t_comp, k, status, t_target, max_steps, rk0, rk1,
+                                  path0, D, tau, W, omega2, n, h_max, step_c, f, u, j)
+            steps_taken += s
+            unfinished += uf
             piece = _take(next_piece)
-            while piece < n_pieces:
-                s, u = advance_range(piece * size, min((piece + 1) * size, n_paths), x, Omega,
-                                     xi, xi_aux, t, t_comp, k, status, t_target, max_steps, rk0,
-                                     rk1, path0, D, tau, W, omega2, n, h_max, step_c, fs[w],
-                                     us[w], js[w])
-                steps_taken += s
-                unfinished += u
-                piece = _take(next_piece)
         return steps_taken, unfinished
 
+    return advance
+
+
+_POOL = None
+
+
+def _pool():
+    """The threads that run the lane workers beside the calling thread (made on first use, and
+    again in a forked child, whose copy of the pool has no threads)."""
+    global _POOL
+    if _POOL is None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL = ThreadPoolExecutor(max_workers=max(1, numba.config.NUMBA_NUM_THREADS - 1),
+                                   thread_name_prefix="stochpend-lanes")
+    return _POOL
+
+
+def _forget_pool() -> None:
+    global _POOL
+    _POOL = None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool)
+
+
+def _on_workers(call, nw: int) -> list:
+    """``[call(w) for w in range(nw)]``, worker 0 on this thread and the others on the pool
+    (the kernels release the GIL). Returns only when every worker has returned, also on
+    Ctrl-C, so no worker is still writing the arrays when the caller goes on (a checkpoint, an
+    error)."""
+    if nw == 1:
+        return [call(0)]
+    from concurrent.futures import wait
+
+    futures = [_pool().submit(call, w) for w in range(1, nw)]
+    try:
+        first = call(0)
+    finally:
+        interrupted = None
+        while True:
+            try:
+                wait(futures)
+                break
+            except BaseException as exc:  # noqa: BLE001 - re-raised once the workers are done
+                interrupted = exc
+        if interrupted is not None:
+            raise interrupted
+    return [first, *(future.result() for future in futures)]
+
+
+def _with_workers(kernel, f_shape, u_shape, i_shape, items=None):
+    """``advance`` with the driver's signature for a lane worker ``kernel``: one worker per Numba
+    thread (``numba.get_num_threads()``, which ``threads=`` sets), at most one per path, each
+    with its own scratch (a few kB, allocated here so that the kernel allocates nothing)."""
+
+    def advance(*args):
+        n_items = args[0].shape[0] if items is None else items(args[0].shape[0])
+        nw = max(1, min(numba.get_num_threads(), n_items))
+        fs = np.empty((nw, *f_shape))
+        us = np.empty((nw, *u_shape), dtype=np.uint64)
+        js = np.empty((nw, *i_shape), dtype=np.int64)
+        next_piece = np.zeros(1, dtype=np.int64)
+        done = _on_workers(lambda w: kernel(*args, fs[w], us[w], js[w], next_piece, nw), nw)
+        return sum(d[0] for d in done), sum(d[1] for d in done)
+
+    advance.kernel = kernel
     return advance
 
 
@@ -246,34 +321,24 @@ def pair_advance_kernel(spec: Spec):
     math, so the pairs cost what the run's own paths cost per step; else one pair at a time
     (``Integrator.advance_pair``), as the run's paths go one at a time."""
     if integrator.lanes_supported(spec):
-        kernel = _pair_lanes_kernel(spec)
-
-        def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-                    key0, key1, path0, D, tau, W, omega2, n, h_max, step_c):
-            workers = numba.get_num_threads()
-            fs = np.empty((workers, integrator.PAIR_LANE_F_ROWS, integrator.LANE_COUNT))
-            us = np.empty((workers, integrator.LANE_U_ROWS, integrator.LANE_COUNT), dtype=np.uint64)
-            js = np.empty((workers, integrator.LANE_I_ROWS, integrator.LANE_COUNT), dtype=np.int64)
-            next_piece = np.zeros(1, dtype=np.int64)
-            return kernel(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
-                          max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, fs,
-                          us, js, next_piece)
-
-        advance.kernel = kernel
-        return advance
+        return _with_workers(_pair_lanes_kernel(spec),
+                             (integrator.PAIR_LANE_F_ROWS, integrator.LANE_COUNT),
+                             (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
+                             (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
     return _pair_path_kernel(spec)
 
 
 def _pair_path_kernel(spec: Spec):
     advance_pair = integrator.build(spec).advance_pair
 
-    @numba.njit(parallel=True, cache=spec.cacheable)
+    @numba.njit(nogil=True, cache=spec.cacheable)
     @own_index(spec.label + "/pairs")
-    def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-                key0, key1, path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover
+    def advance(lo, hi, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
+                max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max,
+                step_c):  # pragma: no cover
         draws = 0
         unfinished = 0
-        for i in prange(x.shape[0]):
+        for i in range(lo, hi):
             s, u = advance_pair(i, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status,
                                 t_target, max_steps, key0, key1, path0, D, tau, W, omega2, n,
                                 h_max, step_c)
@@ -281,33 +346,31 @@ def _pair_path_kernel(spec: Spec):
             unfinished += u
         return draws, unfinished
 
-    return advance
+    return _ranges(advance, summed=True)
 
 
 def _pair_lanes_kernel(spec: Spec):
+    """One worker of the pair lane machine (``build_pair_lanes``), as :func:`_lanes_kernel`."""
     advance_range = integrator.build_pair_lanes(spec).advance_range
 
-    @numba.njit(parallel=True, cache=spec.cacheable, error_model="numpy")
+    @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label + "/pairs")
     def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-                key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js,
-                next_piece):  # pragma: no cover - compiled
+                key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, f, u, j, next_piece,
+                nw):  # pragma: no cover - compiled
         n_paths = x.shape[0]
-        nw = _workers(n_paths, fs.shape[0])
         n_pieces, size = _pieces(n_paths, nw)
         rk0, rk1 = rng.round_keys(key0, key1)
         draws = 0
         unfinished = 0
-        for w in prange(nw):
+        piece = _take(next_piece)
+        while piece < n_pieces:
+            s, uf = advance_range(piece * size, min((piece + 1) * size, n_paths), x, Omega, xf,
+                                  Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
+                                  rk0, rk1, path0, D, tau, W, omega2, n, h_max, step_c, f, u, j)
+            draws += s
+            unfinished += uf
             piece = _take(next_piece)
-            while piece < n_pieces:
-                s, u = advance_range(piece * size, min((piece + 1) * size, n_paths), x, Omega,
-                                     xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
-                                     max_steps, rk0, rk1, path0, D, tau, W, omega2, n, h_max,
-                                     step_c, fs[w], us[w], js[w])
-                draws += s
-                unfinished += u
-                piece = _take(next_piece)
         return draws, unfinished
 
     return advance
@@ -318,89 +381,87 @@ def _lockstep_kernel(spec: Spec):
     advance_path = steps.advance_path
     advance_lanes = steps.advance_lanes
 
-    @numba.njit(parallel=True, cache=spec.cacheable, error_model="numpy")
+    @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label)
     def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
-                path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js,
-                next_piece):  # pragma: no cover - compiled
+                path0, D, tau, W, omega2, n, h_max, step_c, fw, uw, jw, next_piece,
+                nw):  # pragma: no cover - compiled
         n_paths = x.shape[0]
         n_blocks = (n_paths + BLOCK - 1) // BLOCK
-        nw = _workers(n_blocks, fs.shape[0])
         n_pieces, size = _pieces(n_blocks, nw)
         rk0, rk1 = rng.round_keys(key0, key1)  # the same for every path
         steps_taken = 0
         unfinished = 0
-        for w in prange(nw):
-            bx = fs[w, 0]
-            bO = fs[w, 1]
-            bxi = fs[w, 2]
-            bxa = fs[w, 3]
-            br = fs[w, 4]
-            bph = fs[w, 5]
-            bc2 = us[w, 0]
-            bc3 = us[w, 1]
-            piece = _take(next_piece)
-            b = piece * size
-            while piece < n_pieces:
-                if b >= min((piece + 1) * size, n_blocks):
-                    piece = _take(next_piece)
-                    b = piece * size
-                    continue
-                i0 = b * BLOCK
-                b += 1
-                m = min(BLOCK, n_paths - i0)
-                t0 = t[i0]
-                k0 = k[i0]
-                tc0 = t_comp[i0]
-                lockstep = True
+        bx = fw[0]
+        bO = fw[1]
+        bxi = fw[2]
+        bxa = fw[3]
+        br = fw[4]
+        bph = fw[5]
+        bc2 = uw[0]
+        bc3 = uw[1]
+        piece = _take(next_piece)
+        b = piece * size
+        while piece < n_pieces:
+            if b >= min((piece + 1) * size, n_blocks):
+                piece = _take(next_piece)
+                b = piece * size
+                continue
+            i0 = b * BLOCK
+            b += 1
+            m = min(BLOCK, n_paths - i0)
+            t0 = t[i0]
+            k0 = k[i0]
+            tc0 = t_comp[i0]
+            lockstep = True
+            for lane in range(m):
+                if (status[i0 + lane] != 0 or t[i0 + lane] != t0 or k[i0 + lane] != k0
+                        or t_comp[i0 + lane] != tc0):
+                    lockstep = False
+            if not lockstep or t0 >= t_target:
                 for lane in range(m):
-                    if (status[i0 + lane] != 0 or t[i0 + lane] != t0 or k[i0 + lane] != k0
-                            or t_comp[i0 + lane] != tc0):
-                        lockstep = False
-                if not lockstep or t0 >= t_target:
-                    for lane in range(m):
-                        s, u = advance_path(i0 + lane, x, Omega, xi, xi_aux, t, t_comp, k,
-                                            status, t_target, max_steps, key0, key1, path0, D,
-                                            tau, W, omega2, n, h_max, step_c)
-                        steps_taken += s
-                        unfinished += u
-                    continue
-                for lane in range(BLOCK):
-                    src = i0 + lane if lane < m else i0  # padding lanes repeat the first path
-                    bx[lane] = x[src]
-                    bO[lane] = Omega[src]
-                    bxi[lane] = xi[src]
-                    bxa[lane] = xi_aux[src]
-                    p = _U64(path0 + src)
-                    bc2[lane] = p & rng._MASK32
-                    bc3[lane] = p >> rng._SHIFT32
-                s, tt, tc, kk, finite = advance_lanes(bx, bO, bxi, bxa, bc2, bc3, br, bph, t0,
-                                                      tc0, k0, t_target, max_steps, rk0, rk1, D,
-                                                      tau, W, omega2, n, h_max)
+                    s, u = advance_path(i0 + lane, x, Omega, xi, xi_aux, t, t_comp, k,
+                                        status, t_target, max_steps, key0, key1, path0, D,
+                                        tau, W, omega2, n, h_max, step_c)
+                    steps_taken += s
+                    unfinished += u
+                continue
+            for lane in range(BLOCK):
+                src = i0 + lane if lane < m else i0  # padding lanes repeat the first path
+                bx[lane] = x[src]
+                bO[lane] = Omega[src]
+                bxi[lane] = xi[src]
+                bxa[lane] = xi_aux[src]
+                p = _U64(path0 + src)
+                bc2[lane] = p & rng._MASK32
+                bc3[lane] = p >> rng._SHIFT32
+            s, tt, tc, kk, finite = advance_lanes(bx, bO, bxi, bxa, bc2, bc3, br, bph, t0,
+                                                  tc0, k0, t_target, max_steps, rk0, rk1, D,
+                                                  tau, W, omega2, n, h_max)
+            for lane in range(m):
+                x[i0 + lane] = bx[lane]
+                Omega[i0 + lane] = bO[lane]
+                xi[i0 + lane] = bxi[lane]
+                xi_aux[i0 + lane] = bxa[lane]
+                t[i0 + lane] = tt
+                t_comp[i0 + lane] = tc
+                k[i0 + lane] = kk
+            steps_taken += s * m
+            if not finite:
+                # A path stops at its first non-finite state: freeze those lanes, and let
+                # the others go on one by one (the same numbers, one path at a time).
                 for lane in range(m):
-                    x[i0 + lane] = bx[lane]
-                    Omega[i0 + lane] = bO[lane]
-                    xi[i0 + lane] = bxi[lane]
-                    xi_aux[i0 + lane] = bxa[lane]
-                    t[i0 + lane] = tt
-                    t_comp[i0 + lane] = tc
-                    k[i0 + lane] = kk
-                steps_taken += s * m
-                if not finite:
-                    # A path stops at its first non-finite state: freeze those lanes, and let
-                    # the others go on one by one (the same numbers, one path at a time).
-                    for lane in range(m):
-                        if not (math.isfinite(bx[lane]) and math.isfinite(bO[lane])
-                                and math.isfinite(bxi[lane])):
-                            status[i0 + lane] = 1
-                    for lane in range(m):
-                        s2, u = advance_path(i0 + lane, x, Omega, xi, xi_aux, t, t_comp, k,
-                                             status, t_target, max_steps - s, key0, key1, path0,
-                                             D, tau, W, omega2, n, h_max, step_c)
-                        steps_taken += s2
-                        unfinished += u
-                elif tt < t_target:
-                    unfinished += m
+                    if not (math.isfinite(bx[lane]) and math.isfinite(bO[lane])
+                            and math.isfinite(bxi[lane])):
+                        status[i0 + lane] = 1
+                for lane in range(m):
+                    s2, u = advance_path(i0 + lane, x, Omega, xi, xi_aux, t, t_comp, k,
+                                         status, t_target, max_steps - s, key0, key1, path0,
+                                         D, tau, W, omega2, n, h_max, step_c)
+                    steps_taken += s2
+                    unfinished += u
+            elif tt < t_target:
+                unfinished += m
         return steps_taken, unfinished
 
     return advance
@@ -421,13 +482,13 @@ def accumulate_kernel(spec: Spec):
     """
     path_values = integrator.statistics(spec.oscillator, spec.coupling)
 
-    @numba.njit(parallel=True, cache=spec.oscillator.builtin)
+    @numba.njit(nogil=True, cache=spec.oscillator.builtin)
     @own_index(f"{spec.oscillator.name}/{spec.coupling}")
-    def accumulate(x, Omega, status, omega2, n, batch_size, edges, sums,
+    def accumulate(b_lo, b_hi, x, Omega, status, omega2, n, batch_size, edges, sums,
                    hist):  # pragma: no cover - compiled
         n_paths = x.shape[0]
         n_edges = edges.shape[0]
-        for b in prange(sums.shape[0]):
+        for b in range(b_lo, b_hi):
             for c in range(sums.shape[1]):
                 sums[b, c] = 0.0
             for c in range(hist.shape[1]):
@@ -458,7 +519,21 @@ def accumulate_kernel(spec: Spec):
                 else:
                     hist[b, np.searchsorted(edges, E, side="right")] += 1
 
-    return accumulate
+    return _ranges(accumulate, items=7)  # the batches, rows of sums
+
+
+def compiled_kernels(spec: Spec, *, pairs: bool = True) -> dict[str, object]:
+    """The Numba dispatchers a run of ``spec`` calls, by kind (``resources.COMPILE_S``):
+    ``init``, ``advance``, ``accumulate`` and, with ``pairs`` (the bias estimate), ``pairs``;
+    ``advance_one_path`` and ``pairs_one_path`` for a Spec without a SIMD driver. Nothing is
+    compiled here."""
+    one_path = advance_kernel(spec) is path_kernel(spec)  # no SIMD driver: less to compile
+    suffix = "_one_path" if one_path else ""
+    out = {"init": init_kernel(spec), "advance" + suffix: advance_kernel(spec),
+           "accumulate": accumulate_kernel(spec)}
+    if pairs:
+        out["pairs" + suffix] = pair_advance_kernel(spec)
+    return {kind: getattr(kernel, "kernel", kernel) for kind, kernel in out.items()}
 
 
 def kernels(spec: Spec) -> SimpleNamespace:
@@ -500,8 +575,10 @@ class Engine:
         c = self.config
         self.p0, self.n, self.nb = p0, n, nb
         self._allocate(n, nb)
+        # path0 as uint64, as the bias estimate's pairs pass theirs (from 2**63): one compiled
+        # init for both (path0 + i is the same uint64 either way).
         self.kernels.init(self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k,
-                          self.status, self.key0, self.key1, p0,
+                          self.status, self.key0, self.key1, _U64(p0),
                           0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
                           0.0 if c.xi0 is None else c.xi0, c.xi0 is None, c.D, c.tau_or_zero,
                           c.omega_noise_or_zero)
