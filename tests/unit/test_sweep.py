@@ -213,7 +213,7 @@ def test_missing_file_and_bad_arguments(tmp_path):
         sweep(p, scheduler="bogus")
     with pytest.raises(ValueError, match="tasks_per_set=0 is not accepted"):
         sweep(p, tasks_per_set=0)
-    with pytest.raises(ValueError, match="--workers 0 is not accepted"):
+    with pytest.raises(ValueError, match="workers=0 is not accepted"):
         sweep(p, workers=0)
 
 
