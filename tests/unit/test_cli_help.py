@@ -219,8 +219,12 @@ def test_completion_script_and_completions():
     commands and options."""
     import os
 
-    result = CliRunner().invoke(cli.app, ["--show-completion", "bash"], prog_name="stochpend")
-    assert result.exit_code == 0 and "_stochpend_completion" in result.output, result.output
+    # --show-completion detects the shell from the parent process (shellingham): run it from bash
+    # (a second command keeps bash from exec'ing Python in its place).
+    code = "from stochpend.cli import app; app(prog_name='stochpend')"
+    proc = subprocess.run(["bash", "-c", f"'{sys.executable}' -c \"{code}\" --show-completion; exit $?"],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and "_stochpend_completion" in proc.stdout, (proc.stdout, proc.stderr)
     env = {**os.environ, "COMP_WORDS": "stochpend simulate --noi", "COMP_CWORD": "2",
            "_STOCHPEND_COMPLETE": "complete_bash"}
     code = "import sys; sys.argv[0] = 'stochpend'; from stochpend.cli import app; app(prog_name='stochpend')"
