@@ -48,7 +48,7 @@ def _scaled_args(args: list[str]) -> list[str]:
             out[i + 1] = str(min(20.0, float(out[i + 1])))
         elif a == "--times":
             out[i + 1] = ",".join(t for t in out[i + 1].split(",") if float(t) <= 20) or "1,2,5"
-        elif a == "--t" and out[0] == "theory":
+        elif a in ("--t", "--time") and out[0] == "theory":
             pass  # one evaluation time of closed forms: cheap as written
     return out
 
