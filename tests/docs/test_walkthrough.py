@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from tests.docs.test_readme import PARSE_ONLY, _blocks, _scaled_args
-from tests.unit import test_terminal_output as _terminal
+from tests.unit.test_terminal_output import _in_pty
 
 ROOT = Path(__file__).resolve().parents[2]
 SRC = str(ROOT / "src")
@@ -39,48 +39,9 @@ def _env() -> dict[str, str]:
 
 
 def _pty(args: list[str], cwd: Path) -> str:
-    """The terminal's output, escape codes removed, carriage returns kept as line breaks (a
-    progress bar redraws its line: each drawing must fit)."""
-    return _raw_pty(_cmd(args), cwd).replace("\r", "\n")
-
-
-def _raw_pty(args: list[str], cwd: Path) -> str:
-    import fcntl
-    import pty
-    import select
-    import struct
-    import termios
-
-    master, slave = pty.openpty()
-    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 80, 0, 0))
-    proc = subprocess.Popen(args, stdin=slave, stdout=slave, stderr=slave, env=_env(), cwd=cwd, close_fds=True)
-    os.close(slave)
-    chunks = []
-    while True:
-        ready, _, _ = select.select([master], [], [], 300)
-        if not ready:
-            proc.kill()
-            raise AssertionError(f"no output for 300 s: {args}")
-        try:
-            data = os.read(master, 65536)
-        except OSError:
-            break
-        if not data:
-            break
-        chunks.append(data)
-    proc.wait(timeout=60)
-    os.close(master)
-    text = b"".join(chunks).decode("utf-8", errors="replace")
-    assert proc.returncode == 0, (args, text)
-    return _terminal.ANSI.sub("", text)
-
-
-def _pipe(args: list[str], cwd: Path, code: int = 0) -> subprocess.CompletedProcess:
-    proc = subprocess.run(_cmd(args), capture_output=True, text=True, cwd=cwd, env=_env(), timeout=600)
-    assert proc.returncode == code, (args, proc.returncode, proc.stderr)
-    assert "Traceback" not in proc.stderr, (args, proc.stderr)
-    assert not ESCAPE.search(proc.stdout) and not ESCAPE.search(proc.stderr), args
-    return proc
+    """The 80x24 terminal's output, escape codes removed, carriage returns kept as line breaks
+    (a progress bar redraws its line: each drawing must fit)."""
+    return _in_pty(_cmd(args), 80, 24, cwd=cwd, env=_env(), returns="\n", wait_s=300)
 
 
 def _check_screen(args: list[str], screen: str) -> None:
@@ -112,8 +73,8 @@ def test_the_readme_walkthrough_in_a_terminal_and_in_a_pipe(tmp_path):
     (tmp_path / "run.toml").write_text('noise = "ou"\nD = 1.0\ntau = 1.0\nt_max = 20.0\nn_times = 4\n')
     for words in _readme_commands():
         args = _scaled_args(words)
-        if "--out" in args or args[0] in ("simulate", "plot"):
-            args.append("--overwrite") if args[0] in ("simulate", "plot", "bfpe", "reduced", "sweep") else None
+        if args[0] in ("simulate", "plot", "bfpe", "reduced", "sweep") and ("--out" in args or args[0] == "plot"):
+            args.append("--overwrite")  # the walk-through writes run.nc, run.png, ... more than once
         screen = _pty(args, tmp_path)
         _check_screen(args, screen)
         proc = _pipe(args, tmp_path)

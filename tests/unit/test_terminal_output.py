@@ -34,20 +34,24 @@ def _stochpend(*args: str) -> list[str]:
     return [sys.executable, "-m", "stochpend", *args]
 
 
-def _in_pty(args: list[str], columns: int, rows: int = 24) -> str:
+def _in_pty(args: list[str], columns: int, rows: int = 24, *, cwd: Path | None = None,
+            env: dict[str, str] | None = None, returns: str = "", wait_s: float = 120) -> str:
     """Run ``args`` with stdout and stderr on a pseudo-terminal of the given size; its screen
-    output, escape codes removed."""
+    output, escape codes removed, each carriage return replaced by ``returns`` (a progress
+    bar's successive drawings: "\n" keeps them apart)."""
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, columns, 0, 0))
-    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
-    proc = subprocess.Popen(args, stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True)
+    if env is None:
+        env = dict(os.environ)
+    env = {k: v for k, v in env.items() if k not in ("COLUMNS", "LINES")}
+    proc = subprocess.Popen(args, stdin=slave, stdout=slave, stderr=slave, env=env, cwd=cwd, close_fds=True)
     os.close(slave)
     chunks = []
     while True:
-        ready, _, _ = select.select([master], [], [], 120)
+        ready, _, _ = select.select([master], [], [], wait_s)
         if not ready:
             proc.kill()
-            raise AssertionError("no output for 120 s")
+            raise AssertionError(f"no output for {wait_s:g} s: {args}")
         try:
             data = os.read(master, 65536)
         except OSError:  # the child closed the terminal
@@ -57,8 +61,8 @@ def _in_pty(args: list[str], columns: int, rows: int = 24) -> str:
         chunks.append(data)
     proc.wait(timeout=60)
     os.close(master)
-    assert proc.returncode == 0, b"".join(chunks).decode(errors="replace")
-    return ANSI.sub("", b"".join(chunks).decode("utf-8", errors="replace")).replace("\r", "")
+    assert proc.returncode == 0, (args, b"".join(chunks).decode(errors="replace"))
+    return ANSI.sub("", b"".join(chunks).decode("utf-8", errors="replace")).replace("\r", returns)
 
 
 def test_show_in_a_pipe_puts_the_table_on_stdout(run_file):
