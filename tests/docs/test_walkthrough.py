@@ -44,6 +44,14 @@ def _pty(args: list[str], cwd: Path) -> str:
     return _in_pty(_cmd(args), 80, 24, cwd=cwd, env=_env(), returns="\n", wait_s=300)
 
 
+def _pipe(args: list[str], cwd: Path, code: int = 0) -> subprocess.CompletedProcess:
+    proc = subprocess.run(_cmd(args), capture_output=True, text=True, cwd=cwd, env=_env(), timeout=600)
+    assert proc.returncode == code, (args, proc.returncode, proc.stderr)
+    assert "Traceback" not in proc.stderr, (args, proc.stderr)
+    assert not ESCAPE.search(proc.stdout) and not ESCAPE.search(proc.stderr), args
+    return proc
+
+
 def _check_screen(args: list[str], screen: str) -> None:
     assert "Traceback" not in screen, (args, screen)
     if "--format" in args:  # CSV/JSON are data for programs, one record per line, not a table
