@@ -1,46 +1,74 @@
-"""Keep Numba's on-disk cache honest.
+"""Keep Numba's on-disk cache honest: a cached kernel is only ever reused by the code that made it.
 
-Numba invalidates a cached kernel when the kernel's own source file changes, but not when a
-function it inlines from another module does (the integrator, the noises, the oscillators,
-``rng``). Kernels built from closures are also keyed by their closure's pickled functions, but
-a function referred to by module name (``rng.draw_normals``) is pickled by reference only. Each kernel module calls :func:`drop_stale_cache` at import: it hashes the kernel
-module together with the shared modules and deletes the module's cache files when the hash
-differs from the one recorded beside them, so an edit anywhere recompiles.
+Numba keys a cached kernel on its own source file and its closure's cells; a function it calls
+from another module (``rng.draw_normals``, the integrator's pieces) is pickled by reference, so
+an edit of that module, or an upgrade of stochpend, would reuse the old machine code under the
+new code's name. And Numba names each compiled function ``<module>.<qualname>$<n>``, ``n`` from
+a counter unique in one process only: a cached kernel calls the pieces it does not inline by
+those names, so when two pieces share a qualname (every Spec's ``build.<locals>.verlet``), a
+process that compiled another Spec's piece first can give it the very name the cached kernel
+was written with, and the kernel, once loaded, calls it (another noise's step, no error).
 
-Numba names each compiled function ``<qualname>$<n>``, with ``n`` from a counter that is
-unique in one process only, and a cached kernel calls the pieces it does not inline by those
-names. A process that compiles other pieces first (another Spec's ``build.<locals>.advance_path``)
-can give them the very names a cached kernel was written with, and the kernel, once loaded,
-then calls them: another noise's step, wrong numbers, no error. :func:`salt_unique_ids` (run
-at import) starts the counter at a random point per process, so names written by different
-processes never meet.
+Both are closed by names, whatever the cache directory and whichever process wrote it:
+
+* every cached kernel's qualname carries a tag of its key (the Spec's label, the noise's name)
+  and of :func:`stochpend._sources.digest`, so its cache index file is the new code's own
+  (:func:`own_index`); an edit of any source that decides the numbers compiles afresh;
+* every closure a builder makes (the integrator's pieces, a noise's or an oscillator's device
+  functions) is named once, where it is made, after what determines its code
+  (:func:`name_closures`): two functions with one qualname are then the same code, and a name
+  met in another process's cache can only mean that code.
+
+Nothing is patched in Numba and nothing is deleted: kernels of older code stay on disk unused
+(delete ``__pycache__/*.nb[ic]`` or the ``NUMBA_CACHE_DIR`` folder to reclaim the space).
 """
 
 from __future__ import annotations
 
 import hashlib
-import itertools
-import secrets
+import types
+from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
+
+from stochpend import _sources
 
 _PACKAGE = Path(__file__).resolve().parent
-SHARED_SOURCES = ("integrator.py", "rng.py", "mathlib.py", "fastmath.py", "stats.py",
-                  "noises", "oscillators")
-#: Part of the cache stamp: caches written before the counter was salted are dropped.
-_NAMING = b"numba unique ids salted per process (1)"
 
 
-def salt_unique_ids() -> None:
-    """Start Numba's per-function counter at a random multiple of 2**20 below 2**60 (once per
-    process): two processes then share a function name with probability ~2**-40."""
-    from numba.core.bytecode import FunctionIdentity
-
-    if not getattr(FunctionIdentity, "_stochpend_salted", False):
-        FunctionIdentity._unique_ids = itertools.count((secrets.randbits(40) + 1) << 20)
-        FunctionIdentity._stochpend_salted = True
+def tag(key: str) -> str:
+    """16 hex digits fixed by ``key`` and the code digest (:mod:`stochpend._sources`)."""
+    return hashlib.sha256(f"{key}\0{_sources.digest()}".encode()).hexdigest()[:16]
 
 
-salt_unique_ids()
+def name_closures(functions: Iterable[Any], key: str) -> None:
+    """Append :func:`tag` (``key``) to the qualname of every closure reachable from
+    ``functions`` (through closure cells and tuples) that has no such name yet; functions defined at module level keep theirs.
+
+    ``key`` must name everything that decides the closures' code besides the sources (e.g.
+    ``"ou/float64/libm"`` for a noise's device functions, a Spec's label for the
+    integrator's): call it where the closures are made, before anything compiles them (Numba
+    reads the qualname when it compiles).
+    """
+    suffix = "_" + tag(key)
+    seen: set[int] = set()
+    stack = list(functions)
+    while stack:
+        obj = stack.pop()
+        if id(obj) in seen:
+            continue
+        seen.add(id(obj))
+        if isinstance(obj, (tuple, list)):
+            stack.extend(obj)
+        elif isinstance(obj, types.FunctionType):
+            if "<locals>" in obj.__qualname__ and not getattr(obj, "_stochpend_named", False):
+                obj.__qualname__ += suffix
+                obj._stochpend_named = True
+            for cell in obj.__closure__ or ():
+                try:
+                    stack.append(cell.cell_contents)
+                except ValueError:  # an empty cell
+                    pass
 
 
 def _writable(directory: Path) -> bool:
@@ -91,43 +119,24 @@ def fall_back_to_a_temporary_cache() -> None:
 fall_back_to_a_temporary_cache()
 
 
-def drop_stale_cache(module_file: str) -> None:
-    """Delete ``module_file``'s Numba cache if it or a shared source changed since it was built."""
-    module = Path(module_file).resolve()
-    digest = hashlib.sha256(_NAMING)
-    for path in [module, *(_PACKAGE / name for name in SHARED_SOURCES)]:
-        for file in sorted(path.glob("*.py")) if path.is_dir() else [path]:
-            if file.is_file():
-                digest.update(file.read_bytes())
-    cache_dir = module.parent / "__pycache__"
-    stamp = cache_dir / f"{module.stem}.sources.sha256"
-    try:
-        if stamp.is_file() and stamp.read_text() == digest.hexdigest():
-            return
-        for pattern in (f"{module.stem}.*.nbi", f"{module.stem}.*.nbc"):
-            for stale in cache_dir.glob(pattern):
-                stale.unlink(missing_ok=True)
-        cache_dir.mkdir(exist_ok=True)
-        stamp.write_text(digest.hexdigest())
-    except OSError:  # a read-only install: Numba then compiles in memory or uses its own dir
-        pass
-
-
 def own_index(key: str):
-    """Decorator (under ``numba.njit(cache=True)``): give a kernel built per Spec its own cache
-    index file, named after ``key`` (the Spec's label).
+    """Decorator (under ``numba.njit(cache=True)`` or ``cuda.jit(cache=True)``): name a cached
+    kernel after ``key`` (what decides its code besides the sources: the Spec's label, the
+    noise's name) and the code digest, so that it has its own cache index file, and name the
+    closures it captures that have no name yet (:func:`name_closures`).
 
-    Numba keeps one index file per function (its qualified name and line) and, when two
-    processes add entries to it at once, both may pick the same data file name: the index can
-    end up mapping one Spec's key to another Spec's machine code, which a later process then
-    runs without a word (seen here: the dichotomous kernel running another noise's step after
-    concurrent test processes). With one index per Spec, processes that race write the same
-    Spec's code, so whichever write wins is right.
+    The digest in the name makes a kernel of other code unreachable (see the module
+    docstring). One index per Spec also keeps racing processes apart: Numba keeps one index
+    file per function and, when two processes add entries to it at once, both may pick the
+    same data file name, so one Spec's key could map to another Spec's machine code (seen here:
+    the dichotomous kernel running another noise's step after concurrent test processes).
+    With one index per Spec and code, processes that race write the same code.
     """
-    tag = hashlib.sha256(key.encode()).hexdigest()[:16]
 
     def rename(fn):
-        fn.__qualname__ = f"{fn.__qualname__}_{tag}"
+        fn.__qualname__ = f"{fn.__qualname__}_{tag(key)}"
+        fn._stochpend_named = True
+        name_closures([fn], key)
         return fn
 
     return rename
@@ -136,7 +145,7 @@ def own_index(key: str):
 def in_cache(kernel) -> bool:
     """Whether calling the Numba dispatcher ``kernel`` will not compile: compiled (or loaded)
     in this process already, or with an index in Numba's on-disk cache (one per Spec, see
-    :func:`own_index`; :func:`drop_stale_cache` removes stale ones at import). A kernel that is
+    :func:`own_index`; a kernel of other code has another name, so no index). A kernel that is
     not cacheable (a user's model) is compiled once per process."""
     import os
 

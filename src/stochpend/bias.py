@@ -38,13 +38,11 @@ from typing import Any
 import numpy as np
 
 from stochpend import integrator, rng, stats
-from stochpend._jitcache import CompileClock, drop_stale_cache
+from stochpend._jitcache import CompileClock
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig
 from stochpend.progress import NoProgress, Progress
 from stochpend.stats import N_SUMS, STATISTICS
-
-drop_stale_cache(__file__)
 
 __all__ = ["BIAS_PATH0", "Assessment", "BiasEstimate", "RICHARDSON", "assess", "assess_dataset",
            "default_bias_paths", "estimate", "summary_line", "warnings_for"]

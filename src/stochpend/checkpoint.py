@@ -21,7 +21,7 @@ over the previous checkpoint (``os.replace``), so a crash leaves either the old 
 checkpoint, never a mixture. Reading verifies the checksum over the whole file before
 anything is parsed: a truncated or corrupted file is refused, never half-loaded. A checkpoint
 written by another stochpend version or build (the fingerprint of the code that determines
-the numbers, :data:`stochpend.sweep.BUILD`), or whose configuration no longer validates to the
+the numbers, :data:`stochpend._sources.BUILD`), or whose configuration no longer validates to the
 same hash, is refused with a one-line message (``ValueError``).
 """
 
@@ -47,12 +47,12 @@ import xarray as xr
 
 from stochpend import __version__, _files, bias, io
 from stochpend._jitcache import CompileClock
+from stochpend._sources import BUILD
 from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
 from stochpend.runner import BACKENDS, RunState, path_dtypes, run_batches
 from stochpend.simulate import provenance
 from stochpend.stats import N_SUMS, EnsembleSums
-from stochpend.sweep import BUILD
 
 __all__ = [
     "Checkpoint",

@@ -44,6 +44,7 @@ from numba.extending import register_jitable
 from stochpend import noises as _noises
 from stochpend import oscillators as _oscillators
 from stochpend import rng
+from stochpend._jitcache import name_closures
 from stochpend.mathlib import FAST, LIBM
 from stochpend.noises.base import Noise
 from stochpend.oscillators.base import Oscillator
@@ -472,6 +473,7 @@ def build(spec: Spec) -> SimpleNamespace:
                 break
         return steps, tt, tc, kk, finite
 
+    name_closures([G, step_size, verlet, advance_path, advance_pair, advance_lanes], spec.label)
     return SimpleNamespace(
         spec=spec, real=real, G=G, step_size=step_size, verlet=verlet,
         init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
@@ -501,6 +503,7 @@ def initial_state(noise: Noise):
         xi, aux = noise_init(key0, key1, path, D, tau, W, xi0, stationary_xi0)
         return x, Omega0, xi, aux
 
+    name_closures([init_path], f"init/{noise.name}")
     return init_path
 
 
@@ -526,6 +529,7 @@ def statistics(oscillator: Oscillator, coupling: str):
         ok = math.isfinite(E2 * E2) and math.isfinite(O2 * O2) and math.isfinite(g)
         return ok, E, E2, O2, g * g
 
+    name_closures([path_values], f"statistics/{oscillator.name}/{coupling}")
     return path_values
 
 def spec(noise: str = "ou", potential: str = "pendulum", coupling: str = "force", *,
@@ -747,6 +751,7 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
                     n_active += 1
         return steps_taken, unfinished
 
+    name_closures([advance_range, lanes], f"lanes/{spec.label}")
     return SimpleNamespace(spec=spec, advance_range=advance_range, lanes=lanes)
 
 
@@ -960,4 +965,5 @@ def build_pair_lanes(spec: Spec) -> SimpleNamespace:
                     n_active += 1
         return draws_taken, unfinished
 
+    name_closures([advance_range, lanes], f"pair-lanes/{spec.label}")
     return SimpleNamespace(spec=spec, advance_range=advance_range, lanes=lanes)

@@ -106,9 +106,7 @@ from stochpend.stats import (
 )
 from stochpend.params import DEFAULT_HIST_BINS, DEFAULT_N_BATCHES, SimulationConfig
 from stochpend.stats import EnsembleSums
-from stochpend._jitcache import drop_stale_cache
-
-drop_stale_cache(__file__)
+from stochpend._jitcache import own_index
 
 __all__ = [
     "ORDERS",
@@ -313,6 +311,7 @@ def besq_step(x, delta, s, key0, key1, path, n):
 
 
 @numba.njit(parallel=True, cache=True)
+@own_index("reduced")
 def _advance_first(Y, status, sd, key0, key1, path0, block):  # pragma: no cover - compiled
     """Free Wiener process Y += sd z (E = |Y| is the reflected one); one draw per transition."""
     for i in prange(Y.shape[0]):
@@ -327,6 +326,7 @@ def _advance_first(Y, status, sd, key0, key1, path0, block):  # pragma: no cover
 
 
 @numba.njit(parallel=True, cache=True)
+@own_index("reduced")
 def _advance_besq(X, status, delta, s, code, key0, key1, path0, block):  # pragma: no cover
     """Exact squared-Bessel transition of every path over one output interval."""
     for i in prange(X.shape[0]):
@@ -340,6 +340,7 @@ def _advance_besq(X, status, delta, s, code, key0, key1, path0, block):  # pragm
 
 
 @numba.njit(parallel=True, cache=True)
+@own_index("reduced")
 def _init_xi(xi, key0, key1, path0, stationary, xi0, sd_stationary):  # pragma: no cover
     """Initial OU noise of the second-order model (block 0 of its stream)."""
     for i in prange(xi.shape[0]):
@@ -351,6 +352,7 @@ def _init_xi(xi, key0, key1, path0, stationary, xi0, sd_stationary):  # pragma: 
 
 
 @numba.njit(parallel=True, cache=True)
+@own_index("reduced")
 def _advance_second(X, xi, status, n_steps, h, k0, sigma2, tau, omega2, a, s_xi, m_I, c_I, s_I,
                     key0, key1, path0):  # pragma: no cover - compiled
     """``n_steps`` steps of length h of the second-order model in X = E_2**2 (module doc).
@@ -385,6 +387,7 @@ def _advance_second(X, xi, status, n_steps, h, k0, sigma2, tau, omega2, a, s_xi,
 
 
 @numba.njit(parallel=True, cache=True)
+@own_index("reduced")
 def _accumulate(state, status, transform, batch_size, edges, sums, hist):  # pragma: no cover
     """Per-batch power sums of E (and Omega**2 = 2E) and the E histogram at one output time.
 
@@ -428,6 +431,7 @@ def _accumulate(state, status, transform, batch_size, edges, sums, hist):  # pra
 
 
 @numba.njit(parallel=True, cache=True)
+@own_index("reduced")
 def _sampler_draws(kind, p1, p2, p3, count, key0, key1):  # pragma: no cover - compiled
     """``count`` independent draws of a sampler (paths 0..count-1, stream CODE_TEST)."""
     out = np.empty(count)

@@ -52,6 +52,7 @@ import xarray as xr
 
 from stochpend import __version__
 from stochpend.params import SimulationConfig, hist_edges
+from stochpend._sources import BUILD
 from stochpend.progress import NoProgress, Progress
 from stochpend.runner import run_batches
 from stochpend.simulate import provenance
@@ -114,29 +115,6 @@ class BlockResult:
     seconds: float
 
 
-#: The sources that determine the numbers (files and folders of the package; every file of a
-#: folder counts, so a new noise or oscillator is covered).
-_NUMBERS_SOURCES = ("params.py", "rng.py", "mathlib.py", "fastmath.py", "integrator.py",
-                    "runner.py", "simulate.py", "stats.py", "models.py", "_backends/cpu.py",
-                    "_backends/cuda.py", "noises", "oscillators")
-
-
-def _code_fingerprint() -> str:
-    """SHA-256 (12 hex digits) of the sources that determine the numbers, as installed here."""
-    import hashlib
-
-    package = Path(__file__).resolve().parent
-    h = hashlib.sha256()
-    for name in _NUMBERS_SOURCES:
-        path = package / name
-        for file in sorted(path.glob("*.py")) if path.is_dir() else [path]:
-            h.update(file.relative_to(package).as_posix().encode())
-            h.update(file.read_bytes())
-    return h.hexdigest()[:12]
-
-
-#: This process's stochpend: version and code fingerprint. Every worker must have the same.
-BUILD = f"{__version__} (code {_code_fingerprint()})"
 
 
 # -- parsing and validation ------------------------------------------------------------------

@@ -13,7 +13,8 @@ from stochpend import cli, io
 from stochpend._cli_scale import resume_command, sweep_command
 from stochpend.params import SimulationConfig
 from stochpend.simulate import run
-from stochpend.sweep import BUILD, load_spec, plan_tasks, run_block, sweep
+from stochpend._sources import BUILD
+from stochpend.sweep import load_spec, plan_tasks, run_block, sweep
 
 BASE = """
 description = "tiny"

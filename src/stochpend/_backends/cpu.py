@@ -57,13 +57,11 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from stochpend import integrator, rng, stats
-from stochpend._jitcache import drop_stale_cache, own_index
+from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
 from stochpend.oscillators.pendulum import PENDULUM
 from stochpend.runner import CHUNK_ARRAYS
 from stochpend.stats import N_SUMS
-
-drop_stale_cache(__file__)
 
 #: Paths per lock-step block (the integrator's lane count).
 BLOCK = integrator.LANES
@@ -189,6 +187,7 @@ PIECES_PER_WORKER = 4
 
 
 @numba.njit(cache=True)
+@own_index("pieces")
 def _pieces(n_items, workers):  # pragma: no cover - compiled
     """(n_pieces, piece size) of n_items shared by ``workers``."""
     n_pieces = min(n_items, workers * PIECES_PER_WORKER)

@@ -41,7 +41,7 @@ from numba.core.errors import NumbaPerformanceWarning
 from numba.extending import register_jitable
 
 from stochpend import integrator, rng, runner, stats
-from stochpend._jitcache import drop_stale_cache, own_index
+from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig
 from stochpend.progress import Progress
@@ -56,8 +56,7 @@ else:
     _IMPORT_ERROR = None
 
 # The kernels of built-in pieces are cached on disk (``cuda.jit(cache=True)``, next to this file
-# like the CPU's): dropped when this file or a shared source changes (see _jitcache).
-drop_stale_cache(__file__)
+# like the CPU's), under names that carry the code digest (see _jitcache).
 
 __all__ = ["PRECISIONS", "Engine", "availability", "kernel_variants", "path_states",
            "run_batches"]

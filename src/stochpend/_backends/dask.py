@@ -35,7 +35,8 @@ import distributed
 import numba
 from dask.callbacks import Callback
 
-from stochpend.sweep import BUILD, BlockResult, SweepSpec, Task, run_block
+from stochpend._sources import BUILD
+from stochpend.sweep import BlockResult, SweepSpec, Task, run_block
 
 __all__ = ["connect"]
 
@@ -103,7 +104,7 @@ def _check_threadsafe_numba() -> None:
 
 
 def _worker_facts() -> dict[str, Any]:
-    from stochpend.sweep import BUILD
+    from stochpend._sources import BUILD
 
     return {"cpus": _cpu_count(), "build": BUILD}
 

@@ -117,13 +117,13 @@ class RunSpec:
         """
         from stochpend.params import SimulationConfig
 
-        from stochpend.sweep import _code_fingerprint
+        from stochpend import _sources
 
         config = SimulationConfig.build(**self.simulate_kwargs())
         resolved = {**config.to_attrs(), "times": list(config.times), "hist_E_max": list(config.hist_E_max)}
         # The code that determines the numbers is part of the key: a run made by an older
         # integrator (same version string, e.g. during development) is never reused.
-        payload = json.dumps({"run": resolved, "stochpend": version, "code": _code_fingerprint(),
+        payload = json.dumps({"run": resolved, "stochpend": version, "code": _sources.digest(),
                               "backend": backend, "precision": precision},
                              sort_keys=True, default=str)
         return hashlib.sha256(payload.encode()).hexdigest()

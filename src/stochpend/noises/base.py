@@ -33,6 +33,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 from numba.extending import register_jitable
 
 __all__ = ["Noise", "NoiseKernel", "no_event", "at_no_event", "no_scratch"]
@@ -123,6 +124,9 @@ class Noise:
 @functools.lru_cache(maxsize=None)
 def _kernel(noise: Noise, real: Any, mathlib_name: str) -> NoiseKernel:
     """Built once per (noise, precision, math library); the cache holds the noise itself."""
+    from stochpend._jitcache import name_closures
     from stochpend.mathlib import FAST, LIBM
 
-    return noise.build(real, FAST if mathlib_name == FAST.name else LIBM)
+    kernel = noise.build(real, FAST if mathlib_name == FAST.name else LIBM)
+    name_closures(vars(kernel).values(), f"noise/{noise.name}/{np.dtype(real).name}/{mathlib_name}")
+    return kernel

@@ -78,6 +78,9 @@ class Oscillator:
 def _kernel(oscillator: Oscillator, real: Any, mathlib_name: str) -> OscillatorKernel:
     """Built once per (oscillator, precision, math library); the cache holds the oscillator
     itself, so a key never outlives its object (an ``id`` could be reused by another model)."""
+    from stochpend._jitcache import name_closures
     from stochpend.mathlib import FAST
 
-    return oscillator.build(real, FAST if mathlib_name == FAST.name else LIBM)
+    kernel = oscillator.build(real, FAST if mathlib_name == FAST.name else LIBM)
+    name_closures(vars(kernel).values(), f"oscillator/{oscillator.name}/{np.dtype(real).name}/{mathlib_name}")
+    return kernel
