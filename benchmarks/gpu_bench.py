@@ -14,7 +14,7 @@ The cases: OU noise, D = tau = omega = 1, seed 2024, 100 batches, 4 output times
 h = min(h_max, c/|Omega|, c/sqrt|omega^2 + xi|) with h_max = 0.05, c = 0.1 (the defaults), to
 t_max = ``--t-max-adaptive``. For each precision, step mode and ensemble size:
 
-* stochpend: the whole ``cuda.run_batches`` call (the advance, statistics and copies), after a
+* stochpend: the whole ``runner.run_batches(backend="cuda")`` call (the advance, statistics and copies), after a
   warm-up call that compiles the kernels;
 * the reference (``benchmarks/cuda_ref/ref.cu``, written out and compiled at benchmark time
   with NVRTC, or with nvcc when one is on PATH or under CUDA_HOME): one thread per path, the
@@ -55,6 +55,7 @@ if str(ROOT / "src") not in sys.path:
 
 from stochpend import __version__  # noqa: E402
 from stochpend._backends import cpu  # noqa: E402
+from stochpend import runner  # noqa: E402
 from stochpend._backends import cuda as gpu  # noqa: E402
 from stochpend.params import SimulationConfig  # noqa: E402
 from stochpend.runner import run_batches as cpu_run_batches  # noqa: E402
@@ -155,7 +156,7 @@ def agreement(check_paths: int, steps: int, precisions: list[str],
     lines.append("|---|---|---|---|---|---|---|---|---|")
     passed = True
     for precision in precisions:
-        sums, steps_taken = gpu.run_batches(config, 0, config.n_batches, precision=precision)
+        sums, steps_taken = runner.run_batches(config, 0, config.n_batches, precision=precision, backend="cuda")
         c = compare(ref, sums)
         p = compare_paths(ref_states, gpu.path_states(config, 0, n_states, precision=precision))
         if precision == "float64":
@@ -176,9 +177,9 @@ def agreement(check_paths: int, steps: int, precisions: list[str],
 
 
 def time_run(config: SimulationConfig, precision: str) -> tuple[float, int, object]:
-    """stochpend's whole ``cuda.run_batches`` call: (seconds, path-steps, sums)."""
+    """stochpend's whole ``runner.run_batches(backend="cuda")`` call: (seconds, path-steps, sums)."""
     started = time.perf_counter()
-    sums, path_steps = gpu.run_batches(config, 0, config.n_batches, precision=precision)
+    sums, path_steps = runner.run_batches(config, 0, config.n_batches, precision=precision, backend="cuda")
     return time.perf_counter() - started, path_steps, sums
 
 
@@ -625,7 +626,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{environment()}. OU noise, D = 1, tau = 1, omega = 1, seed {SEED}, {N_TIMES} output "
             f"times, {args.batches} batches; fixed: h = {H}, {args.steps} steps (t_max = "
             f"{args.steps * H:g}); adaptive: h_max = {ADAPTIVE_H_MAX}, c = {ADAPTIVE_C}, t_max = "
-            f"{args.t_max_adaptive:g}. stochpend: wall time of the whole cuda.run_batches call "
+            f"{args.t_max_adaptive:g}. stochpend: wall time of the whole runner.run_batches(backend='cuda') call "
             "(kernels compiled beforehand); reference: benchmarks/cuda_ref/ref.cu, one launch.",
             "",
         ]

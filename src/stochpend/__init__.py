@@ -22,7 +22,7 @@ import sys
 import types
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.1.0"
+from stochpend._version import __version__
 
 #: Submodules reachable as attributes of the package, imported on first use.
 SUBMODULES = ("bias", "exponents", "io", "models", "noises", "paper", "plotting", "sweep",

@@ -6,13 +6,10 @@ Registered on the main app by :mod:`stochpend.cli`::
     app.command("resume")(resume_command)
 
 ``simulate --checkpoint FILE --checkpoint-every 5m`` calls :func:`simulate_with_checkpoint`.
-``python -m stochpend._cli_scale simulate-ckpt ...`` is a small stand-alone runner with the
-same checkpoint options (used by the tests; not a public interface).
 """
 
 from __future__ import annotations
 
-import functools
 import math
 import os
 import re
@@ -23,6 +20,8 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
+from stochpend import _cli_common as common
+from stochpend._cli_common import handles_errors
 from stochpend._cli_types import file_name, integer
 from stochpend._terminal import markup
 
@@ -34,24 +33,6 @@ __all__ = [
     "sweep_command",
     "sweep_table",
 ]
-
-
-def _cli() -> Any:
-    """``stochpend.cli``, imported when first needed: cli.py imports this module to register
-    the commands, so this module must not import it at import time (circular import)."""
-    import stochpend.cli
-
-    return stochpend.cli
-
-
-def handles_errors(fn: Any) -> Any:
-    """``stochpend.cli.handles_errors``, applied at call time (see :func:`_cli`)."""
-
-    @functools.wraps(fn)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        return _cli().handles_errors(fn)(*args, **kwargs)
-
-    return wrapper
 
 
 _UNITS = {"ms": 1e-3, "s": 1.0, "sec": 1.0, "m": 60.0, "min": 60.0, "h": 3600.0, "d": 86400.0}
@@ -122,26 +103,24 @@ def simulate_with_checkpoint(
 
 def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) -> Any:
     from stochpend.checkpoint import CheckpointInterrupt
-
-    cli = _cli()
     progress = kwargs.get("progress")
     try:
         return fn(*args, checkpoint_path=checkpoint_path, **kwargs)
     except CheckpointInterrupt as exc:
-        cli._stop_listening()  # saved: a second Ctrl-C now only repeats the exit (I3)
+        common._stop_listening()  # saved: a second Ctrl-C now only repeats the exit (I3)
         if progress is not None:
             progress.finish()
-        cli.console.print(f"[yellow]interrupted:[/] state saved to {markup(exc.path)}; continue with: "
+        common.console.print(f"[yellow]interrupted:[/] state saved to {markup(exc.path)}; continue with: "
                           f"stochpend resume {markup(exc.path)}", highlight=False, soft_wrap=True)
         raise typer.Exit(exc.exit_code) from None
     except KeyboardInterrupt as exc:
-        cli._stop_listening()
+        common._stop_listening()
         if progress is not None:
             progress.finish()
         last = (f"; the last checkpoint is kept: continue with: stochpend resume {markup(checkpoint_path)}"
                 if Path(checkpoint_path).exists() else "")
         signum = getattr(exc, "signum", 2)
-        cli.console.print(f"[yellow]interrupted[/] by signal {signum} (no new checkpoint){last}",
+        common.console.print(f"[yellow]interrupted[/] by signal {signum} (no new checkpoint){last}",
                           highlight=False, soft_wrap=True)
         raise typer.Exit(128 + signum) from None
 
@@ -168,8 +147,6 @@ def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: 
                   max_path_steps: float | None) -> None:
     from stochpend import checkpoint as ck
     from stochpend import io
-
-    cli = _cli()
     state = ck.read(checkpoint)  # verifies checksum, version and configuration first
     ck.check_work(state, max_path_steps)
     # The checkpoint names its output only within its own directory, and never overwrites by
@@ -187,14 +164,14 @@ def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: 
     if not quiet:
         st = state.state
         done = (st.done_work + float(st.t.sum())) / (state.config.paths * state.config.t_max)
-        cli.console.print(f"resuming {markup(state.command_line or 'run')} from {markup(checkpoint)} "
+        common.console.print(f"resuming {markup(state.command_line or 'run')} from {markup(checkpoint)} "
                           f"({100 * done:.0f}% done); {dest}", highlight=False, soft_wrap=True)
-    progress = cli.RichProgress(enabled=not quiet and cli.console.is_terminal, long_run=True)
+    progress = common.RichProgress(enabled=not quiet and common.console.is_terminal, long_run=True)
     ds = _interruptible(_resume, checkpoint_path=checkpoint, progress=progress, **kwargs)
     if not quiet:
-        cli.results.print(cli.summary_table(ds, width=cli.results.width))
+        common.results.print(common.summary_table(ds, width=common.results.width))
         if target is not None:
-            cli.console.print(f"wrote {markup(target)}", highlight=False, soft_wrap=True)
+            common.console.print(f"wrote {markup(target)}", highlight=False, soft_wrap=True)
 
 
 def _resume(*, checkpoint_path: Path, **kwargs: Any) -> Any:
@@ -221,12 +198,10 @@ class SweepProgressBar:
         if not self.enabled:
             return
         from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
-        cli = _cli()
         self._progress = Progress(
             TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(),
             TextColumn("tasks {task.fields[tasks]}"), TextColumn("paths {task.completed:.0f}/{task.total:.0f}"),
-            TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=cli.console,
+            TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=common.console,
             transient=True,
         )
         self._progress.start()
@@ -243,7 +218,7 @@ class SweepProgressBar:
 
     def note(self, text: str) -> None:
         if not self.quiet:
-            _cli().console.print(text, highlight=False, soft_wrap=True)
+            common.console.print(text, highlight=False, soft_wrap=True)
 
     def finish(self) -> None:
         if self._progress is not None:
@@ -255,7 +230,7 @@ def sweep_table(ds: Any) -> Table:
     """One row per parameter set: the swept values and the statistics at the last time."""
     from stochpend.sweep import flat_sets
 
-    fmt = _cli()._fmt
+    fmt = common._fmt
     sets = flat_sets(ds)
     swept = list(sets[0]["params"]) if sets else []
     noise = ds.attrs.get("noise")
@@ -310,8 +285,6 @@ def sweep_command(
     """Run a grid or list of parameter sets (TOML) as one job; save one NetCDF with the swept dims."""
     from stochpend import io
     from stochpend.sweep import check_scheduler, load_spec, sweep
-
-    cli = _cli()
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
     plan = load_spec(spec)  # the whole file is validated before any work
@@ -319,15 +292,15 @@ def sweep_command(
     check_scheduler(scheduler)
     from stochpend.simulate import check_precision, resolve_backend
 
-    backend = resolve_backend(backend, note=cli.note)
+    backend = resolve_backend(backend, note=common.note)
     check_precision(precision, backend)
     # Processes or threads on this machine: no more than it has CPUs (--workers 1e6 would start a
     # million processes). A remote scheduler's workers are its own.
     local = scheduler is None or not scheduler.startswith(("tcp://", "tls://", "inproc://", "ucx://"))
     most = os.cpu_count() or 1
     if workers is not None and (workers < 1 or (local and workers > most)):
-        cli.fail(f"workers={workers!r} is not accepted: an integer in [1, {most}] (this machine's CPUs)")
-    progress = SweepProgressBar(enabled=not quiet and cli.console.is_terminal, quiet=quiet)
+        common.fail(f"workers={workers!r} is not accepted: an integer in [1, {most}] (this machine's CPUs)")
+    progress = SweepProgressBar(enabled=not quiet and common.console.is_terminal, quiet=quiet)
     try:
         ds = sweep(plan, scheduler=scheduler, workers=workers, progress=progress,
                    tasks_per_set=tasks_per_set, backend=backend, precision=precision)
@@ -338,9 +311,9 @@ def sweep_command(
     if out is not None:
         io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
-        cli.results.print(sweep_table(ds))
+        common.results.print(sweep_table(ds))
         if out is not None:
-            cli.console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
+            common.console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
 
 
 def _check_resources(plan: Any, spec: Path, max_path_steps: float | None) -> None:
@@ -361,47 +334,3 @@ def _check_resources(plan: Any, spec: Path, max_path_steps: float | None) -> Non
             f"path-steps in all (the sum of paths x t_max / h_max), above the limit of {limit:.3g}; "
             "sweep fewer or smaller sets, or raise the limit with --max-path-steps"
         )
-
-
-# -- stand-alone runner (tests; the real entry point is `stochpend simulate --checkpoint`) ----
-_runner = typer.Typer(name="stochpend-scale", add_completion=False, pretty_exceptions_enable=False,
-                      no_args_is_help=True)
-_runner.command("sweep")(sweep_command)
-_runner.command("resume")(resume_command)
-
-
-@_runner.command("simulate-ckpt")
-@handles_errors
-def _simulate_ckpt_command(
-    checkpoint: Annotated[Path, typer.Option(parser=file_name, help="Checkpoint file.")],
-    checkpoint_every: Annotated[str, typer.Option("--checkpoint-every", help="Interval, e.g. 30s, 5m, 1h.")] = "5m",
-    noise: Annotated[str, typer.Option(help="'ou' or 'white'.")] = "ou",
-    D: Annotated[float, typer.Option("--D", help="Noise amplitude.")] = 1.0,
-    tau: Annotated[float, typer.Option("--tau", help="OU correlation time.")] = 1.0,
-    omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency.")] = 1.0,
-    paths: Annotated[int, typer.Option(parser=integer, help="Number of realizations.")] = 10_000,
-    t_max: Annotated[float, typer.Option("--t-max", help="Final time.")] = 1000.0,
-    n_times: Annotated[int, typer.Option("--n-times", parser=integer, help="Number of output times.")] = 40,
-    seed: Annotated[int, typer.Option(parser=integer, help="Seed.")] = 0,
-    threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads.")] = None,
-    out: Annotated[Path | None, typer.Option("--out", "-o", parser=file_name, help="NetCDF output.")] = None,
-    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
-    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
-) -> None:
-    """simulate with --checkpoint (a subset of the options of 'stochpend simulate')."""
-    from stochpend.params import SimulationConfig
-
-    cli = _cli()
-    config = SimulationConfig.build(noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max,
-                                    n_times=n_times, seed=seed)
-    every = parse_duration(checkpoint_every)
-    progress = cli.RichProgress(enabled=not quiet and cli.console.is_terminal, long_run=True)
-    ds = simulate_with_checkpoint(config, checkpoint_path=checkpoint, every_s=every, out=out,
-                                  overwrite=overwrite, progress=progress, threads=threads)
-    if not quiet:
-        cli.results.print(cli.summary_table(ds, width=cli.results.width))
-
-
-if __name__ == "__main__":  # pragma: no cover
-    _runner()

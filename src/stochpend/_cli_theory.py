@@ -22,7 +22,7 @@ from rich.table import Table
 
 from stochpend._cli_types import file_name, integer
 from stochpend._terminal import markup
-from stochpend.cli import MAX_POWER_N, _fmt, console, handles_errors, note, parse_times, results, summary_table
+from stochpend._cli_common import MAX_POWER_N, _fmt, console, handles_errors, note, parse_times, results, summary_table
 from stochpend.paper import eq
 
 __all__ = ["bfpe_command", "bfpe_table", "reduced_command", "reduced_table", "theory_command", "theory_table"]

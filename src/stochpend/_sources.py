@@ -15,7 +15,7 @@ import functools
 import hashlib
 from pathlib import Path
 
-from stochpend import __version__
+from stochpend._version import __version__
 
 __all__ = ["NUMBERS_SOURCES", "digest", "BUILD"]
 

@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from stochpend import integrator, rng, stats
+from stochpend import rng, stats
 from stochpend._jitcache import CompileClock
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig

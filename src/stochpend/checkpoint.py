@@ -45,12 +45,14 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import __version__, _files, bias, io
+from stochpend import _files, bias, io
+from stochpend._version import __version__
 from stochpend._jitcache import CompileClock
 from stochpend._sources import BUILD
 from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
-from stochpend.runner import BACKENDS, RunState, path_dtypes, run_batches
+from stochpend._backends.layout import path_dtypes
+from stochpend.runner import BACKENDS, RunState, run_batches
 from stochpend.simulate import provenance
 from stochpend.stats import N_SUMS, EnsembleSums
 

@@ -91,7 +91,8 @@ import xarray as xr
 from numba import prange
 from numba.extending import register_jitable
 
-from stochpend import __version__, rng
+from stochpend import rng
+from stochpend._version import __version__
 from stochpend.noises import ou as _ou
 from stochpend.stats import (
     N_SUMS,

@@ -31,7 +31,7 @@ from typing import Any, Protocol
 import numpy as np
 import xarray as xr
 
-from stochpend import __version__
+from stochpend._version import __version__
 from stochpend._files import write_atomic
 from stochpend.figures import CASES, FIGURES
 from stochpend.figures._common import COLUMNS, SUM_COMPONENTS, Row, RunSpec

@@ -24,6 +24,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from stochpend._backends.layout import CHUNK_ARRAYS
 from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
 from stochpend.stats import EnsembleSums
@@ -76,22 +77,6 @@ class RunState:
 #: RunState fields that are not per-chunk arrays.
 SCALAR_FIELDS = ("first_batch", "stop_batch", "b0", "b1", "j", "path_steps", "done_work",
                  "backend", "precision")
-#: The per-chunk arrays of a RunState (what an engine holds).
-CHUNK_ARRAYS = ("x", "Omega", "xi", "t", "k", "status", "t_comp", "xi_aux", "chunk_sums",
-                "chunk_hist")
-
-
-def path_dtypes(backend: str, precision: str) -> dict[str, np.dtype]:
-    """The dtype of each per-path array of a chunk, as the ``backend``'s engine holds it (and a
-    checkpoint must store it): the state (x, Omega, xi) in the run's precision (float32 exists
-    on the CUDA backend only); times and the noise's second variable in float64; the step
-    counter ``k`` uint64; ``status`` uint8."""
-    real = np.dtype(np.float32 if backend == "cuda" and precision == "float32" else np.float64)
-    f64 = np.dtype(np.float64)
-    return {"x": real, "Omega": real, "xi": real, "xi_aux": f64, "t": f64, "t_comp": f64,
-            "k": np.dtype(np.uint64), "status": np.dtype(np.uint8)}
-
-
 class Checkpointer(Protocol):
     """Called between kernel calls with the live state; may write it to disk."""
 

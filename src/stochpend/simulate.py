@@ -13,7 +13,8 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import __version__, bias, integrator, models, resources, runner
+from stochpend import bias, integrator, models, resources, runner
+from stochpend._version import __version__
 from stochpend.params import (
     DEFAULT_H_MAX,
     DEFAULT_HIST_BINS,

@@ -46,15 +46,13 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
-import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import __version__
 from stochpend.params import SimulationConfig, hist_edges
+from stochpend._blocks import BlockResult, Task, run_block
 from stochpend._sources import BUILD
 from stochpend.progress import NoProgress, Progress
-from stochpend.runner import run_batches
 from stochpend.simulate import provenance
 from stochpend.stats import EnsembleSums
 
@@ -89,32 +87,6 @@ class SweepSpec:
     @property
     def n_sets(self) -> int:
         return len(self.configs)
-
-
-@dataclass(frozen=True)
-class Task:
-    """One unit of work: batches ``b0 .. b1 - 1`` of parameter set ``set_index``."""
-
-    set_index: int
-    b0: int
-    b1: int
-    paths: int
-
-
-@dataclass
-class BlockResult:
-    """What a task returns: the sums of its batches (all a merge needs), and its cost."""
-
-    set_index: int
-    b0: int
-    b1: int
-    sums: np.ndarray  # (b1 - b0, n_times, N_SUMS)
-    hist: np.ndarray  # (n_times, n_bins + 2)
-    path_steps: int
-    paths: int
-    seconds: float
-
-
 
 
 # -- parsing and validation ------------------------------------------------------------------
@@ -322,29 +294,6 @@ def plan_tasks(spec: SweepSpec, tasks_per_set: int) -> list[Task]:
             paths = min(b1 * c.batch_size, c.paths) - b0 * c.batch_size
             tasks.append(Task(i, b0, b1, paths))
     return tasks
-
-
-def run_block(config: SimulationConfig, set_index: int, b0: int, b1: int, *,
-              numba_threads: int | None = None, expect_version: str | None = None,
-              progress: Progress | None = None, backend: str = "cpu",
-              precision: str = "float64") -> BlockResult:
-    """Simulate batches ``b0 .. b1 - 1`` of one set on ``backend``: the function every engine
-    runs (a Dask worker that owns a GPU runs its blocks with ``backend="cuda"``)."""
-    if expect_version is not None and expect_version != BUILD:
-        raise ValueError(f"a worker runs stochpend {BUILD}, the client stochpend {expect_version}: "
-                         f"install the same stochpend everywhere")
-    started = _time.perf_counter()
-    previous = numba.get_num_threads()
-    if numba_threads is not None:
-        numba.set_num_threads(max(1, min(int(numba_threads), numba.config.NUMBA_NUM_THREADS)))
-    try:
-        acc, path_steps = run_batches(config, b0, b1, backend=backend, precision=precision,
-                                      progress=progress)
-    finally:
-        numba.set_num_threads(previous)
-    paths = min(b1 * config.batch_size, config.paths) - b0 * config.batch_size
-    return BlockResult(set_index, b0, b1, acc.sums[b0:b1].copy(), acc.hist, int(path_steps), paths,
-                       _time.perf_counter() - started)
 
 
 class _Tracker:

@@ -43,6 +43,7 @@ class RecordingProgress:
 def main(spec_path: str, out_path: str) -> None:
     if os.environ.get("NUMBA_ENABLE_CUDASIM") != "1":
         raise SystemExit("set NUMBA_ENABLE_CUDASIM=1 before running this script")
+    from stochpend import runner
     from stochpend._backends import cuda as backend
     from stochpend.params import SimulationConfig
 
@@ -87,8 +88,8 @@ def main(spec_path: str, out_path: str) -> None:
             for precision in precisions:
                 tag = "" if precision == "float64" else "32"
                 progress = RecordingProgress()
-                sums, path_steps = backend.run_batches(
-                    config, case["first_batch"], case["stop_batch"],
+                sums, path_steps = runner.run_batches(
+                    config, case["first_batch"], case["stop_batch"], backend="cuda",
                     chunk_paths=case["chunk_paths"], progress=progress, precision=precision,
                 )
                 out[f"{name}/sums{tag}"] = sums.sums
@@ -237,7 +238,7 @@ def rng_inputs(n: int) -> tuple[np.ndarray, np.ndarray]:
 def precision_pair_case(case: dict) -> dict[str, np.ndarray]:
     """The same configuration run in float64 and in float32 with *different* seeds (independent
     ensembles, for a two-sample test): the sums of each."""
-    from stochpend._backends import cuda as backend
+    from stochpend import runner
     from stochpend.params import SimulationConfig
 
     name = case["name"]
@@ -245,7 +246,7 @@ def precision_pair_case(case: dict) -> dict[str, np.ndarray]:
     started = time.perf_counter()
     for precision, seed in (("float64", case["seeds"][0]), ("float32", case["seeds"][1])):
         config = SimulationConfig.build(**{**case["config"], "seed": seed})
-        sums, _ = backend.run_batches(config, 0, config.n_batches, precision=precision)
+        sums, _ = runner.run_batches(config, 0, config.n_batches, backend="cuda", precision=precision)
         out[f"{name}/{precision}_sums"] = sums.sums
     out[f"{name}/seconds"] = np.array(time.perf_counter() - started)
     return out

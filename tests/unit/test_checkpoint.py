@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import inspect
 import json
 import os
 import signal
@@ -357,12 +356,8 @@ BIG_KW = {"noise": "ou", "D": 1.0, "tau": 1.0, "omega": 1.0, "paths": 10000, "t_
           "seed": 7}
 
 
-# The real commands once cli.py has the options and registrations (checked at import, before
-# any fixture registers them in this process); until then the runner in stochpend._cli_scale.
-_HAS_CKPT = "checkpoint" in inspect.signature(cli.simulate).parameters
-_HAS_RESUME = "resume" in {c.name for c in cli.app.registered_commands}
-SIMULATE = ["stochpend", "simulate"] if _HAS_CKPT else ["stochpend._cli_scale", "simulate-ckpt"]
-RESUME = ["stochpend", "resume"] if _HAS_RESUME else ["stochpend._cli_scale", "resume"]
+SIMULATE = ["stochpend", "simulate"]
+RESUME = ["stochpend", "resume"]
 
 
 def _start(tmp_path, ckpt, out):

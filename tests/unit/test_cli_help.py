@@ -17,7 +17,7 @@ import typer.main
 from typer._click import Context
 from typer.testing import CliRunner
 
-from stochpend import cli
+from stochpend import _cli_common, cli
 from stochpend.paper import EQUATIONS
 
 WIDE = {"COLUMNS": "2000", "TERMINAL_WIDTH": "2000"}
@@ -177,9 +177,9 @@ def test_the_python_api_keeps_its_argument_names() -> None:
 
 def test_cli_message_leaves_file_keys_and_arguments_alone() -> None:
     names = {"h_max": "--h-max", "noise": "--noise"}
-    assert cli.cli_message("run.toml: h_max=0.0 is not accepted: x", names) == "run.toml: h_max=0.0 is not accepted: x"
-    assert cli.cli_message("path='x' is not accepted: y", names) == "path='x' is not accepted: y"
-    assert cli.cli_message("tau=-1.0 is not accepted: use noise='white'", {"tau": "--tau", "noise": "--noise"}) \
+    assert _cli_common.cli_message("run.toml: h_max=0.0 is not accepted: x", names) == "run.toml: h_max=0.0 is not accepted: x"
+    assert _cli_common.cli_message("path='x' is not accepted: y", names) == "path='x' is not accepted: y"
+    assert _cli_common.cli_message("tau=-1.0 is not accepted: use noise='white'", {"tau": "--tau", "noise": "--noise"}) \
         == "--tau -1.0 is not accepted: use --noise 'white'"
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stochpend import integrator, rng
+from stochpend import integrator, rng, runner
 from stochpend._backends import cpu
 from stochpend._backends import cuda as gpu
 from stochpend.mathlib import LIBM
@@ -415,7 +415,7 @@ def test_availability_without_gpu_is_a_clean_no():
     if not ok:  # this machine: no driver, no GPU
         config = _config("ou_omega1")
         with pytest.raises(RuntimeError, match="backend='cuda' is not usable here") as info:
-            gpu.run_batches(config, 0, config.n_batches)
+            runner.run_batches(config, 0, config.n_batches, backend="cuda")
         assert "\n" not in str(info.value)
 
 
@@ -438,7 +438,7 @@ def test_availability_reasons(monkeypatch):
 def test_bad_arguments_are_refused_first():
     config = _config("ou_omega1")
     with pytest.raises(ValueError, match="precision='float16' is not accepted"):
-        gpu.run_batches(config, 0, 1, precision="float16")
+        runner.run_batches(config, 0, 1, precision="float16", backend="cuda")
 
 
 @pytest.mark.parametrize("name", ["ckpt_ou", "ckpt_dichotomous_f32"])

@@ -60,9 +60,9 @@ def test_rule_holds_for_any_value_and_error(value, error):
 
 def test_every_table_uses_it():
     """The simulate/show table and the figures' rows format through ve (no second formatter)."""
-    from stochpend import cli
+    from stochpend import _cli_common
     from stochpend.figures import _common
 
     for v, e in ((0.00012, 3.1e-5), (177000.0, 11193.0), (-0.004, 0.3)):
-        assert cli._fmt(v, e) == _common.fmt_se(v, e) == ve(v, e)
-    assert "±" not in cli._fmt(7.6722e-05, 1.9e-05)
+        assert _cli_common._fmt(v, e) == _common.fmt_se(v, e) == ve(v, e)
+    assert "±" not in _cli_common._fmt(7.6722e-05, 1.9e-05)

@@ -60,7 +60,7 @@ from stochpend import integrator, rng, stats
 from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
 from stochpend.oscillators.pendulum import PENDULUM
-from stochpend.runner import CHUNK_ARRAYS
+from stochpend._backends.layout import CHUNK_ARRAYS, path_dtypes
 from stochpend.stats import N_SUMS
 
 #: Paths per lock-step block (the integrator's lane count).
@@ -562,8 +562,6 @@ class Engine:
         return DEFAULT_CHUNK_PATHS
 
     def _allocate(self, n: int, nb: int) -> None:
-        from stochpend.runner import path_dtypes
-
         for name, dtype in path_dtypes("cpu", "float64").items():
             setattr(self, name, np.empty(n, dtype=dtype))
         self.chunk_sums = np.zeros((nb, self.n_times, N_SUMS))

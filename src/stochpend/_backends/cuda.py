@@ -40,12 +40,12 @@ from numba import types as nbtypes
 from numba.core.errors import NumbaPerformanceWarning
 from numba.extending import register_jitable
 
-from stochpend import integrator, rng, runner, stats
+from stochpend import integrator, rng, stats
+from stochpend._backends.layout import path_dtypes
 from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig
-from stochpend.progress import Progress
-from stochpend.stats import N_SUMS, EnsembleSums
+from stochpend.stats import N_SUMS
 
 try:  # a module global: the CUDA simulator swaps it in the kernels' globals
     from numba import cuda
@@ -58,8 +58,7 @@ else:
 # The kernels of built-in pieces are cached on disk (``cuda.jit(cache=True)``, next to this file
 # like the CPU's), under names that carry the code digest (see _jitcache).
 
-__all__ = ["PRECISIONS", "Engine", "availability", "kernel_variants", "path_states",
-           "run_batches"]
+__all__ = ["PRECISIONS", "Engine", "availability", "kernel_variants", "path_states"]
 
 PRECISIONS = integrator.PRECISIONS
 
@@ -475,8 +474,6 @@ class Engine:
         self.n_times = len(config.times)
         self.n_cols = config.hist_bins + 2
         with _quiet():
-            from stochpend.runner import path_dtypes
-
             for name, dtype in path_dtypes("cuda", spec.precision).items():
                 setattr(self, "d_" + name, cuda.device_array(capacity, dtype=dtype))
             self.flag = cuda.device_array(1, dtype=np.int32)
@@ -493,6 +490,10 @@ class Engine:
 
     @staticmethod
     def default_chunk_paths(precision: str) -> int:
+        # The runner's first call into this backend: a bad precision or no usable GPU is one
+        # line here, before any device call (a driver-less machine otherwise raises deep in
+        # numba.cuda).
+        _require(precision)
         if _simulator_enabled():
             return DEFAULT_CHUNK_PATHS
         free, _ = cuda.current_context().get_memory_info()
@@ -566,29 +567,6 @@ class Engine:
 
     def results(self) -> tuple[np.ndarray, np.ndarray]:
         return self.d_sums.copy_to_host()[: self.nb], self.d_hist.copy_to_host()
-
-
-def run_batches(
-    config: SimulationConfig,
-    first_batch: int,
-    stop_batch: int,
-    *,
-    chunk_paths: int | None = None,
-    progress: Progress | None = None,
-    precision: str = "float64",
-) -> tuple[EnsembleSums, int]:
-    """Simulate batches ``first_batch .. stop_batch - 1`` on the GPU and return their sums:
-    :func:`stochpend.runner.run_batches` with ``backend="cuda"``.
-
-    ``chunk_paths`` (rounded down to whole batches, at least one) bounds the device memory;
-    default: up to 2**26 paths, at most half the free device memory. ``precision``: "float64"
-    (default) or "float32" (state and step arithmetic in float32, statistics in float64;
-    docs/gpu.md). Raises ``ValueError`` for a bad precision or batch range, ``RuntimeError``
-    (one line, from :func:`availability`) when CUDA cannot run here.
-    """
-    _require(precision)
-    return runner.run_batches(config, first_batch, stop_batch, backend="cuda", precision=precision,
-                              chunk_paths=chunk_paths, progress=progress)
 
 
 def path_states(

@@ -27,7 +27,7 @@ import importlib.util
 import os
 import warnings
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from urllib.parse import urlparse
 
 import dask
@@ -35,8 +35,11 @@ import distributed
 import numba
 from dask.callbacks import Callback
 
+from stochpend._blocks import BlockResult, Task, run_block
 from stochpend._sources import BUILD
-from stochpend.sweep import BlockResult, SweepSpec, Task, run_block
+
+if TYPE_CHECKING:  # pragma: no cover - annotations only
+    from stochpend.sweep import SweepSpec
 
 __all__ = ["connect"]
 

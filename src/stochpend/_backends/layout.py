@@ -1,0 +1,28 @@
+"""What a chunk of paths is made of, for every engine and for checkpoints: the arrays an engine
+holds (:data:`CHUNK_ARRAYS`) and the dtype of each per-path one (:func:`path_dtypes`), the one
+allocation table that the engines allocate from and a checkpoint is checked against.
+
+Below the engines and :mod:`stochpend.runner`, which both import it (the runner drives the
+engines; an engine never imports the runner).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["CHUNK_ARRAYS", "path_dtypes"]
+
+#: The per-chunk arrays of a RunState (what an engine holds).
+CHUNK_ARRAYS = ("x", "Omega", "xi", "t", "k", "status", "t_comp", "xi_aux", "chunk_sums",
+                "chunk_hist")
+
+
+def path_dtypes(backend: str, precision: str) -> dict[str, np.dtype]:
+    """The dtype of each per-path array of a chunk, as the ``backend``'s engine holds it (and a
+    checkpoint must store it): the state (x, Omega, xi) in the run's precision (float32 exists
+    on the CUDA backend only); times and the noise's second variable in float64; the step
+    counter ``k`` uint64; ``status`` uint8."""
+    real = np.dtype(np.float32 if backend == "cuda" and precision == "float32" else np.float64)
+    f64 = np.dtype(np.float64)
+    return {"x": real, "Omega": real, "xi": real, "xi_aux": f64, "t": f64, "t_comp": f64,
+            "k": np.dtype(np.uint64), "status": np.dtype(np.uint8)}

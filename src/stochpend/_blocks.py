@@ -1,0 +1,69 @@
+"""A sweep's unit of work: a :class:`Task` (batches of one parameter set), the
+:class:`BlockResult` it returns, and :func:`run_block`, the function every engine runs (in this
+process, on Dask threads or on a remote Dask worker).
+
+Below :mod:`stochpend.sweep`, which plans and merges, and the Dask backend, which ships tasks to
+workers: both import it, neither imports the other's caller.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from stochpend._sources import BUILD
+from stochpend.params import SimulationConfig
+from stochpend.progress import Progress
+from stochpend.runner import run_batches
+
+__all__ = ["BlockResult", "Task", "run_block"]
+
+
+@dataclass(frozen=True)
+class Task:
+    """One unit of work: batches ``b0 .. b1 - 1`` of parameter set ``set_index``."""
+
+    set_index: int
+    b0: int
+    b1: int
+    paths: int
+
+
+@dataclass
+class BlockResult:
+    """What a task returns: the sums of its batches (all a merge needs), and its cost."""
+
+    set_index: int
+    b0: int
+    b1: int
+    sums: np.ndarray  # (b1 - b0, n_times, N_SUMS)
+    hist: np.ndarray  # (n_times, n_bins + 2)
+    path_steps: int
+    paths: int
+    seconds: float
+
+
+def run_block(config: SimulationConfig, set_index: int, b0: int, b1: int, *,
+              numba_threads: int | None = None, expect_version: str | None = None,
+              progress: Progress | None = None, backend: str = "cpu",
+              precision: str = "float64") -> BlockResult:
+    """Simulate batches ``b0 .. b1 - 1`` of one set on ``backend``: the function every engine
+    runs (a Dask worker that owns a GPU runs its blocks with ``backend="cuda"``)."""
+    if expect_version is not None and expect_version != BUILD:
+        raise ValueError(f"a worker runs stochpend {BUILD}, the client stochpend {expect_version}: "
+                         f"install the same stochpend everywhere")
+    started = _time.perf_counter()
+    previous = numba.get_num_threads()
+    if numba_threads is not None:
+        numba.set_num_threads(max(1, min(int(numba_threads), numba.config.NUMBA_NUM_THREADS)))
+    try:
+        acc, path_steps = run_batches(config, b0, b1, backend=backend, precision=precision,
+                                      progress=progress)
+    finally:
+        numba.set_num_threads(previous)
+    paths = min(b1 * config.batch_size, config.paths) - b0 * config.batch_size
+    return BlockResult(set_index, b0, b1, acc.sums[b0:b1].copy(), acc.hist, int(path_steps), paths,
+                       _time.perf_counter() - started)
