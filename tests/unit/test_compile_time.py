@@ -118,3 +118,59 @@ def test_the_estimate_line_counts_the_compile_time():
     first = resources.compile_seconds(config, counted=counted)
     assert resources.compile_seconds(config, counted=counted) == 0.0  # counted already
     assert first <= sum(resources.COMPILE_S.values())
+
+
+#: A cold run of the demo's Spec in a fresh process, with the compile helper (or, with
+#: ``fail``, a helper that exits at once): per kernel, Numba's cache hits and misses in this
+#: process, and every data variable of the result.
+_HELPER_SCRIPT = """
+import json, sys
+import numpy as np
+import stochpend
+from stochpend import _compile_helper
+from stochpend._backends import cpu
+from stochpend.params import SimulationConfig
+if sys.argv[1] == "fail":
+    _compile_helper.COMMAND = (sys.executable, "-c", "import sys; sys.exit(3)")
+kw = dict(noise="ou", paths=256, t_max=5.0, n_times=3, seed=3)
+ds = stochpend.simulate(**kw, bias_paths=64)
+kernels = cpu.compiled_kernels(cpu.spec_for(SimulationConfig.build(**kw)))
+stats = {kind: [sum(k.stats.cache_hits.values()), sum(k.stats.cache_misses.values())]
+         for kind, k in kernels.items()}
+np.savez(sys.argv[2], **{name: ds[name].values for name in ds.data_vars})
+print(json.dumps({"stats": stats, "compile": float(ds.attrs["compile_time_s"])}))
+"""
+
+
+def _helper_run(tmp_path: Path, mode: str) -> tuple[dict, dict]:
+    cache = tmp_path / f"cache-{mode}"
+    out = tmp_path / f"{mode}.npz"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache),
+           "PYTHONPATH": os.pathsep.join([SRC, os.environ.get("PYTHONPATH", "")])}
+    env.pop("STOCHPEND_COMPILE_HELPER", None)
+    done = subprocess.run([sys.executable, "-c", _HELPER_SCRIPT, mode, str(out)], env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    with np.load(out) as arrays:
+        data = {name: arrays[name] for name in arrays.files}
+    return json.loads(done.stdout.strip().splitlines()[-1]), data
+
+
+def test_the_compile_helper_compiles_the_pair_kernel_and_changes_no_number(tmp_path):
+    """A cold run on 2+ CPUs has its bias-pair kernel compiled by a helper process meanwhile:
+    this process loads it from the cache (a hit, no miss), and every number, the bias estimate
+    included, equals that of a run whose helper failed, which compiled the kernel itself."""
+    if (os.cpu_count() or 1) < 2:
+        import pytest
+
+        pytest.skip("the helper runs on machines with two or more CPUs only")
+    helped, helped_data = _helper_run(tmp_path, "help")
+    failed, failed_data = _helper_run(tmp_path, "fail")
+    pairs = next(kind for kind in helped["stats"] if kind.startswith("pairs"))
+    assert helped["stats"][pairs] == [1, 0], helped
+    assert failed["stats"][pairs] == [0, 1], failed
+    assert failed["stats"]["advance"] == [0, 1] and helped["stats"]["advance"] == [0, 1]
+    assert helped["compile"] > 0 and failed["compile"] > 0
+    assert helped_data.keys() == failed_data.keys() and any(k.startswith("bias") for k in helped_data)
+    for name, value in helped_data.items():
+        np.testing.assert_array_equal(value, failed_data[name], err_msg=name)
