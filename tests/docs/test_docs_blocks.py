@@ -17,7 +17,7 @@ Policies (``POLICY`` below names one for every block; a new block without one fa
 * ``errors-as-shown`` -- the error lines a document shows are what the tool prints for the
   files that cause them (the text before "..." must match).
 * ``transcript`` -- a shell session (``^C``, ``echo $?``): the interrupt and its exit code are
-  run for real in tests/unit/test_faults.py; here its command lines are parsed.
+  run for real in tests/system/test_faults.py; here its command lines are parsed.
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ from stochpend import bias, integrator
 from stochpend.cli import app
 from stochpend.params import SimulationConfig
 from tests.conftest import SEED, Z_TOL
-from tests.statistical.test_weak_order import D, OMEGA, X0, exact_second_moments, scheme_second_moments
+from tests.statistical.test_weak_order import OMEGA, X0, D, exact_second_moments, scheme_second_moments
 
 H = 0.2
 TIMES = (1.0, 2.0, 4.0)
@@ -258,7 +258,7 @@ def test_pairs_in_simd_lanes_are_the_one_pair_kernel_bit_for_bit(noise, adaptive
             numba.set_num_threads(previous)
         out.append((x, Om, xf, Of, xi, k, status, draws))
     for other in out[1:]:
-        for a, b in zip(out[0], other):
+        for a, b in zip(out[0], other, strict=True):
             assert np.array_equal(a, b)
     x, Om, xf, Of = out[0][:4]
     assert not np.array_equal(x, xf)  # the members differ: a coupled pair, not one path twice

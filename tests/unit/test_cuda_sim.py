@@ -351,9 +351,9 @@ def test_rng_in_kernel_equals_cpu(simulated):
     words = numba.njit(rng.draw_words)
     normals64 = numba.njit(rng.draw_normals)
     normals32 = numba.njit(rng.normals_with(LIBM, np.float32))
-    want_words = np.array([words(key0, key1, p, n) for p, n in zip(paths, counters)], dtype=np.uint64)
-    want64 = np.array([normals64(key0, key1, p, n) for p, n in zip(paths, counters)])
-    want32 = np.array([normals32(key0, key1, p, n) for p, n in zip(paths, counters)], dtype=np.float32)
+    want_words = np.array([words(key0, key1, p, n) for p, n in zip(paths, counters, strict=True)], dtype=np.uint64)
+    want64 = np.array([normals64(key0, key1, p, n) for p, n in zip(paths, counters, strict=True)])
+    want32 = np.array([normals32(key0, key1, p, n) for p, n in zip(paths, counters, strict=True)], dtype=np.float32)
     np.testing.assert_array_equal(simulated["rng/words"], want_words)
     np.testing.assert_array_equal(simulated["rng/z64"], want64)
     np.testing.assert_allclose(simulated["rng/z32"], want32, rtol=4e-7, atol=4e-7)
@@ -479,7 +479,7 @@ def test_gpu_bias_pairs_equal_cpu(simulated, monkeypatch):
     est = bias.estimate(SimulationConfig.build(**case["config"]), case["pairs"])
     assert int(simulated["bias_pairs/path_steps"]) == est.path_steps
     checked = 0
-    for stat, (value, se) in est.bias.items():
+    for stat, (value, _se) in est.bias.items():
         np.testing.assert_allclose(simulated[f"bias_pairs/bias_{stat}"], value, rtol=1e-9,
                                    atol=1e-12 * np.max(np.abs(est.coarse[stat][0])), err_msg=stat)
         np.testing.assert_allclose(simulated[f"bias_pairs/coarse_{stat}"], est.coarse[stat][0],

@@ -127,7 +127,7 @@ def test_fast_kernel_agrees_with_the_scalar_kernel(paths):
     np.testing.assert_array_equal(a[4], b[4])  # k
     np.testing.assert_array_equal(a[5], b[5])  # status
     np.testing.assert_array_equal(a[7], b[7])  # the clock's compensation term
-    for u, v in zip(a[:3], b[:3]):
+    for u, v in zip(a[:3], b[:3], strict=True):
         np.testing.assert_allclose(v, u, rtol=0, atol=1e-13)
 
 
@@ -138,13 +138,13 @@ def test_fast_kernel_numbers_do_not_depend_on_blocks():
     frozen = _run(FAST, 200, 1.5, 37, freeze=[3, 130])
     keep = np.ones(200, dtype=bool)
     keep[[3, 130]] = False
-    for u, v in zip(ref[:5], frozen[:5]):
+    for u, v in zip(ref[:5], frozen[:5], strict=True):
         np.testing.assert_array_equal(u[keep], v[keep])
     np.testing.assert_array_equal(frozen[5], ~keep)
     # Paths 0..99 and 100..199 as two chunks (blocks start at path 0 and at path 100).
     lo = _run(FAST, 100, 1.5, 37)
     hi = _run(FAST, 100, 1.5, 37, path0=100)
-    for u, v, w in zip(ref[:5], lo[:5], hi[:5]):
+    for u, v, w in zip(ref[:5], lo[:5], hi[:5], strict=True):
         np.testing.assert_array_equal(u, np.concatenate([v, w]))
 
 
@@ -273,7 +273,7 @@ def test_branch_free_ou_coefficients_agree_with_the_c_library_ones(h, tau):
         return coefficients(h, D, tau, W)
 
     D = 1.7
-    for got, want in zip(fast(h, D, tau, 0.0), ou.step_coefficients(h, D, tau, 0.0)):
+    for got, want in zip(fast(h, D, tau, 0.0), ou.step_coefficients(h, D, tau, 0.0), strict=True):
         assert got == pytest.approx(want, rel=1e-14, abs=1e-300), (h, tau, got, want)
     zero = fast(h, 0.0, tau, 0.0)  # D = 0: no noise, and no 0/0
     assert zero[1] == zero[3] == zero[4] == 0.0

@@ -127,7 +127,7 @@ def test_float32_normals_follow_the_float64_pair():
     for i in range(2000):
         z32 = normals32(U(11), U(0), U(i), U(7))
         z64 = normals64(U(11), U(0), U(i), U(7))
-        for a, b in zip(z32, z64):
+        for a, b in zip(z32, z64, strict=True):
             worst = max(worst, abs(a - b) / max(1.0, abs(b)))
     assert worst < 1e-5, worst
 

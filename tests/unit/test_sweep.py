@@ -11,9 +11,9 @@ from typer.testing import CliRunner
 
 from stochpend import cli, io
 from stochpend._cli_scale import resume_command, sweep_command
+from stochpend._sources import BUILD
 from stochpend.params import SimulationConfig
 from stochpend.simulate import run
-from stochpend._sources import BUILD
 from stochpend.sweep import load_spec, plan_tasks, run_block, sweep
 
 BASE = """

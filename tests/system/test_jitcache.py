@@ -20,8 +20,8 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-import types
 import sys
+import types
 from pathlib import Path
 
 import numpy as np

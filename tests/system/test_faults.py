@@ -37,9 +37,8 @@ from typer.testing import CliRunner
 
 import stochpend
 from stochpend import checkpoint as ck
-from stochpend import cli, io
+from stochpend import cli, integrator, io
 from stochpend._backends import cpu
-from stochpend import integrator
 from stochpend.params import SimulationConfig
 from stochpend.simulate import run
 

@@ -150,6 +150,7 @@ def test_unreachable_scheduler_is_one_line():
     import dask
 
     start = time.monotonic()
-    with dask.config.set({"distributed.comm.timeouts.connect": "2s"}), pytest.raises(ValueError, match=r"scheduler='tcp://127.0.0.1:9' is not accepted: cannot connect"):
+    refused = r"scheduler='tcp://127.0.0.1:9' is not accepted: cannot connect"
+    with dask.config.set({"distributed.comm.timeouts.connect": "2s"}), pytest.raises(ValueError, match=refused):
         sweep(SPEC, scheduler="tcp://127.0.0.1:9")
     assert time.monotonic() - start < 30
