@@ -6,7 +6,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-slow bench reproduce clean
+.PHONY: demo test lint typecheck test-slow bench reproduce clean
 
 $(STAMP): pyproject.toml constraints.txt
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (set PYTHON=...)"; exit 2; }
@@ -17,8 +17,16 @@ $(STAMP): pyproject.toml constraints.txt
 demo: $(STAMP)
 	$(VENV)/bin/stochpend simulate --noise ou --D 1 --tau 1 --omega 1 --paths 2000 --t-max 100 --n-times 12 --seed 1
 
-test: $(STAMP)
-	$(PY) -m pytest -q -m "not slow"
+# The lint and type gates (pyproject.toml: [tool.ruff], [tool.mypy]) run first: a finding fails the test.
+# --durations: the slowest tests are listed in every run's log, to keep the suite's time watched.
+test: $(STAMP) lint typecheck
+	$(PY) -m pytest -q -m "not slow" --durations=25
+
+lint: $(STAMP)
+	$(PY) -m ruff check src tests benchmarks
+
+typecheck: $(STAMP)
+	$(PY) -m mypy
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow

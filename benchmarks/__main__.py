@@ -630,7 +630,7 @@ def _spread(values, fmt):
 def _round_ratios(main, a, b, cpu=False):
     """The ratio a/b of path-steps/s in each round (the rows a and b of one round ran back to
     back, so the ratio survives a load that changes between rounds)."""
-    return [_ratio_val(x, y, cpu) for x, y in zip(main[a], main[b])]
+    return [_ratio_val(x, y, cpu) for x, y in zip(main[a], main[b], strict=True)]
 
 
 def _x(v):

@@ -188,8 +188,8 @@ def load_numba_cuda():
     """Import NVIDIA's numba-cuda (not Numba's deprecated built-in target) with the stub."""
     os.environ["NUMBA_ENABLE_CUDASIM"] = "0"
     try:
-        from numba import cuda
         import numba.cuda.dispatcher as cuda_dispatcher
+        from numba import cuda
     except Exception as error:  # numba or its CUDA target missing or broken
         raise ToolMissing(f"numba.cuda cannot be imported ({type(error).__name__}: {error})") from error
     if getattr(cuda, "implementation", None) != "NVIDIA":
@@ -246,7 +246,7 @@ def current_advance_variants(backend, nt) -> list[Variant]:
                 f"({', '.join(names)}); give the backend a kernel_variants() function")
         real = getattr(nt, precision)
 
-        def numba_type(spec: str):
+        def numba_type(spec: str, real=real):
             base = spec.removesuffix("[:]")
             scalar = real if base == "real" else getattr(nt, base)
             return nt.Array(scalar, 1, "C") if spec.endswith("[:]") else scalar

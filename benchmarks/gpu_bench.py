@@ -53,9 +53,8 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT / "src") not in sys.path:
     sys.path.insert(0, str(ROOT / "src"))
 
-from stochpend import __version__  # noqa: E402
+from stochpend import __version__, runner  # noqa: E402
 from stochpend._backends import cpu  # noqa: E402
-from stochpend import runner  # noqa: E402
 from stochpend._backends import cuda as gpu  # noqa: E402
 from stochpend.params import SimulationConfig  # noqa: E402
 from stochpend.runner import run_batches as cpu_run_batches  # noqa: E402
@@ -341,9 +340,9 @@ def host_check() -> tuple[list[str], bool]:
             z = [float(v) for v in fields[2:]]
             want64 = rng.draw_normals(key0, key1, path, n)
             want32 = normals32(key0, key1, path, n)
-            for a, b in zip(z[:2], want64):
+            for a, b in zip(z[:2], want64, strict=True):
                 worst["f64 normals"] = max(worst["f64 normals"], abs(a - b) / max(1.0, abs(b)))
-            for a, b in zip(z[2:], want32):
+            for a, b in zip(z[2:], want32, strict=True):
                 worst["f32 normals"] = max(worst["f32 normals"], abs(a - float(b)) / max(1.0, abs(float(b))))
         elif kind == "path":
             path = np.uint64(fields[0])
@@ -354,7 +353,7 @@ def host_check() -> tuple[list[str], bool]:
             status = np.zeros(1, dtype=np.uint8)
             kern.advance_path(0, *arrays, k, status, steps * h, steps, key0, key1, int(path), 1.0,
                               1.0, 0.0, 1.0, 2, h, 0.0)
-            for a, b in zip(got, (arrays[0][0], arrays[1][0], arrays[2][0])):
+            for a, b in zip(got, (arrays[0][0], arrays[1][0], arrays[2][0]), strict=True):
                 worst["30 steps"] = max(worst["30 steps"], abs(a - b) / max(1.0, abs(b)))
     ok = (worst["kat"] == 0 and worst["f64 normals"] <= HOST_F64_RTOL
           and worst["f32 normals"] <= HOST_F32_RTOL and worst["30 steps"] <= HOST_F64_RTOL)
@@ -619,7 +618,7 @@ def main(argv: list[str] | None = None) -> int:
                       f"{platform.processor() or platform.machine()}): {cpu_rate:.3e} path-steps/s."]
 
     if args.record:
-        stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+        stamp = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
         header = [
             f"## {stamp}: {why}",
             "",

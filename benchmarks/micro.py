@@ -164,7 +164,8 @@ def run() -> list[tuple[str, str, float, str]]:
         rows.append(("Philox4x32-10 (10 rounds, 4 words)", "scalar Numba (rng.draw_words)",
                      _best(_philox_scalar, N) * per, "1 per path-step"))
         rows.append(("Philox4x32-10 (10 rounds, 4 words)", "SIMD Numba (lock-step driver form, 64-lane blocks)",
-                     _best(_philox_vec, N // 64, np.arange(64, dtype=np.uint64), np.zeros(64, np.uint64), np.empty(64)) * per, "1 per path-step"))
+                     _best(_philox_vec, N // 64, np.arange(64, dtype=np.uint64), np.zeros(64, np.uint64),
+                           np.empty(64)) * per, "1 per path-step"))
         rows.append(("log", "glibc (scalar)", _best(_libm, 0, u) * per, "1 per path-step (Box-Muller)"))
         rows.append(("log", "fastmath.log_pos (SIMD)", _best(_fm_log, u, out) * per, ""))
         rows.append(("sqrt", "glibc/LLVM (scalar loop)", _best(_libm, 1, u) * per,

@@ -31,7 +31,15 @@ SUBMODULES = ("bias", "exponents", "io", "models", "noises", "paper", "plotting"
 __all__ = ["StochpendWarning", "__version__", "simulate", *SUBMODULES]
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
-    from stochpend import bias, exponents, io, models, noises, paper, plotting, sweep, theory
+    from stochpend import bias as bias
+    from stochpend import exponents as exponents
+    from stochpend import io as io
+    from stochpend import models as models
+    from stochpend import noises as noises
+    from stochpend import paper as paper
+    from stochpend import plotting as plotting
+    from stochpend import sweep as sweep
+    from stochpend import theory as theory
     from stochpend._warnings import StochpendWarning
     from stochpend.simulate import simulate
 

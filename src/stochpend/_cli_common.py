@@ -60,11 +60,13 @@ _API_NAMES = {"power_n": "n", "t": "time"}
 
 def _option_names() -> dict[str, str]:
     """``{python name: '--option'}`` of the running command (empty outside one)."""
+    import importlib
+
     try:  # Typer >= 0.29 carries its own copy of Click
-        from typer._click.globals import get_current_context
+        click_globals = importlib.import_module("typer._click.globals")
     except ImportError:  # a Typer that uses Click itself
-        from click import get_current_context
-    ctx = get_current_context(silent=True)
+        click_globals = importlib.import_module("click.globals")
+    ctx = click_globals.get_current_context(silent=True)
     names: dict[str, str] = {}
     if ctx is None:
         return names
@@ -263,7 +265,7 @@ class RichProgress:
             left = f", about {_minutes(elapsed * (1.0 - frac) / frac)} left" if frac > 0 else ""
             console.print(f"progress: {what} {100.0 * frac:.1f} % after {_minutes(elapsed)}{left}",
                           highlight=False, soft_wrap=True)
-            self._beat = (started, total, what, now + self.heartbeat)
+            self._beat = (started, total, what, now + (self.heartbeat or 0.0))
 
     def finish(self) -> None:
         self._beat = None
@@ -340,7 +342,7 @@ def summary_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Tabl
     if attrs.get("omega_noise", "none") != "none":
         title += f", W={float(attrs['omega_noise']):g}"
     title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {markup(attrs.get('seed'))}"
-    scaled = _scaled_column(ds)
+    scaled: Any = _scaled_column(ds)  # (header, variable, norm) or None
     has_bias = "mean_E_bias" in ds
     idx = shown_rows(ds, max_rows)
     verdicts = None

@@ -11,9 +11,9 @@ from typing import Annotated, Any
 
 import typer
 
+from stochpend._cli_common import console, handles_errors, note, results
 from stochpend._cli_types import file_name, integer
 from stochpend._terminal import plain
-from stochpend._cli_common import console, handles_errors, note, results
 
 __all__ = ["RichReproduceProgress", "reproduce_command"]
 

@@ -253,12 +253,13 @@ def sweep_table(ds: Any) -> Table:
         else:
             norm = D * t / 4.0
             val, se = float(row.mean_E) / norm, float(row.mean_E_stderr) / norm
+        se_shown: float | None = se
         if not norm > 0:
-            val, se = float("nan"), None
+            val, se_shown = float("nan"), None
         table.add_row(
             *(f"{v:g}" if isinstance(v, float) else str(v) for v in s["params"].values()),
             f"{t:.4g}", fmt(float(row.mean_E), float(row.mean_E_stderr)),
-            fmt(float(row.mean_E2), float(row.mean_E2_stderr)), fmt(val, se),
+            fmt(float(row.mean_E2), float(row.mean_E2_stderr)), fmt(val, se_shown),
             fmt(float(row.skewness), float(row.skewness_stderr)), fmt(float(row.flatness), float(row.flatness_stderr)),
             str(int(row.nonfinite_paths)),
         )

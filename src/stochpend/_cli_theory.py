@@ -20,15 +20,15 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
+from stochpend._cli_common import MAX_POWER_N, _fmt, console, handles_errors, note, parse_times, results, summary_table
 from stochpend._cli_types import file_name, integer
 from stochpend._terminal import markup
-from stochpend._cli_common import MAX_POWER_N, _fmt, console, handles_errors, note, parse_times, results, summary_table
 from stochpend.paper import eq
 
 __all__ = ["bfpe_command", "bfpe_table", "reduced_command", "reduced_table", "theory_command", "theory_table"]
 
 
-def _num(v: float) -> str:
+def _num(v: Any) -> str:  # a float, or a 0-d array from the laws
     if math.isinf(v):
         return "inf"
     if math.isnan(v):
@@ -274,7 +274,7 @@ def scaling_command(
             if p.growth == "power":
                 from fractions import Fraction
 
-                f = Fraction(p.exponent).limit_denominator(64)
+                f = Fraction(float(p.exponent or 0.0)).limit_denominator(64)
                 cells.append(f"t^{f}")
             else:
                 cells.append(p.growth)

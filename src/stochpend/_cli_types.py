@@ -7,7 +7,6 @@ No Rich and no import of :mod:`stochpend.cli`, so that every command module can 
 from __future__ import annotations
 
 import sys
-
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Any

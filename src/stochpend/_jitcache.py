@@ -63,7 +63,7 @@ def name_closures(functions: Iterable[Any], key: str) -> None:
         elif isinstance(obj, types.FunctionType):
             if "<locals>" in obj.__qualname__ and not getattr(obj, "_stochpend_named", False):
                 obj.__qualname__ += suffix
-                obj._stochpend_named = True
+                obj._stochpend_named = True  # type: ignore[attr-defined]  # read by getattr above
             for cell in obj.__closure__ or ():
                 try:
                     stack.append(cell.cell_contents)
@@ -170,7 +170,7 @@ class CompileClock:
         self._depth = 0
         self._since = 0.0
         self._on_first = on_first_compile
-        self._listener = None
+        self._listener: Any = None
 
     def __enter__(self) -> CompileClock:
         import time

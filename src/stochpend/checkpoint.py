@@ -46,12 +46,12 @@ import numpy as np
 import xarray as xr
 
 from stochpend import _files, bias, io
-from stochpend._version import __version__
+from stochpend._backends.layout import path_dtypes
 from stochpend._jitcache import CompileClock
 from stochpend._sources import BUILD
+from stochpend._version import __version__
 from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
-from stochpend._backends.layout import path_dtypes
 from stochpend.runner import BACKENDS, RunState, run_batches
 from stochpend.simulate import provenance
 from stochpend.stats import N_SUMS, EnsembleSums
@@ -82,7 +82,7 @@ _RUN_FIELDS = ("first_batch", "stop_batch", "b0", "b1", "j", "path_steps", "done
 _CHUNK_ARRAYS = {"chunk_sums": "<f8", "chunk_hist": "<i8"}
 _ACC_ARRAYS = {"acc_sums": "<f8", "acc_hist": "<i8", "acc_filled": "|b1"}
 _PATH_ARRAYS = tuple(f.name for f in fields(RunState)
-                     if f.name not in (*_RUN_FIELDS, *_CHUNK_ARRAYS, "acc", "backend", "precision"))
+                     if f.name not in (*_RUN_FIELDS, *_CHUNK_ARRAYS, "acc", "backend", "precision", "_sync"))
 #: Dtype kinds a per-path array may have (never object: nothing here can hold a pickle).
 _NUMERIC_KINDS = "biuf"
 
@@ -208,8 +208,9 @@ def write(path: str | os.PathLike, ckpt: Checkpoint) -> Path:
 
     def put(fd: int) -> None:
         digest = hashlib.sha256()
-        for chunk in (MAGIC, _LEN.pack(len(head)), head,
-                      *(memoryview(a.reshape(-1)).cast("B") for a in arrays.values())):
+        chunks: list[bytes | memoryview] = [MAGIC, _LEN.pack(len(head)), head]
+        chunks += [a.reshape(-1).data.cast("B") for a in arrays.values()]
+        for chunk in chunks:
             _files.write_all(fd, chunk)
             digest.update(chunk)
         _files.write_all(fd, digest.digest())
@@ -343,8 +344,9 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
         raise _refuse(p, f"unknown backend {backend!r} or precision {precision!r}")
     # Every array has the one dtype its engine holds it in (S15, S16: an '<i8' position or a
     # '|b1' status, same size, was accepted and reinterpreted as garbage).
-    fixed = {**_CHUNK_ARRAYS, **_ACC_ARRAYS, **path_dtypes(backend, precision)}
+    fixed: dict[str, Any] = {**_CHUNK_ARRAYS, **_ACC_ARRAYS, **path_dtypes(backend, precision)}
     arrays: dict[str, np.ndarray] = {}
+    entry: Any
     for entry in header["arrays"]:
         name = entry["name"]
         if name not in shapes or name in arrays:
@@ -368,8 +370,9 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
 
     _check_settings(p, header)
     acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"])
-    scalars = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
-    state = RunState(**scalars, **{name: arrays[name] for name in _PATH_ARRAYS},
+    fields_read: dict[str, Any] = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
+    fields_read.update({name: arrays[name] for name in _PATH_ARRAYS})
+    state = RunState(**fields_read,
                      chunk_sums=arrays["chunk_sums"], chunk_hist=arrays["chunk_hist"], acc=acc,
                      backend=backend, precision=precision)
     out = header.get("out")

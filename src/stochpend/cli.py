@@ -1,8 +1,9 @@
 """Command line: a thin layer over the Python API (Typer + Rich).
 
 Known errors print one red line on stderr and exit with code 2 (bad input) or 1 (a file
-that cannot be written: full disk, I/O error); ``--debug`` shows the traceback. Usage errors (a value the option's type refuses, an unknown option, a missing
-argument) are one such line too. Integer options accept whole numbers in scientific notation
+that cannot be written: full disk, I/O error); ``--debug`` shows the traceback. Usage errors
+(a value the option's type refuses, an unknown option, a missing argument) are one such line
+too. Integer options accept whole numbers in scientific notation
 (``--paths 1e6``). Human output goes to stderr, so that stdout stays clean for pipes.
 """
 
@@ -42,8 +43,9 @@ from stochpend._cli_common import (  # the shared layer; several are also used a
     summary_table,
 )
 from stochpend._cli_types import file_name, integer, usage_message
-from stochpend.paper import eq
 from stochpend._terminal import markup
+from stochpend.paper import eq
+
 
 def _plain_flags(params: list[Any]) -> list[Any]:
     """Boolean flags show no ``<bool>`` metavar in the help (they take no value); a default
@@ -206,7 +208,8 @@ def _config_keys_in_use(ctx: typer.Context) -> None:
     source, keys = ctx.meta.get("stochpend.config_file", ("", set()))
     used = {}
     for key in keys:
-        if ctx.get_parameter_source(key) is not None and ctx.get_parameter_source(key).name == "DEFAULT_MAP":
+        source_of_key = ctx.get_parameter_source(key)
+        if source_of_key is not None and source_of_key.name == "DEFAULT_MAP":
             used[key] = source
     ctx.meta["stochpend.config_keys"] = used
 
@@ -387,7 +390,7 @@ def growth_lines(ds: Any) -> list[tuple[str, str]]:
         fit = fit_exponent(ds, float(late[0]), float(late[-1]))
     except ValueError:
         return [("warning", f"growth of <E>: {growth}")]
-    nu = float(law.exponent)
+    nu = float(law.exponent or 0.0)  # a power law has an exponent
     if fit.exponent < nu + 4 * fit.se:
         return [("note", f"the late log-log slope of <E> is {fit.exponent:.3g} +- {fit.se:.2g} and still rising "
                          f"towards the predicted t^{nu:.4g} ({law.regime}): a longer --t-max reaches the law")]
@@ -500,7 +503,7 @@ def show(
     if format != "table":
         try:
             if format == "json":
-                text, left_out = _json_text(ds) + "\n", []
+                text, left_out = _json_text(ds) + "\n", list[str]()
             else:
                 text, left_out = _csv_text(ds)
         except (KeyError, AttributeError, TypeError, ValueError, OverflowError, IndexError) as exc:
@@ -557,11 +560,11 @@ def list_pieces() -> None:
     for col in ("option", "name", "what it is"):
         table.add_column(col)
     for name in noises.names():
-        table.add_row("--noise", name, plain(noises.get(name).description))
+        table.add_row("--noise", name, plain(getattr(noises.get(name), "description", "")))
     for name in oscillators.names():
-        table.add_row("--potential", name, plain(oscillators.get(name).description))
+        table.add_row("--potential", name, plain(getattr(oscillators.get(name), "description", "")))
     for name in models.names():
-        table.add_row("--potential", name, "user model: " + plain(models.get(name).description or ""))
+        table.add_row("--potential", name, "user model: " + plain(getattr(models.get(name), "description", None) or ""))
     table.add_row("--coupling", "force", "the noise multiplies the force U'(x) (the paper's pendulum)")
     table.add_row("--coupling", "position", "the noise multiplies x (the random-frequency oscillator)")
     table.caption = ("A noise or oscillator of your own: stochpend.noises.register / "

@@ -300,13 +300,13 @@ def _diagnose(
     if ok.sum() < MIN_LATE_TIMES or not ok.all():
         return "unknown", f"{int(ok.sum())} of the {late.size} late output times have <E> > 0 (need all, and >= {MIN_LATE_TIMES})"
     half = late.size // 2
-    first, second = slice(0, half), slice(late.size - half, late.size)  # equal sizes; odd: middle unused
+    early, late_half = slice(0, half), slice(late.size - half, late.size)  # equal sizes; odd: middle unused
     x = np.log(times[late])
-    s1 = float(_slopes(x[first], np.log(mean[first])))
-    s2 = float(_slopes(x[second], np.log(mean[second])))
-    ds_loo = _slopes(x[second], np.log(loo[:, second])) - _slopes(x[first], np.log(loo[:, first]))
+    s1 = float(_slopes(x[early], np.log(mean[early])))
+    s2 = float(_slopes(x[late_half], np.log(mean[late_half])))
+    ds_loo = _slopes(x[late_half], np.log(loo[:, late_half])) - _slopes(x[early], np.log(loo[:, early]))
     se = _jackknife_se(ds_loo)
-    rho = math.exp(float(x[second].mean() - x[first].mean()))
+    rho = math.exp(float(x[late_half].mean() - x[early].mean()))
     z = (s2 - s1) / se if se > 0 else math.copysign(math.inf, s2 - s1)
     numbers = f"late log-log slopes {s1:.4g} -> {s2:.4g} ({z:+.3g} SE), time ratio {rho:.3g}"
     if s1 <= 0:

@@ -167,7 +167,7 @@ class Spec:
 
 
 # -- the integrator ------------------------------------------------------------------------------
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def build(spec: Spec) -> SimpleNamespace:
     """The device functions of ``spec`` (see the module docstring); cached per Spec."""
     real = np.float32 if spec.precision == "float32" else np.float64
@@ -483,7 +483,7 @@ def build(spec: Spec) -> SimpleNamespace:
     )
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def initial_state(noise: Noise):
     """``init_path`` of ``noise`` (it depends on nothing else), computed in float64."""
     noise_init = noise.kernel(np.float64, LIBM).init
@@ -507,7 +507,7 @@ def initial_state(noise: Noise):
     return init_path
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def statistics(oscillator: Oscillator, coupling: str):
     """``path_values`` of (oscillator, coupling), in float64 whatever the kernel's precision."""
     osc64 = oscillator.kernel(np.float64, LIBM)
@@ -565,7 +565,7 @@ def lanes_supported(spec: Spec) -> bool:
     return spec.noise.kernel(np.float64, FAST).draw_keyed is not None
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def build_lanes(spec: Spec) -> SimpleNamespace:
     """The step loop of :func:`build`'s ``advance_path`` for ``LANE_COUNT`` paths side by side.
 
@@ -760,7 +760,7 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
 PAIR_LANE_F_ROWS = LANE_F_ROWS + 2
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def build_pair_lanes(spec: Spec) -> SimpleNamespace:
     """:func:`build`'s ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate)
     for ``LANE_COUNT`` pairs side by side, as :func:`build_lanes` runs ``advance_path``.

@@ -15,6 +15,7 @@ import io as _io
 import os
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -98,7 +99,7 @@ check_output_path = check_output
 
 
 def _clean_attrs(attrs: dict) -> dict:
-    out = {}
+    out: dict[str, Any] = {}
     for k, v in attrs.items():
         if isinstance(v, bool | np.bool_):
             out[k] = int(v)

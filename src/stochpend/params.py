@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -52,7 +52,7 @@ def short_repr(value: Any, limit: int = 80) -> str:
     return text
 
 
-def _fail(name: str, value: Any, accepted: str) -> None:
+def _fail(name: str, value: Any, accepted: str) -> NoReturn:
     raise ValueError(f"{name}={short_repr(value)} is not accepted: {accepted}")
 
 
@@ -191,6 +191,8 @@ class SimulationConfig:
             tau = None
         if noise_piece.uses_omega_noise:
             if omega_noise is None:
+                # a noise that uses W is colored and gives its default (noises.base.Noise)
+                assert noise_piece.default_omega_noise is not None and tau is not None
                 omega_noise = noise_piece.default_omega_noise(tau)
                 if not math.isfinite(omega_noise):
                     _fail("tau", tau, "tau too small for the default omega_noise (it overflows); "
@@ -202,7 +204,7 @@ class SimulationConfig:
                 _fail("omega_noise", omega_noise,
                       "omega_noise must be a finite number > 0 (the harmonic noise's frequency W)")
         elif omega_noise is not None:
-            users = [n for n in _noises.names() if _noises.get(n).uses_omega_noise]
+            users = [n for n in _noises.names() if getattr(_noises.get(n), "uses_omega_noise", False)]
             _fail("omega_noise", omega_noise,
                   f"omega_noise applies to noise={' or '.join(repr(n) for n in users)} only")
         omega_accepted = f"omega must be a finite number in [0, {MAX_OMEGA:g}] (the pendulum frequency)"
@@ -362,7 +364,9 @@ def hist_edges(config: SimulationConfig) -> np.ndarray:
     Edges are uniform in sqrt(E - E_min), E_min = -omega**2 for the pendulum, so that the
     bins are narrow near the bottom of the range, where the law diverges like E**(-1/2).
     """
-    e_min = config.omega**2 * _oscillators.get(config.potential).energy_floor(config.power_n)
+    oscillator = _oscillators.get(config.potential)
+    assert oscillator is not None, config.potential  # validated when the config was built
+    e_min = config.omega**2 * oscillator.energy_floor(config.power_n)
     u = np.linspace(0.0, 1.0, config.hist_bins + 1) ** 2
     e_max = np.asarray(config.hist_E_max)[:, None]
     return e_min + (e_max - e_min) * u[None, :]

@@ -92,8 +92,10 @@ from numba import prange
 from numba.extending import register_jitable
 
 from stochpend import rng
+from stochpend._jitcache import own_index
 from stochpend._version import __version__
 from stochpend.noises import ou as _ou
+from stochpend.params import DEFAULT_HIST_BINS, DEFAULT_N_BATCHES, SimulationConfig
 from stochpend.stats import (
     N_SUMS,
     S_COUNT,
@@ -104,10 +106,8 @@ from stochpend.stats import (
     S_NONFINITE,
     S_OMEGA2,
     S_OMEGA4,
+    EnsembleSums,
 )
-from stochpend.params import DEFAULT_HIST_BINS, DEFAULT_N_BATCHES, SimulationConfig
-from stochpend.stats import EnsembleSums
-from stochpend._jitcache import own_index
 
 __all__ = [
     "ORDERS",

@@ -31,8 +31,8 @@ from typing import Any, Protocol
 import numpy as np
 import xarray as xr
 
-from stochpend._version import __version__
 from stochpend._files import write_atomic
+from stochpend._version import __version__
 from stochpend.figures import CASES, FIGURES
 from stochpend.figures._common import COLUMNS, SUM_COMPONENTS, Row, RunSpec
 from stochpend.progress import NoProgress, Progress
@@ -290,6 +290,7 @@ def reproduce(
             fig_runs: list[RunRecord] = []
             for s in specs[name]:
                 path = _run_path(out, s, where)
+                ds: xr.Dataset | None
                 if path in loaded:
                     ds = loaded[path]
                     status = "shared"

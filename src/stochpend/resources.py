@@ -209,7 +209,7 @@ def _memory_bound() -> tuple[int | None, str]:
         machine = int(psutil.virtual_memory().available)
     bounds = [(machine, "this machine has"), (cgroup_headroom(), "this process's memory limit (cgroup) leaves"),
               (address_space_headroom(), "this process's address-space limit (ulimit -v) leaves")]
-    known = [b for b in bounds if b[0] is not None]
+    known = [(n, what) for n, what in bounds if n is not None]
     return min(known, key=lambda b: b[0]) if known else (None, "this machine has")
 
 
@@ -360,7 +360,7 @@ def estimate(
     if precision not in STATE_BYTES_PER_PATH:
         precision = "float64"
     given = _valid_chunk(chunk_paths)
-    requested = chunk_paths if given else (CUDA_CHUNK_PATHS if cuda else CPU_CHUNK_PATHS)
+    requested = chunk_paths if given and chunk_paths is not None else (CUDA_CHUNK_PATHS if cuda else CPU_CHUNK_PATHS)
     # As stochpend.runner chunks: whole batches, at least one (so a huge batch is one chunk).
     chunk = min(config.paths, max(1, requested // config.batch_size) * config.batch_size)
     parts = _memory_parts(paths=config.paths, chunk=chunk, chunk_given=given, batch_size=config.batch_size,

@@ -66,12 +66,13 @@ class RunState:
     done_work: float
     backend: str = field(default="cpu", compare=False)
     precision: str = field(default="float64", compare=False)
+    #: Set by run_batches: copies a GPU chunk's arrays here (see pull); not saved.
+    _sync: Any = field(default=None, init=False, repr=False, compare=False)
 
     def pull(self) -> None:
         """Bring the live chunk's arrays into this object (a no-op on the CPU)."""
-        sync = getattr(self, "_sync", None)
-        if sync is not None:
-            sync(self)
+        if self._sync is not None:
+            self._sync(self)
 
 
 #: RunState fields that are not per-chunk arrays.
@@ -179,7 +180,7 @@ def run_batches(
         engine.start(p0, n, b1 - first_batch)
         # The chunk's arrays reach the state only when a checkpointer asks (RunState.pull).
         state = RunState(first_batch, stop_batch, first_batch, b1, 0,
-                         **dict.fromkeys(CHUNK_ARRAYS),
+                         **dict.fromkeys(CHUNK_ARRAYS),  # type: ignore[arg-type]  # filled by pull
                          acc=EnsembleSums.empty(config.n_batches, n_times, config.hist_bins),
                          path_steps=0, done_work=0.0, backend=backend, precision=precision)
     else:

@@ -14,6 +14,7 @@ import numpy as np
 import xarray as xr
 
 from stochpend import _compile_helper, bias, integrator, models, resources, runner
+from stochpend._jitcache import CompileClock
 from stochpend._version import __version__
 from stochpend.params import (
     DEFAULT_H_MAX,
@@ -23,7 +24,6 @@ from stochpend.params import (
     SimulationConfig,
     hist_edges,
 )
-from stochpend._jitcache import CompileClock
 from stochpend.progress import NoProgress, Progress
 from stochpend.progress import resolve as resolve_progress
 

@@ -189,4 +189,5 @@ class EnsembleSums:
             self.nonfinite(),
             {"long_name": "paths that went non-finite by this time: excluded from every statistic"},
         )
-        return xr.Dataset(data_vars, coords={"time": ("time", np.asarray(times), {"long_name": "time t", "units": "paper units"})}, attrs=attrs)
+        time = ("time", np.asarray(times), {"long_name": "time t", "units": "paper units"})
+        return xr.Dataset(data_vars, coords={"time": time}, attrs=attrs)

@@ -49,9 +49,9 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from stochpend.params import SimulationConfig, hist_edges
 from stochpend._blocks import BlockResult, Task, run_block
 from stochpend._sources import BUILD
+from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
 from stochpend.simulate import provenance
 from stochpend.stats import EnsembleSums
@@ -505,7 +505,7 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
     data_vars: dict[str, Any] = {}
     for name, var in first.data_vars.items():
         stacked = np.stack([ds[name].values for ds in datasets]).reshape(shape + var.shape)
-        data_vars[name] = (spec.dims + var.dims, stacked, dict(var.attrs))
+        data_vars[str(name)] = (spec.dims + var.dims, stacked, dict(var.attrs))
     data_vars["path_steps"] = (spec.dims, np.asarray(path_steps, dtype=np.int64).reshape(shape),
                                {"long_name": "path-steps taken by this parameter set"})
 

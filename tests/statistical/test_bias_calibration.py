@@ -28,9 +28,9 @@ import pytest
 import stochpend
 from stochpend import bias
 from tests.conftest import SEED, Z_TOL
-from tests.statistical.test_weak_order import D as D_H
 from tests.statistical.test_weak_order import OMEGA as OMEGA_H
 from tests.statistical.test_weak_order import X0 as X0_H
+from tests.statistical.test_weak_order import D as D_H
 from tests.statistical.test_weak_order import exact_second_moments
 
 #: Cases whose true bias at the default step control is far below the standard error of a

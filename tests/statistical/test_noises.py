@@ -16,7 +16,6 @@ import scipy.linalg
 from stochpend import integrator, rng
 from stochpend.noises import harmonic
 from tests._kernels import Paths, kernels
-
 from tests.conftest import SEED, Z_TOL
 
 N_PATHS = 20_000
@@ -144,7 +143,7 @@ def _exact_harmonic_update(h, D, tau, W):
         warnings.simplefilter("ignore", IntegrationWarning)  # limits it; the test checks 1e-11
         for i in range(3):
             for j in range(i, 3):
-                f = lambda u: (scipy.linalg.expm(A * u) @ b)[i] * (scipy.linalg.expm(A * u) @ b)[j]  # noqa: E731
+                f = lambda u, i=i, j=j: (scipy.linalg.expm(A * u) @ b)[i] * (scipy.linalg.expm(A * u) @ b)[j]  # noqa: E731
                 Q[i, j] = Q[j, i] = quad(f, 0.0, h, epsabs=0.0, epsrel=1e-12, limit=200)[0]
     return scipy.linalg.expm(A * h), Q
 

@@ -15,8 +15,8 @@ import xarray as xr
 from scipy import integrate, special, stats
 
 from stochpend import reduced
-from stochpend.stats import N_SUMS, S_COUNT, S_E1, S_NONFINITE
 from stochpend.reduced import draw_samples, sample_reduced, simulate_reduced
+from stochpend.stats import N_SUMS, S_COUNT, S_E1, S_NONFINITE
 from stochpend.theory import laws
 from tests.conftest import Z_TOL
 
@@ -234,7 +234,7 @@ def test_asymptotic_from_E0_matches_the_transition_density(seed: int) -> None:
     for i, t in enumerate(times):
         s = sigma2 * t
         law = stats.ncx2(0.5, E0**2 / s)
-        mean_E = integrate.quad(lambda y: math.sqrt(s * y) * law.pdf(y), 0, np.inf, limit=400)[0]
+        mean_E = integrate.quad(lambda y, s=s, law=law: math.sqrt(s * y) * law.pdf(y), 0, np.inf, limit=400)[0]
         assert abs(_moment_z(ds, i, 1, mean_E)) < Z_TOL, (t, mean_E, float(ds.mean_E[i]))
         assert abs(_moment_z(ds, i, 2, E0**2 + 0.5 * s)) < Z_TOL
 

@@ -57,10 +57,10 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from stochpend import integrator, rng, stats
+from stochpend._backends.layout import CHUNK_ARRAYS, path_dtypes
 from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
 from stochpend.oscillators.pendulum import PENDULUM
-from stochpend._backends.layout import CHUNK_ARRAYS, path_dtypes
 from stochpend.stats import N_SUMS
 
 #: Paths per lock-step block (the integrator's lane count).
@@ -92,7 +92,7 @@ def spec_for(config, precision: str = "float64") -> Spec:
     return spec
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def init_kernel(spec: Spec):
     """``init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
     uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W)``: initial conditions of global
@@ -135,11 +135,11 @@ def _ranges(kernel, items: int = 0, summed: bool = False):
             return sum(d[0] for d in done), sum(d[1] for d in done)
         return None
 
-    run.kernel = kernel
+    run.kernel = kernel  # type: ignore[attr-defined]  # the dispatcher, for compiled_kernels
     return run
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def advance_kernel(spec: Spec):
     """``advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
     path0, D, tau, W, omega2, n, h_max, step_c) -> (steps_taken, paths_unfinished)``: every
@@ -155,7 +155,7 @@ def advance_kernel(spec: Spec):
     return path_kernel(spec)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def path_kernel(spec: Spec):
     """``advance`` (the signature of :func:`advance_kernel`) one path at a time: ranges of
     paths, each the integrator's ``advance_path``. The driver of every Spec without a SIMD one;
@@ -310,7 +310,7 @@ def _with_workers(kernel, f_shape, u_shape, i_shape, items=None):
     return advance
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def pair_advance_kernel(spec: Spec):
     """``advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
     key0, key1, path0, D, tau, W, omega2, n, h_max, step_c) -> (draws_taken, pairs_unfinished)``:
@@ -466,7 +466,7 @@ def _lockstep_kernel(spec: Spec):
     return advance
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def accumulate_kernel(spec: Spec):
     """``accumulate(x, Omega, status, omega2, n, batch_size, edges, sums, hist)``: per-batch
     power sums of E and Omega, and the energy histogram, at one output time (float64 whatever
@@ -545,6 +545,15 @@ class Engine:
     """One chunk of paths in host memory, advanced by the CPU kernels (for ``runner``)."""
 
     name = "cpu"
+    # The chunk's per-path arrays, allocated from layout.path_dtypes (see _allocate).
+    x: np.ndarray
+    Omega: np.ndarray
+    xi: np.ndarray
+    xi_aux: np.ndarray
+    t: np.ndarray
+    t_comp: np.ndarray
+    k: np.ndarray
+    status: np.ndarray
 
     def __init__(self, config, spec: Spec, capacity: int, n_chunk_batches: int) -> None:
         self.config = config

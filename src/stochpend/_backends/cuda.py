@@ -34,6 +34,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import warnings
+from typing import Any
 
 import numpy as np
 from numba import types as nbtypes
@@ -214,7 +215,7 @@ def hist_column(edges, j, E):
 
 
 # -- the kernels of a Spec ----------------------------------------------------------------------
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def init_kernel(spec: Spec):
     """``init[blocks, threads](x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0,
     theta0, uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W)``: one path per thread,
@@ -242,7 +243,7 @@ def init_kernel(spec: Spec):
     return init
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def advance_kernel(spec: Spec):
     """``advance[blocks, threads](x, Omega, xi, xi_aux, t, t_comp, k, status, t_target,
     max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, unfinished)``: the
@@ -266,7 +267,7 @@ def advance_kernel(spec: Spec):
     return advance
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def pair_advance_kernel(spec: Spec):
     """``advance[blocks, threads](x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status,
     t_target, max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, unfinished)``:
@@ -296,7 +297,7 @@ class PairEngine:
     advanced by :func:`pair_advance_kernel`; per output time the host copies back the members'
     state, which the CPU's pair sums then add up (so, given the states, the same sums)."""
 
-    def __init__(self, config: SimulationConfig, spec: Spec, p0: int, n: int) -> None:
+    def __init__(self, config: SimulationConfig, spec: Spec, p0: int | np.uint64, n: int) -> None:
         _require(spec.precision)
         self.config = config
         self.init = init_kernel(spec)
@@ -342,7 +343,7 @@ class PairEngine:
         return int(np.sum(self.d_k.copy_to_host(), dtype=np.uint64))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def accumulate_kernel(spec: Spec):
     """``accumulate[n_batches, STATS_THREADS](x, Omega, status, omega2, n, batch_size, edges, j,
     sums, hist)``: the CPU's per-batch sums at output time j, block b summing batch b of the
@@ -461,6 +462,15 @@ class Engine:
     """Device arrays of one chunk of paths and the launches that advance them (for ``runner``)."""
 
     name = "cuda"
+    # The chunk's per-path device arrays, allocated from layout.path_dtypes (see __init__).
+    d_x: Any
+    d_Omega: Any
+    d_xi: Any
+    d_xi_aux: Any
+    d_t: Any
+    d_t_comp: Any
+    d_k: Any
+    d_status: Any
 
     def __init__(self, config: SimulationConfig, spec: Spec, capacity: int,
                  n_chunk_batches: int) -> None:

@@ -115,9 +115,8 @@ class RunSpec:
         The resolved configuration includes every default (step controls, histogram, batches),
         so a run stored before a default changed is never reused for the new settings.
         """
-        from stochpend.params import SimulationConfig
-
         from stochpend import _sources
+        from stochpend.params import SimulationConfig
 
         config = SimulationConfig.build(**self.simulate_kwargs())
         resolved = {**config.to_attrs(), "times": list(config.times), "hist_E_max": list(config.hist_E_max)}
@@ -173,7 +172,7 @@ def fmt_num(x: float) -> str:
 
 
 def attr_float(ds: xr.Dataset, name: str) -> float:
-    v = ds.attrs.get(name)
+    v: Any = ds.attrs.get(name)
     try:
         return float(v)
     except (TypeError, ValueError):

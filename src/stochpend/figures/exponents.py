@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from stochpend.figures._common import RunSpec, Row, fmt_num
+from stochpend.figures._common import Row, RunSpec, fmt_num
 
 #: The reproduction's default paths per run: each case's ``paths`` is its size at that default
 #: (``reproduce(paths=...)`` scales them all, e.g. --quick's 500 gives 5 %).
@@ -102,7 +102,7 @@ def theory(datasets: dict[str, xr.Dataset]) -> dict[str, Any]:
         pred = predicted_exponent(a["potential"], a["noise"], a["coupling"], int(a["power_n"]))
         rate = math.nan
         if pred.growth == "exponential":
-            tau = a.get("tau")
+            tau: Any = a.get("tau")
             rate = harmonic_growth_rate(a["noise"], D=float(a["D"]), omega=float(a["omega"]),
                                         tau=None if tau == "none" else float(tau))
         out[key] = {"prediction": pred, "rate": rate}

@@ -13,8 +13,8 @@ import numpy as np
 import xarray as xr
 
 from stochpend.figures._common import (
-    RunSpec,
     Row,
+    RunSpec,
     at_last,
     extrapolate,
     fmt_num,

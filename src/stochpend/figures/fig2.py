@@ -12,8 +12,8 @@ from typing import Any
 import xarray as xr
 
 from stochpend.figures._common import (
-    RunSpec,
     Row,
+    RunSpec,
     at_last,
     attr_float,
     extrapolate,

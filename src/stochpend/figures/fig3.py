@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from stochpend.figures._common import RunSpec, Row, at_last, attr_float, fmt_num, run_key
+from stochpend.figures._common import Row, RunSpec, at_last, attr_float, fmt_num, run_key
 from stochpend.figures.fig2 import fit_if_asymptotic, slowest_time
 
 NAME = "fig3"

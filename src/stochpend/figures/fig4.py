@@ -17,8 +17,8 @@ import xarray as xr
 
 from stochpend.figures._common import (
     DASH,
-    RunSpec,
     Row,
+    RunSpec,
     at_last,
     attr_float,
     extrapolate,

@@ -121,7 +121,7 @@ class Noise:
         return _kernel(self, real, mathlib.name)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _kernel(noise: Noise, real: Any, mathlib_name: str) -> NoiseKernel:
     """Built once per (noise, precision, math library); the cache holds the noise itself."""
     from stochpend._jitcache import name_closures

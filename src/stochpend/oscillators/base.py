@@ -74,7 +74,7 @@ class Oscillator:
         return self.kernel(np.float64, LIBM)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _kernel(oscillator: Oscillator, real: Any, mathlib_name: str) -> OscillatorKernel:
     """Built once per (oscillator, precision, math library); the cache holds the oscillator
     itself, so a key never outlives its object (an ``id`` could be reused by another model)."""
