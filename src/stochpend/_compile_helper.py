@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-__all__ = ["ENV", "Helper", "start"]
+__all__ = ["ENV", "Helper", "start", "wanted"]
 
 #: Set to 0 to compile everything in the process that runs (no helper).
 ENV = "STOCHPEND_COMPILE_HELPER"
@@ -62,27 +62,34 @@ class Helper:
             self._process.wait()
 
 
-def start(config: Any, *, backend: str, bias_paths: int) -> Helper | None:
-    """Launch the helper for ``config``'s pair kernel when it can save time (see the module
-    docstring); None when not."""
-    if backend != "cpu" or not bias_paths or os.environ.get(ENV, "1").strip() == "0":
-        return None
+def wanted(config: Any, *, backend: str, pairs: bool) -> bool:
+    """Whether a run of ``config`` (``pairs``: with a bias estimate) would have its pair kernel
+    compiled by the helper (see the module docstring); launches nothing, compiles nothing.
+    The CLI's estimate uses it to leave the pair kernel's compile out."""
+    if backend != "cpu" or not pairs or os.environ.get(ENV, "1").strip() == "0":
+        return False
     if (os.cpu_count() or 1) < 2:
-        return None
+        return False
     import numba
 
     if numba.config.DISABLE_JIT:
-        return None
+        return False
     from stochpend._backends import cpu
     from stochpend._jitcache import in_cache
 
     spec = cpu.spec_for(config)
     if not spec.cacheable:
-        return None
+        return False
     kernels = cpu.compiled_kernels(spec, pairs=True)
-    pairs = [k for kind, k in kernels.items() if kind.startswith("pairs")]
+    pair_kernels = [k for kind, k in kernels.items() if kind.startswith("pairs")]
     own = [k for kind, k in kernels.items() if not kind.startswith("pairs")]
-    if all(in_cache(k) for k in pairs) or all(in_cache(k) for k in own):
+    return not (all(in_cache(k) for k in pair_kernels) or all(in_cache(k) for k in own))
+
+
+def start(config: Any, *, backend: str, bias_paths: int) -> Helper | None:
+    """Launch the helper for ``config``'s pair kernel when it can save time (:func:`wanted`);
+    None when not."""
+    if not wanted(config, backend=backend, pairs=bool(bias_paths)):
         return None
     package_root = str(Path(__file__).resolve().parents[1])  # this very stochpend, not another
     env = {**os.environ,
