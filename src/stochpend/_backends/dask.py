@@ -2,7 +2,7 @@
 
 Imported lazily by :mod:`stochpend.sweep`; an ``ImportError`` here becomes the one-line
 message "scheduler=... requires the `dask` extra". Each task is
-:func:`stochpend.sweep.run_block` on one (parameter set, block of batches) and returns that
+:func:`stochpend._blocks.run_block` on one (parameter set, block of batches) and returns that
 block's per-batch sums; the client places them (exact), so the scheduler, the number of
 workers and lost-and-rescheduled tasks cannot change a bit of the result.
 
