@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from stochpend import rng, stats
+from stochpend import observables, rng, stats
 from stochpend._jitcache import CompileClock
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig
@@ -60,10 +60,9 @@ _WORK_PER_CALL = 10_000_000
 _U64 = np.uint64
 
 
-#: Statistics whose bias ``accuracy="auto"`` controls (the issue's list: every moment of E and
-#: Omega and the two shape ratios).
-CONTROLLED = ("mean_E", "mean_E2", "mean_E3", "mean_E4", "skewness", "flatness", "mean_Omega2",
-              "mean_Omega4")
+#: Statistics whose bias ``accuracy="auto"`` controls (declared in stochpend.observables: every
+#: moment of E and Omega and the two shape ratios).
+CONTROLLED = tuple(s.name for s in observables.STATISTICS if s.controlled)
 #: Family-wise false-alarm probability of the bias verdicts: the chance that a run whose
 #: every bias is zero has *any* (statistic, time) called significant (Bonferroni over them all).
 FAMILY_ALPHA = 0.05
@@ -636,9 +635,7 @@ def refined(config: SimulationConfig, level: int) -> SimulationConfig:
 
 # -- what the tool says about it ------------------------------------------------------------------
 #: Labels of the statistics in warnings and tables.
-LABELS = {"mean_E": "<E>", "mean_E2": "<E2>", "mean_E3": "<E3>", "mean_E4": "<E4>",
-          "skewness": "S", "flatness": "F", "mean_Omega2": "<Omega2>",
-          "mean_Omega4": "<Omega4>", "mean_sin2theta": "<G2>"}
+LABELS = {s.name: s.short for s in observables.STATISTICS}
 
 
 def warnings_for(ds: Any, fmt: Callable[[float, float], str],

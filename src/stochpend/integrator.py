@@ -42,8 +42,8 @@ import numpy as np
 from numba.extending import register_jitable
 
 from stochpend import noises as _noises
+from stochpend import observables, rng
 from stochpend import oscillators as _oscillators
-from stochpend import rng
 from stochpend._jitcache import name_closures
 from stochpend.mathlib import FAST, LIBM
 from stochpend.noises.base import Noise
@@ -509,28 +509,28 @@ def initial_state(noise: Noise):
 
 @functools.cache
 def statistics(oscillator: Oscillator, coupling: str):
-    """``path_values`` of (oscillator, coupling), in float64 whatever the kernel's precision."""
+    """``path_values(x, Omega, omega2, n) -> (ok, E, values)`` of (oscillator, coupling), in
+    float64 whatever the kernel's precision: the summed values of :data:`stochpend.observables.SUMS`,
+    generated from that table (:func:`stochpend.observables.path_values_source`)."""
     osc64 = oscillator.kernel(np.float64, LIBM)
     potential64 = osc64.potential
     noise_shape64 = osc64.noise_shape
-    POSITION = coupling == "position"
 
     @register_jitable
-    def path_values(x, Omega, omega2, n):
-        """(ok, E, E**2, Omega**2, G**2) of a path for the statistics, in float64; ``ok``
-        False when E**4, Omega**4 or G is not finite (the path has escaped)."""
-        E = 0.5 * Omega * Omega + omega2 * potential64(x, n)
-        E2 = E * E
-        O2 = Omega * Omega
-        if POSITION:
-            g = x
-        else:
-            g = noise_shape64(x, n)
-        ok = math.isfinite(E2 * E2) and math.isfinite(O2 * O2) and math.isfinite(g)
-        return ok, E, E2, O2, g * g
+    def position(x, n):
+        return x
 
-    name_closures([path_values], f"statistics/{oscillator.name}/{coupling}")
+    namespace = {"potential": potential64, "shape": position if coupling == "position" else noise_shape64,
+                 "isfinite": math.isfinite}
+    exec(compile(observables.path_values_source(), f"<stochpend.observables {observables.TABLE_KEY}>", "exec"),
+         namespace)
+    function = namespace["path_values"]
+    # Named as a closure of this builder, so that name_closures tags it like every other piece.
+    function.__module__, function.__qualname__ = __name__, "statistics.<locals>.path_values"
+    path_values = register_jitable(function)
+    name_closures([path_values, position], f"statistics/{oscillator.name}/{coupling}/{observables.TABLE_KEY}")
     return path_values
+
 
 def spec(noise: str = "ou", potential: str = "pendulum", coupling: str = "force", *,
          precision: str = "float64", adaptive: bool = True, fast_math: bool = False) -> Spec:

@@ -95,19 +95,9 @@ from stochpend import rng
 from stochpend._jitcache import own_index
 from stochpend._version import __version__
 from stochpend.noises import ou as _ou
+from stochpend.observables import N_SUMS, S_COUNT, S_NONFINITE, SUMS, TABLE_KEY, reduced_values_source
 from stochpend.params import DEFAULT_HIST_BINS, DEFAULT_N_BATCHES, SimulationConfig
-from stochpend.stats import (
-    N_SUMS,
-    S_COUNT,
-    S_E1,
-    S_E2,
-    S_E3,
-    S_E4,
-    S_NONFINITE,
-    S_OMEGA2,
-    S_OMEGA4,
-    EnsembleSums,
-)
+from stochpend.stats import EnsembleSums
 
 __all__ = [
     "ORDERS",
@@ -387,8 +377,22 @@ def _advance_second(X, xi, status, n_steps, h, k0, sigma2, tau, omega2, a, s_xi,
             status[i] = 1
 
 
+def _reduced_values():
+    """``reduced_values(E)``: the summed values of a path of the averaged dynamics, generated
+    from the statistics table (:func:`stochpend.observables.reduced_values_source`)."""
+    namespace: dict = {}
+    exec(compile(reduced_values_source(), f"<stochpend.observables {TABLE_KEY}>", "exec"), namespace)
+    function = namespace["reduced_values"]
+    function.__module__ = __name__
+    return numba.njit(function)
+
+
+_values = _reduced_values()
+_N_VALUES = len(SUMS)
+
+
 @numba.njit(parallel=True, cache=True)
-@own_index("reduced")
+@own_index(f"reduced/{TABLE_KEY}")
 def _accumulate(state, status, transform, batch_size, edges, sums, hist):  # pragma: no cover
     """Per-batch power sums of E (and Omega**2 = 2E) and the E histogram at one output time.
 
@@ -415,14 +419,10 @@ def _accumulate(state, status, transform, batch_size, edges, sums, hist):  # pra
             if status[i] != 0 or not math.isfinite(E):
                 sums[b, S_NONFINITE] += 1.0
                 continue
-            E2 = E * E
+            values = _values(E)
             sums[b, S_COUNT] += 1.0
-            sums[b, S_E1] += E
-            sums[b, S_E2] += E2
-            sums[b, S_E3] += E2 * E
-            sums[b, S_E4] += E2 * E2
-            sums[b, S_OMEGA2] += 2.0 * E
-            sums[b, S_OMEGA4] += 4.0 * E2
+            for c in range(_N_VALUES):
+                sums[b, 1 + c] += values[c]
             if E < edges[0]:
                 hist[b, 0] += 1
             elif E >= edges[n_edges - 1]:
@@ -789,9 +789,9 @@ def simulate_reduced(
         # zeroth order from E0 = 0: S and F are 0/0 = NaN in every batch (not an error)
         warnings.filterwarnings("ignore", message="Mean of empty slice", category=RuntimeWarning)
         ds = acc.to_dataset(np.asarray(config.times), edges, attrs)
-    nan = np.full(n_times_, np.nan)
-    ds["mean_sin2theta"] = ("time", nan, {"long_name": "not defined: the reduced dynamics have no angle"})
-    ds["mean_sin2theta_stderr"] = ("time", nan.copy(), {"long_name": "not defined"})
+    for undefined in (f"mean_{s.name}" for s in SUMS if s.reduced is None):  # a function of the angle
+        ds[undefined] = ("time", np.full(n_times_, np.nan), {"long_name": "not defined: the reduced dynamics have no angle"})
+        ds[f"{undefined}_stderr"] = ("time", np.full(n_times_, np.nan), {"long_name": "not defined"})
     ds["mean_Omega2"].attrs["long_name"] = "<2E>: Omega**2 = 2E (exact for omega = 0; theta-average for E >> omega**2)"
     ds["mean_Omega4"].attrs["long_name"] = "<4E**2>: Omega**4 = 4E**2 (exact for omega = 0; leading order for E >> omega**2)"
     return ds

@@ -29,6 +29,7 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
+from stochpend.observables import N_SUMS
 from stochpend.params import DEFAULT_H_MAX, DEFAULT_STEP_C, SimulationConfig, short_repr
 
 __all__ = [
@@ -76,8 +77,6 @@ CUDA_CHUNK_PATHS = 1 << 26
 #: Per-path state: x, Omega, xi in the working precision; xi_aux, t, t_comp (float64), k
 #: (uint64), status (uint8).
 STATE_BYTES_PER_PATH = {"float64": 4 * 8 + 8 + 8 + 8 + 1, "float32": 3 * 4 + 8 + 8 + 8 + 8 + 1}
-#: Number of power sums per batch and output time (stochpend._backends.cpu.N_SUMS).
-N_SUMS = 9
 _DEFAULT_PATHS = 10_000
 _DEFAULT_T_MAX = 1000.0
 _DEFAULT_N_TIMES = 40

@@ -19,56 +19,23 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
+from stochpend import observables
+
 __all__ = ["EnsembleSums", "N_SUMS", "STATISTICS"]
 
-#: Columns of the per-batch sums that every backend fills (``sums[batch, time, column]``).
-S_COUNT, S_E1, S_E2, S_E3, S_E4, S_OMEGA2, S_OMEGA4, S_G2, S_NONFINITE = range(9)
-N_SUMS = 9
-
-
-def _ratio(num: np.ndarray, den: np.ndarray) -> np.ndarray:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return num / den
-
+#: Columns of the per-batch sums that every backend fills (``sums[batch, time, column]``):
+#: count, the summed values of :data:`stochpend.observables.SUMS`, non-finite paths.
+S_COUNT, S_NONFINITE, N_SUMS = observables.S_COUNT, observables.S_NONFINITE, observables.N_SUMS
+S_E1 = observables.column("E")
 
 # Each statistic: a function of the means m[..., c] = sums[..., c] / count.
-STATISTICS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
-    "mean_E": lambda m: m[..., S_E1],
-    "mean_E2": lambda m: m[..., S_E2],
-    "mean_E3": lambda m: m[..., S_E3],
-    "mean_E4": lambda m: m[..., S_E4],
-    "skewness": lambda m: _ratio(m[..., S_E3], np.abs(m[..., S_E2]) ** 1.5),
-    "flatness": lambda m: _ratio(m[..., S_E4], m[..., S_E2] ** 2),
-    "mean_Omega2": lambda m: m[..., S_OMEGA2],
-    "mean_Omega4": lambda m: m[..., S_OMEGA4],
-    "mean_sin2theta": lambda m: m[..., S_G2],
-}
+STATISTICS: dict[str, Callable[[np.ndarray], np.ndarray]] = {s.name: s.of for s in observables.STATISTICS}
 
 #: Short names for plot labels (``long_name``) and units: xarray's ``ds.mean_E.plot()`` reads
 #: "⟨E⟩ [paper units]". The equations are dimensionless (the paper's units); ratios have unit 1.
-LABELS = {
-    "mean_E": ("⟨E⟩", "paper units"),
-    "mean_E2": ("⟨E²⟩", "paper units"),
-    "mean_E3": ("⟨E³⟩", "paper units"),
-    "mean_E4": ("⟨E⁴⟩", "paper units"),
-    "skewness": ("skewness S", "1"),
-    "flatness": ("flatness F", "1"),
-    "mean_Omega2": ("⟨Ω²⟩", "paper units"),
-    "mean_Omega4": ("⟨Ω⁴⟩", "paper units"),
-    "mean_sin2theta": ("⟨G²⟩", "paper units"),
-}
+LABELS = {s.name: (s.label, s.units) for s in observables.STATISTICS}
 
-DESCRIPTIONS = {
-    "mean_E": "<E>, ensemble mean of the energy E = Omega^2/2 - omega^2 cos(theta) (defenergie)",
-    "mean_E2": "<E^2>",
-    "mean_E3": "<E^3>",
-    "mean_E4": "<E^4>",
-    "skewness": "S = <E^3>/<E^2>^(3/2), the paper's raw-moment skewness",
-    "flatness": "F = <E^4>/<E^2>^2, the paper's raw-moment flatness",
-    "mean_Omega2": "<Omega^2>",
-    "mean_Omega4": "<Omega^4>",
-    "mean_sin2theta": "<G(x)^2>, G the function the noise multiplies (sin theta for the pendulum)",
-}
+DESCRIPTIONS = {s.name: s.description for s in observables.STATISTICS}
 
 
 @dataclass

@@ -25,15 +25,17 @@ from stochpend._backends import cpu
 from stochpend._backends import cuda as gpu
 from stochpend.mathlib import LIBM
 from stochpend.noises import ou
+from stochpend.observables import S_COUNT, S_NONFINITE, column
 from stochpend.params import SimulationConfig
 from stochpend.runner import run_batches
-from stochpend.stats import S_COUNT, S_E1, S_E2, S_NONFINITE
 from tests._kernels import Paths
 from tests.unit import _phase_noise
 from tests.unit._user_models import register_all
 
 register_all()
 _phase_noise.register()
+
+S_E1, S_E2 = column("E"), column("E2")
 
 pytestmark = pytest.mark.gpu
 

@@ -56,12 +56,12 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from stochpend import integrator, rng, stats
+from stochpend import integrator, observables, rng
 from stochpend._backends.layout import CHUNK_ARRAYS, path_dtypes
 from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
+from stochpend.observables import N_SUMS, S_COUNT, S_NONFINITE
 from stochpend.oscillators.pendulum import PENDULUM
-from stochpend.stats import N_SUMS
 
 #: Paths per lock-step block (the integrator's lane count).
 BLOCK = integrator.LANES
@@ -480,9 +480,10 @@ def accumulate_kernel(spec: Spec):
     ``edges[0]``, the last column E at or above ``edges[-1]``.
     """
     path_values = integrator.statistics(spec.oscillator, spec.coupling)
+    n_values = len(observables.SUMS)
 
     @numba.njit(nogil=True, cache=spec.oscillator.builtin)
-    @own_index(f"{spec.oscillator.name}/{spec.coupling}")
+    @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables.TABLE_KEY}")
     def accumulate(b_lo, b_hi, x, Omega, status, omega2, n, batch_size, edges, sums,
                    hist):  # pragma: no cover - compiled
         n_paths = x.shape[0]
@@ -496,21 +497,16 @@ def accumulate_kernel(spec: Spec):
             stop = min(start + batch_size, n_paths)
             for i in range(start, stop):
                 if status[i] != 0:
-                    sums[b, stats.S_NONFINITE] += 1.0
+                    sums[b, S_NONFINITE] += 1.0
                     continue
-                ok, E, E2, O2, G2 = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, n)
+                ok, E, values = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, n)
                 if not ok:
                     status[i] = 1
-                    sums[b, stats.S_NONFINITE] += 1.0
+                    sums[b, S_NONFINITE] += 1.0
                     continue
-                sums[b, stats.S_COUNT] += 1.0
-                sums[b, stats.S_E1] += E
-                sums[b, stats.S_E2] += E2
-                sums[b, stats.S_E3] += E2 * E
-                sums[b, stats.S_E4] += E2 * E2
-                sums[b, stats.S_OMEGA2] += O2
-                sums[b, stats.S_OMEGA4] += O2 * O2
-                sums[b, stats.S_G2] += G2
+                sums[b, S_COUNT] += 1.0
+                for c in range(n_values):
+                    sums[b, 1 + c] += values[c]
                 if E < edges[0]:
                     hist[b, 0] += 1
                 elif E >= edges[n_edges - 1]:

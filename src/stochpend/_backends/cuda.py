@@ -41,12 +41,12 @@ from numba import types as nbtypes
 from numba.core.errors import NumbaPerformanceWarning
 from numba.extending import register_jitable
 
-from stochpend import integrator, rng, stats
+from stochpend import integrator, observables, rng
 from stochpend._backends.layout import path_dtypes
 from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
+from stochpend.observables import N_SUMS, S_COUNT, S_NONFINITE
 from stochpend.params import SimulationConfig
-from stochpend.stats import N_SUMS
 
 try:  # a module global: the CUDA simulator swaps it in the kernels' globals
     from numba import cuda
@@ -78,7 +78,7 @@ _WORK_PER_LAUNCH = 1 << 31
 _MIN_STEPS_PER_LAUNCH = 1000
 
 _U64 = np.uint64
-_N_VALUES = 7  # E, E^2, E^3, E^4, Omega^2, Omega^4, G^2: the summed values of a path
+_N_VALUES = len(observables.SUMS)  # the summed values of a path (stochpend.observables)
 
 
 # -- availability -----------------------------------------------------------------------------
@@ -353,8 +353,10 @@ def accumulate_kernel(spec: Spec):
     tpb = STATS_THREADS
     hist_max = SHARED_HIST_MAX
 
+    n_values = _N_VALUES
+
     @cuda.jit(cache=spec.oscillator.builtin)
-    @own_index(f"{spec.oscillator.name}/{spec.coupling}")
+    @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables.TABLE_KEY}")
     def accumulate(x, Omega, status, omega2, n, batch_size, edges, j, sums,
                    hist):  # pragma: no cover - device
         b = cuda.blockIdx.x
@@ -372,30 +374,21 @@ def accumulate_kernel(spec: Spec):
         start = b * batch_size
         stop = min(start + batch_size, n_paths)
         s_count = 0.0
-        s_e1 = 0.0
-        s_e2 = 0.0
-        s_e3 = 0.0
-        s_e4 = 0.0
-        s_o2 = 0.0
-        s_o4 = 0.0
-        s_g2 = 0.0
         s_bad = 0.0
+        # Thread 0's running sums, one per summed value, added in path order.
+        total = cuda.local.array(_N_VALUES, np.float64)
+        for c in range(n_values):
+            total[c] = 0.0
         for base in range(start, stop, tpb):
             i = base + tid
             if i < stop:
                 counted = False
                 if status[i] == 0:
-                    ok, E, E2, O2, G2 = path_values(np.float64(x[i]), np.float64(Omega[i]),
-                                                    omega2, n)
+                    ok, E, path = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, n)
                     if ok:
                         counted = True
-                        values[0, tid] = E
-                        values[1, tid] = E2
-                        values[2, tid] = E2 * E
-                        values[3, tid] = E2 * E2
-                        values[4, tid] = O2
-                        values[5, tid] = O2 * O2
-                        values[6, tid] = G2
+                        for c in range(n_values):
+                            values[c, tid] = path[c]
                         col = hist_column(edges, j, E)
                         if in_shared:
                             cuda.atomic.add(shared_hist, col, 1)
@@ -413,24 +406,14 @@ def accumulate_kernel(spec: Spec):
                         s_bad += 1.0
                     else:
                         s_count += 1.0
-                        s_e1 += values[0, q]
-                        s_e2 += values[1, q]
-                        s_e3 += values[2, q]
-                        s_e4 += values[3, q]
-                        s_o2 += values[4, q]
-                        s_o4 += values[5, q]
-                        s_g2 += values[6, q]
+                        for c in range(n_values):
+                            total[c] += values[c, q]
             cuda.syncthreads()
         if tid == 0:
-            sums[b, j, stats.S_COUNT] = s_count
-            sums[b, j, stats.S_E1] = s_e1
-            sums[b, j, stats.S_E2] = s_e2
-            sums[b, j, stats.S_E3] = s_e3
-            sums[b, j, stats.S_E4] = s_e4
-            sums[b, j, stats.S_OMEGA2] = s_o2
-            sums[b, j, stats.S_OMEGA4] = s_o4
-            sums[b, j, stats.S_G2] = s_g2
-            sums[b, j, stats.S_NONFINITE] = s_bad
+            sums[b, j, S_COUNT] = s_count
+            for c in range(n_values):
+                sums[b, j, 1 + c] = total[c]
+            sums[b, j, S_NONFINITE] = s_bad
         if in_shared:
             for c in range(tid, n_cols, tpb):
                 count = shared_hist[c]

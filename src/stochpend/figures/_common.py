@@ -31,11 +31,12 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from stochpend import observables
 from stochpend._notation import ve
 
 #: Names of the components of the per-batch sums stored with each run (``batch_sums``), in the
-#: order of the CPU backend's accumulator (stochpend._backends.cpu: S_COUNT ... S_NONFINITE).
-SUM_COMPONENTS = ("count", "E", "E2", "E3", "E4", "Omega2", "Omega4", "sin2theta", "nonfinite")
+#: order of every backend's accumulator (declared in stochpend.observables).
+SUM_COMPONENTS = observables.SUM_COMPONENTS
 
 #: Output times per decade of every run (log-spaced).
 PER_DECADE = 12
