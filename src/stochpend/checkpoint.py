@@ -50,11 +50,12 @@ from stochpend._backends.layout import path_dtypes
 from stochpend._jitcache import CompileClock
 from stochpend._sources import BUILD
 from stochpend._version import __version__
+from stochpend.observables import n_sums
 from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
 from stochpend.runner import BACKENDS, RunState, run_batches
 from stochpend.simulate import provenance
-from stochpend.stats import N_SUMS, EnsembleSums
+from stochpend.stats import EnsembleSums
 
 __all__ = [
     "Checkpoint",
@@ -106,8 +107,8 @@ def config_to_json(config: SimulationConfig) -> dict[str, Any]:
     """Every field of the configuration as plain JSON values (floats round-trip exactly)."""
     out: dict[str, Any] = {}
     for f in fields(config):
-        if f.name == "extra":
-            continue
+        if f.name == "extra" or (f.name == "observables" and not config.observables):
+            continue  # written only when used: checkpoints from before keep their hash
         v = getattr(config, f.name)
         out[f.name] = list(v) if isinstance(v, tuple) else v
     return out
@@ -332,9 +333,9 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     n_cols = config.hist_bins + 2
     shapes: dict[str, tuple[int, ...]] = {name: (n,) for name in _PATH_ARRAYS}
     shapes.update({
-        "chunk_sums": (r["b1"] - r["b0"], n_times, N_SUMS),
+        "chunk_sums": (r["b1"] - r["b0"], n_times, n_sums(config)),
         "chunk_hist": (n_times, n_cols),
-        "acc_sums": (config.n_batches, n_times, N_SUMS),
+        "acc_sums": (config.n_batches, n_times, n_sums(config)),
         "acc_hist": (n_times, n_cols),
         "acc_filled": (config.n_batches,),
     })
@@ -369,7 +370,7 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
         raise _refuse(p, f"missing arrays {sorted(missing)}")
 
     _check_settings(p, header)
-    acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"])
+    acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"], config.observables)
     fields_read: dict[str, Any] = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
     fields_read.update({name: arrays[name] for name in _PATH_ARRAYS})
     state = RunState(**fields_read,

@@ -14,6 +14,7 @@ import numpy as np
 import xarray as xr
 
 from stochpend import _compile_helper, bias, integrator, models, resources, runner
+from stochpend import observables as observables_
 from stochpend._jitcache import CompileClock
 from stochpend._version import __version__
 from stochpend.params import (
@@ -51,6 +52,7 @@ def simulate(
     power_n: int = 2,
     coupling: str = "force",
     omega_noise: float | None = None,
+    observables: Any = (),
     backend: str = "cpu",
     threads: int | None = None,
     chunk_paths: int | None = None,
@@ -83,6 +85,9 @@ def simulate(
         Correlation time of the colored noises, > 0 (ignored for white noise).
     omega_noise : float, optional
         Harmonic noise only: its frequency W (default 2/tau, critical damping).
+    observables : sequence of str, optional
+        Names of registered user observables (:func:`stochpend.observables.register`): each
+        adds ``mean_<name>`` with its standard error and bias estimate, on every backend.
     omega : float
         Pendulum frequency, >= 0.
     paths : int
@@ -161,6 +166,7 @@ def simulate(
         n_times=n_times, seed=seed, theta0=theta0, Omega0=Omega0, xi0=xi0, h_max=h_max,
         step_c=step_c, hist_bins=hist_bins, hist_E_max=hist_E_max, n_batches=n_batches,
         potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
+        observables=observables,
     )
     accuracy, rtol = bias.check_accuracy(accuracy, rtol)
     if bias_paths is not None:
@@ -350,6 +356,8 @@ def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_tim
     if user_model is not None:
         attrs["model"] = f"user-defined ({user_model.description or 'stochpend.models.Model'})"
         attrs["model_source"] = user_model.source()
+    for name in config.observables:  # the code of each user observable, as for a user's model
+        attrs[f"observable_{name}_source"] = observables_.get(name).source()  # type: ignore[union-attr]
     attrs.update({f"scheme_{k}": v for k, v in integrator.SCHEME.items()})
     attrs.update(
         {
