@@ -6,7 +6,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint typecheck test-slow bench reproduce clean
+.PHONY: demo test lint typecheck test-slow test-minimal bench reproduce clean
 
 $(STAMP): pyproject.toml constraints.txt
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (set PYTHON=...)"; exit 2; }
@@ -28,6 +28,23 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(PY) -m mypy
 
+# The package without its optional extras (no matplotlib, dask or distributed ever installed):
+# what needs none works, what needs one says which (CI runs this after make test).
+MIN_VENV := .venv-min
+MIN_STAMP := $(MIN_VENV)/.installed
+MIN_TESTS := tests/system/test_without_extras.py tests/unit/test_public_api.py tests/unit/test_imports.py \
+	tests/statistical/test_golden.py tests/unit/test_user_observables.py
+
+$(MIN_STAMP): pyproject.toml constraints.txt
+	test -x $(MIN_VENV)/bin/python || $(PYTHON) -m venv $(MIN_VENV)
+	$(MIN_VENV)/bin/python -m pip install -q -c constraints.txt -e . pytest hypothesis
+	touch $(MIN_STAMP)
+
+test-minimal: $(MIN_STAMP)
+	! $(MIN_VENV)/bin/python -c "import matplotlib" 2>/dev/null
+	! $(MIN_VENV)/bin/python -c "import dask" 2>/dev/null
+	$(MIN_VENV)/bin/python -m pytest -q -m "not slow" -p no:cacheprovider $(MIN_TESTS)
+
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
 
@@ -38,7 +55,7 @@ reproduce: $(STAMP)
 	$(VENV)/bin/stochpend reproduce all --out out/reproduce
 
 clean:
-	rm -rf $(VENV) build dist .pytest_cache
+	rm -rf $(VENV) $(MIN_VENV) build dist .pytest_cache
 
 # CUDA registers and spills per kernel for sm_90, compiled offline (no GPU): a separate venv with
 # numba-cuda and ptxas (benchmarks/cuda-tools.txt).  make cuda-registers CUDA_ARGS="--lto --out x.md"

@@ -589,6 +589,10 @@ def plot(
     """Plot <E>(t) of a saved run, log-log, with its error band and the predicted law."""
     from stochpend import io, plotting
 
+    try:  # an optional extra: say so in one line, before any work
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise ValueError("matplotlib is not installed: pip install 'stochpend[plot]'") from None
     if format is None:
         suffix = (out.suffix.lstrip(".").lower() if out is not None else "") or "png"
         format = suffix if suffix in PLOT_FORMATS else None
@@ -646,7 +650,7 @@ def info() -> None:
 
         table.add_row("dask / distributed", f"{dask.__version__} / {distributed.__version__}")
     except ImportError:
-        table.add_row("dask / distributed", "not installed (pip install 'stochpend[dask]')")
+        table.add_row("dask / distributed", markup("not installed (pip install 'stochpend[dask]')"))
     results.print(table)
 
 
