@@ -71,12 +71,17 @@ def simulate_with_checkpoint(
     backend: str = "cpu",
     precision: str = "float64",
     command_line: str | None = None,
+    bias_paths: int | None = None,
+    accuracy: str = "fixed",
+    rtol: float | None = None,
+    max_path_steps: float | None = None,
 ) -> Any:
     """Run ``config`` with checkpoints; write ``out``; return the Dataset (for the table).
 
     Refuses, before any work, an existing checkpoint file (it belongs to an interrupted run:
     ``stochpend resume`` it) or an unwritable ``out``. Every backend and precision checkpoints
-    (the checkpoint records them; ``resume`` continues on the same). Ctrl-C
+    (the checkpoint records them; ``resume`` continues on the same), as do ``bias_paths`` and
+    the level ``accuracy="auto"`` chose (its pilot runs first). Ctrl-C
     (SIGTERM) saves the state, prints where and exits with code 130 (143). On success the result is written
     to ``out`` (with ``command_line`` in its attributes) and the checkpoint file is removed.
     """
@@ -97,7 +102,8 @@ def simulate_with_checkpoint(
         return _interruptible(
             checkpoint.run_checkpointed, config, checkpoint_path=checkpoint_path, every_s=every_s,
             out=out, overwrite=overwrite, threads=threads, progress=progress, command_line=command_line,
-            backend=backend, precision=precision,
+            backend=backend, precision=precision, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
+            max_path_steps=max_path_steps,
         )
 
 

@@ -2,29 +2,22 @@
 
 from __future__ import annotations
 
-import platform
-import sys
-import time as _time
 import warnings
 from collections.abc import Callable
 from typing import Any
 
-import numba
-import numpy as np
 import xarray as xr
 
-from stochpend import _compile_helper, bias, integrator, models, resources, runner
-from stochpend._jitcache import CompileClock
-from stochpend._version import __version__
+from stochpend import bias, integrator
+from stochpend.lifecycle import Run, execute
 from stochpend.params import (
     DEFAULT_H_MAX,
     DEFAULT_HIST_BINS,
     DEFAULT_N_BATCHES,
     DEFAULT_STEP_C,
     SimulationConfig,
-    hist_edges,
 )
-from stochpend.progress import NoProgress, Progress
+from stochpend.progress import Progress
 from stochpend.progress import resolve as resolve_progress
 
 
@@ -162,23 +155,13 @@ def simulate(
         step_c=step_c, hist_bins=hist_bins, hist_E_max=hist_E_max, n_batches=n_batches,
         potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
     )
-    accuracy, rtol = bias.check_accuracy(accuracy, rtol)
-    if bias_paths is not None:
-        bias_paths = bias.check_bias_paths(bias_paths, config.paths)
-    resources.check(config, backend=backend, precision=precision, chunk_paths=chunk_paths, max_path_steps=max_path_steps)
-    backend = resolve_backend(backend)
-    check_precision(precision, backend)
-    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
-                                or threads > numba.config.NUMBA_NUM_THREADS):
-        raise ValueError(
-            f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]"
-        )
-    if chunk_paths is not None and (isinstance(chunk_paths, bool) or not isinstance(chunk_paths, int)
-                                    or chunk_paths < 1):
-        raise ValueError(f"chunk_paths={chunk_paths!r} is not accepted: an integer >= 1")
-    ds = run(config, backend=backend, threads=threads, chunk_paths=chunk_paths,
-             progress=resolve_progress(progress), precision=precision, bias_paths=bias_paths,
-             accuracy=accuracy, rtol=rtol, max_path_steps=max_path_steps)
+    # Refused here, before any work (run validates again what it is handed: a few checks).
+    settings = Run.build(config, backend=backend, precision=precision, threads=threads,
+                         chunk_paths=chunk_paths, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
+                         max_path_steps=max_path_steps)
+    ds = run(config, backend=settings.backend, threads=threads, chunk_paths=chunk_paths,
+             progress=resolve_progress(progress), precision=precision, bias_paths=settings.bias_paths,
+             accuracy=settings.accuracy, rtol=settings.rtol, max_path_steps=max_path_steps)
     warn_about(ds)
     return ds
 
@@ -269,105 +252,13 @@ def run(
     rtol: float | None = None,
     max_path_steps: float | None = None,
 ) -> xr.Dataset:
-    """Run a validated configuration and build the Dataset (see :func:`simulate`).
+    """Run a configuration and build the Dataset (see :func:`simulate`): the settings are
+    validated (:meth:`stochpend.lifecycle.Run.build`) and run by :func:`stochpend.lifecycle.execute`.
 
-    ``bias_paths``: pairs for the bias estimate (0: none; validated by the caller; None: the
-    default, :func:`stochpend.bias.default_bias_paths`).
+    ``bias_paths``: pairs for the bias estimate (0: none; None: the default,
+    :func:`stochpend.bias.default_bias_paths`).
     """
-    progress = progress or NoProgress()
-    if bias_paths is None:
-        bias_paths = bias.default_bias_paths(config.paths)
-    previous_threads = numba.get_num_threads()
-    if threads is not None:
-        numba.set_num_threads(threads)
-    helper = None  # the compile helper's pair kernel is compiled meanwhile, not counted in the note
-    compile_clock = CompileClock(lambda: compile_note(
-        config, backend, precision, pairs=(bool(bias_paths) and helper is None) or accuracy == "auto"))
-    started = _time.perf_counter()
-    waited = 0.0
-    try:
-        compile_clock.__enter__()
-        if accuracy != "auto":  # auto compiles the pair kernel first: nothing to overlap
-            helper = _compile_helper.start(config, backend=backend, bias_paths=bias_paths)
-        choice = None
-        if accuracy == "auto":
-            choice = bias.choose_level(config, bias_paths or bias.default_bias_paths(config.paths),
-                                       rtol=rtol, progress=progress, backend=backend)
-            config = choice.config
-            # the refined run must pass the same memory and work checks as the one asked for
-            resources.check(config, backend=backend, precision=precision, chunk_paths=chunk_paths,
-                            max_path_steps=max_path_steps)
-        sums, path_steps = runner.run_batches(config, 0, config.n_batches, backend=backend,
-                                              precision=precision, chunk_paths=chunk_paths,
-                                              progress=progress)
-        wall_main = _time.perf_counter() - started - compile_clock.seconds
-        est = None
-        if choice is not None:
-            est = choice.extrapolated()
-        elif bias_paths:
-            if helper is not None:
-                waited = helper.wait()  # compiling the pair kernel, in the helper
-            est = bias.estimate(config, bias_paths, progress=progress, backend=backend)
-    finally:
-        if helper is not None:
-            helper.stop()
-        compile_clock.__exit__(None, None, None)
-        compile_clock.seconds += waited
-        numba.set_num_threads(previous_threads)
-    # Compiling (a cold kernel cache) is reported apart: wall_time_s and path_steps_per_s are
-    # the run's own, comparable between a first and a later run.
-    wall = _time.perf_counter() - started - compile_clock.seconds
-    attrs = provenance(config, backend=backend, precision=precision,
-                       threads=threads or previous_threads, wall_time_s=wall, path_steps=path_steps)
-    attrs["simulation_wall_time_s"] = wall_main
-    attrs["compile_time_s"] = compile_clock.seconds
-    ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
-    if est is not None:
-        bias.attach(ds, est, choice)
-    return ds
-
-
-def compile_note(config: SimulationConfig, backend: str, precision: str, *,
-                 pairs: bool = True) -> None:
-    """Said once, on stderr, when a run's first kernel is not in Numba's cache: compiling is
-    about to take a while (a note, not a result; with its expected duration)."""
-    label = runner.spec_for(config, backend, precision).label
-    seconds = resources.compile_seconds(config, backend=backend, precision=precision,
-                                        pairs=pairs)
-    expected = f"~{resources.format_seconds(seconds)}, " if seconds > 0 else ""
-    print(f"compiling kernels for {label} (first use: {expected}cached after)", file=sys.stderr,
-          flush=True)
-
-
-def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_time_s: float,
-               path_steps: int, precision: str = "float64") -> dict[str, Any]:
-    """Attributes stored with every result: enough to reproduce it, down to the compiled
-    kernel (``kernel``: oscillator/coupling/noise/precision/step/math; the fast-math SIMD
-    kernels and the C library's differ in the last bits)."""
-    attrs: dict[str, Any] = {"title": "stochpend ensemble simulation"}
-    attrs.update(config.to_attrs())
-    user_model = models.get(config.potential)
-    if user_model is not None:
-        attrs["model"] = f"user-defined ({user_model.description or 'stochpend.models.Model'})"
-        attrs["model_source"] = user_model.source()
-    attrs.update({f"scheme_{k}": v for k, v in integrator.SCHEME.items()})
-    attrs.update(
-        {
-            "rng": "Philox4x32-10, key = seed, counter = (draw, global path index)",
-            "backend": backend,
-            "precision": precision,
-            "kernel": runner.spec_for(config, backend, precision).label,
-            "threads": threads,
-            "wall_time_s": wall_time_s,
-            "path_steps": path_steps,
-            "path_steps_per_s": path_steps / wall_time_s if wall_time_s > 0 else float("nan"),
-            "stochpend_version": __version__,
-            "numba_version": numba.__version__,
-            "numpy_version": np.__version__,
-            "python_version": platform.python_version(),
-            "machine": f"{platform.machine()} {platform.processor() or platform.system()}",
-            "created": _time.strftime("%Y-%m-%dT%H:%M:%SZ", _time.gmtime()),
-            "reference": "K. Mallick and P. Marcq, On the stochastic pendulum with Ornstein-Uhlenbeck noise (2004)",
-        }
-    )
-    return {k: (int(v) if isinstance(v, bool) else v) for k, v in attrs.items()}
+    settings = Run.build(config, backend=backend, precision=precision, threads=threads,
+                         chunk_paths=chunk_paths, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
+                         max_path_steps=max_path_steps)
+    return execute(settings, progress=progress)[0]

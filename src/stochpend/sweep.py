@@ -51,9 +51,9 @@ import xarray as xr
 
 from stochpend._blocks import BlockResult, Task, run_block
 from stochpend._sources import BUILD
+from stochpend.lifecycle import provenance
 from stochpend.params import SimulationConfig, hist_edges
 from stochpend.progress import NoProgress, Progress
-from stochpend.simulate import provenance
 from stochpend.stats import EnsembleSums
 
 __all__ = ["BlockResult", "SweepSpec", "Task", "load_spec", "plan_tasks", "run_block", "sweep"]
