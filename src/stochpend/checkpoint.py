@@ -410,6 +410,7 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
           and 0 <= r["j"] <= n_times and r["path_steps"] >= 0)
     if not ok:
         raise _refuse(p, f"inconsistent run position {r}")
+    _check_settings(p, header)  # before the arrays: `accuracy` says which arrays there are
     n = min(r["b1"] * bs, config.paths) - r["b0"] * bs
     n_cols = config.hist_bins + 2
     shapes: dict[str, tuple[int, ...]] = {name: (n,) for name in _PATH_ARRAYS}
@@ -421,7 +422,7 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
         "acc_filled": (config.n_batches,),
     })
     record = header.get("accuracy")
-    if isinstance(record, dict):  # its fields are checked with the other settings, below
+    if record is not None:
         shapes.update({"pilot_bias": (len(STATISTICS), n_times, 2), "pilot_coarse": (len(STATISTICS), n_times, 2),
                        "pilot_nonfinite": (n_times,), "pilot_decorrelation": (n_times,)})
     backend = header.get("backend", "cpu")
@@ -454,7 +455,6 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     if missing:
         raise _refuse(p, f"missing arrays {sorted(missing)}")
 
-    _check_settings(p, header)
     acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"])
     fields_read: dict[str, Any] = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
     fields_read.update({name: arrays[name] for name in _PATH_ARRAYS})
