@@ -286,6 +286,7 @@ def sweep_command(
     max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse sweeps needing more than this many path-steps in all, the sum of paths x t_max / h_max (inf: no limit).", show_default="1e13")] = None,
     backend: Annotated[str, typer.Option(help="Where each block runs: cpu, cuda (the GPU of the process or Dask worker running it) or auto.")] = "cpu",
     precision: Annotated[str, typer.Option(help="float64 or float32 (float32 needs --backend cuda).")] = "float64",
+    bias_paths: Annotated[int | None, typer.Option("--bias-paths", parser=integer, help="Coupled coarse/fine pairs estimating each set's discretisation bias, in this process after the blocks (0: none).", show_default="each set's paths/48, at least 64")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
@@ -295,6 +296,10 @@ def sweep_command(
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
     plan = load_spec(spec)  # the whole file is validated before any work
+    if bias_paths is not None:
+        from stochpend.bias import check_bias_paths
+
+        check_bias_paths(bias_paths, 0)
     _check_resources(plan, spec, max_path_steps)
     check_scheduler(scheduler)
     from stochpend.simulate import check_precision, resolve_backend
@@ -310,7 +315,7 @@ def sweep_command(
     progress = SweepProgressBar(enabled=not quiet and common.console.is_terminal, quiet=quiet)
     try:
         ds = sweep(plan, scheduler=scheduler, workers=workers, progress=progress,
-                   tasks_per_set=tasks_per_set, backend=backend, precision=precision)
+                   tasks_per_set=tasks_per_set, backend=backend, precision=precision, bias_paths=bias_paths)
     except KeyboardInterrupt:
         progress.finish()
         raise
