@@ -7,7 +7,8 @@ compile clock and its note, the compile helper, ``accuracy="auto"``'s pilot, the
 (:func:`stochpend.runner.run_batches`, saving and resuming through a checkpointer when given),
 the bias estimate, and the Dataset with its provenance. :func:`execute` does them in that order;
 the callers only validate and hand over a :class:`Run`, and add what is theirs (where the result
-goes, the per-batch sums).
+goes, the per-batch sums). Where a run runs is decided here too (:func:`resolve_backend`,
+:func:`check_precision`; importable from :mod:`stochpend.simulate` as before).
 
 Sweeps run blocks of batches (:mod:`stochpend._blocks`) and estimate each set's bias after the
 blocks (:mod:`stochpend.sweep`); the reduced dynamics have their own loop
@@ -20,7 +21,8 @@ import contextlib
 import platform
 import sys
 import time as _time
-from collections.abc import Iterator
+import warnings
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -36,7 +38,8 @@ from stochpend.progress import NoProgress, Progress
 from stochpend.runner import RunState
 from stochpend.stats import EnsembleSums
 
-__all__ = ["Checkpointing", "Run", "Saver", "compile_note", "execute", "numba_threads", "provenance"]
+__all__ = ["Checkpointing", "Run", "Saver", "check_precision", "compile_note", "cuda_status", "execute",
+           "numba_threads", "provenance", "resolve_backend"]
 
 
 class Saver(runner.Checkpointer, Protocol):
@@ -93,8 +96,6 @@ class Run:
         """Validate the settings of a run of ``config`` (a ``ValueError`` of one line naming the
         parameter; memory and work are checked too, :func:`stochpend.resources.check`) and
         resolve ``backend="auto"`` and the default ``bias_paths``."""
-        from stochpend.simulate import check_precision, resolve_backend
-
         accuracy, rtol = bias.check_accuracy(accuracy, rtol)
         bias_paths = bias.check_bias_paths(bias_paths, config.paths)
         resources.check(config, backend=backend, precision=precision, chunk_paths=chunk_paths,
@@ -111,6 +112,64 @@ class Run:
             raise ValueError(f"chunk_paths={chunk_paths!r} is not accepted: an integer >= 1")
         return cls(config, backend, precision, threads, chunk_paths, bias_paths, accuracy, rtol,
                    max_path_steps, checkpointing)
+
+
+def check_precision(precision: str, backend: str) -> None:
+    """Refuse an unknown precision, or float32 anywhere but the CUDA backend."""
+    if precision not in integrator.PRECISIONS:
+        raise ValueError(f"precision={precision!r} is not accepted: one of float64, float32")
+    if precision == "float32" and backend != "cuda":
+        raise ValueError("precision='float32' is not accepted with backend='cpu': float32 runs on the CUDA backend")
+
+
+def cuda_status(backend: str = "cuda") -> tuple[bool, str, bool]:
+    """``(usable, why, broken)`` for the CUDA backend: the driver and device
+    (``_backends.cuda.availability``), then a tiny kernel compiled and launched once per process
+    (``_backends.cuda_probe``). ``broken``: a GPU was found but the CUDA stack cannot compile or
+    run on it. For ``backend="auto"`` the simulator counts as not usable (never picked
+    implicitly) and is not probed."""
+    try:
+        from stochpend._backends import cuda as _cuda
+    except Exception as exc:  # numba without a CUDA target
+        return False, f"numba.cuda cannot be imported ({type(exc).__name__})", False
+    usable, why = _cuda.availability()
+    if not usable:
+        return False, why, False
+    if backend == "auto" and _cuda._simulator_enabled():
+        return False, why, False  # never pick the (slow) simulator implicitly
+    from stochpend._backends import cuda_probe
+
+    ok, probe_why = cuda_probe.probe()
+    if not ok:
+        return False, f"{why}: {probe_why}", True
+    return True, why, False
+
+
+def resolve_backend(backend: str, *, note: Callable[[str], None] | None = None) -> str:
+    """Map "auto" to the GPU when one is usable (else the CPU); refuse an unusable "cuda".
+
+    A GPU whose CUDA stack cannot compile a kernel is not usable: "auto" then runs on the CPU
+    and says why in one line, through ``note`` (default: a ``RuntimeWarning``).
+    """
+    if backend == "cpu":
+        return "cpu"
+    if backend not in ("auto", "cuda"):
+        raise ValueError(f"backend={backend!r} is not accepted: one of cpu, cuda, auto")
+    usable, why, broken = cuda_status(backend)
+    if usable:
+        return "cuda"
+    if backend == "auto":
+        if broken:
+            message = f"backend='auto' runs on the CPU: the CUDA stack is unusable ({why})"
+            if note is None:
+                warnings.warn(message, RuntimeWarning, stacklevel=2)
+            else:
+                note(message)
+        return "cpu"
+    advice = ("install a numba-cuda that works with this numpy (pip install 'stochpend[cuda]' "
+              "pins one)" if broken else "install the extra with pip install 'stochpend[cuda]' on "
+              "a machine with an NVIDIA GPU")
+    raise ValueError(f"backend='cuda' is not accepted: {why}; {advice}, or use backend='cpu'")
 
 
 @contextlib.contextmanager

@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable
 from typing import Any
 
 import xarray as xr
 
-from stochpend import bias, integrator
+from stochpend import bias
+
+# Where a run runs is decided in stochpend.lifecycle; the names stay importable from here.
 from stochpend.lifecycle import Run, execute
+from stochpend.lifecycle import check_precision as check_precision
+from stochpend.lifecycle import cuda_status as cuda_status
+from stochpend.lifecycle import resolve_backend as resolve_backend
 from stochpend.params import (
     DEFAULT_H_MAX,
     DEFAULT_HIST_BINS,
@@ -179,64 +183,6 @@ def warn_about(ds: xr.Dataset, stacklevel: int = 3) -> None:
     if lost:
         warnings.warn(f"{lost} paths went non-finite (or ran away) and are excluded from every "
                       "statistic", StochpendWarning, stacklevel=stacklevel)
-
-
-def check_precision(precision: str, backend: str) -> None:
-    """Refuse an unknown precision, or float32 anywhere but the CUDA backend."""
-    if precision not in integrator.PRECISIONS:
-        raise ValueError(f"precision={precision!r} is not accepted: one of float64, float32")
-    if precision == "float32" and backend != "cuda":
-        raise ValueError("precision='float32' is not accepted with backend='cpu': float32 runs on the CUDA backend")
-
-
-def cuda_status(backend: str = "cuda") -> tuple[bool, str, bool]:
-    """``(usable, why, broken)`` for the CUDA backend: the driver and device
-    (``_backends.cuda.availability``), then a tiny kernel compiled and launched once per process
-    (``_backends.cuda_probe``). ``broken``: a GPU was found but the CUDA stack cannot compile or
-    run on it. For ``backend="auto"`` the simulator counts as not usable (never picked
-    implicitly) and is not probed."""
-    try:
-        from stochpend._backends import cuda as _cuda
-    except Exception as exc:  # numba without a CUDA target
-        return False, f"numba.cuda cannot be imported ({type(exc).__name__})", False
-    usable, why = _cuda.availability()
-    if not usable:
-        return False, why, False
-    if backend == "auto" and _cuda._simulator_enabled():
-        return False, why, False  # never pick the (slow) simulator implicitly
-    from stochpend._backends import cuda_probe
-
-    ok, probe_why = cuda_probe.probe()
-    if not ok:
-        return False, f"{why}: {probe_why}", True
-    return True, why, False
-
-
-def resolve_backend(backend: str, *, note: Callable[[str], None] | None = None) -> str:
-    """Map "auto" to the GPU when one is usable (else the CPU); refuse an unusable "cuda".
-
-    A GPU whose CUDA stack cannot compile a kernel is not usable: "auto" then runs on the CPU
-    and says why in one line, through ``note`` (default: a ``RuntimeWarning``).
-    """
-    if backend == "cpu":
-        return "cpu"
-    if backend not in ("auto", "cuda"):
-        raise ValueError(f"backend={backend!r} is not accepted: one of cpu, cuda, auto")
-    usable, why, broken = cuda_status(backend)
-    if usable:
-        return "cuda"
-    if backend == "auto":
-        if broken:
-            message = f"backend='auto' runs on the CPU: the CUDA stack is unusable ({why})"
-            if note is None:
-                warnings.warn(message, RuntimeWarning, stacklevel=2)
-            else:
-                note(message)
-        return "cpu"
-    advice = ("install a numba-cuda that works with this numpy (pip install 'stochpend[cuda]' "
-              "pins one)" if broken else "install the extra with pip install 'stochpend[cuda]' on "
-              "a machine with an NVIDIA GPU")
-    raise ValueError(f"backend='cuda' is not accepted: {why}; {advice}, or use backend='cpu'")
 
 
 def run(
