@@ -163,7 +163,9 @@ def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: 
         ck.check_not_checkpoint(target, checkpoint)
     kwargs: dict[str, Any] = {"out": target, "overwrite": overwrite, "max_path_steps": max_path_steps}
     if threads is not None:
-        ck.check_threads(threads)  # before the 'resuming' line: a refusal is its only line
+        from stochpend.lifecycle import check_threads
+
+        check_threads(threads)  # before the 'resuming' line: a refusal is its only line
         kwargs["threads"] = threads
     # The real destination, before any work (the recorded command line is only a reminder).
     dest = "writing no file" if target is None else f"writing {markup(target)}"

@@ -369,7 +369,7 @@ def _check_settings(p: Path, header: dict[str, Any]) -> None:
         "command_line": header.get("command_line") is None or isinstance(header.get("command_line"), str),
         "done_work": number(header["run"].get("done_work"), none=False),
         # None: a checkpoint from before bias_paths was recorded (the default pairs)
-        "bias_paths": header.get("bias_paths") is None or header.get("bias_paths") == 0
+        "bias_paths": header.get("bias_paths") is None or integer(header.get("bias_paths"), 0, 0)
         or integer(header.get("bias_paths"), 2, 1 << 40),
         "accuracy": pilot(header.get("accuracy")),
     }
@@ -717,13 +717,6 @@ def check_work(ckpt: Checkpoint, max_path_steps: float | None = None) -> None:
                     max_path_steps=max_path_steps)
 
 
-def check_threads(threads: Any) -> None:
-    """Refuse a thread count this machine cannot run (``None``: the default)."""
-    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
-                                or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS):
-        raise ValueError(f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]")
-
-
 def check_not_checkpoint(out: str | os.PathLike, checkpoint_path: str | os.PathLike) -> None:
     """Refuse an output that is the checkpoint itself (``resume CK --out CK --overwrite`` wrote
     the result over the checkpoint, then removed it: nothing was left)."""
@@ -793,7 +786,6 @@ def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, 
     if out_p is not None:
         io.check_output_path(out_p, overwrite=overwrite)
         check_not_checkpoint(out_p, checkpoint_path)
-    check_threads(threads)
     if _resume is not None:  # the same run: its settings are the checkpoint's
         backend, precision, bias_paths = _resume.state.backend, _resume.state.precision, _resume.bias_paths
         accuracy, rtol = ("auto", _resume.choice.rtol) if _resume.choice is not None else ("fixed", None)

@@ -38,7 +38,7 @@ from stochpend.progress import NoProgress, Progress
 from stochpend.runner import RunState
 from stochpend.stats import EnsembleSums
 
-__all__ = ["Checkpointing", "Run", "Saver", "check_precision", "compile_note", "cuda_status", "execute",
+__all__ = ["Checkpointing", "Run", "Saver", "check_precision", "check_threads", "compile_note", "cuda_status", "execute",
            "numba_threads", "provenance", "resolve_backend"]
 
 
@@ -102,11 +102,7 @@ class Run:
                         max_path_steps=max_path_steps)
         backend = resolve_backend(backend)
         check_precision(precision, backend)
-        if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
-                                    or threads > numba.config.NUMBA_NUM_THREADS):
-            raise ValueError(
-                f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]"
-            )
+        check_threads(threads)
         if chunk_paths is not None and (isinstance(chunk_paths, bool) or not isinstance(chunk_paths, int)
                                         or chunk_paths < 1):
             raise ValueError(f"chunk_paths={chunk_paths!r} is not accepted: an integer >= 1")
@@ -170,6 +166,13 @@ def resolve_backend(backend: str, *, note: Callable[[str], None] | None = None) 
               "pins one)" if broken else "install the extra with pip install 'stochpend[cuda]' on "
               "a machine with an NVIDIA GPU")
     raise ValueError(f"backend='cuda' is not accepted: {why}; {advice}, or use backend='cpu'")
+
+
+def check_threads(threads: Any) -> None:
+    """Refuse a thread count this machine cannot run (``None``: the default)."""
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
+                                or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS):
+        raise ValueError(f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]")
 
 
 @contextlib.contextmanager

@@ -231,12 +231,9 @@ def reproduce(
             raise ValueError(f"t_max={t_max!r} is not accepted: a finite number > 0.1") from None
         if not math.isfinite(t_max) or t_max <= 0.1:
             raise ValueError(f"t_max={t_max!r} is not accepted: a finite number > 0.1 (times start at 0.01)")
-    if threads is not None:
-        import numba
+    from stochpend.lifecycle import check_precision, check_threads, resolve_backend
 
-        if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
-            raise ValueError(f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]")
-    from stochpend.simulate import check_precision, resolve_backend
+    check_threads(threads)
 
     backend = resolve_backend(backend)
     check_precision(precision, backend)
