@@ -21,6 +21,7 @@ or is too slow changes nothing but time: the bias estimate compiles the kernel i
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import pickle
 import subprocess
@@ -99,7 +100,9 @@ def start(config: Any, *, backend: str, bias_paths: int) -> Helper | None:
         process = subprocess.Popen(COMMAND, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                                    stderr=subprocess.DEVNULL, env=env)
         assert process.stdin is not None
-        process.stdin.write(pickle.dumps(config))
+        # Without user observables: they are registered in this process only, and the pair
+        # kernel the helper is for does not depend on them.
+        process.stdin.write(pickle.dumps(dataclasses.replace(config, observables=())))
         process.stdin.close()
     except (OSError, pickle.PicklingError, ValueError):
         return None

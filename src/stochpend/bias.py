@@ -42,7 +42,7 @@ from stochpend._jitcache import CompileClock
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig
 from stochpend.progress import NoProgress, Progress
-from stochpend.stats import N_SUMS, STATISTICS
+from stochpend.stats import STATISTICS
 
 __all__ = ["BIAS_PATH0", "Assessment", "BiasEstimate", "RICHARDSON", "assess", "assess_dataset",
            "default_bias_paths", "estimate", "summary_line", "warnings_for"]
@@ -144,8 +144,8 @@ _NO_EDGES = np.array([np.inf])
 
 
 def _accumulate_pairs(accumulate: Any, x: np.ndarray, Omega: np.ndarray, xf: np.ndarray,
-                      Omegaf: np.ndarray, status: np.ndarray, omega2: float, n: int,
-                      batch_size: int, sums: np.ndarray, hist: np.ndarray) -> None:
+                      Omegaf: np.ndarray, xi: np.ndarray, t: np.ndarray, status: np.ndarray, omega2: float,
+                      n: int, batch_size: int, sums: np.ndarray, hist: np.ndarray) -> None:
     """sums[b, 0 or 1, :]: the power sums of the coarse (0) and fine (1) members of batch b's
     pairs, both over the same pairs: a pair is counted only when both members are (a member
     whose moments overflow marks the pair non-finite in ``status``).
@@ -155,11 +155,11 @@ def _accumulate_pairs(accumulate: Any, x: np.ndarray, Omega: np.ndarray, xf: np.
     whose coarse member overflows), the fine members (marking those whose fine member does),
     and, only when the fine members marked a pair, the coarse members again, without it. Each
     sum is added in path order, as the run's are: the numbers of a kernel of its own."""
-    accumulate(x, Omega, status, omega2, n, batch_size, _NO_EDGES, sums[:, 0], hist)
+    accumulate(x, Omega, xi, t, status, omega2, n, batch_size, _NO_EDGES, sums[:, 0], hist)
     marked = np.count_nonzero(status)
-    accumulate(xf, Omegaf, status, omega2, n, batch_size, _NO_EDGES, sums[:, 1], hist)
+    accumulate(xf, Omegaf, xi, t, status, omega2, n, batch_size, _NO_EDGES, sums[:, 1], hist)
     if np.count_nonzero(status) != marked:
-        accumulate(x, Omega, status, omega2, n, batch_size, _NO_EDGES, sums[:, 0], hist)
+        accumulate(x, Omega, xi, t, status, omega2, n, batch_size, _NO_EDGES, sums[:, 0], hist)
 
 
 # -- the estimate -------------------------------------------------------------------------------
@@ -234,13 +234,13 @@ def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_
     spec = pair_spec(config, backend)
     from stochpend._backends import cpu
 
-    accumulate = cpu.accumulate_kernel(spec)  # the run's own (compiled once for both)
+    accumulate = cpu.accumulate_kernel(spec, config.observables)  # the run's own (compiled once for both)
     times = np.asarray(config.times, dtype=np.float64)
     n_batches = min(BIAS_BATCHES, n_paths)
     batch_size = -(-n_paths // n_batches)
     n_batches = -(-n_paths // batch_size)
     chunk_batches = max(1, chunk_pairs // batch_size)
-    sums = np.zeros((n_batches, times.size, 2, N_SUMS))
+    sums = np.zeros((n_batches, times.size, 2, observables.n_sums(config)))
     c = config
     draws = 0
     progress.start(n_paths * c.t_max, "bias estimate")
@@ -255,8 +255,8 @@ def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_
         for j, t_target in enumerate(times):
             while not pairs.advance(float(t_target), max_steps):
                 progress.update(done_work + pairs.time_sum())
-            x, Omega, xf, Omegaf, status = pairs.members()
-            _accumulate_pairs(accumulate, x, Omega, xf, Omegaf, status, c.omega**2, c.power_n,
+            x, Omega, xf, Omegaf, xi, t, status = pairs.members()
+            _accumulate_pairs(accumulate, x, Omega, xf, Omegaf, xi, t, status, c.omega**2, c.power_n,
                               batch_size, sums[b0:b1, j], hist)
             pairs.set_status(status)  # pairs whose moments overflowed stay excluded
             progress.update(done_work + n * float(t_target))
@@ -266,7 +266,7 @@ def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_
     # A coarse step is one draw, each fine half step one: draws count the fine steps, and
     # the coarse steps are half as many.
     path_steps = draws + draws // 2
-    bias, coarse = _statistics(sums)
+    bias, coarse = _statistics(sums, observables.STATISTICS + observables.user_statistics(config.observables))
     nonfinite = sums[:, :, 0, stats.S_NONFINITE].sum(axis=0).astype(np.int64)
     return BiasEstimate(times, bias, coarse, n_paths, path_steps,
                         _time.perf_counter() - started - compile_clock.seconds, nonfinite, c.h_max, c.step_c, n_batches,
@@ -308,7 +308,7 @@ class _CpuPairs:
         return float(np.sum(self.t))
 
     def members(self) -> tuple[np.ndarray, ...]:
-        return self.x, self.Omega, self.xf, self.Omegaf, self.status
+        return self.x, self.Omega, self.xf, self.Omegaf, self.xi, self.t, self.status
 
     def set_status(self, status: np.ndarray) -> None:
         pass  # the accumulate kernel wrote the host array itself
@@ -351,6 +351,8 @@ def _decorrelation(bias: dict[str, tuple[np.ndarray, np.ndarray]],
     ratios = []
     with np.errstate(invalid="ignore", divide="ignore"):
         for name, (_, b_se) in bias.items():
+            if name not in STATISTICS:
+                continue  # a user observable: the horizon is the dynamics', the table's statistics
             ratios.append(b_se / (RICHARDSON * math.sqrt(2.0) * coarse[name][1]))
     r = np.array(ratios).reshape(len(ratios), n_times)
     out = np.full(n_times, np.nan)
@@ -361,9 +363,10 @@ def _decorrelation(bias: dict[str, tuple[np.ndarray, np.ndarray]],
     return out
 
 
-def _statistics(sums: np.ndarray):
+def _statistics(sums: np.ndarray, statistics: Sequence[observables.Statistic]):
     """(bias, coarse): each statistic's RICHARDSON * (coarse - fine) and the coarse value, with
-    delete-one-batch jackknife errors. ``sums``: (n_batches, n_times, 2, N_SUMS)."""
+    delete-one-batch jackknife errors. ``sums``: (n_batches, n_times, 2, n_sums) (the table's
+    columns, then the user observables')."""
     n_b = sums.shape[0]
     total = sums.sum(axis=0)
     loo = total[None] - sums
@@ -377,7 +380,8 @@ def _statistics(sums: np.ndarray):
     bias: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     coarse: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     with np.errstate(invalid="ignore", divide="ignore"):
-        for name, f in STATISTICS.items():
+        for statistic in statistics:
+            name, f = statistic.name, statistic.of
             for out, g in ((bias, lambda m, f=f: RICHARDSON * (f(m[..., 0, :]) - f(m[..., 1, :]))),
                            (coarse, lambda m, f=f: f(m[..., 0, :]))):
                 value = g(m_all)
@@ -475,7 +479,10 @@ def assess_dataset(ds: Any) -> Assessment | None:
     """:func:`assess` of a result Dataset from its stored variables (None without an
     estimate): what the table, the warnings and ``show`` report, also for files written before
     the verdicts were stored."""
-    names = [n for n in STATISTICS if f"{n}_bias" in ds and f"{n}_stderr" in ds]
+    # The table's statistics, then the run's user observables (named in its attrs).
+    user = ds.attrs.get("observables")
+    user_names = [f"mean_{u.strip()}" for u in user.split(",") if u.strip()] if isinstance(user, str) else []
+    names = [n for n in [*STATISTICS, *user_names] if f"{n}_bias" in ds and f"{n}_stderr" in ds]
     if not names:
         return None
     bias = {n: (np.asarray(ds[f"{n}_bias"].values, dtype=float),

@@ -53,15 +53,16 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import _files, bias, io
+from stochpend import _files, bias, io, observables
 from stochpend._backends.layout import path_dtypes
 from stochpend._sources import BUILD
 from stochpend._version import __version__
 from stochpend.lifecycle import Checkpointing, Run, execute
+from stochpend.observables import n_sums
 from stochpend.params import SimulationConfig
 from stochpend.progress import Progress
 from stochpend.runner import BACKENDS, RunState
-from stochpend.stats import N_SUMS, STATISTICS, EnsembleSums
+from stochpend.stats import EnsembleSums
 
 __all__ = [
     "Checkpoint",
@@ -94,7 +95,7 @@ _PATH_ARRAYS = tuple(f.name for f in fields(RunState)
 _NUMERIC_KINDS = "biuf"
 #: An ``accuracy="auto"`` run's pilot (:class:`stochpend.bias.BiasEstimate`): (value, stderr)
 #: of each statistic's bias and coarse value, shape (statistics, n_times, 2), in the order of
-#: :data:`stochpend.stats.STATISTICS`; its non-finite pairs and decorrelation, (n_times,).
+#: :func:`_statistic_names`; its non-finite pairs and decorrelation, (n_times,).
 _PILOT_ARRAYS = {"pilot_bias": "<f8", "pilot_coarse": "<f8", "pilot_nonfinite": "<i8",
                  "pilot_decorrelation": "<f8"}
 #: The header's ``accuracy`` record: the chosen level and rtol, the pilot's sizes and cost.
@@ -120,8 +121,8 @@ def config_to_json(config: SimulationConfig) -> dict[str, Any]:
     """Every field of the configuration as plain JSON values (floats round-trip exactly)."""
     out: dict[str, Any] = {}
     for f in fields(config):
-        if f.name == "extra":
-            continue
+        if f.name == "extra" or (f.name == "observables" and not config.observables):
+            continue  # written only when used: checkpoints from before keep their hash
         v = getattr(config, f.name)
         out[f.name] = list(v) if isinstance(v, tuple) else v
     return out
@@ -167,13 +168,20 @@ class Checkpoint:
     choice: bias.LevelChoice | None = None
 
 
+def _statistic_names(config: SimulationConfig) -> list[str]:
+    """The statistics a bias estimate of ``config`` reports: the table's, then the user
+    observables' (:func:`stochpend.bias.estimate`'s order)."""
+    return [s.name for s in observables.STATISTICS + observables.user_statistics(config.observables)]
+
+
 def _pilot_arrays(choice: bias.LevelChoice | None) -> dict[str, np.ndarray]:
     if choice is None:
         return {}
     p = choice.pilot
+    names = _statistic_names(choice.config)
     return {
-        "pilot_bias": np.array([np.stack(p.bias[name], axis=-1) for name in STATISTICS], dtype="<f8"),
-        "pilot_coarse": np.array([np.stack(p.coarse[name], axis=-1) for name in STATISTICS], dtype="<f8"),
+        "pilot_bias": np.array([np.stack(p.bias[name], axis=-1) for name in names], dtype="<f8"),
+        "pilot_coarse": np.array([np.stack(p.coarse[name], axis=-1) for name in names], dtype="<f8"),
         "pilot_nonfinite": np.ascontiguousarray(p.nonfinite, dtype="<i8"),
         "pilot_decorrelation": np.ascontiguousarray(p.decorrelation, dtype="<f8"),
     }
@@ -199,7 +207,7 @@ def _level_choice(p: Path, config: SimulationConfig, record: dict[str, Any],
 
     def pairs(name: str) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         return {stat: (arrays[name][i, :, 0].copy(), arrays[name][i, :, 1].copy())
-                for i, stat in enumerate(STATISTICS)}
+                for i, stat in enumerate(_statistic_names(config))}
 
     pilot = bias.BiasEstimate(
         np.asarray(config.times, dtype=np.float64), pairs("pilot_bias"), pairs("pilot_coarse"),
@@ -415,15 +423,16 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     n_cols = config.hist_bins + 2
     shapes: dict[str, tuple[int, ...]] = {name: (n,) for name in _PATH_ARRAYS}
     shapes.update({
-        "chunk_sums": (r["b1"] - r["b0"], n_times, N_SUMS),
+        "chunk_sums": (r["b1"] - r["b0"], n_times, n_sums(config)),
         "chunk_hist": (n_times, n_cols),
-        "acc_sums": (config.n_batches, n_times, N_SUMS),
+        "acc_sums": (config.n_batches, n_times, n_sums(config)),
         "acc_hist": (n_times, n_cols),
         "acc_filled": (config.n_batches,),
     })
     record = header.get("accuracy")
     if record is not None:
-        shapes.update({"pilot_bias": (len(STATISTICS), n_times, 2), "pilot_coarse": (len(STATISTICS), n_times, 2),
+        n_stats = len(_statistic_names(config))
+        shapes.update({"pilot_bias": (n_stats, n_times, 2), "pilot_coarse": (n_stats, n_times, 2),
                        "pilot_nonfinite": (n_times,), "pilot_decorrelation": (n_times,)})
     backend = header.get("backend", "cpu")
     precision = header.get("precision", "float64")
@@ -455,7 +464,7 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     if missing:
         raise _refuse(p, f"missing arrays {sorted(missing)}")
 
-    acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"])
+    acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"], config.observables)
     fields_read: dict[str, Any] = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
     fields_read.update({name: arrays[name] for name in _PATH_ARRAYS})
     state = RunState(**fields_read,

@@ -30,7 +30,7 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import _compile_helper, bias, integrator, models, resources, runner
+from stochpend import _compile_helper, bias, integrator, models, observables, resources, runner
 from stochpend._jitcache import CompileClock
 from stochpend._version import __version__
 from stochpend.params import SimulationConfig, hist_edges
@@ -290,6 +290,8 @@ def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_tim
     if user_model is not None:
         attrs["model"] = f"user-defined ({user_model.description or 'stochpend.models.Model'})"
         attrs["model_source"] = user_model.source()
+    for name in config.observables:  # the code of each user observable, as for a user's model
+        attrs[f"observable_{name}_source"] = observables.get(name).source()  # type: ignore[union-attr]
     attrs.update({f"scheme_{k}": v for k, v in integrator.SCHEME.items()})
     attrs.update(
         {

@@ -14,6 +14,7 @@ from typing import Any, NoReturn
 import numpy as np
 
 from stochpend import noises as _noises
+from stochpend import observables as _observables
 from stochpend import oscillators as _oscillators
 
 #: The built-in noises (a registered noise is accepted too: ``stochpend.noises.register``).
@@ -116,6 +117,8 @@ class SimulationConfig:
     power_n: int = 2
     coupling: str = "force"
     omega_noise: float | None = None  # harmonic noise: its oscillator's frequency W
+    #: Names of registered user observables whose means the run reports (stochpend.observables).
+    observables: tuple[str, ...] = ()
     extra: dict = field(default_factory=dict)
 
     # -- derived, cheap -------------------------------------------------------------------
@@ -141,6 +144,10 @@ class SimulationConfig:
         d["theta0"] = "uniform" if self.theta0 is None else self.theta0
         d["xi0"] = "stationary" if self.xi0 is None else self.xi0
         d["omega_noise"] = "none" if self.omega_noise is None else self.omega_noise
+        if self.observables:
+            d["observables"] = ", ".join(self.observables)
+        else:
+            d.pop("observables")
         return d
 
     @classmethod
@@ -168,8 +175,10 @@ class SimulationConfig:
         power_n: int = 2,
         coupling: str = "force",
         omega_noise: float | None = None,
+        observables: Any = (),
     ) -> SimulationConfig:
         """Validate every argument and return the frozen configuration."""
+        observables = _observables.resolve(observables)
         noise_piece = _noises.get(noise)
         if noise_piece is None:
             _fail("noise", noise, f"one of {', '.join(_noises.names())}")
@@ -331,6 +340,7 @@ class SimulationConfig:
             power_n=power_n,
             coupling=coupling,
             omega_noise=omega_noise,
+            observables=observables,
         )
 
 

@@ -306,13 +306,15 @@ def _cores(threads: Any) -> int:
 
 
 def _memory_parts(*, paths: int, chunk: int, chunk_given: bool, batch_size: int, n_batches: int,
-                  n_times: int, hist_bins: int, bytes_per_path: int) -> list[tuple[str, int, str]]:
-    """(part, bytes, the parameter that makes it large), largest first."""
+                  n_times: int, hist_bins: int, bytes_per_path: int,
+                  n_sums: int = N_SUMS) -> list[tuple[str, int, str]]:
+    """(part, bytes, the parameter that makes it large), largest first. ``n_sums``: columns of
+    the per-batch sums (the statistics table's and the run's user observables')."""
     n_cols = hist_bins + 2
     batches_in_chunk = min(n_batches, max(1, -(-chunk // batch_size)))
     state = chunk * bytes_per_path
-    sums = n_batches * n_times * N_SUMS * 8
-    chunk_sums = batches_in_chunk * n_times * N_SUMS * 8
+    sums = n_batches * n_times * n_sums * 8
+    chunk_sums = batches_in_chunk * n_times * n_sums * 8
     hist = n_times * n_cols * 8  # the run's total
     chunk_hist = n_times * n_cols * 8 + batches_in_chunk * n_cols * 8  # the chunk's, and per batch
     edges = n_times * (hist_bins + 1) * 8
@@ -364,7 +366,8 @@ def estimate(
     chunk = min(config.paths, max(1, requested // config.batch_size) * config.batch_size)
     parts = _memory_parts(paths=config.paths, chunk=chunk, chunk_given=given, batch_size=config.batch_size,
                           n_batches=config.n_batches, n_times=len(config.times), hist_bins=config.hist_bins,
-                          bytes_per_path=STATE_BYTES_PER_PATH[precision])
+                          bytes_per_path=STATE_BYTES_PER_PATH[precision],
+                          n_sums=N_SUMS + len(getattr(config, "observables", ())))
     device = 0
     if cuda:  # the state lives on the GPU
         device = next(b for label, b, _ in parts if label == "path state")

@@ -181,7 +181,8 @@ def run_batches(
         # The chunk's arrays reach the state only when a checkpointer asks (RunState.pull).
         state = RunState(first_batch, stop_batch, first_batch, b1, 0,
                          **dict.fromkeys(CHUNK_ARRAYS),  # type: ignore[arg-type]  # filled by pull
-                         acc=EnsembleSums.empty(config.n_batches, n_times, config.hist_bins),
+                         acc=EnsembleSums.empty(config.n_batches, n_times, config.hist_bins,
+                                                  config.observables),
                          path_steps=0, done_work=0.0, backend=backend, precision=precision)
     else:
         state = resume

@@ -48,6 +48,7 @@ def simulate(
     power_n: int = 2,
     coupling: str = "force",
     omega_noise: float | None = None,
+    observables: Any = (),
     backend: str = "cpu",
     threads: int | None = None,
     chunk_paths: int | None = None,
@@ -80,6 +81,9 @@ def simulate(
         Correlation time of the colored noises, > 0 (ignored for white noise).
     omega_noise : float, optional
         Harmonic noise only: its frequency W (default 2/tau, critical damping).
+    observables : sequence of str, optional
+        Names of registered user observables (:func:`stochpend.observables.register`): each
+        adds ``mean_<name>`` with its standard error and bias estimate, on every backend.
     omega : float
         Pendulum frequency, >= 0.
     paths : int
@@ -158,6 +162,7 @@ def simulate(
         n_times=n_times, seed=seed, theta0=theta0, Omega0=Omega0, xi0=xi0, h_max=h_max,
         step_c=step_c, hist_bins=hist_bins, hist_E_max=hist_E_max, n_batches=n_batches,
         potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
+        observables=observables,
     )
     # Refused here, before any work (run validates again what it is handed: a few checks).
     settings = Run.build(config, backend=backend, precision=precision, threads=threads,

@@ -19,23 +19,23 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from stochpend import observables
+from stochpend import observables as _table
 
 __all__ = ["EnsembleSums", "N_SUMS", "STATISTICS"]
 
 #: Columns of the per-batch sums that every backend fills (``sums[batch, time, column]``):
 #: count, the summed values of :data:`stochpend.observables.SUMS`, non-finite paths.
-S_COUNT, S_NONFINITE, N_SUMS = observables.S_COUNT, observables.S_NONFINITE, observables.N_SUMS
-S_E1 = observables.column("E")
+S_COUNT, S_NONFINITE, N_SUMS = _table.S_COUNT, _table.S_NONFINITE, _table.N_SUMS
+S_E1 = _table.column("E")
 
 # Each statistic: a function of the means m[..., c] = sums[..., c] / count.
-STATISTICS: dict[str, Callable[[np.ndarray], np.ndarray]] = {s.name: s.of for s in observables.STATISTICS}
+STATISTICS: dict[str, Callable[[np.ndarray], np.ndarray]] = {s.name: s.of for s in _table.STATISTICS}
 
 #: Short names for plot labels (``long_name``) and units: xarray's ``ds.mean_E.plot()`` reads
 #: "⟨E⟩ [paper units]". The equations are dimensionless (the paper's units); ratios have unit 1.
-LABELS = {s.name: (s.label, s.units) for s in observables.STATISTICS}
+LABELS = {s.name: (s.label, s.units) for s in _table.STATISTICS}
 
-DESCRIPTIONS = {s.name: s.description for s in observables.STATISTICS}
+DESCRIPTIONS = {s.name: s.description for s in _table.STATISTICS}
 
 
 @dataclass
@@ -49,18 +49,22 @@ class EnsembleSums:
     sums: np.ndarray
     hist: np.ndarray
     filled: np.ndarray
+    #: The run's user observables (stochpend.observables): their sums follow the table's.
+    observables: tuple[str, ...] = ()
 
     @classmethod
-    def empty(cls, n_batches: int, n_times: int, n_bins: int) -> EnsembleSums:
+    def empty(cls, n_batches: int, n_times: int, n_bins: int,
+              observables_: tuple[str, ...] = ()) -> EnsembleSums:
         """Zeroed sums, written once here: ``np.zeros`` maps pages that become resident only
         when first written, so the per-batch sums would grow the process's memory batch by
         batch over a long run (a slow rise that looks like a leak, and a shortfall that shows
         late). Written now, the memory the resource check counted is held from the start."""
-        sums = np.empty((n_batches, n_times, N_SUMS))
+        sums = np.empty((n_batches, n_times, N_SUMS + len(observables_)))
         sums.fill(0.0)
         filled = np.empty(n_batches, dtype=bool)
         filled.fill(False)
-        return cls(sums=sums, hist=np.zeros((n_times, n_bins + 2), dtype=np.int64), filled=filled)
+        return cls(sums=sums, hist=np.zeros((n_times, n_bins + 2), dtype=np.int64), filled=filled,
+                   observables=tuple(observables_))
 
     def add_batches(self, first_batch: int, sums: np.ndarray, hist: np.ndarray) -> None:
         """Insert the sums of batches ``first_batch ...`` (shape (n, n_times, N_SUMS))."""
@@ -75,7 +79,7 @@ class EnsembleSums:
         """Combine two disjoint sets of batches of the same ensemble (exact)."""
         if np.any(self.filled & other.filled):
             raise ValueError("cannot merge: the two accumulators share batches")
-        out = EnsembleSums(self.sums.copy(), self.hist + other.hist, self.filled | other.filled)
+        out = EnsembleSums(self.sums.copy(), self.hist + other.hist, self.filled | other.filled, self.observables)
         out.sums[other.filled] = other.sums[other.filled]
         return out
 
@@ -95,7 +99,8 @@ class EnsembleSums:
         loo_count = loo[..., S_COUNT]
         m_loo = loo / np.where(loo_count > 0, loo_count, np.nan)[..., None]
         out = {}
-        for name, f in STATISTICS.items():
+        for statistic in self.declared():
+            name, f = statistic.name, statistic.of
             value = f(m_all)
             if n_b >= 2:
                 jk = f(m_loo)
@@ -109,6 +114,10 @@ class EnsembleSums:
             out[name] = (value, se)
         return out
 
+    def declared(self) -> tuple[_table.Statistic, ...]:
+        """The statistics this ensemble reports: the table's, then its user observables'."""
+        return _table.STATISTICS + _table.user_statistics(self.observables)
+
     def nonfinite(self) -> np.ndarray:
         """Number of paths already non-finite at each time, shape (n_times,)."""
         return self.sums[self.filled][..., S_NONFINITE].sum(axis=0).astype(np.int64)
@@ -120,10 +129,11 @@ class EnsembleSums:
     def to_dataset(self, times: np.ndarray, edges: np.ndarray, attrs: dict) -> xr.Dataset:
         """The result as an ``xarray.Dataset`` (names fixed: other tools read them)."""
         data_vars: dict[str, tuple] = {}
+        declared = {s.name: s for s in self.declared()}
         for name, (value, se) in self.statistics().items():
-            label, units = LABELS[name]
+            label, units = declared[name].label, declared[name].units
             data_vars[name] = ("time", value, {"long_name": label, "units": units,
-                                               "description": DESCRIPTIONS[name]})
+                                               "description": declared[name].description})
             data_vars[f"{name}_stderr"] = (
                 "time",
                 se,

@@ -509,7 +509,7 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
     path_steps = []
     compute_s = 0.0
     for i, (config, rs) in enumerate(zip(spec.configs, results, strict=True)):
-        acc = EnsembleSums.empty(config.n_batches, len(config.times), config.hist_bins)
+        acc = EnsembleSums.empty(config.n_batches, len(config.times), config.hist_bins, config.observables)
         steps = 0
         for r in sorted(rs, key=lambda r: r.b0):
             acc.add_batches(r.b0, r.sums, r.hist)

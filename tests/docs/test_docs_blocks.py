@@ -43,6 +43,8 @@ POLICY = {
     ("gpu.md", 2): "bench-parse",
     ("gpu.md", 3): "cli-parse",
     ("models.md", 0): "python-scaled",
+    ("models.md", 1): "python-parse",
+    ("models.md", 2): "python-scaled",
     ("reproduction.md", 0): "cli-parse",
     ("scale-out.md", 0): "cli-parse",
     ("scale-out.md", 1): "toml-run",
@@ -57,6 +59,7 @@ POLICY = {
 #: Scaling of the blocks that run: (old, new) text replacements.
 REPLACE = {
     ("models.md", 0): [("paths=4000", "paths=200"), ("t_max=100.0", "t_max=5.0")],
+    ("models.md", 2): [("paths=4000", "paths=200"), ("t_max=100.0", "t_max=5.0")],
     # fig2.toml is the first TOML block, scaled; 'local' runs a real two-process LocalCluster;
     # the CUDA line is parsed only (a GPU, or the simulator at 1e-4 of the speed).
     ("scale-out.md", 4): [("workers=8", "workers=2"),

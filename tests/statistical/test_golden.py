@@ -3,6 +3,8 @@ number changes": the statistics of seven small runs (pendulum with OU, white, di
 harmonic noise; the quartic with position coupling; the harmonic oscillator; a fixed step) as
 main at 5319e81 computed them, stored in tests/golden/stats_5319e81.npz, must come out
 identical. The bias estimate's variables are left out: issue 19 changed them on purpose.
+The same numbers must come from every way of running them: the API, the CLI's simulate, a
+checkpointed run stopped and resumed, and a sweep (the CUDA backend: test_golden_cuda.py).
 
 Regenerate only for a change that is meant to alter numbers, and say so in its commit."""
 
@@ -12,8 +14,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 import stochpend
+from stochpend import checkpoint, cli, io
+from stochpend.params import SimulationConfig
+from stochpend.sweep import sweep
 
 GOLDEN = Path(__file__).resolve().parents[1] / "golden" / "stats_5319e81.npz"
 
@@ -32,12 +38,82 @@ CASES = {
 }
 
 
+def _expected(name: str) -> dict[str, np.ndarray]:
+    with np.load(GOLDEN) as golden:
+        expected = {k.split("/", 1)[1]: golden[k] for k in golden.files if k.startswith(name + "/")}
+    assert len(expected) > 20, name
+    return expected
+
+
+def _assert_golden(name: str, variables) -> None:
+    """``variables[v]``: the run's values of every variable the fixture holds for ``name``."""
+    for variable, values in _expected(name).items():
+        assert variable in variables, (name, variable)
+        assert np.array_equal(np.asarray(variables[variable]), values, equal_nan=True), (name, variable)
+
+
 @pytest.mark.parametrize("name", list(CASES))
 def test_statistics_are_bit_identical_to_5319e81(name):
-    golden = np.load(GOLDEN)
-    expected = {k.split("/", 1)[1]: golden[k] for k in golden.files if k.startswith(name + "/")}
-    assert len(expected) > 20, name
     ds = stochpend.simulate(**CASES[name], bias_paths=0)
-    for variable, values in expected.items():
-        assert variable in ds, (name, variable)
-        assert np.array_equal(ds[variable].values, values, equal_nan=True), (name, variable)
+    _assert_golden(name, {v: ds[v].values for v in ds.data_vars})
+
+
+def _cli_args(params: dict) -> list[str]:
+    """simulate's options for simulate()'s keywords (repr: floats written to the last bit)."""
+    names = {"power_n": "n"}
+    return [a for k, v in params.items()
+            for a in (f"--{names.get(k, k).replace('_', '-')}", v if isinstance(v, str) else repr(v))]
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_cli_simulate_is_bit_identical_to_5319e81(tmp_path, name):
+    out = tmp_path / f"{name}.nc"
+    result = CliRunner().invoke(cli.app, ["simulate", *_cli_args(CASES[name]), "--bias-paths", "0", "--quiet",
+                                          "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    ds = io.open_results(out)  # through the file: NetCDF's encoding must keep every bit
+    _assert_golden(name, {v: ds[v].values for v in ds.data_vars})
+
+
+class _StopMidRun(checkpoint.FileCheckpointer):
+    """Saves and raises KeyboardInterrupt (as tests/unit/test_checkpoint.py's StopAfter does) at
+    the first kernel boundary after the second chunk's second output time: the resumed run then
+    restores finished chunks' sums, a chunk's partial sums and its paths' state."""
+
+    def maybe_save(self, state):
+        if state.b0 > 0 and state.j >= 2:
+            self.save(state)
+            raise KeyboardInterrupt
+
+
+CHUNK = 200  # paths per chunk: 400 paths run in two chunks, 600 in four
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_checkpointed_run_stopped_and_resumed_is_bit_identical_to_5319e81(tmp_path, name):
+    config = SimulationConfig.build(**CASES[name])
+    path = tmp_path / "run.ckpt"
+    cp = _StopMidRun(path, None, config=config, chunk_paths=CHUNK)
+    with pytest.raises(KeyboardInterrupt):
+        checkpoint.run_checkpointed(config, checkpoint_path=path, every_s=None, checkpointer=cp, chunk_paths=CHUNK)
+    state = checkpoint.read(path).state
+    assert (state.b0, state.j) == (CHUNK // config.batch_size, 2)
+    ds = checkpoint.resume(path, out=None)
+    assert ds.attrs["resumed"] == 1
+    _assert_golden(name, {v: ds[v].values for v in ds.data_vars})
+
+
+# A sweep stacks its sets' variables, so each sweep's sets have the same number of output times;
+# fixed_step's other t_max gives per-set times.
+SWEEPS = [["ou_lanes", "white"], ["dichotomous", "harmonic_noise", "quartic_position", "harmonic_osc", "fixed_step"]]
+
+
+@pytest.mark.parametrize("sets", SWEEPS, ids=lambda sets: "+".join(sets))
+def test_sweep_sets_are_bit_identical_to_5319e81(sets):
+    pytest.importorskip("dask", reason="the `dask` extra is not installed (pip install 'stochpend[dask]')")
+    assert {name for names in SWEEPS for name in names} == set(CASES)
+    # Dask's threads and two blocks a set: a set's sums come from blocks run concurrently.
+    ds = sweep({"case": [CASES[name] for name in sets]}, scheduler="threads", workers=2, tasks_per_set=2)
+    assert ds.attrs["sweep_tasks"] == 2 * len(sets)
+    for i, name in enumerate(sets):
+        _assert_golden(name, {v: ds[v].values[i] for v in ds.data_vars if ds[v].dims[:1] == ("case",)})

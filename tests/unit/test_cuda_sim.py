@@ -25,7 +25,7 @@ from stochpend._backends import cpu
 from stochpend._backends import cuda as gpu
 from stochpend.mathlib import LIBM
 from stochpend.noises import ou
-from stochpend.observables import S_COUNT, S_NONFINITE, column
+from stochpend.observables import S_COUNT, S_NONFINITE, Observable, column
 from stochpend.params import SimulationConfig
 from stochpend.runner import run_batches
 from tests._kernels import Paths
@@ -520,7 +520,10 @@ def test_kernels_of_builtin_pieces_are_cached_on_disk_and_user_models_are_not(mo
             return lambda function: function
 
     monkeypatch.setattr(gpu, "cuda", RecordingCuda)
-    factories = (gpu.init_kernel, gpu.advance_kernel, gpu.accumulate_kernel)
+    # Past the per-process caches (functools' __wrapped__); the statistics kernel without user
+    # observables.
+    factories = (gpu.init_kernel.__wrapped__, gpu.advance_kernel.__wrapped__,
+                 lambda spec: gpu._accumulate_kernel.__wrapped__(spec, ()))
     cases = {
         "built-in": (integrator.spec("ou"), (True, True, True)),
         "built-in float32 fixed": (integrator.spec("white", "harmonic", "position", precision="float32",
@@ -531,5 +534,11 @@ def test_kernels_of_builtin_pieces_are_cached_on_disk_and_user_models_are_not(mo
     for name, (spec, expected) in cases.items():
         for factory, cache in zip(factories, expected, strict=True):
             declared.clear()
-            factory.__wrapped__(spec)  # past the per-process lru_cache
-            assert declared == [{"cache": cache}], f"{name}: {factory.__name__} declared {declared}"
+            factory(spec)
+            assert declared == [{"cache": cache}], f"{name}: {factory} declared {declared}"
+    # A user's observable lives in memory only: the built-in oscillator's statistics kernel that
+    # sums it is not cached either.
+    declared.clear()
+    user = Observable("x2_user", lambda x, Omega, xi, t: x * x)
+    gpu._accumulate_kernel.__wrapped__(integrator.spec("ou"), (user,))
+    assert declared == [{"cache": False}]

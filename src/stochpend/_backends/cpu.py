@@ -56,7 +56,8 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from stochpend import integrator, observables, rng
+from stochpend import integrator, rng
+from stochpend import observables as observables_
 from stochpend._backends.layout import CHUNK_ARRAYS, path_dtypes
 from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
@@ -466,25 +467,34 @@ def _lockstep_kernel(spec: Spec):
     return advance
 
 
-@functools.cache
-def accumulate_kernel(spec: Spec):
-    """``accumulate(x, Omega, status, omega2, n, batch_size, edges, sums, hist)``: per-batch
-    power sums of E and Omega, and the energy histogram, at one output time (float64 whatever
-    the precision of the state); depends on the oscillator and coupling only.
+def accumulate_kernel(spec: Spec, observables: tuple[str, ...] = ()):
+    """``accumulate(x, Omega, xi, t, status, omega2, n, batch_size, edges, sums, hist)``:
+    per-batch sums of the values of the statistics table (:mod:`stochpend.observables`) and of
+    the run's user ``observables``, and the energy histogram, at one output time (float64
+    whatever the precision of the state); depends on the oscillator, the coupling and the user
+    observables only.
 
-    A path whose E**4, Omega**4 or G(x) is not finite is marked non-finite here (status 1):
+    A path whose summed values or G(x) are not finite is marked non-finite here (status 1):
     the state is finite but its moments overflow, so the path has escaped; it stays excluded
     at every later time. Paths ``[b * batch_size, (b + 1) * batch_size)`` of the chunk form
-    batch b, summed sequentially in path order. ``sums``: (n_batches, N_SUMS) float64,
-    overwritten. ``hist``: (n_batches, n_bins + 2) int64, overwritten; column 0 counts E below
-    ``edges[0]``, the last column E at or above ``edges[-1]``.
+    batch b, summed sequentially in path order. ``sums``: (n_batches, N_SUMS + len(observables))
+    float64, overwritten. ``hist``: (n_batches, n_bins + 2) int64, overwritten; column 0 counts E
+    below ``edges[0]``, the last column E at or above ``edges[-1]``.
     """
-    path_values = integrator.statistics(spec.oscillator, spec.coupling)
-    n_values = len(observables.SUMS)
+    return _accumulate_kernel(spec, observables_.objects(observables))
 
-    @numba.njit(nogil=True, cache=spec.oscillator.builtin)
-    @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables.TABLE_KEY}")
-    def accumulate(b_lo, b_hi, x, Omega, status, omega2, n, batch_size, edges, sums,
+
+@functools.cache
+def _accumulate_kernel(spec: Spec, user: tuple):
+    path_values = integrator.statistics(spec.oscillator, spec.coupling)
+    user_values = observables_.user_values(user)
+    n_values = len(observables_.SUMS)
+    n_user = len(user)
+    first_user = N_SUMS
+
+    @numba.njit(nogil=True, cache=spec.oscillator.builtin and not user)
+    @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables_.TABLE_KEY}/{observables_.user_key(user)}")
+    def accumulate(b_lo, b_hi, x, Omega, xi, t, status, omega2, n, batch_size, edges, sums,
                    hist):  # pragma: no cover - compiled
         n_paths = x.shape[0]
         n_edges = edges.shape[0]
@@ -500,6 +510,9 @@ def accumulate_kernel(spec: Spec):
                     sums[b, S_NONFINITE] += 1.0
                     continue
                 ok, E, values = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, n)
+                mine = user_values(np.float64(x[i]), np.float64(Omega[i]), np.float64(xi[i]), t[i])
+                for c in range(n_user):
+                    ok = ok and math.isfinite(mine[c])
                 if not ok:
                     status[i] = 1
                     sums[b, S_NONFINITE] += 1.0
@@ -507,6 +520,8 @@ def accumulate_kernel(spec: Spec):
                 sums[b, S_COUNT] += 1.0
                 for c in range(n_values):
                     sums[b, 1 + c] += values[c]
+                for c in range(n_user):
+                    sums[b, first_user + c] += mine[c]
                 if E < edges[0]:
                     hist[b, 0] += 1
                 elif E >= edges[n_edges - 1]:
@@ -514,7 +529,7 @@ def accumulate_kernel(spec: Spec):
                 else:
                     hist[b, np.searchsorted(edges, E, side="right")] += 1
 
-    return _ranges(accumulate, items=7)  # the batches, rows of sums
+    return _ranges(accumulate, items=9)  # the batches, rows of sums
 
 
 def compiled_kernels(spec: Spec, *, pairs: bool = True) -> dict[str, object]:
@@ -555,6 +570,7 @@ class Engine:
         self.config = config
         self.spec = spec
         self.kernels = kernels(spec)
+        self.kernels.accumulate = accumulate_kernel(spec, config.observables)
         self.key0, self.key1 = rng.seed_to_key(config.seed)
         self.n_times = len(config.times)
         self.n_cols = config.hist_bins + 2
@@ -569,7 +585,7 @@ class Engine:
     def _allocate(self, n: int, nb: int) -> None:
         for name, dtype in path_dtypes("cpu", "float64").items():
             setattr(self, name, np.empty(n, dtype=dtype))
-        self.chunk_sums = np.zeros((nb, self.n_times, N_SUMS))
+        self.chunk_sums = np.zeros((nb, self.n_times, observables_.n_sums(self.config)))
         self.chunk_hist = np.zeros((self.n_times, self.n_cols), dtype=np.int64)
 
     def start(self, p0: int, n: int, nb: int) -> None:
@@ -610,7 +626,7 @@ class Engine:
     def accumulate(self, j: int, edges_j: np.ndarray) -> None:
         c = self.config
         nb = self.nb
-        self.kernels.accumulate(self.x, self.Omega, self.status, c.omega**2, c.power_n,
+        self.kernels.accumulate(self.x, self.Omega, self.xi, self.t, self.status, c.omega**2, c.power_n,
                                 c.batch_size, edges_j, self.chunk_sums[:, j, :], self.hist[:nb])
         self.chunk_hist[j] = self.hist[:nb].sum(axis=0)
 

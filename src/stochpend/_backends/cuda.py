@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
 import warnings
 from typing import Any
 
@@ -332,9 +333,9 @@ class PairEngine:
             return int(self.flag.copy_to_host()[0]) == 0
 
     def members(self) -> tuple[np.ndarray, ...]:
-        """Host copies of (x, Omega, xf, Omegaf, status)."""
-        x, Omega, xf, Omegaf = (a.copy_to_host() for a in self.d[:4])
-        return x, Omega, xf, Omegaf, self.d_status.copy_to_host()
+        """Host copies of (x, Omega, xf, Omegaf, xi, t, status) (the pair's members share xi, t)."""
+        x, Omega, xf, Omegaf, xi, _, t, _ = (a.copy_to_host() for a in self.d)
+        return x, Omega, xf, Omegaf, xi, t, self.d_status.copy_to_host()
 
     def set_status(self, status: np.ndarray) -> None:
         self.d_status.copy_to_device(status)
@@ -343,25 +344,33 @@ class PairEngine:
         return int(np.sum(self.d_k.copy_to_host(), dtype=np.uint64))
 
 
+def accumulate_kernel(spec: Spec, observables_: tuple[str, ...] = ()):
+    """``accumulate[n_batches, STATS_THREADS](x, Omega, xi, t, status, omega2, n, batch_size,
+    edges, j, sums, hist)``: the CPU's per-batch sums at output time j, block b summing batch b
+    of the chunk into ``sums[b, j, :]`` in path order (the statistics table's values, then the
+    user observables'); the histogram counts go to ``hist[j, :]`` (they depend on the
+    oscillator, the coupling and the user observables only)."""
+    return _accumulate_kernel(spec, observables.objects(observables_))
+
+
 @functools.cache
-def accumulate_kernel(spec: Spec):
-    """``accumulate[n_batches, STATS_THREADS](x, Omega, status, omega2, n, batch_size, edges, j,
-    sums, hist)``: the CPU's per-batch sums at output time j, block b summing batch b of the
-    chunk into ``sums[b, j, :]`` in path order; the histogram counts go to ``hist[j, :]``
-    (they depend on the oscillator and coupling only)."""
+def _accumulate_kernel(spec: Spec, user: tuple):
     path_values = integrator.statistics(spec.oscillator, spec.coupling)
+    user_values = observables.user_values(user)
     tpb = STATS_THREADS
     hist_max = SHARED_HIST_MAX
-
     n_values = _N_VALUES
+    n_user = len(user)
+    n_all = _N_VALUES + len(user)
+    first_user = N_SUMS
 
-    @cuda.jit(cache=spec.oscillator.builtin)
-    @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables.TABLE_KEY}")
-    def accumulate(x, Omega, status, omega2, n, batch_size, edges, j, sums,
+    @cuda.jit(cache=spec.oscillator.builtin and not user)
+    @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables.TABLE_KEY}/{observables.user_key(user)}")
+    def accumulate(x, Omega, xi, t, status, omega2, n, batch_size, edges, j, sums,
                    hist):  # pragma: no cover - device
         b = cuda.blockIdx.x
         tid = cuda.threadIdx.x
-        values = cuda.shared.array((_N_VALUES, tpb), np.float64)
+        values = cuda.shared.array((n_all, tpb), np.float64)
         skip = cuda.shared.array(tpb, np.int32)
         shared_hist = cuda.shared.array(hist_max, np.int32)
         n_cols = edges.shape[1] + 1
@@ -376,8 +385,8 @@ def accumulate_kernel(spec: Spec):
         s_count = 0.0
         s_bad = 0.0
         # Thread 0's running sums, one per summed value, added in path order.
-        total = cuda.local.array(_N_VALUES, np.float64)
-        for c in range(n_values):
+        total = cuda.local.array(n_all, np.float64)
+        for c in range(n_all):
             total[c] = 0.0
         for base in range(start, stop, tpb):
             i = base + tid
@@ -385,10 +394,15 @@ def accumulate_kernel(spec: Spec):
                 counted = False
                 if status[i] == 0:
                     ok, E, path = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, n)
+                    mine = user_values(np.float64(x[i]), np.float64(Omega[i]), np.float64(xi[i]), t[i])
+                    for c in range(n_user):
+                        ok = ok and math.isfinite(mine[c])
                     if ok:
                         counted = True
                         for c in range(n_values):
                             values[c, tid] = path[c]
+                        for c in range(n_user):
+                            values[n_values + c, tid] = mine[c]
                         col = hist_column(edges, j, E)
                         if in_shared:
                             cuda.atomic.add(shared_hist, col, 1)
@@ -406,7 +420,7 @@ def accumulate_kernel(spec: Spec):
                         s_bad += 1.0
                     else:
                         s_count += 1.0
-                        for c in range(n_values):
+                        for c in range(n_all):
                             total[c] += values[c, q]
             cuda.syncthreads()
         if tid == 0:
@@ -414,6 +428,8 @@ def accumulate_kernel(spec: Spec):
             for c in range(n_values):
                 sums[b, j, 1 + c] = total[c]
             sums[b, j, S_NONFINITE] = s_bad
+            for c in range(n_user):
+                sums[b, j, first_user + c] = total[n_values + c]
         if in_shared:
             for c in range(tid, n_cols, tpb):
                 count = shared_hist[c]
@@ -462,7 +478,7 @@ class Engine:
         self.spec = spec
         self.init = init_kernel(spec)
         self.advance_k = advance_kernel(spec)
-        self.accumulate_k = accumulate_kernel(spec)
+        self.accumulate_k = accumulate_kernel(spec, config.observables)
         self.capacity = capacity
         self.n_times = len(config.times)
         self.n_cols = config.hist_bins + 2
@@ -470,7 +486,8 @@ class Engine:
             for name, dtype in path_dtypes("cuda", spec.precision).items():
                 setattr(self, "d_" + name, cuda.device_array(capacity, dtype=dtype))
             self.flag = cuda.device_array(1, dtype=np.int32)
-            self.d_sums = cuda.device_array((n_chunk_batches, self.n_times, N_SUMS), dtype=np.float64)
+            self.d_sums = cuda.device_array((n_chunk_batches, self.n_times, observables.n_sums(config)),
+                                            dtype=np.float64)
             self.d_hist = cuda.device_array((self.n_times, self.n_cols), dtype=np.int64)
             from stochpend.params import hist_edges
 
@@ -542,10 +559,10 @@ class Engine:
 
     def accumulate(self, j: int, edges_j: np.ndarray) -> None:
         c = self.config
-        x, Omega, _, _, _, _, _, status = self._views()
+        x, Omega, xi, _, t, _, _, status = self._views()
         with _quiet():
             self.accumulate_k[self.nb, STATS_THREADS](
-                x, Omega, status, c.omega**2, c.power_n, c.batch_size, self.d_edges, j,
+                x, Omega, xi, t, status, c.omega**2, c.power_n, c.batch_size, self.d_edges, j,
                 self.d_sums, self.d_hist)
 
     def steps(self) -> int:
