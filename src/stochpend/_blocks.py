@@ -15,6 +15,7 @@ import numba
 import numpy as np
 
 from stochpend._sources import BUILD
+from stochpend.lifecycle import numba_threads as numba_threads_of
 from stochpend.params import SimulationConfig
 from stochpend.progress import Progress
 from stochpend.runner import run_batches
@@ -56,14 +57,11 @@ def run_block(config: SimulationConfig, set_index: int, b0: int, b1: int, *,
         raise ValueError(f"a worker runs stochpend {BUILD}, the client stochpend {expect_version}: "
                          f"install the same stochpend everywhere")
     started = _time.perf_counter()
-    previous = numba.get_num_threads()
-    if numba_threads is not None:
-        numba.set_num_threads(max(1, min(int(numba_threads), numba.config.NUMBA_NUM_THREADS)))
-    try:
+    # A worker may have fewer threads than the client asked for: as many as it has.
+    threads = None if numba_threads is None else max(1, min(int(numba_threads), numba.config.NUMBA_NUM_THREADS))
+    with numba_threads_of(threads):
         acc, path_steps = run_batches(config, b0, b1, backend=backend, precision=precision,
                                       progress=progress)
-    finally:
-        numba.set_num_threads(previous)
     paths = min(b1 * config.batch_size, config.paths) - b0 * config.batch_size
     return BlockResult(set_index, b0, b1, acc.sums[b0:b1].copy(), acc.hist, int(path_steps), paths,
                        _time.perf_counter() - started)

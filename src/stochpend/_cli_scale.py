@@ -71,12 +71,17 @@ def simulate_with_checkpoint(
     backend: str = "cpu",
     precision: str = "float64",
     command_line: str | None = None,
+    bias_paths: int | None = None,
+    accuracy: str = "fixed",
+    rtol: float | None = None,
+    max_path_steps: float | None = None,
 ) -> Any:
     """Run ``config`` with checkpoints; write ``out``; return the Dataset (for the table).
 
     Refuses, before any work, an existing checkpoint file (it belongs to an interrupted run:
     ``stochpend resume`` it) or an unwritable ``out``. Every backend and precision checkpoints
-    (the checkpoint records them; ``resume`` continues on the same). Ctrl-C
+    (the checkpoint records them; ``resume`` continues on the same), as do ``bias_paths`` and
+    the level ``accuracy="auto"`` chose (its pilot runs first). Ctrl-C
     (SIGTERM) saves the state, prints where and exits with code 130 (143). On success the result is written
     to ``out`` (with ``command_line`` in its attributes) and the checkpoint file is removed.
     """
@@ -97,7 +102,8 @@ def simulate_with_checkpoint(
         return _interruptible(
             checkpoint.run_checkpointed, config, checkpoint_path=checkpoint_path, every_s=every_s,
             out=out, overwrite=overwrite, threads=threads, progress=progress, command_line=command_line,
-            backend=backend, precision=precision,
+            backend=backend, precision=precision, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
+            max_path_steps=max_path_steps,
         )
 
 
@@ -157,7 +163,9 @@ def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: 
         ck.check_not_checkpoint(target, checkpoint)
     kwargs: dict[str, Any] = {"out": target, "overwrite": overwrite, "max_path_steps": max_path_steps}
     if threads is not None:
-        ck.check_threads(threads)  # before the 'resuming' line: a refusal is its only line
+        from stochpend.lifecycle import check_threads
+
+        check_threads(threads)  # before the 'resuming' line: a refusal is its only line
         kwargs["threads"] = threads
     # The real destination, before any work (the recorded command line is only a reminder).
     dest = "writing no file" if target is None else f"writing {markup(target)}"
@@ -280,6 +288,7 @@ def sweep_command(
     max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse sweeps needing more than this many path-steps in all, the sum of paths x t_max / h_max (inf: no limit).", show_default="1e13")] = None,
     backend: Annotated[str, typer.Option(help="Where each block runs: cpu, cuda (the GPU of the process or Dask worker running it) or auto.")] = "cpu",
     precision: Annotated[str, typer.Option(help="float64 or float32 (float32 needs --backend cuda).")] = "float64",
+    bias_paths: Annotated[int | None, typer.Option("--bias-paths", parser=integer, help="Coupled coarse/fine pairs estimating each set's discretisation bias, in this process after the blocks (0: none).", show_default="each set's paths/48, at least 64")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
@@ -289,6 +298,10 @@ def sweep_command(
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
     plan = load_spec(spec)  # the whole file is validated before any work
+    if bias_paths is not None:
+        from stochpend.bias import check_bias_paths
+
+        check_bias_paths(bias_paths, 0)
     _check_resources(plan, spec, max_path_steps)
     check_scheduler(scheduler)
     from stochpend.simulate import check_precision, resolve_backend
@@ -304,7 +317,7 @@ def sweep_command(
     progress = SweepProgressBar(enabled=not quiet and common.console.is_terminal, quiet=quiet)
     try:
         ds = sweep(plan, scheduler=scheduler, workers=workers, progress=progress,
-                   tasks_per_set=tasks_per_set, backend=backend, precision=precision)
+                   tasks_per_set=tasks_per_set, backend=backend, precision=precision, bias_paths=bias_paths)
     except KeyboardInterrupt:
         progress.finish()
         raise

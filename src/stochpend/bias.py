@@ -521,6 +521,8 @@ class LevelChoice:
     #: The first output time at which the pilot's pairs have decorrelated (NaN: none): the
     #: level is chosen from the times before it only, and nothing beyond it is certified.
     horizon: float = math.nan
+    #: The ``rtol`` it was chosen for (None: half a standard error).
+    rtol: float | None = None
 
     def extrapolated(self) -> BiasEstimate:
         """The pilot's bias scaled to the chosen level (weak order 2: 4**-level): the run's
@@ -555,11 +557,19 @@ def choose_level(config: SimulationConfig, pilot_paths: int, *, rtol: float | No
            and 3 * 4 * pilot.paths < config.paths * 2 ** (level - 1)):
         pilot = estimate(config, 4 * pilot.paths, progress=progress, backend=backend)
         level, worst, level_se = _needed_level(pilot, config.paths, rtol)
+    return level_choice(config, pilot, rtol)
+
+
+def level_choice(config: SimulationConfig, pilot: BiasEstimate, rtol: float | None) -> LevelChoice:
+    """The :class:`LevelChoice` that ``pilot`` (coupled pairs at ``config``'s step) gives for a
+    run of ``config``: :func:`choose_level`'s last step, and how a resumed run rebuilds the
+    choice from the pilot saved in its checkpoint (same numbers, no pilot run again)."""
+    level, worst, _ = _needed_level(pilot, config.paths, rtol)
     reached = level <= MAX_LEVEL
     level = min(level, MAX_LEVEL)
     what = f"|bias| <= {rtol:g} |value|" if rtol is not None else "|bias| <= stderr/2"
     return LevelChoice(level, refined(config, level), pilot, worst, reached, what,
-                       _horizon(pilot))
+                       _horizon(pilot), rtol)
 
 
 def _horizon(pilot: BiasEstimate) -> float:

@@ -11,8 +11,9 @@ File format (no pickle; everything little-endian)::
     magic        16 bytes   b"STOCHPEND-CKPT\\x00\\x01"
     header_len    8 bytes   unsigned 64-bit integer
     header        header_len bytes of UTF-8 JSON (format, versions, config, config_sha256,
-                  run position, output path, and the table of arrays: name, dtype, shape,
-                  offset, nbytes)
+                  run position, output path, bias_paths, the level ``accuracy="auto"``
+                  chose with its pilot's sizes, and the table of arrays: name, dtype,
+                  shape, offset, nbytes)
     payload       the raw bytes of the arrays, one after the other
     checksum     32 bytes   SHA-256 of everything above
 
@@ -23,6 +24,13 @@ anything is parsed: a truncated or corrupted file is refused, never half-loaded.
 written by another stochpend version or build (the fingerprint of the code that determines
 the numbers, :data:`stochpend._sources.BUILD`), or whose configuration no longer validates to the
 same hash, is refused with a one-line message (``ValueError``).
+
+An ``accuracy="auto"`` run saves the configuration it runs (refined to the chosen level) and its
+pilot (the ``pilot_*`` arrays, the bias of every statistic at the coarse step): a resumed run
+rebuilds the level choice from them (:func:`stochpend.bias.level_choice`, which must give the
+saved level and configuration back) and reports the same bias, without running the pilot again.
+A checkpoint without ``bias_paths`` or ``accuracy`` (written before they were recorded) resumes
+with the default pairs at the fixed step, as it was run.
 """
 
 from __future__ import annotations
@@ -37,7 +45,7 @@ import struct
 import threading
 import time as _time
 from collections.abc import Iterator
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -45,16 +53,15 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import _files, bias, io
+from stochpend import _files, bias, io, observables
 from stochpend._backends.layout import path_dtypes
-from stochpend._jitcache import CompileClock
 from stochpend._sources import BUILD
 from stochpend._version import __version__
+from stochpend.lifecycle import Checkpointing, Run, execute
 from stochpend.observables import n_sums
-from stochpend.params import SimulationConfig, hist_edges
-from stochpend.progress import NoProgress, Progress
-from stochpend.runner import BACKENDS, RunState, run_batches
-from stochpend.simulate import provenance
+from stochpend.params import SimulationConfig
+from stochpend.progress import Progress
+from stochpend.runner import BACKENDS, RunState
 from stochpend.stats import EnsembleSums
 
 __all__ = [
@@ -86,6 +93,13 @@ _PATH_ARRAYS = tuple(f.name for f in fields(RunState)
                      if f.name not in (*_RUN_FIELDS, *_CHUNK_ARRAYS, "acc", "backend", "precision", "_sync"))
 #: Dtype kinds a per-path array may have (never object: nothing here can hold a pickle).
 _NUMERIC_KINDS = "biuf"
+#: An ``accuracy="auto"`` run's pilot (:class:`stochpend.bias.BiasEstimate`): (value, stderr)
+#: of each statistic's bias and coarse value, shape (statistics, n_times, 2), in the order of
+#: :func:`_statistic_names`; its non-finite pairs and decorrelation, (n_times,).
+_PILOT_ARRAYS = {"pilot_bias": "<f8", "pilot_coarse": "<f8", "pilot_nonfinite": "<i8",
+                 "pilot_decorrelation": "<f8"}
+#: The header's ``accuracy`` record: the chosen level and rtol, the pilot's sizes and cost.
+_PILOT_KEYS = ("level", "rtol", "pilot_paths", "pilot_path_steps", "pilot_wall_time_s", "pilot_batches")
 
 
 class CheckpointInterrupt(KeyboardInterrupt):
@@ -148,6 +162,63 @@ class Checkpoint:
     created: str = ""
     stochpend_version: str = __version__
     extra: dict[str, Any] = field(default_factory=dict)
+    #: Pairs of the bias estimate (0: none); None: not recorded (the default).
+    bias_paths: int | None = None
+    #: The level ``accuracy="auto"`` chose, with its pilot; None: the step as given.
+    choice: bias.LevelChoice | None = None
+
+
+def _statistic_names(config: SimulationConfig) -> list[str]:
+    """The statistics a bias estimate of ``config`` reports: the table's, then the user
+    observables' (:func:`stochpend.bias.estimate`'s order)."""
+    return [s.name for s in observables.STATISTICS + observables.user_statistics(config.observables)]
+
+
+def _pilot_arrays(choice: bias.LevelChoice | None) -> dict[str, np.ndarray]:
+    if choice is None:
+        return {}
+    p = choice.pilot
+    names = _statistic_names(choice.config)
+    return {
+        "pilot_bias": np.array([np.stack(p.bias[name], axis=-1) for name in names], dtype="<f8"),
+        "pilot_coarse": np.array([np.stack(p.coarse[name], axis=-1) for name in names], dtype="<f8"),
+        "pilot_nonfinite": np.ascontiguousarray(p.nonfinite, dtype="<i8"),
+        "pilot_decorrelation": np.ascontiguousarray(p.decorrelation, dtype="<f8"),
+    }
+
+
+def _pilot_record(choice: bias.LevelChoice | None) -> dict[str, Any] | None:
+    if choice is None:
+        return None
+    p = choice.pilot
+    return {"level": int(choice.level), "rtol": choice.rtol, "pilot_paths": int(p.paths),
+            "pilot_path_steps": int(p.path_steps), "pilot_wall_time_s": float(p.wall_time_s),
+            "pilot_batches": int(p.batches)}
+
+
+def _level_choice(p: Path, config: SimulationConfig, record: dict[str, Any],
+                  arrays: dict[str, np.ndarray]) -> bias.LevelChoice:
+    """The level choice saved with an ``auto`` run, rebuilt from its pilot; refused unless it
+    gives the saved level and the configuration that ran (a crafted level cannot run a step
+    its pilot did not choose)."""
+    level = record["level"]
+    factor = 2.0**level  # exact: refined() divides by the same power of two
+    pilot_config = replace(config, h_max=config.h_max * factor, step_c=config.step_c * factor)
+
+    def pairs(name: str) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        return {stat: (arrays[name][i, :, 0].copy(), arrays[name][i, :, 1].copy())
+                for i, stat in enumerate(_statistic_names(config))}
+
+    pilot = bias.BiasEstimate(
+        np.asarray(config.times, dtype=np.float64), pairs("pilot_bias"), pairs("pilot_coarse"),
+        record["pilot_paths"], record["pilot_path_steps"], float(record["pilot_wall_time_s"]),
+        arrays["pilot_nonfinite"], pilot_config.h_max, pilot_config.step_c, record["pilot_batches"],
+        arrays["pilot_decorrelation"])
+    choice = bias.level_choice(pilot_config, pilot, record["rtol"])
+    if choice.level != level or config_hash(choice.config) != config_hash(config):
+        raise _refuse(p, f"malformed header: accuracy.level={level!r} is not the level its pilot "
+                         f"chooses ({choice.level})")
+    return choice
 
 
 def _state_arrays(state: RunState) -> dict[str, np.ndarray]:
@@ -169,7 +240,7 @@ def _state_arrays(state: RunState) -> dict[str, np.ndarray]:
 def write(path: str | os.PathLike, ckpt: Checkpoint) -> Path:
     """Write ``ckpt`` to ``path`` atomically (temporary file, fsync, ``os.replace``)."""
     p = Path(path)
-    arrays = _state_arrays(ckpt.state)
+    arrays = {**_state_arrays(ckpt.state), **_pilot_arrays(ckpt.choice)}
     table = []
     offset = 0
     for name, a in arrays.items():
@@ -203,6 +274,8 @@ def write(path: str | os.PathLike, ckpt: Checkpoint) -> Path:
         "resumed": int(ckpt.resumed),
         "command_line": ckpt.command_line,
         "extra": ckpt.extra,
+        "bias_paths": ckpt.bias_paths,
+        "accuracy": _pilot_record(ckpt.choice),
         "arrays": table,
     }
     head = json.dumps(header, sort_keys=True, allow_nan=False).encode()
@@ -282,6 +355,18 @@ def _check_settings(p: Path, header: dict[str, Any]) -> None:
         return (none and v is None) or (isinstance(v, int | float) and not isinstance(v, bool)
                                         and math.isfinite(v) and v >= 0)
 
+    def integer(v: Any, lo: int, hi: int) -> bool:
+        return isinstance(v, int) and not isinstance(v, bool) and lo <= v <= hi
+
+    def pilot(v: Any) -> bool:
+        return v is None or (
+            isinstance(v, dict) and sorted(v) == sorted(_PILOT_KEYS)
+            and integer(v["level"], 0, bias.MAX_LEVEL)
+            and (v["rtol"] is None or (number(v["rtol"], none=False) and 0 < v["rtol"] < 1))
+            and integer(v["pilot_paths"], 2, 1 << 40) and integer(v["pilot_path_steps"], 0, 2**63 - 1)
+            and number(v["pilot_wall_time_s"], none=False)
+            and integer(v["pilot_batches"], 1, bias.BIAS_BATCHES))
+
     checks = {
         "threads": positive_int(header.get("threads")),
         "chunk_paths": positive_int(header.get("chunk_paths")),
@@ -291,6 +376,10 @@ def _check_settings(p: Path, header: dict[str, Any]) -> None:
         "out": header.get("out") is None or isinstance(header.get("out"), str),
         "command_line": header.get("command_line") is None or isinstance(header.get("command_line"), str),
         "done_work": number(header["run"].get("done_work"), none=False),
+        # None: a checkpoint from before bias_paths was recorded (the default pairs)
+        "bias_paths": header.get("bias_paths") is None or integer(header.get("bias_paths"), 0, 0)
+        or integer(header.get("bias_paths"), 2, 1 << 40),
+        "accuracy": pilot(header.get("accuracy")),
     }
     bad = [k for k, ok in checks.items() if not ok]
     if bad:
@@ -329,6 +418,7 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
           and 0 <= r["j"] <= n_times and r["path_steps"] >= 0)
     if not ok:
         raise _refuse(p, f"inconsistent run position {r}")
+    _check_settings(p, header)  # before the arrays: `accuracy` says which arrays there are
     n = min(r["b1"] * bs, config.paths) - r["b0"] * bs
     n_cols = config.hist_bins + 2
     shapes: dict[str, tuple[int, ...]] = {name: (n,) for name in _PATH_ARRAYS}
@@ -339,13 +429,18 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
         "acc_hist": (n_times, n_cols),
         "acc_filled": (config.n_batches,),
     })
+    record = header.get("accuracy")
+    if record is not None:
+        n_stats = len(_statistic_names(config))
+        shapes.update({"pilot_bias": (n_stats, n_times, 2), "pilot_coarse": (n_stats, n_times, 2),
+                       "pilot_nonfinite": (n_times,), "pilot_decorrelation": (n_times,)})
     backend = header.get("backend", "cpu")
     precision = header.get("precision", "float64")
     if backend not in BACKENDS or precision not in ("float64", "float32"):
         raise _refuse(p, f"unknown backend {backend!r} or precision {precision!r}")
     # Every array has the one dtype its engine holds it in (S15, S16: an '<i8' position or a
     # '|b1' status, same size, was accepted and reinterpreted as garbage).
-    fixed: dict[str, Any] = {**_CHUNK_ARRAYS, **_ACC_ARRAYS, **path_dtypes(backend, precision)}
+    fixed: dict[str, Any] = {**_CHUNK_ARRAYS, **_ACC_ARRAYS, **_PILOT_ARRAYS, **path_dtypes(backend, precision)}
     arrays: dict[str, np.ndarray] = {}
     entry: Any
     for entry in header["arrays"]:
@@ -369,7 +464,6 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     if missing:
         raise _refuse(p, f"missing arrays {sorted(missing)}")
 
-    _check_settings(p, header)
     acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"], config.observables)
     fields_read: dict[str, Any] = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
     fields_read.update({name: arrays[name] for name in _PATH_ARRAYS})
@@ -384,6 +478,8 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
         elapsed_s=float(header.get("elapsed_s", 0.0)), resumed=int(header.get("resumed", 0)),
         command_line=header.get("command_line"), created=str(header.get("created", "")),
         stochpend_version=version, extra=dict(header.get("extra") or {}),
+        bias_paths=header.get("bias_paths"),
+        choice=None if record is None else _level_choice(p, config, record, arrays),
     )
 
 
@@ -417,6 +513,24 @@ class FileCheckpointer:
         self.saves = 0
         self.stop_requested = False
         self.stop_signal = int(signal.SIGINT)
+        self.bias_paths: int | None = None
+        self.choice: bias.LevelChoice | None = None
+
+    def record(self, config: SimulationConfig, bias_paths: int, choice: bias.LevelChoice | None) -> None:
+        """The run as it goes on (:class:`stochpend.lifecycle.Saver`): saved with every checkpoint,
+        so that a resume runs the same refined configuration with the same bias estimate."""
+        self.config, self.bias_paths, self.choice = config, bias_paths, choice
+
+    def signals(self) -> contextlib.AbstractContextManager[None]:
+        return deferred_signals(self)
+
+    def attrs(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"checkpoint": str(self.path),
+                               "checkpoint_every_s": "none" if self.every_s is None else float(self.every_s),
+                               "resumed": self.resumed}
+        if self.command_line:
+            out["command_line"] = self.command_line
+        return out
 
     def request_stop(self, signum: int = signal.SIGINT) -> None:
         self.stop_requested = True
@@ -432,6 +546,7 @@ class FileCheckpointer:
             config=self.config, state=state, out=self.out, overwrite=self.overwrite,
             every_s=self.every_s, threads=self.threads, chunk_paths=self.chunk_paths,
             elapsed_s=self.elapsed_s(), resumed=self.resumed, command_line=self.command_line,
+            bias_paths=self.bias_paths, choice=self.choice,
         )
         try:
             write(self.path, ckpt)
@@ -611,13 +726,6 @@ def check_work(ckpt: Checkpoint, max_path_steps: float | None = None) -> None:
                     max_path_steps=max_path_steps)
 
 
-def check_threads(threads: Any) -> None:
-    """Refuse a thread count this machine cannot run (``None``: the default)."""
-    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
-                                or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS):
-        raise ValueError(f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]")
-
-
 def check_not_checkpoint(out: str | os.PathLike, checkpoint_path: str | os.PathLike) -> None:
     """Refuse an output that is the checkpoint itself (``resume CK --out CK --overwrite`` wrote
     the result over the checkpoint, then removed it: nothing was left)."""
@@ -652,34 +760,44 @@ def run_checkpointed(
     precision: str = "float64",
     _resume: Checkpoint | None = None,
     break_lock: bool = False,
+    bias_paths: int | None = None,
+    accuracy: str = "fixed",
+    rtol: float | None = None,
+    max_path_steps: float | None = None,
 ) -> xr.Dataset:
     """Run ``config`` saving checkpoints to ``checkpoint_path``; write ``out``; return the result.
 
     On Ctrl-C or SIGTERM the state is saved and :class:`CheckpointInterrupt` (a
     ``KeyboardInterrupt``) is raised; a signal after the last kernel call lets the run finish.
     On success the result is written to ``out`` (when given) and the checkpoint file is
-    removed. The numbers equal those of :func:`stochpend.simulate.run` on the same ``backend``
-    and ``precision`` exactly; a resumed run continues on the backend and precision it ran on.
-    The run holds the checkpoint's lock (:func:`owned`) from start to end; ``break_lock`` as there.
+    removed. The numbers equal those of :func:`stochpend.simulate.run` with the same
+    ``backend``, ``precision``, ``bias_paths``, ``accuracy`` and ``rtol`` exactly (both are
+    :func:`stochpend.lifecycle.execute`); ``auto``'s pilot runs first, and the checkpoint saves
+    the level it chose. A resumed run (``_resume``) continues with the settings saved in its
+    checkpoint (backend, precision, bias_paths, level), whatever is passed here. The run holds
+    the checkpoint's lock (:func:`owned`) from start to end; ``break_lock`` as there.
     """
     with owned(checkpoint_path, break_lock=break_lock):
         return _run_owned(config, checkpoint_path=checkpoint_path, every_s=every_s, out=out,
                           overwrite=overwrite, threads=threads, chunk_paths=chunk_paths,
                           progress=progress, command_line=command_line, checkpointer=checkpointer,
-                          backend=backend, precision=precision, _resume=_resume)
+                          backend=backend, precision=precision, _resume=_resume, bias_paths=bias_paths,
+                          accuracy=accuracy, rtol=rtol, max_path_steps=max_path_steps)
 
 
 def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, every_s: float | None,
                out: str | os.PathLike | None, overwrite: bool, threads: int | None,
                chunk_paths: int | None, progress: Progress | None, command_line: str | None,
                checkpointer: FileCheckpointer | None, backend: str, precision: str,
-               _resume: Checkpoint | None) -> xr.Dataset:
-    progress = progress or NoProgress()
+               _resume: Checkpoint | None, bias_paths: int | None, accuracy: str, rtol: float | None,
+               max_path_steps: float | None) -> xr.Dataset:
     out_p = None if out is None else Path(out).absolute()
     if out_p is not None:
         io.check_output_path(out_p, overwrite=overwrite)
         check_not_checkpoint(out_p, checkpoint_path)
-    check_threads(threads)
+    if _resume is not None:  # the same run: its settings are the checkpoint's
+        backend, precision, bias_paths = _resume.state.backend, _resume.state.precision, _resume.bias_paths
+        accuracy, rtol = ("auto", _resume.choice.rtol) if _resume.choice is not None else ("fixed", None)
     if checkpointer is None:
         checkpointer = FileCheckpointer(
             checkpoint_path, every_s, config=config, out=out_p, overwrite=overwrite, threads=threads,
@@ -687,44 +805,12 @@ def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, 
             elapsed_before_s=0.0 if _resume is None else _resume.elapsed_s,
             resumed=0 if _resume is None else _resume.resumed + 1,
         )
-    previous_threads = numba.get_num_threads()
-    if threads is not None:
-        numba.set_num_threads(threads)
-    compile_clock = CompileClock()  # compiling is reported apart, as by simulate
-    try:
-        compile_clock.__enter__()
-        with deferred_signals(checkpointer):
-            if _resume is None:
-                sums, path_steps = run_batches(config, 0, config.n_batches, backend=backend,
-                                               precision=precision, chunk_paths=chunk_paths,
-                                               progress=progress, checkpointer=checkpointer)
-            else:
-                st = _resume.state
-                backend, precision = st.backend, st.precision
-                sums, path_steps = run_batches(config, st.first_batch, st.stop_batch,
-                                               backend=backend, precision=precision,
-                                               chunk_paths=chunk_paths, progress=progress,
-                                               checkpointer=checkpointer, resume=st)
-        # The bias estimate (stochpend.bias) is not checkpointed: a few per cent of the run,
-        # redone in full if the process stops during it (the checkpoint is still there).
-        estimate = bias.estimate(config, bias.default_bias_paths(config.paths),
-                                 progress=progress, backend=backend)
-    finally:
-        compile_clock.__exit__(None, None, None)
-        numba.set_num_threads(previous_threads)
-    # This process's compiling is left out (a resumed run's earlier sessions count in full).
-    attrs = provenance(config, backend=backend, precision=precision,
-                       threads=threads or previous_threads,
-                       wall_time_s=checkpointer.elapsed_s() - compile_clock.seconds,
-                       path_steps=path_steps)
-    attrs["compile_time_s"] = compile_clock.seconds
-    attrs["checkpoint"] = str(checkpointer.path)
-    attrs["checkpoint_every_s"] = "none" if every_s is None else float(every_s)
-    attrs["resumed"] = checkpointer.resumed
-    if command_line:
-        attrs["command_line"] = command_line
-    ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
-    bias.attach(ds, estimate)
+    saving = Checkpointing(checkpointer, None if _resume is None else _resume.state,
+                           None if _resume is None else _resume.choice)
+    run = Run.build(config, backend=backend, precision=precision, threads=threads, chunk_paths=chunk_paths,
+                    bias_paths=bias_paths, accuracy=accuracy, rtol=rtol, max_path_steps=max_path_steps,
+                    checkpointing=saving)
+    ds, _ = execute(run, progress=progress)
     if out_p is not None:
         try:
             io.to_netcdf(ds, out_p, overwrite=overwrite)
@@ -769,11 +855,12 @@ def resume(
         ckpt = read(path)
         check_work(ckpt, max_path_steps)
         return _resume_owned(path, ckpt, out=out, overwrite=overwrite, every_s=every_s,
-                             threads=threads, progress=progress)
+                             threads=threads, progress=progress, max_path_steps=max_path_steps)
 
 
 def _resume_owned(path: str | os.PathLike, ckpt: Checkpoint, *, out: Any, overwrite: bool | None,
-                  every_s: Any, threads: Any, progress: Progress | None) -> xr.Dataset:
+                  every_s: Any, threads: Any, progress: Progress | None,
+                  max_path_steps: float | None) -> xr.Dataset:
     if ckpt.state.backend != "cpu":
         from stochpend.simulate import resolve_backend
 
@@ -797,5 +884,5 @@ def _resume_owned(path: str | os.PathLike, ckpt: Checkpoint, *, out: Any, overwr
         out=out_p, overwrite=ow,
         threads=threads,
         chunk_paths=ckpt.chunk_paths, progress=progress, command_line=ckpt.command_line,
-        _resume=ckpt,
+        _resume=ckpt, max_path_steps=max_path_steps,
     )

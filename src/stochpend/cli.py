@@ -287,15 +287,8 @@ def simulate(
     from stochpend import bias as _bias
 
     accuracy, rtol = _bias.check_accuracy(accuracy, rtol)
-    if checkpoint is not None and bias_paths is not None:
-        raise ValueError(f"bias_paths={bias_paths!r} is not accepted with --checkpoint: a "
-                         "checkpointed run estimates its bias with the default subsample")
     if bias_paths is not None:
         bias_paths = _bias.check_bias_paths(bias_paths, config.paths)
-    if checkpoint is not None and accuracy == "auto":
-        raise ValueError("accuracy='auto' is not accepted with --checkpoint: run the pilot "
-                         "first (stochpend simulate --accuracy auto --paths N, small N) and "
-                         "checkpoint the run at the --h-max/--step-c it reports")
     if checkpoint_every is not None and checkpoint is None:
         raise ValueError(f"checkpoint_every={checkpoint_every!r} is not accepted: it needs --checkpoint FILE")
     backend = resolve_backend(backend, note=note)  # 'auto' on a broken CUDA stack: a note
@@ -304,7 +297,7 @@ def simulate(
                                threads=threads)
     # The kernels it will compile (a cold Numba cache) count: a first run is mostly compiling.
     # A pair kernel that the compile helper compiles meanwhile (simulate.run) is not waited for.
-    pairs = bias_paths != 0 and (checkpoint is not None or not _compile_helper.wanted(config, backend=backend, pairs=True))
+    pairs = bias_paths != 0 and not _compile_helper.wanted(config, backend=backend, pairs=True)
     estimate = resources.with_compile(estimate, config, pairs=pairs or accuracy == "auto")
     # A long run prints its estimate when it starts (after the remaining checks), even with --quiet.
     announce = (f"estimate: {estimate.describe()}" if estimate.total_seconds > resources.LONG_RUN_S
@@ -318,7 +311,8 @@ def simulate(
         ds = simulate_with_checkpoint(
             config, checkpoint_path=checkpoint, every_s=parse_duration("5m" if checkpoint_every is None else checkpoint_every),
             out=out, overwrite=overwrite, progress=progress, threads=threads, backend=backend,
-            precision=precision,
+            precision=precision, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
+            max_path_steps=max_path_steps,
         )
     else:
         import warnings

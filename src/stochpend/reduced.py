@@ -703,6 +703,10 @@ def simulate_reduced(
 ) -> xr.Dataset:
     r"""Ensemble of the reduced (averaged) energy dynamics; Dataset as :func:`stochpend.simulate`.
 
+    It runs its own loop, outside :mod:`stochpend.lifecycle`, and has no bias estimate: reduced
+    is exempt where its orders are sampled exactly; its weak-order-1 order would need the
+    estimator's factor for that order (2, not 4/3) and coupled draws it does not have.
+
     Parameters
     ----------
     order : {"zeroth", "first", "second", "asymptotic"}

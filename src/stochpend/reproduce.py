@@ -231,12 +231,9 @@ def reproduce(
             raise ValueError(f"t_max={t_max!r} is not accepted: a finite number > 0.1") from None
         if not math.isfinite(t_max) or t_max <= 0.1:
             raise ValueError(f"t_max={t_max!r} is not accepted: a finite number > 0.1 (times start at 0.01)")
-    if threads is not None:
-        import numba
+    from stochpend.lifecycle import check_precision, check_threads, resolve_backend
 
-        if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
-            raise ValueError(f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]")
-    from stochpend.simulate import check_precision, resolve_backend
+    check_threads(threads)
 
     backend = resolve_backend(backend)
     check_precision(precision, backend)
@@ -299,7 +296,8 @@ def reproduce(
                     status = "cached"
                     if ds is None:
                         sub = _SubProgress(progress, done_work, f"{name} {s.key}")
-                        ds = _simulate(s, progress=sub, threads=threads, where=where)
+                        ds = _simulate(s, progress=sub, threads=threads, where=where,
+                                       max_path_steps=max_path_steps)
                         done_work += s.paths * s.t_max
                         progress.update(done_work)
                         from stochpend import io
@@ -452,55 +450,36 @@ class _SubProgress:
         factory = getattr(parent, "simulation", None)
         self.inner: Progress = factory(description) if factory is not None else NoProgress()
         self.description = description
+        self.high = 0.0
 
     def start(self, total: float, description: str) -> None:
         self.inner.start(total, self.description)
 
     def update(self, done: float) -> None:
         self.inner.update(done)
-        self.parent.update(self.offset + done)
+        # The bias estimate after the run starts again from 0 (its own, smaller work): the
+        # overall bar holds at the run's work instead of going back.
+        self.high = max(self.high, done)
+        self.parent.update(self.offset + self.high)
 
     def finish(self) -> None:
         self.inner.finish()
 
 
 def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None,
-              where: tuple[str, str] = ("cpu", "float64")) -> xr.Dataset:
+              where: tuple[str, str] = ("cpu", "float64"), max_path_steps: float | None = None) -> xr.Dataset:
     """Simulate one run; the Dataset of :func:`stochpend.simulate` plus ``batch_sums``.
 
-    Mirrors :func:`stochpend.simulate.run` (same configuration, numbers and attributes) but keeps
-    the per-batch sums, which the tables need for jackknife errors of late-time fits.
+    The run of :func:`stochpend.simulate.run` (:func:`stochpend.lifecycle.execute`: same
+    configuration, numbers, bias estimate with its default pairs, and attributes), keeping the
+    per-batch sums, which the tables need for jackknife errors of late-time fits.
     """
-    import numba
-
-    from stochpend import bias
-    from stochpend._jitcache import CompileClock
-    from stochpend.params import SimulationConfig, hist_edges
-    from stochpend.runner import run_batches
-    from stochpend.simulate import provenance
+    from stochpend.lifecycle import Run, execute
+    from stochpend.params import SimulationConfig
 
     config = SimulationConfig.build(**spec.simulate_kwargs())
-    previous = numba.get_num_threads()
-    if threads is not None:
-        numba.set_num_threads(threads)
-    started = time.perf_counter()
-    try:
-        with CompileClock() as compile_clock:  # compiling is reported apart, as by simulate
-            sums, path_steps = run_batches(config, 0, config.n_batches, backend=where[0],
-                                           precision=where[1], progress=progress)
-            wall_main = time.perf_counter() - started - compile_clock.seconds
-            # The discretisation bias as simulate estimates it (its default subsample of coupled
-            # pairs): the report gives it beside the late-time values.
-            est = bias.estimate(config, bias.default_bias_paths(config.paths), backend=where[0])
-    finally:
-        numba.set_num_threads(previous)
-    wall = time.perf_counter() - started - compile_clock.seconds
-    attrs = provenance(config, backend=where[0], precision=where[1], threads=threads or previous,
-                       wall_time_s=wall, path_steps=path_steps)
-    attrs["simulation_wall_time_s"] = wall_main
-    attrs["compile_time_s"] = compile_clock.seconds
-    ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
-    bias.attach(ds, est, None)
+    ds, sums = execute(Run.build(config, backend=where[0], precision=where[1], threads=threads,
+                                 max_path_steps=max_path_steps), progress=progress)
     ds["batch_sums"] = (
         ("batch", "time", "sum_component"),
         np.asarray(sums.sums, dtype=np.float64),

@@ -2,30 +2,26 @@
 
 from __future__ import annotations
 
-import platform
-import sys
-import time as _time
 import warnings
-from collections.abc import Callable
 from typing import Any
 
-import numba
-import numpy as np
 import xarray as xr
 
-from stochpend import _compile_helper, bias, integrator, models, resources, runner
-from stochpend import observables as observables_
-from stochpend._jitcache import CompileClock
-from stochpend._version import __version__
+from stochpend import bias
+
+# Where a run runs is decided in stochpend.lifecycle; the names stay importable from here.
+from stochpend.lifecycle import Run, execute
+from stochpend.lifecycle import check_precision as check_precision
+from stochpend.lifecycle import cuda_status as cuda_status
+from stochpend.lifecycle import resolve_backend as resolve_backend
 from stochpend.params import (
     DEFAULT_H_MAX,
     DEFAULT_HIST_BINS,
     DEFAULT_N_BATCHES,
     DEFAULT_STEP_C,
     SimulationConfig,
-    hist_edges,
 )
-from stochpend.progress import NoProgress, Progress
+from stochpend.progress import Progress
 from stochpend.progress import resolve as resolve_progress
 
 
@@ -168,23 +164,13 @@ def simulate(
         potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
         observables=observables,
     )
-    accuracy, rtol = bias.check_accuracy(accuracy, rtol)
-    if bias_paths is not None:
-        bias_paths = bias.check_bias_paths(bias_paths, config.paths)
-    resources.check(config, backend=backend, precision=precision, chunk_paths=chunk_paths, max_path_steps=max_path_steps)
-    backend = resolve_backend(backend)
-    check_precision(precision, backend)
-    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
-                                or threads > numba.config.NUMBA_NUM_THREADS):
-        raise ValueError(
-            f"threads={threads!r} is not accepted: an integer in [1, {numba.config.NUMBA_NUM_THREADS}]"
-        )
-    if chunk_paths is not None and (isinstance(chunk_paths, bool) or not isinstance(chunk_paths, int)
-                                    or chunk_paths < 1):
-        raise ValueError(f"chunk_paths={chunk_paths!r} is not accepted: an integer >= 1")
-    ds = run(config, backend=backend, threads=threads, chunk_paths=chunk_paths,
-             progress=resolve_progress(progress), precision=precision, bias_paths=bias_paths,
-             accuracy=accuracy, rtol=rtol, max_path_steps=max_path_steps)
+    # Refused here, before any work (run validates again what it is handed: a few checks).
+    settings = Run.build(config, backend=backend, precision=precision, threads=threads,
+                         chunk_paths=chunk_paths, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
+                         max_path_steps=max_path_steps)
+    ds = run(config, backend=settings.backend, threads=threads, chunk_paths=chunk_paths,
+             progress=resolve_progress(progress), precision=precision, bias_paths=settings.bias_paths,
+             accuracy=settings.accuracy, rtol=settings.rtol, max_path_steps=max_path_steps)
     warn_about(ds)
     return ds
 
@@ -204,64 +190,6 @@ def warn_about(ds: xr.Dataset, stacklevel: int = 3) -> None:
                       "statistic", StochpendWarning, stacklevel=stacklevel)
 
 
-def check_precision(precision: str, backend: str) -> None:
-    """Refuse an unknown precision, or float32 anywhere but the CUDA backend."""
-    if precision not in integrator.PRECISIONS:
-        raise ValueError(f"precision={precision!r} is not accepted: one of float64, float32")
-    if precision == "float32" and backend != "cuda":
-        raise ValueError("precision='float32' is not accepted with backend='cpu': float32 runs on the CUDA backend")
-
-
-def cuda_status(backend: str = "cuda") -> tuple[bool, str, bool]:
-    """``(usable, why, broken)`` for the CUDA backend: the driver and device
-    (``_backends.cuda.availability``), then a tiny kernel compiled and launched once per process
-    (``_backends.cuda_probe``). ``broken``: a GPU was found but the CUDA stack cannot compile or
-    run on it. For ``backend="auto"`` the simulator counts as not usable (never picked
-    implicitly) and is not probed."""
-    try:
-        from stochpend._backends import cuda as _cuda
-    except Exception as exc:  # numba without a CUDA target
-        return False, f"numba.cuda cannot be imported ({type(exc).__name__})", False
-    usable, why = _cuda.availability()
-    if not usable:
-        return False, why, False
-    if backend == "auto" and _cuda._simulator_enabled():
-        return False, why, False  # never pick the (slow) simulator implicitly
-    from stochpend._backends import cuda_probe
-
-    ok, probe_why = cuda_probe.probe()
-    if not ok:
-        return False, f"{why}: {probe_why}", True
-    return True, why, False
-
-
-def resolve_backend(backend: str, *, note: Callable[[str], None] | None = None) -> str:
-    """Map "auto" to the GPU when one is usable (else the CPU); refuse an unusable "cuda".
-
-    A GPU whose CUDA stack cannot compile a kernel is not usable: "auto" then runs on the CPU
-    and says why in one line, through ``note`` (default: a ``RuntimeWarning``).
-    """
-    if backend == "cpu":
-        return "cpu"
-    if backend not in ("auto", "cuda"):
-        raise ValueError(f"backend={backend!r} is not accepted: one of cpu, cuda, auto")
-    usable, why, broken = cuda_status(backend)
-    if usable:
-        return "cuda"
-    if backend == "auto":
-        if broken:
-            message = f"backend='auto' runs on the CPU: the CUDA stack is unusable ({why})"
-            if note is None:
-                warnings.warn(message, RuntimeWarning, stacklevel=2)
-            else:
-                note(message)
-        return "cpu"
-    advice = ("install a numba-cuda that works with this numpy (pip install 'stochpend[cuda]' "
-              "pins one)" if broken else "install the extra with pip install 'stochpend[cuda]' on "
-              "a machine with an NVIDIA GPU")
-    raise ValueError(f"backend='cuda' is not accepted: {why}; {advice}, or use backend='cpu'")
-
-
 def run(
     config: SimulationConfig,
     *,
@@ -275,107 +203,13 @@ def run(
     rtol: float | None = None,
     max_path_steps: float | None = None,
 ) -> xr.Dataset:
-    """Run a validated configuration and build the Dataset (see :func:`simulate`).
+    """Run a configuration and build the Dataset (see :func:`simulate`): the settings are
+    validated (:meth:`stochpend.lifecycle.Run.build`) and run by :func:`stochpend.lifecycle.execute`.
 
-    ``bias_paths``: pairs for the bias estimate (0: none; validated by the caller; None: the
-    default, :func:`stochpend.bias.default_bias_paths`).
+    ``bias_paths``: pairs for the bias estimate (0: none; None: the default,
+    :func:`stochpend.bias.default_bias_paths`).
     """
-    progress = progress or NoProgress()
-    if bias_paths is None:
-        bias_paths = bias.default_bias_paths(config.paths)
-    previous_threads = numba.get_num_threads()
-    if threads is not None:
-        numba.set_num_threads(threads)
-    helper = None  # the compile helper's pair kernel is compiled meanwhile, not counted in the note
-    compile_clock = CompileClock(lambda: compile_note(
-        config, backend, precision, pairs=(bool(bias_paths) and helper is None) or accuracy == "auto"))
-    started = _time.perf_counter()
-    waited = 0.0
-    try:
-        compile_clock.__enter__()
-        if accuracy != "auto":  # auto compiles the pair kernel first: nothing to overlap
-            helper = _compile_helper.start(config, backend=backend, bias_paths=bias_paths)
-        choice = None
-        if accuracy == "auto":
-            choice = bias.choose_level(config, bias_paths or bias.default_bias_paths(config.paths),
-                                       rtol=rtol, progress=progress, backend=backend)
-            config = choice.config
-            # the refined run must pass the same memory and work checks as the one asked for
-            resources.check(config, backend=backend, precision=precision, chunk_paths=chunk_paths,
-                            max_path_steps=max_path_steps)
-        sums, path_steps = runner.run_batches(config, 0, config.n_batches, backend=backend,
-                                              precision=precision, chunk_paths=chunk_paths,
-                                              progress=progress)
-        wall_main = _time.perf_counter() - started - compile_clock.seconds
-        est = None
-        if choice is not None:
-            est = choice.extrapolated()
-        elif bias_paths:
-            if helper is not None:
-                waited = helper.wait()  # compiling the pair kernel, in the helper
-            est = bias.estimate(config, bias_paths, progress=progress, backend=backend)
-    finally:
-        if helper is not None:
-            helper.stop()
-        compile_clock.__exit__(None, None, None)
-        compile_clock.seconds += waited
-        numba.set_num_threads(previous_threads)
-    # Compiling (a cold kernel cache) is reported apart: wall_time_s and path_steps_per_s are
-    # the run's own, comparable between a first and a later run.
-    wall = _time.perf_counter() - started - compile_clock.seconds
-    attrs = provenance(config, backend=backend, precision=precision,
-                       threads=threads or previous_threads, wall_time_s=wall, path_steps=path_steps)
-    attrs["simulation_wall_time_s"] = wall_main
-    attrs["compile_time_s"] = compile_clock.seconds
-    ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
-    if est is not None:
-        bias.attach(ds, est, choice)
-    return ds
-
-
-def compile_note(config: SimulationConfig, backend: str, precision: str, *,
-                 pairs: bool = True) -> None:
-    """Said once, on stderr, when a run's first kernel is not in Numba's cache: compiling is
-    about to take a while (a note, not a result; with its expected duration)."""
-    label = runner.spec_for(config, backend, precision).label
-    seconds = resources.compile_seconds(config, backend=backend, precision=precision,
-                                        pairs=pairs)
-    expected = f"~{resources.format_seconds(seconds)}, " if seconds > 0 else ""
-    print(f"compiling kernels for {label} (first use: {expected}cached after)", file=sys.stderr,
-          flush=True)
-
-
-def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_time_s: float,
-               path_steps: int, precision: str = "float64") -> dict[str, Any]:
-    """Attributes stored with every result: enough to reproduce it, down to the compiled
-    kernel (``kernel``: oscillator/coupling/noise/precision/step/math; the fast-math SIMD
-    kernels and the C library's differ in the last bits)."""
-    attrs: dict[str, Any] = {"title": "stochpend ensemble simulation"}
-    attrs.update(config.to_attrs())
-    user_model = models.get(config.potential)
-    if user_model is not None:
-        attrs["model"] = f"user-defined ({user_model.description or 'stochpend.models.Model'})"
-        attrs["model_source"] = user_model.source()
-    for name in config.observables:  # the code of each user observable, as for a user's model
-        attrs[f"observable_{name}_source"] = observables_.get(name).source()  # type: ignore[union-attr]
-    attrs.update({f"scheme_{k}": v for k, v in integrator.SCHEME.items()})
-    attrs.update(
-        {
-            "rng": "Philox4x32-10, key = seed, counter = (draw, global path index)",
-            "backend": backend,
-            "precision": precision,
-            "kernel": runner.spec_for(config, backend, precision).label,
-            "threads": threads,
-            "wall_time_s": wall_time_s,
-            "path_steps": path_steps,
-            "path_steps_per_s": path_steps / wall_time_s if wall_time_s > 0 else float("nan"),
-            "stochpend_version": __version__,
-            "numba_version": numba.__version__,
-            "numpy_version": np.__version__,
-            "python_version": platform.python_version(),
-            "machine": f"{platform.machine()} {platform.processor() or platform.system()}",
-            "created": _time.strftime("%Y-%m-%dT%H:%M:%SZ", _time.gmtime()),
-            "reference": "K. Mallick and P. Marcq, On the stochastic pendulum with Ornstein-Uhlenbeck noise (2004)",
-        }
-    )
-    return {k: (int(v) if isinstance(v, bool) else v) for k, v in attrs.items()}
+    settings = Run.build(config, backend=backend, precision=precision, threads=threads,
+                         chunk_paths=chunk_paths, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
+                         max_path_steps=max_path_steps)
+    return execute(settings, progress=progress)[0]

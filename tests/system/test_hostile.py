@@ -430,13 +430,21 @@ MALFORMED = {  # case id: (edit, what the one line names)
     "S12": (_set(["every_s"], '"abc"'), "malformed header: every_s='abc'"),
     "S14": (_set(["elapsed_s"], '"abc"'), "malformed header: elapsed_s='abc'"),
     "S18": (_set(["run", "done_work"], "NaN"), "NaN is not a valid value"),
+    "S19": (_set(["bias_paths"], '"abc"'), "malformed header: bias_paths='abc'"),
+    "S19b": (_set(["bias_paths"], "1"), "malformed header: bias_paths=1"),
+    "S19c": (_set(["bias_paths"], "true"), "malformed header: bias_paths=True"),
+    "S20": (_set(["accuracy"], '"auto"'), "malformed header: accuracy='auto'"),
+    "S20b": (_set(["accuracy"], '{"level": 99}'), "malformed header: accuracy={'level': 99}"),
+    "S20c": (_set(["accuracy"], '{"level": 1, "rtol": null, "pilot_paths": 64, "pilot_path_steps": 1, '
+                                '"pilot_wall_time_s": 0.1, "pilot_batches": 32}'),
+             "missing arrays ['pilot_bias', 'pilot_coarse', 'pilot_decorrelation', 'pilot_nonfinite']"),
     "S09b": (_set(["run", "path_steps"], "1" + "0" * 400), "inconsistent run position"),
 }
 
 
 @pytest.mark.parametrize("case", list(MALFORMED))
 def test_malformed_but_checksummed_checkpoint_is_one_line(tmp_path, handed_over, case):
-    """S08-S12, S14, S18: header fields with Infinity, NaN, deep nesting or wrong types, under
+    """S08-S12, S14, S18-S20: header fields with Infinity, NaN, deep nesting or wrong types, under
     a valid SHA-256, gave tracebacks or failed after the work had started; S15, S16: a per-path
     array declared with another dtype of the same size was accepted and reinterpreted."""
     edit, needle = MALFORMED[case]

@@ -168,7 +168,6 @@ def test_auto_refines_a_coarse_step_and_accepts_a_loose_tolerance():
         (["--rtol", "2"], "--rtol 2.0 is not accepted: a number in (0, 1)"),
         (["--rtol", "nan"], "--rtol nan is not accepted"),
         (["--bias-paths", "1"], "--bias-paths 1 is not accepted: an integer >= 2"),
-        (["--accuracy", "auto", "--checkpoint", "ck.npz"], "--accuracy 'auto' is not accepted with --checkpoint"),
     ],
 )
 def test_cli_refuses_bad_accuracy_options(args, needle, tmp_path, monkeypatch):
@@ -178,6 +177,24 @@ def test_cli_refuses_bad_accuracy_options(args, needle, tmp_path, monkeypatch):
     assert needle in " ".join(result.output.split())
     assert "Traceback" not in result.output
     assert list(tmp_path.iterdir()) == []
+
+
+def test_cli_checkpoints_an_auto_run_with_its_bias_paths(tmp_path, monkeypatch):
+    """--accuracy auto and --bias-paths with --checkpoint: the run stochpend.simulate makes."""
+    monkeypatch.chdir(tmp_path)
+    kw = dict(noise="ou", paths=1000, t_max=10.0, times=(5.0, 10.0), seed=3, h_max=0.4, step_c=0.8)
+    result = CliRunner().invoke(app, ["simulate", "--paths", "1000", "--t-max", "10", "--times", "5,10",
+                                      "--seed", "3", "--h-max", "0.4", "--step-c", "0.8", "--accuracy", "auto",
+                                      "--bias-paths", "256", "--checkpoint", "ck", "--out", "o.nc", "--quiet"])
+    assert result.exit_code == 0, result.output
+    from stochpend import io
+
+    ds = io.open_results(tmp_path / "o.nc")
+    ref = stochpend.simulate(accuracy="auto", bias_paths=256, **kw)
+    assert ds.attrs["accuracy"] == "auto" and ds.attrs["accuracy_level"] == ref.attrs["accuracy_level"] >= 1
+    for name in ref.data_vars:
+        assert np.array_equal(ds[name].values, ref[name].values, equal_nan=True), name
+    assert not (tmp_path / "ck").exists()
 
 
 def test_cli_warns_when_the_bias_exceeds_the_standard_error():

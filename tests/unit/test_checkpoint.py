@@ -51,12 +51,12 @@ class StopAfter(ck.FileCheckpointer):
             raise KeyboardInterrupt
 
 
-def _interrupted(tmp_path, config, n, name="run.ckpt", out=None):
+def _interrupted(tmp_path, config, n, name="run.ckpt", out=None, chunk=CHUNK, **settings):
     path = tmp_path / name
-    cp = StopAfter(path, None, config=config, n=n, out=out, chunk_paths=CHUNK)
+    cp = StopAfter(path, None, config=config, n=n, out=out, chunk_paths=chunk)
     with pytest.raises(KeyboardInterrupt):
-        ck.run_checkpointed(config, checkpoint_path=path, every_s=None, checkpointer=cp, chunk_paths=CHUNK,
-                            out=out)
+        ck.run_checkpointed(config, checkpoint_path=path, every_s=None, checkpointer=cp, chunk_paths=chunk,
+                            out=out, **settings)
     assert path.is_file()
     return path
 
@@ -75,6 +75,88 @@ def test_interrupt_then_resume_is_exact(tmp_path, small, n):
     assert ds.attrs["kernel"] == ref.attrs["kernel"] and ds.attrs["precision"] == "float64"
     assert not path.exists(), "a finished run removes its checkpoint"
     _assert_identical(ref, io.open_results(out))
+
+
+#: Attributes that time a run or name its checkpoint: the only ones a checkpointed run may
+#: differ in from the same run by stochpend.simulate.run.
+_TIMING = {"wall_time_s", "simulation_wall_time_s", "compile_time_s", "path_steps_per_s", "bias_wall_time_s",
+           "created", "checkpoint", "checkpoint_every_s", "resumed"}
+
+
+def _assert_same_run(ref, ds):
+    _assert_identical(ref, ds)
+    for key in (set(ref.attrs) | set(ds.attrs)) - _TIMING:
+        assert key in ref.attrs and key in ds.attrs, key
+        assert np.array_equal(ref.attrs[key], ds.attrs[key], equal_nan=isinstance(ref.attrs[key], float)), key
+
+
+def test_checkpointed_bias_paths_equals_simulate(tmp_path, small):
+    """bias_paths is the run's, checkpointed or not, and a resume keeps it (saved in the file)."""
+    config, _ = small
+    ref = run(config, chunk_paths=CHUNK, bias_paths=100)
+    ds = ck.run_checkpointed(config, checkpoint_path=tmp_path / "a.ckpt", every_s=None, chunk_paths=CHUNK,
+                             bias_paths=100)
+    assert ds.attrs["bias_paths"] == 100 != ck.bias.default_bias_paths(config.paths)
+    _assert_same_run(ref, ds)
+    path = _interrupted(tmp_path, config, 6, bias_paths=100)
+    assert ck.read(path).bias_paths == 100
+    _assert_same_run(ref, ck.resume(path))
+    # none at all: 0 is recorded and kept as well
+    path = _interrupted(tmp_path, config, 6, name="none.ckpt", bias_paths=0)
+    resumed = ck.resume(path)
+    assert "mean_E_bias" not in resumed
+    _assert_same_run(run(config, chunk_paths=CHUNK, bias_paths=0), resumed)
+
+
+AUTO = {"noise": "ou", "paths": 1000, "t_max": 10.0, "times": (5.0, 10.0), "seed": 3, "h_max": 0.4, "step_c": 0.8}
+
+
+@pytest.fixture(scope="module")
+def auto_reference():
+    config = SimulationConfig.build(**AUTO)
+    ref = run(config, chunk_paths=300, accuracy="auto", bias_paths=256)
+    assert ref.attrs["accuracy_level"] >= 1  # the refined configuration is what runs and resumes
+    return config, ref
+
+
+def test_checkpointed_auto_run_interrupted_and_resumed_equals_the_auto_run(tmp_path, auto_reference, monkeypatch):
+    config, ref = auto_reference
+    path = _interrupted(tmp_path, config, 5, chunk=300, accuracy="auto", bias_paths=256)
+    saved = ck.read(path)
+    assert saved.choice is not None and saved.choice.level == ref.attrs["accuracy_level"]
+    assert saved.config.h_max == ref.attrs["h_max"] and saved.bias_paths == 256
+
+    def no_pilot(*args, **kwargs):
+        raise AssertionError("the resumed run ran its pilot again")
+
+    monkeypatch.setattr(ck.bias, "choose_level", no_pilot)
+    monkeypatch.setattr(ck.bias, "estimate", no_pilot)
+    ds = ck.resume(path)
+    assert ds.attrs["resumed"] == 1 and not path.exists()
+    _assert_same_run(ref, ds)
+
+
+def test_auto_checkpoint_with_another_level_is_refused(tmp_path, auto_reference):
+    config, _ = auto_reference
+    path = _interrupted(tmp_path, config, 3, chunk=300, accuracy="auto", bias_paths=256)
+    header, payload = _split(path.read_bytes())
+    header["accuracy"]["level"] += 1
+    _rewrite(path, header, payload)
+    _refused(path, "malformed header: accuracy.level=")
+    header["accuracy"]["level"] -= 1
+    header["accuracy"]["pilot_batches"] = "32"
+    _rewrite(path, header, payload)
+    _refused(path, "malformed header: accuracy=")
+
+
+def test_old_checkpoint_resumes_with_the_default_pairs(good, small):
+    """A header without bias_paths and accuracy (written before they were recorded)."""
+    config, ref = small
+    header, payload = _split(good.read_bytes())
+    del header["bias_paths"], header["accuracy"]
+    _rewrite(good, header, payload)
+    assert ck.read(good).bias_paths is None
+    _assert_same_run(ref, ck.resume(good))
 
 
 def test_resume_twice(tmp_path, small):

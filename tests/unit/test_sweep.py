@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+import stochpend
 from stochpend import cli, io
 from stochpend._cli_scale import resume_command, sweep_command
 from stochpend._sources import BUILD
@@ -87,11 +88,33 @@ def test_grid_layout_and_exactness(tmp_path):
         for tau in (0.1, 1, 10):
             cfg = SimulationConfig.build(noise="ou", omega=1.0, paths=24, t_max=2.0, n_times=4, seed=11,
                                          n_batches=6, D=D, tau=tau)
-            ref = run(cfg, bias_paths=0)  # a sweep carries no bias estimate (docs/scale-out.md)
+            ref = run(cfg)  # its bias estimate too, with the default pairs
             one = ds.sel(D=float(D), tau=float(tau))
+            assert "mean_E_bias" in ref and "mean_E_bias_verdict" in ref
             for name in ref.data_vars:
                 assert np.array_equal(one[name].values, ref[name].values, equal_nan=True), name
             assert int(one.path_steps) == ref.attrs["path_steps"]
+
+
+def test_bias_variables_of_a_set_equal_simulate_of_its_config(tmp_path):
+    ds = sweep(_write(tmp_path, CASES), tasks_per_set=2, bias_paths=20)
+    assert ds.mean_E_bias.dims == ("case", "time") and ds.mean_E_bias_verdict.dims == ("case", "time")
+    assert ds.attrs["bias_paths"] == 20 and ds.attrs["accuracy"] == "fixed"
+    assert "bias_wall_time_s" not in ds.attrs and "bias_wall_time_s" not in ds
+    for i, case in enumerate(({"D": 1.0, "tau": 0.5}, {"D": 10.0, "tau": 2.0, "seed": 3}, {"noise": "white", "D": 2.0})):
+        params = {"noise": "ou", "omega": 1.0, "paths": 24, "t_max": 2.0, "n_times": 4, "seed": 11, "n_batches": 6}
+        ref = stochpend.simulate(**{**params, **case}, bias_paths=20)
+        names = [n for n in ref.data_vars if "_bias" in str(n)]
+        assert len(names) > 10
+        for name in names:
+            assert np.array_equal(ds[name].isel(case=i).values, ref[name].values, equal_nan=True), name
+        for key in ("bias_certified_until", "bias_horizon", "bias_path_steps", "bias_nonfinite_pairs"):
+            value = ds[key].isel(case=i).item() if key in ds else ds.attrs[key]
+            assert np.array_equal(value, ref.attrs[key], equal_nan=True), key
+    none = sweep(_write(tmp_path, CASES), bias_paths=0)
+    assert not [n for n in none.data_vars if "_bias" in str(n)] and "bias_paths" not in none.attrs
+    with pytest.raises(ValueError, match="bias_paths=1 is not accepted"):
+        sweep(_write(tmp_path, CASES), bias_paths=1)
 
 
 def test_tasks_per_set_does_not_change_numbers(tmp_path):

@@ -77,6 +77,29 @@ def test_a_path_whose_observable_is_not_finite_is_excluded_and_counted():
     assert np.all(ds.mean_inf_right.values == 1.0)  # never averaged in
 
 
+def test_checkpointed_auto_run_with_an_observable_resumes_its_bias(tmp_path):
+    """The pilot saved with an auto run's checkpoint holds the observable's bias too."""
+    config = SimulationConfig.build(noise="ou", paths=1000, t_max=10.0, times=(5.0, 10.0), seed=3, h_max=0.4,
+                                    step_c=0.8, observables=("xi2",))
+    ref = run(config, chunk_paths=300, accuracy="auto", bias_paths=256)
+    assert ref.attrs["accuracy_level"] >= 1 and "mean_xi2_bias" in ref
+
+    class StopAfter(ck.FileCheckpointer):
+        def maybe_save(self, state):
+            self.save(state)
+            if self.saves >= 3:
+                raise KeyboardInterrupt
+
+    path = tmp_path / "run.ckpt"
+    with pytest.raises(KeyboardInterrupt):
+        ck.run_checkpointed(config, checkpoint_path=path, every_s=None, chunk_paths=300, accuracy="auto",
+                            bias_paths=256, checkpointer=StopAfter(path, None, config=config, chunk_paths=300))
+    done = ck.resume(path)
+    assert set(done.data_vars) == set(ref.data_vars)
+    for name in ref.data_vars:
+        assert np.array_equal(done[name].values, ref[name].values, equal_nan=True), name
+
+
 def test_checkpointed_run_with_an_observable_resumes_exactly(tmp_path):
     config = SimulationConfig.build(**{**RUN, "paths": 300}, observables=("xi2",))
     ref = run(config, chunk_paths=90, bias_paths=0)
