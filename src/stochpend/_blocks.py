@@ -50,9 +50,15 @@ class BlockResult:
 def run_block(config: SimulationConfig, set_index: int, b0: int, b1: int, *,
               numba_threads: int | None = None, expect_version: str | None = None,
               progress: Progress | None = None, backend: str = "cpu",
-              precision: str = "float64") -> BlockResult:
+              precision: str = "float64", plugins: tuple[str, ...] = ()) -> BlockResult:
     """Simulate batches ``b0 .. b1 - 1`` of one set on ``backend``: the function every engine
-    runs (a Dask worker that owns a GPU runs its blocks with ``backend="cuda"``)."""
+    runs (a Dask worker that owns a GPU runs its blocks with ``backend="cuda"``). ``plugins``:
+    what the client loaded (:func:`stochpend.plugins.loaded`), loaded here first, so that a
+    worker process knows the set's noise."""
+    from stochpend import plugins as _plugins
+
+    for name in plugins:
+        _plugins.load(name)
     if expect_version is not None and expect_version != BUILD:
         raise ValueError(f"a worker runs stochpend {BUILD}, the client stochpend {expect_version}: "
                          f"install the same stochpend everywhere")

@@ -196,6 +196,29 @@ def handles_errors(fn: F) -> F:
     return wrapper  # type: ignore[return-value]
 
 
+def parse_params(values: list[str] | None) -> dict[str, Any]:
+    """``--param NAME=VALUE`` options as a mapping (the noise validates names and values)."""
+    out: dict[str, Any] = {}
+    for item in values or ():
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or not name or not value.strip():
+            raise ValueError(f"--param {item!r} is not accepted: NAME=VALUE, a parameter the noise declares")
+        if name in out:
+            raise ValueError(f"--param {item!r} is not accepted: {name} is given twice")
+        out[name] = value.strip()
+    return out
+
+
+def load_plugins(names: list[str] | None) -> None:
+    """Load each ``--plugin`` (:func:`stochpend.plugins.load`): code runs only when the command
+    line asks for it, never because a file names a piece."""
+    from stochpend import plugins
+
+    for name in names or ():
+        plugins.load(name)
+
+
 def parse_times(text: str | None) -> list[float] | None:
     """'10,100,1000' -> [10.0, 100.0, 1000.0]."""
     if text is None:
@@ -341,6 +364,8 @@ def summary_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Tabl
     title = f"stochpend: {markup(model)}, {markup(noise)} noise, D={D:g}" + (f", tau={float(tau):g}" if tau != "none" else "")
     if attrs.get("omega_noise", "none") != "none":
         title += f", W={float(attrs['omega_noise']):g}"
+    if attrs.get("noise_parameters"):  # the noise's own parameters (stochpend.parameters)
+        title += f", {markup(str(attrs['noise_parameters']))}"
     title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {markup(attrs.get('seed'))}"
     scaled: Any = _scaled_column(ds)  # (header, variable, norm) or None
     has_bias = "mean_E_bias" in ds

@@ -35,7 +35,9 @@ from stochpend._cli_common import (  # the shared layer; several are also used a
     console,
     fail,
     handles_errors,
+    load_plugins,
     note,
+    parse_params,
     parse_theta0,
     parse_times,
     results,
@@ -238,7 +240,7 @@ def simulate(
     backend: Annotated[str, typer.Option(help="Where to run: cpu, cuda, or auto (the GPU when usable).")] = "cpu",
     precision: Annotated[str, typer.Option(help="float64 or float32 (CUDA backend only).")] = "float64",
     threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).", show_default="every CPU")] = None,
-    bias_paths: Annotated[int | None, typer.Option("--bias-paths", parser=integer, help="Coupled coarse/fine pairs estimating each statistic's discretisation bias (0: none).", show_default="paths/32, at least 256")] = None,
+    bias_paths: Annotated[int | None, typer.Option("--bias-paths", parser=integer, help="Coupled coarse/fine pairs estimating each statistic's discretisation bias (0: none).", show_default="paths/48, at least 64")] = None,
     accuracy: Annotated[str, typer.Option(help="'fixed': the step control as given; 'auto': refine it until every estimated |bias| is within half a standard error.")] = "fixed",
     rtol: Annotated[float | None, typer.Option("--rtol", help="With --accuracy auto (implied): accept a bias up to this fraction of each value instead.", show_default="none: half a standard error")] = None,
     max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps, paths x t_max / h_max (1e13: hours on a GPU; inf: no limit).", show_default="1e13")] = None,
@@ -248,6 +250,8 @@ def simulate(
     checkpoint_every: Annotated[str | None, typer.Option("--checkpoint-every", help="Checkpoint interval, e.g. 30s, 5m, 1h (needs --checkpoint).", show_default="5m")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
+    param: Annotated[list[str] | None, typer.Option("--param", "-p", help="A parameter the noise declares for itself, NAME=VALUE (repeat it; 'stochpend list' shows each noise's).", show_default="the noise's defaults")] = None,
+    plugin: Annotated[list[str] | None, typer.Option("--plugin", help="Load a noise, model or observable from outside stochpend: an installed stochpend plugin or a module's dotted name (repeat it).", show_default="none")] = None,
     config_file: Annotated[Path | None, typer.Option("--config", parser=file_name, is_eager=True, callback=_load_config,
                                                 help="A TOML file of physics and numerics options, by their names here "
                                                 "(noise, D, tau, t_max, paths, h_max, ...); options on the command "
@@ -263,6 +267,7 @@ def simulate(
     from stochpend.simulate import resolve_backend
     from stochpend.simulate import simulate as run_simulation
 
+    load_plugins(plugin)
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
     if times is not None and n_times is not None:
@@ -279,7 +284,9 @@ def simulate(
         kwargs["hist_bins"] = hist_bins
     # Validate everything before any work (and before the JIT compiles).
     kwargs.update(potential=potential, power_n=n, coupling=coupling, omega_noise=omega_noise)
+    noise_params = parse_params(param)
     config = params.SimulationConfig.build(
+        noise_params=noise_params,
         noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max,
         times=parse_times(times), n_times=n_times, seed=seed, theta0=parse_theta0(theta0),
         Omega0=Omega0, **kwargs,
@@ -327,7 +334,7 @@ def simulate(
                 times=parse_times(times), n_times=n_times, seed=seed, theta0=parse_theta0(theta0),
                 Omega0=Omega0, backend=backend, threads=threads, progress=progress,
                 precision=precision, max_path_steps=max_path_steps, bias_paths=bias_paths,
-                accuracy=accuracy, rtol=rtol, **kwargs,
+                accuracy=accuracy, rtol=rtol, **kwargs, **noise_params,
             )
         ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
         if config_file is not None and ctx is not None:  # provenance: the file as it was read
@@ -542,9 +549,13 @@ def show(
 
 
 @app.command("list")
-def list_pieces() -> None:
-    """The noises, oscillators and couplings a run can use (--noise, --potential, --coupling),
-    with the user models registered in this process."""
+@handles_errors
+def list_pieces(
+    plugin: Annotated[list[str] | None, typer.Option("--plugin", help="Load a plugin first (an installed stochpend plugin or a module's dotted name), to list its pieces.", show_default="none")] = None,
+) -> None:
+    """The noises (with the parameters they declare), oscillators and couplings a run can use
+    (--noise, --param, --potential, --coupling), with the pieces of the plugins loaded."""
+    load_plugins(plugin)
     from stochpend import models, noises, oscillators
     from stochpend._terminal import plain as _plain
     from stochpend.paper import with_numbers
@@ -555,8 +566,14 @@ def list_pieces() -> None:
     table = Table(title="stochpend: the pieces a run is built from")
     for col in ("option", "name", "what it is"):
         table.add_column(col)
+    from stochpend.parameters import own
+
     for name in noises.names():
-        table.add_row("--noise", name, plain(getattr(noises.get(name), "description", "")))
+        piece = noises.get(name)
+        text = plain(getattr(piece, "description", ""))
+        for p in own(piece):  # its own parameters: --param NAME=VALUE
+            text += f"; --param {p.name}=... ({p.default:g}): {plain(p.meaning)}"
+        table.add_row("--noise", name, text)
     for name in oscillators.names():
         table.add_row("--potential", name, plain(getattr(oscillators.get(name), "description", "")))
     for name in models.names():
@@ -564,7 +581,7 @@ def list_pieces() -> None:
     table.add_row("--coupling", "force", "the noise multiplies the force U'(x) (the paper's pendulum)")
     table.add_row("--coupling", "position", "the noise multiplies x (the random-frequency oscillator)")
     table.caption = ("A noise or oscillator of your own: stochpend.noises.register / "
-                     "stochpend.models.register (docs/models.md).")
+                     "stochpend.models.register (docs/models.md), loaded with --plugin MODULE.")
     results.print(table)
 
 

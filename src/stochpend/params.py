@@ -16,6 +16,7 @@ import numpy as np
 from stochpend import noises as _noises
 from stochpend import observables as _observables
 from stochpend import oscillators as _oscillators
+from stochpend import parameters as _parameters
 
 #: The built-in noises (a registered noise is accepted too: ``stochpend.noises.register``).
 NOISES = tuple(noise.name for noise in _noises.BUILTIN)
@@ -119,6 +120,8 @@ class SimulationConfig:
     omega_noise: float | None = None  # harmonic noise: its oscillator's frequency W
     #: Names of registered user observables whose means the run reports (stochpend.observables).
     observables: tuple[str, ...] = ()
+    #: The noise's own parameters (stochpend.parameters), sorted (name, value) pairs.
+    noise_params: tuple[tuple[str, float], ...] = ()
     extra: dict = field(default_factory=dict)
 
     # -- derived, cheap -------------------------------------------------------------------
@@ -148,6 +151,10 @@ class SimulationConfig:
             d["observables"] = ", ".join(self.observables)
         else:
             d.pop("observables")
+        d.pop("noise_params", None)
+        if self.noise_params:  # the noise's own parameters: one line, and each exactly
+            d["noise_parameters"] = _parameters.describe(self.noise_params)
+            d.update({f"noise_{name}": value for name, value in self.noise_params})
         return d
 
     @classmethod
@@ -176,8 +183,11 @@ class SimulationConfig:
         coupling: str = "force",
         omega_noise: float | None = None,
         observables: Any = (),
+        noise_params: Any = None,
     ) -> SimulationConfig:
-        """Validate every argument and return the frozen configuration."""
+        """Validate every argument and return the frozen configuration. ``noise_params``: the
+        values of the parameters the noise declares for itself (:mod:`stochpend.parameters`),
+        a mapping or (name, value) pairs; the noise's defaults fill the others."""
         observables = _observables.resolve(observables)
         noise_piece = _noises.get(noise)
         if noise_piece is None:
@@ -341,6 +351,7 @@ class SimulationConfig:
             coupling=coupling,
             omega_noise=omega_noise,
             observables=observables,
+            noise_params=_parameters.resolve(noise_piece, noise_params),
         )
 
 

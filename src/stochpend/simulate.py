@@ -58,6 +58,7 @@ def simulate(
     bias_paths: int | None = None,
     accuracy: str = "fixed",
     rtol: float | None = None,
+    **noise_params: float,
 ) -> xr.Dataset:
     r"""Simulate an ensemble of stochastic pendulums and return its energy statistics.
 
@@ -84,6 +85,9 @@ def simulate(
     observables : sequence of str, optional
         Names of registered user observables (:func:`stochpend.observables.register`): each
         adds ``mean_<name>`` with its standard error and bias estimate, on every backend.
+    **noise_params : float
+        The parameters a noise declares for itself (``stochpend list`` names them), e.g.
+        ``simulate(noise="two-ou", tau1=0.5, weight=0.3)``; the noise's defaults fill the rest.
     omega : float
         Pendulum frequency, >= 0.
     paths : int
@@ -162,7 +166,7 @@ def simulate(
         n_times=n_times, seed=seed, theta0=theta0, Omega0=Omega0, xi0=xi0, h_max=h_max,
         step_c=step_c, hist_bins=hist_bins, hist_E_max=hist_E_max, n_batches=n_batches,
         potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
-        observables=observables,
+        observables=observables, noise_params=noise_params,
     )
     # Refused here, before any work (run validates again what it is handed: a few checks).
     settings = Run.build(config, backend=backend, precision=precision, threads=threads,

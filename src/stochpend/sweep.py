@@ -62,8 +62,18 @@ __all__ = ["BlockResult", "SweepSpec", "Task", "load_spec", "plan_tasks", "run_b
 
 #: Every parameter a sweep may set: the keywords of SimulationConfig.build.
 PARAMETERS: tuple[str, ...] = tuple(
-    name for name in inspect.signature(SimulationConfig.build).parameters if name != "cls"
+    name for name in inspect.signature(SimulationConfig.build).parameters
+    if name not in ("cls", "noise_params", "observables")  # a noise's own parameters are keys of their own
 )
+
+
+def _declared() -> tuple[str, ...]:
+    """The parameters the registered noises declare for themselves (keys a sweep file may set
+    besides :data:`PARAMETERS`; the set's noise validates them)."""
+    from stochpend import noises
+    from stochpend.parameters import own
+
+    return tuple(dict.fromkeys(p.name for name in noises.names() for p in own(noises.get(name))))
 #: Parameters whose value is a list: settable in [base] and [[case]], not a grid axis.
 LIST_PARAMETERS = ("times", "hist_E_max")
 TOP_LEVEL = ("description", "base", "grid", "case")
@@ -106,10 +116,9 @@ def _check_params(table: Any, where: str, source: str, *, grid: bool = False) ->
     out = {}
     for key, value in table.items():
         name = f"{where}.{key}"
-        if key not in PARAMETERS:
-            raise ValueError(
-                f"{source}: {name} is not accepted: unknown parameter; accepted: {', '.join(PARAMETERS)}"
-            )
+        if key not in PARAMETERS and key not in _declared():
+            accepted = ", ".join(PARAMETERS + _declared())
+            raise ValueError(f"{source}: {name} is not accepted: unknown parameter; accepted: {accepted}")
         if grid:
             if key in LIST_PARAMETERS:
                 raise ValueError(f"{source}: {name} is not accepted: {key} is a list and cannot be a grid "
@@ -135,8 +144,9 @@ def _check_params(table: Any, where: str, source: str, *, grid: bool = False) ->
 
 
 def _build(params: dict[str, Any], source: str, where: str) -> SimulationConfig:
+    own = {k: v for k, v in params.items() if k not in PARAMETERS}  # the noise's own parameters
     try:
-        return SimulationConfig.build(**params)
+        return SimulationConfig.build(**{k: v for k, v in params.items() if k in PARAMETERS}, noise_params=own)
     except ValueError as exc:
         raise ValueError(f"{source}: {where}: {str(exc).splitlines()[0]}") from None
 
@@ -146,6 +156,8 @@ def _coord_value(config: SimulationConfig, key: str, raw: Any) -> Any:
     if key == "n_times":
         return len(config.times)
     names = {f.name for f in fields(config)}
+    if key in dict(config.noise_params):
+        return dict(config.noise_params)[key]
     if key in names:
         v = getattr(config, key)
         if v is None:

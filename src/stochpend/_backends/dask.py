@@ -35,6 +35,7 @@ import distributed
 import numba
 from dask.callbacks import Callback
 
+from stochpend import plugins
 from stochpend._blocks import BlockResult, Task, run_block
 from stochpend._sources import BUILD
 
@@ -78,7 +79,7 @@ class LocalSchedulerEngine:
         calls = [
             dask.delayed(run_block, pure=False)(
                 dask.delayed(spec.configs[t.set_index], traverse=False), t.set_index, t.b0, t.b1,
-                numba_threads=numba_threads, backend=backend, precision=precision,
+                numba_threads=numba_threads, backend=backend, precision=precision, plugins=plugins.loaded(),
             )
             for t in tasks
         ]
@@ -113,7 +114,8 @@ def _worker_facts() -> dict[str, Any]:
 
 
 def _remote_block(config: Any, set_index: int, b0: int, b1: int, threads_by_host: dict[str, int],
-                  version: str, backend: str = "cpu", precision: str = "float64") -> BlockResult:
+                  version: str, backend: str = "cpu", precision: str = "float64",
+                  plugins_: tuple[str, ...] = ()) -> BlockResult:
     """A task on a distributed worker: pick Numba threads for this host, then run the block
     (on the worker's own GPU when ``backend="cuda"``: one worker process per GPU)."""
     worker = distributed.get_worker()
@@ -121,7 +123,7 @@ def _remote_block(config: Any, set_index: int, b0: int, b1: int, threads_by_host
     if threads is None:  # a worker that joined after the sweep started
         threads = max(1, _cpu_count() // max(1, worker.state.nthreads))
     return run_block(config, set_index, b0, b1, numba_threads=threads, expect_version=version,
-                     backend=backend, precision=precision)
+                     backend=backend, precision=precision, plugins=plugins_)
 
 
 class DistributedEngine:
@@ -163,7 +165,7 @@ class DistributedEngine:
             precision: str = "float64") -> None:
         futures = [
             self.client.submit(_remote_block, spec.configs[t.set_index], t.set_index, t.b0, t.b1,
-                               self.threads_by_host, BUILD, backend, precision, pure=False,
+                               self.threads_by_host, BUILD, backend, precision, plugins.loaded(), pure=False,
                                key=f"stochpend-block-{t.set_index}-{t.b0}-{os.urandom(4).hex()}")
             for t in tasks
         ]
