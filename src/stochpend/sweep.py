@@ -74,6 +74,8 @@ def _declared() -> tuple[str, ...]:
     from stochpend.parameters import own
 
     return tuple(dict.fromkeys(p.name for name in noises.names() for p in own(noises.get(name))))
+
+
 #: Parameters whose value is a list: settable in [base] and [[case]], not a grid axis.
 LIST_PARAMETERS = ("times", "hist_E_max")
 TOP_LEVEL = ("description", "base", "grid", "case")
