@@ -107,10 +107,10 @@ def config_to_json(config: SimulationConfig) -> dict[str, Any]:
     """Every field of the configuration as plain JSON values (floats round-trip exactly)."""
     out: dict[str, Any] = {}
     for f in fields(config):
-        if f.name == "extra" or (f.name == "observables" and not config.observables):
+        if f.name == "extra" or (f.name in ("observables", "noise_params") and not getattr(config, f.name)):
             continue  # written only when used: checkpoints from before keep their hash
         v = getattr(config, f.name)
-        out[f.name] = list(v) if isinstance(v, tuple) else v
+        out[f.name] = [list(e) if isinstance(e, tuple) else e for e in v] if isinstance(v, tuple) else v
     return out
 
 

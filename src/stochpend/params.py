@@ -119,6 +119,9 @@ class SimulationConfig:
     omega_noise: float | None = None  # harmonic noise: its oscillator's frequency W
     #: Names of registered user observables whose means the run reports (stochpend.observables).
     observables: tuple[str, ...] = ()
+    #: A noise's own parameters, those that are not fields of this class: a sorted tuple of
+    #: (name, value) pairs, read by ``Noise.record`` (stochpend.noises.base).
+    noise_params: tuple[tuple[str, float], ...] = ()
     extra: dict = field(default_factory=dict)
 
     # -- derived, cheap -------------------------------------------------------------------
@@ -148,6 +151,10 @@ class SimulationConfig:
             d["observables"] = ", ".join(self.observables)
         else:
             d.pop("observables")
+        if self.noise_params:
+            d["noise_params"] = ", ".join(f"{name}={value!r}" for name, value in self.noise_params)
+        else:
+            d.pop("noise_params")
         return d
 
     @classmethod
