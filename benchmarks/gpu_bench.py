@@ -347,12 +347,12 @@ def host_check() -> tuple[list[str], bool]:
         elif kind == "path":
             path = np.uint64(fields[0])
             got = [float(v) for v in fields[1:]]
-            x, Om, xi, aux = kern.init_path(key0, key1, path, 0.0, True, 0.0, 0.0, True, 1.0, 1.0, 0.0)
+            x, Om, xi, aux = kern.init_path(key0, key1, path, 0.0, True, 0.0, 0.0, True, (1.0, 1.0))
             arrays = [np.array([v]) for v in (x, Om, xi, aux, 0.0, 0.0)]
             k = np.zeros(1, dtype=np.uint64)
             status = np.zeros(1, dtype=np.uint8)
-            kern.advance_path(0, *arrays, k, status, steps * h, steps, key0, key1, int(path), 1.0,
-                              1.0, 0.0, 1.0, 2, h, 0.0)
+            kern.advance_path(0, (*arrays, k, status), steps * h, steps, key0, key1, int(path),
+                              (1.0, 1.0), (1.0, 2, h, 0.0))
             for a, b in zip(got, (arrays[0][0], arrays[1][0], arrays[2][0]), strict=True):
                 worst["30 steps"] = max(worst["30 steps"], abs(a - b) / max(1.0, abs(b)))
     ok = (worst["kat"] == 0 and worst["f64 normals"] <= HOST_F64_RTOL

@@ -133,7 +133,7 @@ def _normals_scalar(n):
 def _ou_coefficients(n):
     acc = 0.0
     for i in range(n):
-        a, s_xi, m_I, c_I, s_I = ou.step_coefficients(0.01 + 1e-9 * i, 1.0, 1.0, 0.0)
+        a, s_xi, m_I, c_I, s_I = ou.step_coefficients(0.01 + 1e-9 * i, (1.0, 1.0))
         acc += a + s_xi + m_I + c_I + s_I
     return acc
 

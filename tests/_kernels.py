@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 
 from stochpend import integrator, rng
@@ -12,6 +14,15 @@ def kernels(noise="ou", potential="pendulum", coupling="force", *, adaptive=True
     """``cpu.kernels`` of the Spec with these names; the lock-step driver when ``fast_math``."""
     return cpu.kernels(integrator.spec(noise, potential, coupling, adaptive=adaptive,
                                        fast_math=fast_math))
+
+
+def record(kern, D=1.0, tau=1.0, W=0.0):
+    """The noise record of ``kern``'s Spec (``Noise.record``) for these D, tau and W; without a
+    Spec, the triple (D, tau, W)."""
+    spec = getattr(kern, "spec", None)
+    if spec is None:
+        return (float(D), float(tau), float(W))
+    return spec.noise.record(SimpleNamespace(D=D, tau=tau, omega_noise=W))
 
 
 class Paths:
@@ -27,12 +38,14 @@ class Paths:
 
     def init(self, kern, seed, *, path0=0, theta0=None, Omega0=0.0, xi0=None, D=1.0, tau=1.0, W=0.0):
         key0, key1 = rng.seed_to_key(seed)
-        kern.init(*self.arrays(), key0, key1, path0, 0.0 if theta0 is None else theta0,
-                  theta0 is None, Omega0, 0.0 if xi0 is None else xi0, xi0 is None, D, tau, W)
+        kern.init(self.arrays(), key0, key1, path0, 0.0 if theta0 is None else theta0,
+                  theta0 is None, Omega0, 0.0 if xi0 is None else xi0, xi0 is None,
+                  record(kern, D, tau, W))
         return self
 
     def advance(self, kern, t_target, max_steps, seed, *, path0=0, D=1.0, tau=1.0, W=0.0,
                 omega2=1.0, n=2, h_max=0.05, step_c=0.0):
         key0, key1 = rng.seed_to_key(seed)
-        return kern.advance(*self.arrays(), t_target, max_steps, key0, key1, path0, D, tau, W,
-                            omega2, n, h_max, step_c)
+        run = (float(omega2), int(n), float(h_max), float(step_c))
+        return kern.advance(self.arrays(), t_target, max_steps, key0, key1, path0,
+                            record(kern, D, tau, W), run)

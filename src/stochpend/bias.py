@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from stochpend import observables, rng, stats
+from stochpend import integrator, observables, rng, stats
 from stochpend._jitcache import CompileClock
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig
@@ -287,21 +287,20 @@ class _CpuPairs:
         self.k = np.empty(n, dtype=np.uint64)
         self.status = np.empty(n, dtype=np.uint8)
         self.path0 = _U64(BIAS_PATH0 + p0)
-        cpu.init_kernel(spec)(self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k,
-                              self.status, self.key0, self.key1, self.path0,
+        self.record = spec.noise.record(config)
+        self.run = integrator.run_record(config)
+        cpu.init_kernel(spec)((self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k,
+                               self.status), self.key0, self.key1, self.path0,
                               0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
-                              0.0 if c.xi0 is None else c.xi0, c.xi0 is None, c.D, c.tau_or_zero,
-                              c.omega_noise_or_zero)
+                              0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
         self.xf[:] = self.x
         self.Omegaf[:] = self.Omega
 
     def advance(self, t_target: float, max_steps: int) -> bool:
-        c = self.config
-        _, unfinished = self.advance_k(self.x, self.Omega, self.xf, self.Omegaf, self.xi,
-                                       self.xi_aux, self.t, self.t_comp, self.k, self.status,
-                                       t_target, max_steps, self.key0, self.key1, self.path0, c.D,
-                                       c.tau_or_zero, c.omega_noise_or_zero, c.omega**2,
-                                       c.power_n, c.h_max, c.step_c)
+        state = (self.x, self.Omega, self.xf, self.Omegaf, self.xi, self.xi_aux, self.t, self.t_comp,
+                 self.k, self.status)
+        _, unfinished = self.advance_k(state, t_target, max_steps, self.key0, self.key1, self.path0,
+                                       self.record, self.run)
         return unfinished == 0
 
     def time_sum(self) -> float:

@@ -49,7 +49,7 @@ from stochpend.mathlib import FAST, LIBM
 from stochpend.noises.base import Noise
 from stochpend.oscillators.base import Oscillator
 
-__all__ = ["SCHEME", "Spec", "build", "landing_step", "advance_clock"]
+__all__ = ["SCHEME", "Spec", "build", "landing_step", "advance_clock", "run_record"]
 
 #: Integrator metadata, stored in every result's attrs.
 SCHEME = {
@@ -116,6 +116,14 @@ def advance_clock(t, t_comp, h, last, t_target):
     y = h - t_comp
     t_new = t + y
     return t_new, (t_new - t) - y
+
+
+def run_record(config: Any) -> tuple[float, int, float, float]:
+    """The run's scalars as the kernels take them, one record ``(omega2, n, h_max, step_c)``:
+    omega**2, the power of the potential, the largest step and the step control's constant
+    (0: fixed steps) of a :class:`stochpend.params.SimulationConfig`. With the noise's record
+    (``Noise.record``) it is everything of the configuration a step reads."""
+    return (float(config.omega**2), int(config.power_n), float(config.h_max), float(config.step_c))
 
 
 # -- what a kernel is specialised for ------------------------------------------------------------
@@ -236,9 +244,12 @@ def build(spec: Spec) -> SimpleNamespace:
         return wrap(x_new), Omega_new
 
     @register_jitable
-    def advance_path(i, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0,
-                     key1, path0, D, tau, W, omega2, n, h_max, step_c):
+    def advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run):
         """Advance path i of the arrays towards ``t_target``, at most ``max_steps`` steps.
+
+        ``state``: the arrays ``(x, Omega, xi, xi_aux, t, t_comp, k, status)``; ``p``: the
+        noise's record (``Noise.record``); ``run``: ``(omega2, n, h_max, step_c)``
+        (:func:`run_record`).
 
         The last step is shortened to land exactly on ``t_target`` (and, for a noise with
         events, a step is cut at each event). A path whose state becomes non-finite, or whose
@@ -249,11 +260,21 @@ def build(spec: Spec) -> SimpleNamespace:
         steps and draws as float64. Returns ``(steps_taken, unfinished)`` (1 if the path
         stopped short of ``t_target``).
         """
+        # The arrays of a tuple are taken by index, never unpacked (``x, Omega, ... = state``):
+        # with an unpacked tuple, Numba (0.68) dropped the stores into the arrays once it had
+        # inlined an ``inline="always"`` function (the fast-math OU coefficients) into this
+        # function's IR. The same in every function here that takes a tuple of arrays.
+        x = state[0]
+        Omega = state[1]
+        xi = state[2]
+        xi_aux = state[3]
+        t = state[4]
+        t_comp = state[5]
+        k = state[6]
+        status = state[7]
         if status[i] != 0 or t[i] >= t_target:
             return 0, 0
-        D_r = real(D)
-        tau_r = real(tau)
-        W_r = real(W)
+        omega2, n, h_max, step_c = run
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         c_r = real(step_c)
@@ -268,7 +289,7 @@ def build(spec: Spec) -> SimpleNamespace:
         # Everything of the noise's step that depends on h only, cached while h is unchanged
         # (h = h_max most of the time).
         h_cached = h_max_r
-        C = coefficients(h_max_r, D_r, tau_r, W_r)
+        C = coefficients(h_max_r, p)
         S = scratch0()
         steps = 0
         bad = False
@@ -290,13 +311,13 @@ def build(spec: Spec) -> SimpleNamespace:
                 t_land = t_target
             h = real(h_clock)
             if h != h_cached:
-                C = coefficients(h, D_r, tau_r, W_r)
+                C = coefficients(h, p)
                 h_cached = h
             z, S = draw(key0, key1, path, kk, S)
             noise_integral, xn, xa = update(xn, xa, C, z)
             xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, n)
             if HAS_EVENTS and event:
-                xn, xa = at_event(xn, xa, key0, key1, path, kk, D_r, tau_r, W_r)
+                xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
             kk += _U64(1)
             steps += 1
             tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
@@ -318,8 +339,7 @@ def build(spec: Spec) -> SimpleNamespace:
         return steps, (1 if (not bad and tt < t_target) else 0)
 
     @register_jitable
-    def advance_pair(i, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
-                     max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max, step_c):
+    def advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, run):
         """Advance a *coupled pair* of path i towards ``t_target`` (the bias estimate,
         :mod:`stochpend.bias`).
 
@@ -333,14 +353,24 @@ def build(spec: Spec) -> SimpleNamespace:
         that of the same scheme at half the step, and their difference is small path by path
         (strong order 1), which is what makes the bias estimate cheap.
 
-        ``k`` counts draws (two per coarse step). Returns ``(draws_taken, unfinished)``; a pair
-        with either member non-finite or escaped gets status 1.
+        ``state``: the arrays ``(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status)``;
+        ``p``, ``run`` as for :func:`advance_path`. ``k`` counts draws (two per coarse step).
+        Returns ``(draws_taken, unfinished)``; a pair with either member non-finite or escaped
+        gets status 1.
         """
+        x = state[0]
+        Omega = state[1]
+        xf = state[2]
+        Omegaf = state[3]
+        xi = state[4]
+        xi_aux = state[5]
+        t = state[6]
+        t_comp = state[7]
+        k = state[8]
+        status = state[9]
         if status[i] != 0 or t[i] >= t_target:
             return 0, 0
-        D_r = real(D)
-        tau_r = real(tau)
-        W_r = real(W)
+        omega2, n, h_max, step_c = run
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         c_r = real(step_c)
@@ -356,7 +386,7 @@ def build(spec: Spec) -> SimpleNamespace:
         kk = k[i]
         h_cached = h_max_r
         hh = half * h_max_r
-        C = coefficients(hh, D_r, tau_r, W_r)
+        C = coefficients(hh, p)
         S = scratch0()
         steps = 0
         bad = False
@@ -379,7 +409,7 @@ def build(spec: Spec) -> SimpleNamespace:
             h = real(h_clock)
             if h != h_cached:
                 hh = half * h
-                C = coefficients(hh, D_r, tau_r, W_r)
+                C = coefficients(hh, p)
                 h_cached = h
             z, S = draw(key0, key1, path, kk, S)
             I1, xn, xa = update(xn, xa, C, z)
@@ -389,7 +419,7 @@ def build(spec: Spec) -> SimpleNamespace:
             xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I2, n)
             xs, Om = verlet(xs, Om, h, omega2_r, I1 + I2, n)
             if HAS_EVENTS and event:
-                xn, xa = at_event(xn, xa, key0, key1, path, kk, D_r, tau_r, W_r)
+                xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
             kk += _U64(2)
             steps += 1
             tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
@@ -413,8 +443,7 @@ def build(spec: Spec) -> SimpleNamespace:
         return 2 * steps, (1 if (not bad and tt < t_target) else 0)
 
     @register_jitable
-    def advance_lanes(bx, bO, bxi, bxa, bc2, bc3, br, bph, t0, tc0, k0, t_target, max_steps,
-                      rk0, rk1, D, tau, W, omega2, n, h_max):
+    def advance_lanes(block, t0, tc0, k0, t_target, max_steps, rk0, rk1, p, run):
         """The steps of :func:`advance_path` for ``LANES`` lanes in lock step (fixed step, a noise
         with ``pair_draws``): every lane has the time ``t0``, compensation ``tc0`` and step
         count ``k0``, so the landing, the clock and the noise coefficients are computed once,
@@ -425,29 +454,36 @@ def build(spec: Spec) -> SimpleNamespace:
            Box-Muller radius and phase into ``br``, ``bph``;
         2. the normals, the noise's update and the drift-kick-drift step.
 
-        The arithmetic is advance_path's, operation for operation. The lanes' state arrays
-        (``bx``, ``bO``, ``bxi``, ``bxa``) are updated in place. Returns ``(steps, t, t_comp,
-        k, finite)``; on a non-finite lane the block stops after that step (``finite`` False)
-        and the caller finishes its paths one by one.
+        The arithmetic is advance_path's, operation for operation. ``block``: the lanes' arrays
+        ``(bx, bO, bxi, bxa, bc2, bc3, br, bph)``; the state arrays (``bx``, ``bO``, ``bxi``,
+        ``bxa``) are updated in place. ``p``, ``run`` as for :func:`advance_path` (``step_c``
+        unused). Returns ``(steps, t, t_comp, k, finite)``; on a non-finite lane the block stops
+        after that step (``finite`` False) and the caller finishes its paths one by one.
         """
         lanes = LANES
-        D_r = real(D)
-        tau_r = real(tau)
-        W_r = real(W)
+        bx = block[0]
+        bO = block[1]
+        bxi = block[2]
+        bxa = block[3]
+        bc2 = block[4]
+        bc3 = block[5]
+        br = block[6]
+        bph = block[7]
+        omega2, n, h_max, _ = run
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         tt = t0
         tc = tc0
         kk = k0
         h_cached = h_max_r
-        C = coefficients(h_max_r, D_r, tau_r, W_r)
+        C = coefficients(h_max_r, p)
         steps = 0
         finite = True
         while steps < max_steps:
             h_clock, last = landing_step(tt, h_max, t_target)
             h = real(h_clock)
             if h != h_cached:
-                C = coefficients(h, D_r, tau_r, W_r)
+                C = coefficients(h, p)
                 h_cached = h
             d = _U64(rng.N_FIRST_STEP) + kk
             d0 = d & rng._MASK32
@@ -490,17 +526,16 @@ def initial_state(noise: Noise):
     two_pi = 2.0 * math.pi
 
     @register_jitable
-    def init_path(key0, key1, path, theta0, uniform_theta0, Omega0, xi0, stationary_xi0, D,
-                  tau, W):
+    def init_path(key0, key1, path, theta0, uniform_theta0, Omega0, xi0, stationary_xi0, p):
         """(x, Omega, xi, aux) of global path ``path`` (uint64) at t = 0, in float64: x uniform
         on [-pi, pi) from draw ``N_INIT_THETA`` (or ``theta0``), Omega0, and the noise's
-        stationary law from draw ``N_INIT_XI`` (or xi0)."""
+        stationary law from draw ``N_INIT_XI`` (or xi0); ``p`` the noise's record."""
         if uniform_theta0:
             u, _ = rng.draw_uniforms(key0, key1, path, np.uint64(rng.N_INIT_THETA))
             x = two_pi * u - math.pi
         else:
             x = theta0
-        xi, aux = noise_init(key0, key1, path, D, tau, W, xi0, stationary_xi0)
+        xi, aux = noise_init(key0, key1, path, p, xi0, stationary_xi0)
         return x, Omega0, xi, aux
 
     name_closures([init_path], f"init/{noise.name}")
@@ -579,10 +614,10 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
     path's numbers are the same in any lane, at any time, next to any other paths: a function
     of (seed, path) alone, as for every driver. Needs :func:`lanes_supported`.
 
-    ``advance_range(lo, hi, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-    rk0, rk1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js) -> (steps_taken,
-    unfinished)``: advance_path for paths lo .. hi - 1 of the arrays; ``rk0``, ``rk1`` the
-    seed's round keys (``rng.round_keys``); ``fs``, ``us``, ``js`` the thread's scratch, shapes
+    ``advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch) ->
+    (steps_taken, unfinished)``: advance_path for paths lo .. hi - 1 of the arrays ``state``
+    (``p``, ``run`` as for ``advance_path``); ``rk0``, ``rk1`` the seed's round keys
+    (``rng.round_keys``); ``scratch = (fs, us, js)`` the thread's scratch, shapes
     (``LANE_F_ROWS``, ``LANE_COUNT``), (``LANE_U_ROWS``, ...), (``LANE_I_ROWS``, ...).
     """
     if not lanes_supported(spec):
@@ -603,28 +638,46 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
     slack = 1.0 + LANDING_SLACK
 
     @register_jitable
-    def load(lane, i, x, Omega, xi, xi_aux, t, t_comp, k, path0, fs, us, js):
+    def load(lane, i, state, path0, scratch):
+        x = state[0]
+        Omega = state[1]
+        xi = state[2]
+        xi_aux = state[3]
+        t = state[4]
+        t_comp = state[5]
+        k = state[6]
+        fs = scratch[0]
+        us = scratch[1]
+        js = scratch[2]
         fs[0, lane] = x[i]
         fs[1, lane] = Omega[i]
         fs[2, lane] = xi[i]
         fs[3, lane] = load_aux(xi_aux[i])
         fs[4, lane] = t[i]
         fs[5, lane] = t_comp[i]
-        p = _U64(path0 + i)
+        path = _U64(path0 + i)
         us[0, lane] = k[i]
-        us[1, lane] = p & rng._MASK32
-        us[2, lane] = p >> rng._SHIFT32
+        us[1, lane] = path & rng._MASK32
+        us[2, lane] = path >> rng._SHIFT32
         js[0, lane] = i
         js[1, lane] = 0
         js[2, lane] = 1
         js[3, lane] = 0
 
     @register_jitable
-    def advance_range(lo, hi, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-                      rk0, rk1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js):
-        D_r = real(D)
-        tau_r = real(tau)
-        W_r = real(W)
+    def advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch):
+        x = state[0]
+        Omega = state[1]
+        xi = state[2]
+        xi_aux = state[3]
+        t = state[4]
+        t_comp = state[5]
+        k = state[6]
+        status = state[7]
+        fs = scratch[0]
+        us = scratch[1]
+        js = scratch[2]
+        omega2, n, h_max, step_c = run
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         c_r = real(step_c)
@@ -665,7 +718,7 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
                 while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
                     nxt += 1
                 if nxt < hi:
-                    load(lane, nxt, x, Omega, xi, xi_aux, t, t_comp, k, path0, fs, us, js)
+                    load(lane, nxt, state, path0, scratch)
                     nxt += 1
                     n_active += 1
         while n_active > 0:
@@ -695,7 +748,7 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
                 last = tt + h_clock * slack >= t_target
                 h_clock = t_target - tt if last else h_clock
                 h = real(h_clock)
-                C = coefficients(h, D_r, tau_r, W_r)
+                C = coefficients(h, p)
                 z = draw_keyed(rk0, rk1, c2, c3, kk)
                 noise_integral, xn_new, xa_new = update(xn, xa, C, z)
                 xs_new, Om_new = verlet(xs, Om, h, omega2_r, noise_integral, n)
@@ -746,7 +799,7 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
                 while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
                     nxt += 1
                 if nxt < hi:
-                    load(lane, nxt, x, Omega, xi, xi_aux, t, t_comp, k, path0, fs, us, js)
+                    load(lane, nxt, state, path0, scratch)
                     nxt += 1
                     n_active += 1
         return steps_taken, unfinished
@@ -773,10 +826,10 @@ def build_pair_lanes(spec: Spec) -> SimpleNamespace:
     coarse member has the law of the run's own paths (which run :func:`build_lanes` with the same
     math). Needs :func:`lanes_supported`.
 
-    ``advance_range(lo, hi, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
-    max_steps, rk0, rk1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us, js) ->
-    (draws_taken, unfinished)``; ``fs`` of shape (``PAIR_LANE_F_ROWS``, ``LANE_COUNT``), ``us``
-    and ``js`` as for :func:`build_lanes`. ``k`` counts draws (two per coarse step).
+    ``advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch) ->
+    (draws_taken, unfinished)``, ``state`` the pair arrays of ``advance_pair``; ``scratch =
+    (fs, us, js)``, ``fs`` of shape (``PAIR_LANE_F_ROWS``, ``LANE_COUNT``), ``us`` and ``js``
+    as for :func:`build_lanes`. ``k`` counts draws (two per coarse step).
     """
     if not lanes_supported(spec):
         raise ValueError(f"spec {spec.label} is not accepted: the pair lane machine needs "
@@ -797,7 +850,19 @@ def build_pair_lanes(spec: Spec) -> SimpleNamespace:
     slack = 1.0 + LANDING_SLACK
 
     @register_jitable
-    def load(lane, i, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, path0, fs, us, js):
+    def load(lane, i, state, path0, scratch):
+        x = state[0]
+        Omega = state[1]
+        xf = state[2]
+        Omegaf = state[3]
+        xi = state[4]
+        xi_aux = state[5]
+        t = state[6]
+        t_comp = state[7]
+        k = state[8]
+        fs = scratch[0]
+        us = scratch[1]
+        js = scratch[2]
         fs[0, lane] = x[i]
         fs[1, lane] = Omega[i]
         fs[2, lane] = xi[i]
@@ -806,22 +871,31 @@ def build_pair_lanes(spec: Spec) -> SimpleNamespace:
         fs[5, lane] = t_comp[i]
         fs[6, lane] = xf[i]
         fs[7, lane] = Omegaf[i]
-        p = _U64(path0 + i)
+        path = _U64(path0 + i)
         us[0, lane] = k[i]
-        us[1, lane] = p & rng._MASK32
-        us[2, lane] = p >> rng._SHIFT32
+        us[1, lane] = path & rng._MASK32
+        us[2, lane] = path >> rng._SHIFT32
         js[0, lane] = i
         js[1, lane] = 0
         js[2, lane] = 1
         js[3, lane] = 0
 
     @register_jitable
-    def advance_range(lo, hi, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
-                      max_steps, rk0, rk1, path0, D, tau, W, omega2, n, h_max, step_c, fs, us,
-                      js):
-        D_r = real(D)
-        tau_r = real(tau)
-        W_r = real(W)
+    def advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch):
+        x = state[0]
+        Omega = state[1]
+        xf = state[2]
+        Omegaf = state[3]
+        xi = state[4]
+        xi_aux = state[5]
+        t = state[6]
+        t_comp = state[7]
+        k = state[8]
+        status = state[9]
+        fs = scratch[0]
+        us = scratch[1]
+        js = scratch[2]
+        omega2, n, h_max, step_c = run
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         c_r = real(step_c)
@@ -866,8 +940,7 @@ def build_pair_lanes(spec: Spec) -> SimpleNamespace:
                 while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
                     nxt += 1
                 if nxt < hi:
-                    load(lane, nxt, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, path0, fs,
-                         us, js)
+                    load(lane, nxt, state, path0, scratch)
                     nxt += 1
                     n_active += 1
         while n_active > 0:
@@ -899,7 +972,7 @@ def build_pair_lanes(spec: Spec) -> SimpleNamespace:
                 h_clock = t_target - tt if last else h_clock
                 h = real(h_clock)
                 hh = half * h
-                C = coefficients(hh, D_r, tau_r, W_r)
+                C = coefficients(hh, p)
                 z = draw_keyed(rk0, rk1, c2, c3, kk)
                 I1, xn1, xa1 = update(xn, xa, C, z)
                 z = draw_keyed(rk0, rk1, c2, c3, kk + _U64(1))
@@ -959,8 +1032,7 @@ def build_pair_lanes(spec: Spec) -> SimpleNamespace:
                 while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
                     nxt += 1
                 if nxt < hi:
-                    load(lane, nxt, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, path0, fs,
-                         us, js)
+                    load(lane, nxt, state, path0, scratch)
                     nxt += 1
                     n_active += 1
         return draws_taken, unfinished

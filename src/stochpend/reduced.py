@@ -646,7 +646,7 @@ def _run_chunk(config: ReducedConfig, p0: int, n: int, sums: np.ndarray | None,
                 path_steps += n
             elif order == "second":
                 h = float(h_steps[j])
-                a, s_xi, m_I, c_I, s_I = _ou.step_coefficients(h, config.D, config.tau, 0.0)
+                a, s_xi, m_I, c_I, s_I = _ou.step_coefficients(h, (config.D, config.tau))
                 _advance_second(state, xi, status, int(n_steps[j]), h, int(k0_steps[j]), sigma2,
                                 config.tau, config.omega**2, a, s_xi, m_I, c_I, s_I, key0, key1, p0)
                 path_steps += n * int(n_steps[j])

@@ -168,14 +168,14 @@ def test_stationary_initial_noise_laws():
     init_harmonic = integrator.build(integrator.spec("harmonic")).init_path
     init_dichotomous = integrator.build(integrator.spec("dichotomous")).init_path
     draws = np.array([init_harmonic(key0, key1, np.uint64(p), 0.0, False, 0.0, 0.0, True,
-                                    D, tau, W)[2:] for p in range(2000)])
+                                    (D, tau, W))[2:] for p in range(2000)])
     var = D / (2 * tau)
     for col, v in ((0, var), (1, W * W * var)):
         s = draws[:, col] ** 2
         assert abs(s.mean() - v) / (s.std(ddof=1) / math.sqrt(s.size)) < Z_TOL
     # Dichotomous: the first flip is exponential with mean 2 tau.
     waits = np.array([init_dichotomous(key0, key1, np.uint64(p), 0.0, False, 0.0, 0.0, True,
-                                       D, tau, 0.0)[3] for p in range(2000)])
+                                       (D, tau))[3] for p in range(2000)])
     assert abs(waits.mean() - 2 * tau) / (waits.std(ddof=1) / math.sqrt(waits.size)) < Z_TOL
 
 

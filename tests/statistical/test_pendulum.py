@@ -90,12 +90,12 @@ def test_ou_noise_integral_composes_exactly():
     rs = np.random.default_rng(SEED)
     xi0 = rs.normal(0.0, math.sqrt(D / (2 * tau)), n)
     # one step of 8h
-    a, s_xi, m_I, c_I, s_I = ou.step_coefficients(8 * h, D, tau, 0.0)
+    a, s_xi, m_I, c_I, s_I = ou.step_coefficients(8 * h, (D, tau))
     z1, z2 = rs.normal(size=n), rs.normal(size=n)
     I_big = m_I * xi0 + c_I * z1 + s_I * z2
     xi_big = a * xi0 + s_xi * z1
     # eight steps of h
-    a, s_xi, m_I, c_I, s_I = ou.step_coefficients(h, D, tau, 0.0)
+    a, s_xi, m_I, c_I, s_I = ou.step_coefficients(h, (D, tau))
     xi, I_small = xi0.copy(), np.zeros(n)
     for _ in range(8):
         z1, z2 = rs.normal(size=n), rs.normal(size=n)

@@ -26,7 +26,9 @@ def build(real, mathlib) -> NoiseKernel:
     zero = real(0.0)
 
     @register_jitable
-    def init(key0, key1, path, D, tau, W, xi0, stationary):
+    def init(key0, key1, path, p, xi0, stationary):
+        D = p[0]
+        tau = p[1]
         u, _ = rng.draw_uniforms(key0, key1, path, np.uint64(rng.N_INIT_XI))
         phase = 2.0 * math.pi * u
         return math.sqrt(D / tau) * math.cos(phase), phase
@@ -36,7 +38,10 @@ def build(real, mathlib) -> NoiseKernel:
         return np.float64(a)  # a phase that grows like the time: kept in float64
 
     @register_jitable
-    def coefficients(h, D, tau, W):
+    def coefficients(h, p):
+        D = real(p[0])
+        tau = real(p[1])
+        W = real(p[2])
         a = math.sqrt(np.float64(D) / np.float64(tau))
         return np.float64(W) * np.float64(h), a / np.float64(W), a
 
@@ -60,6 +65,7 @@ PHASE_DRIVE = Noise(
     colored=True,
     uses_omega_noise=True,
     default_omega_noise=lambda tau: 1.0 / tau,
+    parameters=("D", "tau", "omega_noise"),
     variance=lambda D, tau, W: D / (2.0 * tau),
     correlation=lambda s, D, tau, W: D / (2.0 * tau) * np.cos(W * np.asarray(s, dtype=float)),
 )

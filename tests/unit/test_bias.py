@@ -9,6 +9,7 @@ sampling, 4/3 (M_h - M_{h/2}), and the true bias M_h - exact too.
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 import pytest
@@ -87,13 +88,13 @@ def test_pairs_without_noise_are_the_run_at_h_and_at_h_over_2(step_c):
     k = np.zeros(n, dtype=np.uint64)
     status = np.zeros(n, dtype=np.uint8)
     x, Om, xf, Of, xi, xa, t, tc = pair
-    init(x, Om, xi, xa, t, tc, k, status, key0, key1, np.uint64(0), theta0, False, 0.0,
-         0.0, False, 0.0, 1.0, 0.0)
+    init((x, Om, xi, xa, t, tc, k, status), key0, key1, np.uint64(0), theta0, False, 0.0,
+         0.0, False, (0.0, 1.0))
     xf[:] = x
     Om[:] = Omega0
     Of[:] = Omega0
-    advance(x, Om, xf, Of, xi, xa, t, tc, k, status, 3.0, 10**6, key0, key1, np.uint64(0), 0.0,
-            1.0, 0.0, 1.0, 2, 0.1, step_c)
+    advance((x, Om, xf, Of, xi, xa, t, tc, k, status), 3.0, 10**6, key0, key1, np.uint64(0),
+            (0.0, 1.0), (1.0, 2, 0.1, step_c))
     kern = kernels("ou", adaptive=step_c > 0)
     for h, (xs, Os) in ((0.1, (x, Om)), (0.05, (xf, Of))):
         if h == 0.05 and step_c > 0:
@@ -258,16 +259,17 @@ def test_pairs_in_simd_lanes_are_the_one_pair_kernel_bit_for_bit(noise, adaptive
             x, Om, xf, Of, xi, xa, t, tc = (np.empty(n) for _ in range(8))
             k = np.empty(n, dtype=np.uint64)
             status = np.empty(n, dtype=np.uint8)
-            cpu.init_kernel(spec)(x, Om, xi, xa, t, tc, k, status, key0, key1, path0, 0.0, True,
-                                  0.0, 0.0, True, 1.0, 1.0, 0.0)
+            p = spec.noise.record(types.SimpleNamespace(D=1.0, tau=1.0, omega_noise=None))
+            cpu.init_kernel(spec)((x, Om, xi, xa, t, tc, k, status), key0, key1, path0, 0.0, True,
+                                  0.0, 0.0, True, p)
             xf[:] = x
             Of[:] = Om
             draws = 0
             for t_target in (0.7, 3.0, 8.0):
                 while True:
-                    d, unfinished = advance(x, Om, xf, Of, xi, xa, t, tc, k, status, t_target, 37,
-                                            key0, key1, path0, 1.0, 1.0, 0.0, 1.0, 2, 0.05,
-                                            0.1 if adaptive else 0.0)
+                    d, unfinished = advance((x, Om, xf, Of, xi, xa, t, tc, k, status), t_target, 37,
+                                            key0, key1, path0, p,
+                                            (1.0, 2, 0.05, 0.1 if adaptive else 0.0))
                     draws += d
                     if unfinished == 0:
                         break

@@ -221,7 +221,7 @@ def _check_cpu_kernels_are_current() -> None:
     z, _ = rng.draw_normals(key0, key1, np.uint64(0), np.uint64(rng.N_INIT_XI))
     x0, xi0 = 2.0 * math.pi * u - math.pi, math.sqrt(1.0 / 2.0) * z
     z1, z2 = rng.draw_normals(key0, key1, np.uint64(0), np.uint64(rng.N_FIRST_STEP))
-    a, s_xi, m_I, c_I, s_I = ou.step_coefficients(0.1, 1.0, 1.0, 0.0)
+    a, s_xi, m_I, c_I, s_I = ou.step_coefficients(0.1, (1.0, 1.0))
     verlet = integrator.build(integrator.spec("ou", adaptive=False)).verlet
     x1, Omega1 = verlet(x0, 0.0, 0.1, 1.0, m_I * xi0 + c_I * z1 + s_I * z2, 2)
     expected = (x1, Omega1, a * xi0 + s_xi * z1)
@@ -377,7 +377,7 @@ def test_float32_pieces_compute_in_float32():
     def step(x, Om, h, omega2, I, xi, D, tau, key0, key1):
         x1, Om1 = verlet(x, Om, h, omega2, I, 2)
         hh = step_size(x1, Om1, xi, h, f(0.25), omega2, 2)
-        C = coefficients(hh, D, tau, f(0.0))
+        C = coefficients(hh, (D, tau))
         z, _ = draw(key0, key1, np.uint64(3), np.uint64(3), 0)
         I2, xi2, _ = update(xi, xi, C, z)
         return x1, Om1, hh, C[0], C[1], C[2], C[3], C[4], z[0], z[1], I2, xi2
@@ -389,7 +389,7 @@ def test_float32_pieces_compute_in_float32():
     assert all(str(t) == "float32" for t in signature.types), signature
     x1, Om1 = f64.verlet(3.1, 2.5, 0.05, 1.0, 0.01, 2)
     hh = f64.step_size(x1, Om1, 0.4, 0.05, 0.25, 1.0, 2)
-    C = ou.step_coefficients(hh, 1.0, 1.0, 0.0)
+    C = ou.step_coefficients(hh, (1.0, 1.0))
     z1, z2 = rng.draw_normals(key0, key1, np.uint64(3), np.uint64(rng.N_FIRST_STEP + 3))
     ref = (x1, Om1, hh, *C, z1, z2, C[2] * 0.4 + C[3] * z1 + C[4] * z2, C[0] * 0.4 + C[1] * z1)
     np.testing.assert_allclose(np.array(out, dtype=np.float64), ref, rtol=2e-6)

@@ -269,11 +269,11 @@ def test_branch_free_ou_coefficients_agree_with_the_c_library_ones(h, tau):
     coefficients = ou.branch_free_coefficients(np.float64, FAST)
 
     @numba.njit(error_model="numpy")
-    def fast(h, D, tau, W):  # as the kernels compile it (0/0 selected away, not an error)
-        return coefficients(h, D, tau, W)
+    def fast(h, p):  # as the kernels compile it (0/0 selected away, not an error)
+        return coefficients(h, p)
 
     D = 1.7
-    for got, want in zip(fast(h, D, tau, 0.0), ou.step_coefficients(h, D, tau, 0.0), strict=True):
+    for got, want in zip(fast(h, (D, tau)), ou.step_coefficients(h, (D, tau)), strict=True):
         assert got == pytest.approx(want, rel=1e-14, abs=1e-300), (h, tau, got, want)
-    zero = fast(h, 0.0, tau, 0.0)  # D = 0: no noise, and no 0/0
+    zero = fast(h, (0.0, tau))  # D = 0: no noise, and no 0/0
     assert zero[1] == zero[3] == zero[4] == 0.0

@@ -44,7 +44,7 @@ def test_conditional_variance_function_is_accurate_everywhere(x):
 def test_ou_coefficients_reproduce_the_exact_joint_covariance(h, tau):
     """NOTES.md: var xi' = D(1-a^2)/(2 tau), var I = D[h - 2 tau(1-a) + tau(1-a^2)/2], cov = D(1-a)^2/2."""
     D = 2.5
-    a, s_xi, m_I, c_I, s_I = ou.step_coefficients(h, D, tau, 0.0)
+    a, s_xi, m_I, c_I, s_I = ou.step_coefficients(h, (D, tau))
     e = math.exp(-h / tau)
     assert a == pytest.approx(e, rel=1e-14)
     assert m_I == pytest.approx(tau * (1 - e), rel=1e-14)
@@ -56,7 +56,7 @@ def test_ou_coefficients_reproduce_the_exact_joint_covariance(h, tau):
 
 def test_ou_coefficients_tend_to_white_noise_as_tau_vanishes():
     h, D = 0.1, 1.7
-    _, _, m_I, c_I, s_I = ou.step_coefficients(h, D, 1e-9, 0.0)
+    _, _, m_I, c_I, s_I = ou.step_coefficients(h, (D, 1e-9))
     assert c_I**2 + s_I**2 == pytest.approx(D * h, rel=1e-7)
     assert m_I == pytest.approx(1e-9, rel=1e-6)
 

@@ -30,7 +30,7 @@ def _kernels(noise, adaptive, driver):
     if driver == "lanes":
         assert integrator.lanes_supported(spec) and kern.advance is not cpu.path_kernel(spec)
         return kern
-    return types.SimpleNamespace(init=kern.init, advance=cpu.path_kernel(spec))
+    return types.SimpleNamespace(init=kern.init, advance=cpu.path_kernel(spec), spec=spec)
 
 
 def _run(kern, n, *, seed=11, max_steps=37, path0=0, D=4.0, h_max=0.05, step_c=0.1,

@@ -80,3 +80,25 @@ def test_public_api_checkpoint_and_validation_take_the_new_noise(tmp_path):
         SimulationConfig.build(**{**kw, "omega_noise": -1.0})
     with pytest.raises(ValueError, match="omega_noise applies to noise="):
         SimulationConfig.build(noise="ou", omega_noise=2.0)
+
+
+def test_a_noise_record_reads_the_config_then_noise_params():
+    """``Noise.record``: each name of ``parameters`` from the config's field of that name (None
+    as 0.0), else from ``noise_params``; the built-ins' records are prefixes of (D, tau, W)."""
+    import dataclasses
+
+    from stochpend import noises
+    from stochpend.noises.base import Noise
+
+    config = SimulationConfig.build(noise="ou", D=D, tau=TAU, paths=10, t_max=1.0, times=[1.0])
+    assert noises.get("white").record(config) == (D,)
+    assert noises.get("ou").record(config) == (D, TAU)
+    assert noises.get("dichotomous").record(config) == (D, TAU)
+    assert noises.get("harmonic").record(config) == (D, TAU, 0.0)  # omega_noise None: 0
+    two_ou = Noise(name="two-ou", build=lambda real, mathlib: None, description="test only",
+                   parameters=("D", "tau", "tau2", "weight"))
+    mine = dataclasses.replace(config, noise_params=(("tau2", 0.125), ("weight", 0.25)))
+    assert two_ou.record(mine) == (D, TAU, 0.125, 0.25)
+    assert all(type(v) is float for v in two_ou.record(mine))
+    with pytest.raises(ValueError, match="tau2"):
+        two_ou.record(config)

@@ -95,20 +95,29 @@ def spec_for(config, precision: str = "float64") -> Spec:
 
 @functools.cache
 def init_kernel(spec: Spec):
-    """``init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
-    uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W)``: initial conditions of global
-    paths path0 .. path0 + len(x) - 1 (draws 0 and 1); depends on the noise only. The paths
-    are shared among the threads in ranges (:func:`_ranges`)."""
+    """``init(state, key0, key1, path0, theta0, uniform_theta0, Omega0, xi0, stationary_xi0,
+    p)``: initial conditions of global paths path0 .. path0 + len(x) - 1 (draws 0 and 1) into
+    ``state = (x, Omega, xi, xi_aux, t, t_comp, k, status)``; ``p`` the noise's record
+    (``Noise.record``); depends on the noise only. The paths are shared among the threads in
+    ranges (:func:`_ranges`)."""
     init_path = integrator.initial_state(spec.noise)
 
     @numba.njit(nogil=True, cache=spec.noise.builtin)
     @own_index(spec.noise.name)
-    def init(lo, hi, x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
-             uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W):  # pragma: no cover
+    def init(lo, hi, state, key0, key1, path0, theta0, uniform_theta0, Omega0, xi0,
+             stationary_xi0, p):  # pragma: no cover
+        x = state[0]
+        Omega = state[1]
+        xi = state[2]
+        xi_aux = state[3]
+        t = state[4]
+        t_comp = state[5]
+        k = state[6]
+        status = state[7]
         for i in range(lo, hi):
             x[i], Omega[i], xi[i], xi_aux[i] = init_path(
                 key0, key1, _U64(path0 + i), theta0, uniform_theta0, Omega0, xi0,
-                stationary_xi0, D, tau, W)
+                stationary_xi0, p)
             t[i] = 0.0
             t_comp[i] = 0.0
             k[i] = 0
@@ -121,13 +130,15 @@ def _ranges(kernel, items: int = 0, summed: bool = False):
     """A kernel over items ``lo .. hi - 1`` (rows of its argument ``items``) as one over all:
     one contiguous range per Numba thread (``numba.get_num_threads()``), run on threads
     (:func:`_on_workers`). For kernels whose items are independent (paths, batches), so the
-    numbers do not depend on the split. A plain ``nogil`` kernel, not a ``parallel=True`` one:
+    numbers do not depend on the split (a tuple of arrays, the state, counts its first's
+    rows). A plain ``nogil`` kernel, not a ``parallel=True`` one:
     Numba's parallel lowering compiles such a kernel and what it calls twice over (about 1 s
     more each on a cold cache). ``summed``: the kernel returns ``(steps, unfinished)``, and so
     does the whole, summed over the ranges."""
 
     def run(*args):
-        n_items = args[items].shape[0]
+        rows = args[items]
+        n_items = (rows[0] if isinstance(rows, tuple) else rows).shape[0]
         nw = max(1, min(numba.get_num_threads(), n_items))
         size = -(-n_items // nw)
         done = _on_workers(lambda w: kernel(min(w * size, n_items),
@@ -142,10 +153,12 @@ def _ranges(kernel, items: int = 0, summed: bool = False):
 
 @functools.cache
 def advance_kernel(spec: Spec):
-    """``advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
-    path0, D, tau, W, omega2, n, h_max, step_c) -> (steps_taken, paths_unfinished)``: every
-    unfinished path towards ``t_target``, at most ``max_steps`` steps each (the SIMD drivers
-    when the Spec allows them; see the module docstring)."""
+    """``advance(state, t_target, max_steps, key0, key1, path0, p, run) -> (steps_taken,
+    paths_unfinished)``: every unfinished path of ``state = (x, Omega, xi, xi_aux, t, t_comp,
+    k, status)`` towards ``t_target``, at most ``max_steps`` steps each (the SIMD drivers when
+    the Spec allows them; see the module docstring). ``p`` the noise's record
+    (``Noise.record``), ``run`` the run's ``(omega2, n, h_max, step_c)``
+    (``integrator.run_record``)."""
     if spec.fast_math and integrator.build(spec).lockstep:
         return _with_workers(_lockstep_kernel(spec), (6, BLOCK), (2, BLOCK), (0, BLOCK),
                              items=lambda n_paths: (n_paths + BLOCK - 1) // BLOCK)
@@ -165,14 +178,12 @@ def path_kernel(spec: Spec):
 
     @numba.njit(nogil=True, cache=spec.cacheable)
     @own_index(spec.label)
-    def advance(lo, hi, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0,
-                key1, path0, D, tau, W, omega2, n, h_max, step_c):  # pragma: no cover - compiled
+    def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
+                run):  # pragma: no cover - compiled
         steps_taken = 0
         unfinished = 0
         for i in range(lo, hi):
-            s, u = advance_path(i, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target,
-                                max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max,
-                                step_c)
+            s, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)
             steps_taken += s
             unfinished += u
         return steps_taken, unfinished
@@ -222,19 +233,17 @@ def _lanes_kernel(spec: Spec):
 
     @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label)
-    def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
-                path0, D, tau, W, omega2, n, h_max, step_c, f, u, j, next_piece,
+    def advance(state, t_target, max_steps, key0, key1, path0, p, run, scratch, next_piece,
                 nw):  # pragma: no cover - compiled
-        n_paths = x.shape[0]
+        n_paths = state[0].shape[0]
         n_pieces, size = _pieces(n_paths, nw)
         rk0, rk1 = rng.round_keys(key0, key1)  # the same for every path
         steps_taken = 0
         unfinished = 0
         piece = _take(next_piece)
         while piece < n_pieces:
-            s, uf = advance_range(piece * size, min((piece + 1) * size, n_paths), x, Omega, xi,
-                                  xi_aux, t, t_comp, k, status, t_target, max_steps, rk0, rk1,
-                                  path0, D, tau, W, omega2, n, h_max, step_c, f, u, j)
+            s, uf = advance_range(piece * size, min((piece + 1) * size, n_paths), state, t_target,
+                                  max_steps, rk0, rk1, path0, p, run, scratch)
             steps_taken += s
             unfinished += uf
             piece = _take(next_piece)
@@ -295,16 +304,19 @@ def _on_workers(call, nw: int) -> list:
 def _with_workers(kernel, f_shape, u_shape, i_shape, items=None):
     """``advance`` with the driver's signature for a lane worker ``kernel``: one worker per Numba
     thread (``numba.get_num_threads()``, which ``threads=`` sets), at most one per path, each
-    with its own scratch (a few kB, allocated here so that the kernel allocates nothing)."""
+    with its own scratch (a few kB, allocated here so that the kernel allocates nothing), passed
+    as one tuple ``(f, u, j)`` after the driver's arguments."""
 
-    def advance(*args):
-        n_items = args[0].shape[0] if items is None else items(args[0].shape[0])
+    def advance(state, *args):
+        n_paths = state[0].shape[0]
+        n_items = n_paths if items is None else items(n_paths)
         nw = max(1, min(numba.get_num_threads(), n_items))
         fs = np.empty((nw, *f_shape))
         us = np.empty((nw, *u_shape), dtype=np.uint64)
         js = np.empty((nw, *i_shape), dtype=np.int64)
         next_piece = np.zeros(1, dtype=np.int64)
-        done = _on_workers(lambda w: kernel(*args, fs[w], us[w], js[w], next_piece, nw), nw)
+        done = _on_workers(lambda w: kernel(state, *args, (fs[w], us[w], js[w]), next_piece, nw),
+                           nw)
         return sum(d[0] for d in done), sum(d[1] for d in done)
 
     advance.kernel = kernel
@@ -313,9 +325,9 @@ def _with_workers(kernel, f_shape, u_shape, i_shape, items=None):
 
 @functools.cache
 def pair_advance_kernel(spec: Spec):
-    """``advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-    key0, key1, path0, D, tau, W, omega2, n, h_max, step_c) -> (draws_taken, pairs_unfinished)``:
-    the coupled pairs of the bias estimate (:mod:`stochpend.bias`) towards ``t_target``.
+    """``advance(state, t_target, max_steps, key0, key1, path0, p, run) -> (draws_taken,
+    pairs_unfinished)``: the coupled pairs ``state = (x, Omega, xf, Omegaf, xi, xi_aux, t,
+    t_comp, k, status)`` of the bias estimate (:mod:`stochpend.bias`) towards ``t_target``.
 
     In SIMD lanes (``integrator.build_pair_lanes``) when the Spec has them, with the run's fast
     math, so the pairs cost what the run's own paths cost per step; else one pair at a time
@@ -333,15 +345,12 @@ def _pair_path_kernel(spec: Spec):
 
     @numba.njit(nogil=True, cache=spec.cacheable)
     @own_index(spec.label + "/pairs")
-    def advance(lo, hi, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
-                max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max,
-                step_c):  # pragma: no cover
+    def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
+                run):  # pragma: no cover
         draws = 0
         unfinished = 0
         for i in range(lo, hi):
-            s, u = advance_pair(i, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status,
-                                t_target, max_steps, key0, key1, path0, D, tau, W, omega2, n,
-                                h_max, step_c)
+            s, u = advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, run)
             draws += s
             unfinished += u
         return draws, unfinished
@@ -355,19 +364,17 @@ def _pair_lanes_kernel(spec: Spec):
 
     @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label + "/pairs")
-    def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-                key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, f, u, j, next_piece,
+    def advance(state, t_target, max_steps, key0, key1, path0, p, run, scratch, next_piece,
                 nw):  # pragma: no cover - compiled
-        n_paths = x.shape[0]
+        n_paths = state[0].shape[0]
         n_pieces, size = _pieces(n_paths, nw)
         rk0, rk1 = rng.round_keys(key0, key1)
         draws = 0
         unfinished = 0
         piece = _take(next_piece)
         while piece < n_pieces:
-            s, uf = advance_range(piece * size, min((piece + 1) * size, n_paths), x, Omega, xf,
-                                  Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-                                  rk0, rk1, path0, D, tau, W, omega2, n, h_max, step_c, f, u, j)
+            s, uf = advance_range(piece * size, min((piece + 1) * size, n_paths), state, t_target,
+                                  max_steps, rk0, rk1, path0, p, run, scratch)
             draws += s
             unfinished += uf
             piece = _take(next_piece)
@@ -383,9 +390,18 @@ def _lockstep_kernel(spec: Spec):
 
     @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label)
-    def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
-                path0, D, tau, W, omega2, n, h_max, step_c, fw, uw, jw, next_piece,
+    def advance(state, t_target, max_steps, key0, key1, path0, p, run, scratch, next_piece,
                 nw):  # pragma: no cover - compiled
+        x = state[0]
+        Omega = state[1]
+        xi = state[2]
+        xi_aux = state[3]
+        t = state[4]
+        t_comp = state[5]
+        k = state[6]
+        status = state[7]
+        fw = scratch[0]
+        uw = scratch[1]
         n_paths = x.shape[0]
         n_blocks = (n_paths + BLOCK - 1) // BLOCK
         n_pieces, size = _pieces(n_blocks, nw)
@@ -420,9 +436,8 @@ def _lockstep_kernel(spec: Spec):
                     lockstep = False
             if not lockstep or t0 >= t_target:
                 for lane in range(m):
-                    s, u = advance_path(i0 + lane, x, Omega, xi, xi_aux, t, t_comp, k,
-                                        status, t_target, max_steps, key0, key1, path0, D,
-                                        tau, W, omega2, n, h_max, step_c)
+                    s, u = advance_path(i0 + lane, state, t_target, max_steps, key0, key1,
+                                        path0, p, run)
                     steps_taken += s
                     unfinished += u
                 continue
@@ -432,12 +447,11 @@ def _lockstep_kernel(spec: Spec):
                 bO[lane] = Omega[src]
                 bxi[lane] = xi[src]
                 bxa[lane] = xi_aux[src]
-                p = _U64(path0 + src)
-                bc2[lane] = p & rng._MASK32
-                bc3[lane] = p >> rng._SHIFT32
-            s, tt, tc, kk, finite = advance_lanes(bx, bO, bxi, bxa, bc2, bc3, br, bph, t0,
-                                                  tc0, k0, t_target, max_steps, rk0, rk1, D,
-                                                  tau, W, omega2, n, h_max)
+                path = _U64(path0 + src)
+                bc2[lane] = path & rng._MASK32
+                bc3[lane] = path >> rng._SHIFT32
+            s, tt, tc, kk, finite = advance_lanes((bx, bO, bxi, bxa, bc2, bc3, br, bph), t0,
+                                                  tc0, k0, t_target, max_steps, rk0, rk1, p, run)
             for lane in range(m):
                 x[i0 + lane] = bx[lane]
                 Omega[i0 + lane] = bO[lane]
@@ -455,9 +469,8 @@ def _lockstep_kernel(spec: Spec):
                             and math.isfinite(bxi[lane])):
                         status[i0 + lane] = 1
                 for lane in range(m):
-                    s2, u = advance_path(i0 + lane, x, Omega, xi, xi_aux, t, t_comp, k,
-                                         status, t_target, max_steps - s, key0, key1, path0,
-                                         D, tau, W, omega2, n, h_max, step_c)
+                    s2, u = advance_path(i0 + lane, state, t_target, max_steps - s, key0, key1,
+                                         path0, p, run)
                     steps_taken += s2
                     unfinished += u
             elif tt < t_target:
@@ -572,6 +585,8 @@ class Engine:
         self.kernels = kernels(spec)
         self.kernels.accumulate = accumulate_kernel(spec, config.observables)
         self.key0, self.key1 = rng.seed_to_key(config.seed)
+        self.record = spec.noise.record(config)
+        self.run = integrator.run_record(config)
         self.n_times = len(config.times)
         self.n_cols = config.hist_bins + 2
         self.hist = np.empty((n_chunk_batches, self.n_cols), dtype=np.int64)
@@ -595,11 +610,9 @@ class Engine:
         self._allocate(n, nb)
         # path0 as uint64, as the bias estimate's pairs pass theirs (from 2**63): one compiled
         # init for both (path0 + i is the same uint64 either way).
-        self.kernels.init(self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k,
-                          self.status, self.key0, self.key1, _U64(p0),
+        self.kernels.init(self.state(), self.key0, self.key1, _U64(p0),
                           0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
-                          0.0 if c.xi0 is None else c.xi0, c.xi0 is None, c.D, c.tau_or_zero,
-                          c.omega_noise_or_zero)
+                          0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
 
     def load(self, p0: int, arrays: dict[str, np.ndarray]) -> None:
         """Continue a chunk from host arrays (a checkpoint's RunState fields)."""
@@ -612,12 +625,14 @@ class Engine:
     def max_steps(self) -> int:
         return max(MIN_STEPS_PER_CALL, WORK_PER_CALL // max(self.n, 1))
 
+    def state(self) -> tuple[np.ndarray, ...]:
+        """The chunk's arrays as the kernels take them: (x, Omega, xi, xi_aux, t, t_comp, k,
+        status)."""
+        return (self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k, self.status)
+
     def advance(self, t_target: float, max_steps: int) -> bool:
-        c = self.config
-        _, unfinished = self.kernels.advance(
-            self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k, self.status,
-            t_target, max_steps, self.key0, self.key1, self.p0, c.D, c.tau_or_zero,
-            c.omega_noise_or_zero, c.omega**2, c.power_n, c.h_max, c.step_c)
+        _, unfinished = self.kernels.advance(self.state(), t_target, max_steps, self.key0,
+                                             self.key1, self.p0, self.record, self.run)
         return unfinished == 0
 
     def time_sum(self, t_target: float, done: bool) -> float:

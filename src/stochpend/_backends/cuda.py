@@ -218,20 +218,29 @@ def hist_column(edges, j, E):
 # -- the kernels of a Spec ----------------------------------------------------------------------
 @functools.cache
 def init_kernel(spec: Spec):
-    """``init[blocks, threads](x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0,
-    theta0, uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W)``: one path per thread,
-    the initial values computed in float64 (they depend on the noise only)."""
+    """``init[blocks, threads](state, key0, key1, path0, theta0, uniform_theta0, Omega0, xi0,
+    stationary_xi0, p)``: one path per thread of ``state = (x, Omega, xi, xi_aux, t, t_comp,
+    k, status)``, the initial values computed in float64 (they depend on the noise only); ``p``
+    the noise's record (``Noise.record``)."""
     init_path = integrator.initial_state(spec.noise)
 
     @cuda.jit(cache=spec.noise.builtin)
     @own_index(spec.noise.name)
-    def init(x, Omega, xi, xi_aux, t, t_comp, k, status, key0, key1, path0, theta0,
-             uniform_theta0, Omega0, xi0, stationary_xi0, D, tau, W):  # pragma: no cover
+    def init(state, key0, key1, path0, theta0, uniform_theta0, Omega0, xi0, stationary_xi0,
+             p):  # pragma: no cover
+        x = state[0]
+        Omega = state[1]
+        xi = state[2]
+        xi_aux = state[3]
+        t = state[4]
+        t_comp = state[5]
+        k = state[6]
+        status = state[7]
         i = cuda.grid(1)
         if i >= x.shape[0]:
             return
         x0, O0, xi_0, xa_0 = init_path(key0, key1, _U64(path0 + i), theta0, uniform_theta0,
-                                       Omega0, xi0, stationary_xi0, D, tau, W)
+                                       Omega0, xi0, stationary_xi0, p)
         x[i] = x0
         Omega[i] = O0
         xi[i] = xi_0
@@ -246,22 +255,21 @@ def init_kernel(spec: Spec):
 
 @functools.cache
 def advance_kernel(spec: Spec):
-    """``advance[blocks, threads](x, Omega, xi, xi_aux, t, t_comp, k, status, t_target,
-    max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, unfinished)``: the
-    integrator's ``advance_path`` for one path per thread; sets ``unfinished[0] = 1`` if a
+    """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, run,
+    unfinished)``: the integrator's ``advance_path`` (its ``state``, ``p`` and ``run``) for one
+    path per thread; sets ``unfinished[0] = 1`` if a
     path stopped short of ``t_target`` (step budget spent). The clock's compensation ``t_comp``
     is path state, so the result does not depend on how a segment is split into launches."""
     advance_path = integrator.build(spec).advance_path
 
     @cuda.jit(cache=spec.cacheable)
     @own_index(spec.label)
-    def advance(x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps, key0, key1,
-                path0, D, tau, W, omega2, n, h_max, step_c, unfinished):  # pragma: no cover
+    def advance(state, t_target, max_steps, key0, key1, path0, p, run,
+                unfinished):  # pragma: no cover
         i = cuda.grid(1)
-        if i >= x.shape[0]:
+        if i >= state[0].shape[0]:
             return
-        _, u = advance_path(i, x, Omega, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-                            key0, key1, path0, D, tau, W, omega2, n, h_max, step_c)
+        _, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)
         if u != 0:
             unfinished[0] = 1
 
@@ -270,22 +278,19 @@ def advance_kernel(spec: Spec):
 
 @functools.cache
 def pair_advance_kernel(spec: Spec):
-    """``advance[blocks, threads](x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status,
-    t_target, max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max, step_c, unfinished)``:
-    the integrator's ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate) for
+    """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, run,
+    unfinished)``: the integrator's ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate) for
     one pair per thread, as :func:`advance_kernel` runs ``advance_path``."""
     advance_pair = integrator.build(spec).advance_pair
 
     @cuda.jit(cache=spec.cacheable)
     @own_index(spec.label + "/pairs")
-    def advance(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target, max_steps,
-                key0, key1, path0, D, tau, W, omega2, n, h_max, step_c,
+    def advance(state, t_target, max_steps, key0, key1, path0, p, run,
                 unfinished):  # pragma: no cover
         i = cuda.grid(1)
-        if i >= x.shape[0]:
+        if i >= state[0].shape[0]:
             return
-        _, u = advance_pair(i, x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status, t_target,
-                            max_steps, key0, key1, path0, D, tau, W, omega2, n, h_max, step_c)
+        _, u = advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, run)
         if u != 0:
             unfinished[0] = 1
 
@@ -305,6 +310,8 @@ class PairEngine:
         self.advance_k = pair_advance_kernel(spec)
         self.key0, self.key1 = rng.seed_to_key(config.seed)
         self.p0, self.n = p0, n
+        self.record = spec.noise.record(config)
+        self.run = integrator.run_record(config)
         c = config
         with _quiet():
             self.d = [cuda.device_array(n, dtype=np.float64) for _ in range(8)]
@@ -313,23 +320,20 @@ class PairEngine:
             self.flag = cuda.device_array(1, dtype=np.int32)
             x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp = self.d
             self.init[_blocks(n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
-                x, Omega, xi, xi_aux, t, t_comp, self.d_k, self.d_status, self.key0, self.key1, p0,
-                0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
-                0.0 if c.xi0 is None else c.xi0, c.xi0 is None, c.D, c.tau_or_zero,
-                c.omega_noise_or_zero)
+                (x, Omega, xi, xi_aux, t, t_comp, self.d_k, self.d_status), self.key0, self.key1,
+                p0, 0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
+                0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
             xf.copy_to_device(x)
             Omegaf.copy_to_device(Omega)
         self._zero_flag = np.zeros(1, dtype=np.int32)
 
     def advance(self, t_target: float, max_steps: int) -> bool:
         """One launch towards t_target; True when every live pair has landed on it."""
-        c = self.config
         with _quiet():
             self.flag.copy_to_device(self._zero_flag)
             self.advance_k[_blocks(self.n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
-                *self.d, self.d_k, self.d_status, t_target, max_steps, self.key0, self.key1,
-                self.p0, c.D, c.tau_or_zero, c.omega_noise_or_zero, c.omega**2, c.power_n,
-                c.h_max, c.step_c, self.flag)
+                (*self.d, self.d_k, self.d_status), t_target, max_steps, self.key0, self.key1,
+                self.p0, self.record, self.run, self.flag)
             return int(self.flag.copy_to_host()[0]) == 0
 
     def members(self) -> tuple[np.ndarray, ...]:
@@ -494,6 +498,8 @@ class Engine:
             self.d_edges = cuda.to_device(np.ascontiguousarray(hist_edges(config), dtype=np.float64))
         self._zero_flag = np.zeros(1, dtype=np.int32)
         self.key0, self.key1 = rng.seed_to_key(config.seed)
+        self.record = spec.noise.record(config)
+        self.run = integrator.run_record(config)
         self.n = 0
         self.nb = 0
         self.p0 = 0
@@ -520,10 +526,9 @@ class Engine:
         self.p0, self.n, self.nb = p0, n, nb
         with _quiet():
             self.init[_blocks(n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
-                *self._views(), self.key0, self.key1, p0,
+                self._views(), self.key0, self.key1, p0,
                 0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
-                0.0 if c.xi0 is None else c.xi0, c.xi0 is None, c.D, c.tau_or_zero,
-                c.omega_noise_or_zero)
+                0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
             self.d_hist.copy_to_device(np.zeros((self.n_times, self.n_cols), dtype=np.int64))
 
     def load(self, p0: int, arrays: dict[str, np.ndarray]) -> None:
@@ -545,13 +550,11 @@ class Engine:
 
     def advance(self, t_target: float, max_steps: int) -> bool:
         """One launch towards t_target; True when every live path has landed on it."""
-        c = self.config
         with _quiet():
             self.flag.copy_to_device(self._zero_flag)
             self.advance_k[_blocks(self.n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
-                *self._views(), t_target, max_steps, self.key0, self.key1, self.p0, c.D,
-                c.tau_or_zero, c.omega_noise_or_zero, c.omega**2, c.power_n, c.h_max, c.step_c,
-                self.flag)
+                self._views(), t_target, max_steps, self.key0, self.key1, self.p0, self.record,
+                self.run, self.flag)
             return int(self.flag.copy_to_host()[0]) == 0
 
     def time_sum(self, t_target: float, done: bool) -> float:
@@ -604,22 +607,26 @@ def path_states(
 
 
 # -- offline compilation (benchmarks/cuda_registers.py) ----------------------------------------
-def _advance_signature(precision: str):
+def _advance_signature(precision: str, noise: Any):
+    """(state, t_target, max_steps, key0, key1, path0, p, run, unfinished) as the host launches
+    the advance kernel of ``noise`` (its record: one float64 per ``noise.parameters``)."""
     real = nbtypes.float32 if precision == "float32" else nbtypes.float64
     f64 = nbtypes.Array(nbtypes.float64, 1, "C")
     r = nbtypes.Array(real, 1, "C")
-    return (r, r, r, f64, f64, f64, nbtypes.Array(nbtypes.uint64, 1, "C"),
-            nbtypes.Array(nbtypes.uint8, 1, "C"), nbtypes.float64, nbtypes.int64, nbtypes.uint64,
-            nbtypes.uint64, nbtypes.int64, nbtypes.float64, nbtypes.float64, nbtypes.float64,
-            nbtypes.float64, nbtypes.int64, nbtypes.float64, nbtypes.float64,
-            nbtypes.Array(nbtypes.int32, 1, "C"))
+    state = nbtypes.Tuple((r, r, r, f64, f64, f64, nbtypes.Array(nbtypes.uint64, 1, "C"),
+                           nbtypes.Array(nbtypes.uint8, 1, "C")))
+    record = nbtypes.UniTuple(nbtypes.float64, len(noise.parameters))
+    run = nbtypes.Tuple((nbtypes.float64, nbtypes.int64, nbtypes.float64, nbtypes.float64))
+    return (state, nbtypes.float64, nbtypes.int64, nbtypes.uint64, nbtypes.uint64, nbtypes.int64,
+            record, run, nbtypes.Array(nbtypes.int32, 1, "C"))
 
 
-def _pair_advance_signature():
-    sig = _advance_signature("float64")
+def _pair_advance_signature(noise: Any):
+    sig = _advance_signature("float64", noise)
     f64 = nbtypes.Array(nbtypes.float64, 1, "C")
+    x, Omega, *rest = sig[0].types
     # x, Omega, then the fine member's xf, Omegaf; path0 is a uint64 (2**63 + pair index)
-    return (sig[0], sig[1], f64, f64, *sig[2:12], nbtypes.uint64, *sig[13:])
+    return (nbtypes.Tuple((x, Omega, f64, f64, *rest)), *sig[1:5], nbtypes.uint64, *sig[6:])
 
 
 def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str, object, tuple]]:
@@ -640,8 +647,8 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
                         spec = Spec(osc, coupling, noise, precision, adaptive)
                         kernel = advance_kernel(spec)
                         out.append((f"advance {spec.label}", kernel.py_func,
-                                    _advance_signature(precision)))
+                                    _advance_signature(precision, noise)))
                         if precision == "float64":
                             out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
-                                        _pair_advance_signature()))
+                                        _pair_advance_signature(noise)))
     return out

@@ -21,8 +21,10 @@ or ``numpy.float32``) and one :class:`stochpend.mathlib.MathLib`; they are ``reg
 closures over constants of that precision, so the same definition compiles into CPU and CUDA
 kernels in float64 or float32 with no rewriting. They return a :class:`NoiseKernel`.
 
-Parameters reach the device functions as ``(D, tau, W)``: the amplitude, the correlation time
-(0 for white noise) and the harmonic noise's frequency (0 when unused), converted to ``real``.
+Parameters reach the device functions as one **record** ``p``: a tuple of float64, one entry per
+name of :attr:`Noise.parameters`, in that order (built by :meth:`Noise.record` from the run's
+configuration). Each device function unpacks what it uses (``D = p[0]``); ``coefficients`` and
+``at_event`` convert to ``real`` themselves (``real(p[0])``), ``init`` computes in float64.
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ def no_event(xi, aux):
 
 
 @register_jitable
-def at_no_event(xi, aux, key0, key1, path, k, D, tau, W):
+def at_no_event(xi, aux, key0, key1, path, k, p):
     """``at_event`` of a noise that never jumps (never called)."""
     return xi, aux
 
@@ -62,16 +64,20 @@ def no_scratch():
 class NoiseKernel:
     """The device functions of a noise for one precision (all ``register_jitable``).
 
-    * ``init(key0, key1, path, D, tau, W, xi0, stationary) -> (xi, aux)``, in float64;
+    ``p`` is the noise's parameter record (:meth:`Noise.record`: a tuple of float64, in the
+    order of :attr:`Noise.parameters`).
+
+    * ``init(key0, key1, path, p, xi0, stationary) -> (xi, aux)``, in float64;
     * ``load_aux(a) -> aux``: the in-register aux from its float64 storage (a time stays
       float64; a noise variable becomes ``real``);
-    * ``coefficients(h, D, tau, W) -> C``: everything of the step that depends on h only;
+    * ``coefficients(h, p) -> C``: everything of the step that depends on h only (``h`` in
+      ``real``; the parameters converted to ``real`` here);
     * ``scratch0() -> S``: the per-path loop-carried draw cache at the start of a call;
     * ``draw(key0, key1, path, k, S) -> (z, S)``: the random numbers of step k (a tuple of
       ``real``), keyed by (seed, path, k) only;
     * ``update(xi, aux, C, z) -> (I, xi, aux)``: the exact step;
     * ``next_event(xi, aux) -> t`` (float64; ``inf`` for none) and
-      ``at_event(xi, aux, key0, key1, path, k, D, tau, W) -> (xi, aux)``;
+      ``at_event(xi, aux, key0, key1, path, k, p) -> (xi, aux)``;
     * optionally ``draw_keyed(rk0, rk1, c2, c3, k) -> z``: ``draw``'s numbers for step k, bit for
       bit, from the seed's Philox round keys (``rng.round_keys``) and the path's counter words,
       with no loop-carried scratch and no branch, so that a loop over lanes, each at its own
@@ -100,6 +106,13 @@ class Noise:
     normals of Philox draw ``N_FIRST_STEP + k`` as ``z = (z1, z2)``, which the CPU lock-step
     driver can compute for many paths at once. ``builtin``: its kernels may be cached on disk.
     ``check_xi0(xi0)``: raise ValueError for an initial value the noise cannot take.
+
+    ``parameters``: the fields, in order, of the noise's kernel record ``p`` (:meth:`record`):
+    the name of one of the run's shared settings (``"D"``, ``"tau"``, ``"omega_noise"``) or a
+    :class:`stochpend.parameters.Parameter` the noise declares for itself (its name, default,
+    range and meaning, from which the API, the command line's ``--param``, sweep files, ``list``
+    and the result's attributes take it); the default is the triple every noise had before
+    records, ``("D", "tau", "omega_noise")``.
     """
 
     name: str
@@ -116,6 +129,26 @@ class Noise:
     correlation: Callable[..., Any] | None = None
     spectral_density: Callable[..., Any] | None = None
     extra: dict = field(default_factory=dict)
+    parameters: tuple[Any, ...] = ("D", "tau", "omega_noise")
+
+    def record(self, config: Any) -> tuple[float, ...]:
+        """The kernel record of this noise for a run of ``config`` (a SimulationConfig): for each
+        name of :attr:`parameters`, ``getattr(config, name)`` when the config has that field
+        (None, e.g. no ``tau``, becomes 0.0), else the value of ``config.noise_params``, a
+        sorted tuple of (name, value) pairs. A tuple of float64."""
+        own = dict(getattr(config, "noise_params", ()))
+        values = []
+        for entry in self.parameters:
+            name = getattr(entry, "name", entry)  # a Parameter the noise declares, or a config field
+            if hasattr(config, name):
+                value = getattr(config, name)
+            elif name in own:
+                value = own[name]
+            else:
+                raise ValueError(f"noise={self.name!r} needs the parameter {name!r}: give it in "
+                                 "noise_params")
+            values.append(0.0 if value is None else float(value))
+        return tuple(values)
 
     def kernel(self, real: Any, mathlib: Any) -> NoiseKernel:
         return _kernel(self, real, mathlib.name)

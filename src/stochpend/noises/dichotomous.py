@@ -37,9 +37,11 @@ def build(real, mathlib) -> NoiseKernel:
     zero = real(0.0)
 
     @register_jitable
-    def init(key0, key1, path, D, tau, W, xi0, stationary):
+    def init(key0, key1, path, p, xi0, stationary):
         """+a or -a with probability 1/2 (or a with the sign of xi0); the first flip after an
         exponential time (memoryless: the stationary law of the time to the next flip)."""
+        D = p[0]
+        tau = p[1]
         a = amplitude(D, tau)
         u_sign, u_wait = rng.draw_uniforms(key0, key1, path, np.uint64(rng.N_INIT_XI))
         if stationary:
@@ -53,7 +55,7 @@ def build(real, mathlib) -> NoiseKernel:
         return np.float64(a)
 
     @register_jitable
-    def coefficients(h, D, tau, W):
+    def coefficients(h, p):
         return h
 
     @register_jitable
@@ -69,7 +71,8 @@ def build(real, mathlib) -> NoiseKernel:
         return aux
 
     @register_jitable
-    def at_event(xi, aux, key0, key1, path, k, D, tau, W):
+    def at_event(xi, aux, key0, key1, path, k, p):
+        tau = real(p[1])  # through real, as before records: float32 kernels round tau first
         u, _ = rng.draw_uniforms(key0, key1, path, _U64(rng.N_FIRST_STEP) + k)
         return -xi, aux + waiting_time(u, np.float64(tau))
 
@@ -89,6 +92,7 @@ DICHOTOMOUS = Noise(
     colored=True,
     has_events=True,
     builtin=True,
+    parameters=("D", "tau"),
     check_xi0=_check_xi0,
     variance=lambda D, tau, W=None: D / (2.0 * tau),
     correlation=lambda t, D, tau, W=None: D / (2.0 * tau) * np.exp(-np.abs(np.asarray(t, dtype=float)) / tau),

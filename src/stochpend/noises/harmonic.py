@@ -133,9 +133,12 @@ def build(real, mathlib) -> NoiseKernel:
     normals = rng.normals_with(mathlib, real)
 
     @register_jitable
-    def init(key0, key1, path, D, tau, W, xi0, stationary):
+    def init(key0, key1, path, p, xi0, stationary):
         """(xi, xi') ~ N(0, D/(2 tau)) x N(0, W**2 D/(2 tau)), independent (or (xi0, 0))."""
         if stationary:
+            D = p[0]
+            tau = p[1]
+            W = p[2]
             z1, z2 = rng.draw_normals(key0, key1, path, np.uint64(rng.N_INIT_XI))
             s = math.sqrt(D / (2.0 * tau))
             return s * z1, W * s * z2
@@ -146,8 +149,12 @@ def build(real, mathlib) -> NoiseKernel:
         return real(a)
 
     @register_jitable
-    def coefficients(h, D, tau, W):
-        # Always in float64: the scaling-and-squaring keeps relative accuracy for var xi ~ h**3.
+    def coefficients(h, p):
+        # The parameters through real (as before records), then float64: the
+        # scaling-and-squaring keeps relative accuracy for var xi ~ h**3.
+        D = real(p[0])
+        tau = real(p[1])
+        W = real(p[2])
         c = step_coefficients(np.float64(h), np.float64(D), np.float64(tau), np.float64(W))
         return (real(c[0]), real(c[1]), real(c[2]), real(c[3]), real(c[4]), real(c[5]),
                 real(c[6]), real(c[7]), real(c[8]), real(c[9]), real(c[10]), real(c[11]))
@@ -181,6 +188,7 @@ HARMONIC = Noise(
     colored=True,
     uses_omega_noise=True,
     builtin=True,
+    parameters=("D", "tau", "omega_noise"),
     default_omega_noise=lambda tau: 2.0 / tau,  # critical damping: gamma = W**2 tau = 2 W
     variance=lambda D, tau, W: D / (2.0 * tau),
     correlation=None,

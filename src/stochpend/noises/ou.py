@@ -71,8 +71,11 @@ def step_functions(real):
         return x - two * math.tanh(half * x)
 
     @register_jitable
-    def coefficients(h, D, tau, W):
-        """``(a, s_xi, m_I, c_I, s_I)`` of the exact update over a step h (module docstring)."""
+    def coefficients(h, p):
+        """``(a, s_xi, m_I, c_I, s_I)`` of the exact update over a step h (module docstring);
+        ``p = (D, tau)``."""
+        D = real(p[0])
+        tau = real(p[1])
         x = h / tau
         b = -math.expm1(-x)  # 1 - a, exact for small x
         a = one - b
@@ -109,7 +112,9 @@ def branch_free_coefficients(real, mathlib):
     c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10, c11 = (real(c) for c in TANH_SERIES)
 
     @register_jitable(inline="always")
-    def coefficients(h, D, tau, W):
+    def coefficients(h, p):
+        D = real(p[0])
+        tau = real(p[1])
         x = h * (one / tau)
         b = -expm1(-x)
         a = one - b
@@ -148,8 +153,10 @@ def build(real, mathlib) -> NoiseKernel:
         _, coefficients = step_functions(real)
 
     @register_jitable
-    def init(key0, key1, path, D, tau, W, xi0, stationary):
+    def init(key0, key1, path, p, xi0, stationary):
         if stationary:
+            D = p[0]
+            tau = p[1]
             z, _ = rng.draw_normals(key0, key1, path, np.uint64(rng.N_INIT_XI))
             return math.sqrt(D / (2.0 * tau)) * z, 0.0
         return xi0, 0.0
@@ -194,6 +201,7 @@ OU = Noise(
     colored=True,
     pair_draws=True,
     builtin=True,
+    parameters=("D", "tau"),
     variance=lambda D, tau, W=None: D / (2.0 * tau),
     correlation=_correlation,
     spectral_density=_spectral_density,

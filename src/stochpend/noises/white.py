@@ -26,7 +26,7 @@ def build(real, mathlib) -> NoiseKernel:
     zero = real(0.0)
 
     @register_jitable
-    def init(key0, key1, path, D, tau, W, xi0, stationary):
+    def init(key0, key1, path, p, xi0, stationary):
         return 0.0, 0.0
 
     @register_jitable
@@ -34,7 +34,8 @@ def build(real, mathlib) -> NoiseKernel:
         return real(a)
 
     @register_jitable
-    def coefficients(h, D, tau, W):
+    def coefficients(h, p):
+        D = real(p[0])
         return math.sqrt(D * h)
 
     @register_jitable
@@ -72,6 +73,7 @@ WHITE = Noise(
     description="white noise, <xi(t) xi(t')> = D delta(t - t') (defbruitblanc)",
     colored=False,
     builtin=True,
+    parameters=("D",),
     variance=lambda D, tau=None, W=None: math.inf,
     correlation=None,
     spectral_density=lambda nu, D, tau=None, W=None: D + 0.0 * np.asarray(nu, dtype=float),
