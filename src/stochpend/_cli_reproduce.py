@@ -99,7 +99,7 @@ class _SimulationBar:
 
 @handles_errors
 def reproduce_command(
-    figures: Annotated[list[str] | None, typer.Argument(
+    figures: Annotated[list[str] | None, typer.Argument(metavar="FIGURE...",
         help="Figures to reproduce: fig1, fig2, fig3, fig4, exponents (the scaling-exponent table, docs/scaling.md) or all (default all); "
              "or a long run for a GPU: fig4-crossover (tau = 0.01 to t = 1e5), fig2-long ((D, tau) = (1, 10) to t = 1e5).")] = None,
     paths: Annotated[int | None, typer.Option(

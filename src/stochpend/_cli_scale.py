@@ -139,7 +139,7 @@ def resume_command(
     threads: Annotated[int | None, typer.Option(parser=integer, help="CPU threads (results do not depend on it).", show_default="every CPU")] = None,
     max_path_steps: Annotated[float | None, typer.Option("--max-path-steps", help="Refuse runs needing more than this many path-steps, as for 'simulate' (give the original run's value again: it is not read from the file).", show_default="1e13")] = None,
     break_lock: Annotated[bool, typer.Option("--break-lock", help="Take the checkpoint's lock from a run on another host that is gone, or run without a lock on a file system that has none.")] = False,
-    plugin: Annotated[list[str] | None, typer.Option("--plugin", help="Load a plugin first (an installed stochpend plugin or a module's dotted name), for a run of a noise or model from outside stochpend: a checkpoint names its pieces, it never loads them.", show_default="none")] = None,
+    plugin: Annotated[list[str] | None, typer.Option("--plugin", metavar="NAME", help="Load a plugin first (an installed stochpend plugin or a module's dotted name), for a run of a noise or model from outside stochpend: a checkpoint names its pieces, it never loads them.", show_default="none")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
@@ -291,7 +291,7 @@ def sweep_command(
     backend: Annotated[str, typer.Option(help="Where each block runs: cpu, cuda (the GPU of the process or Dask worker running it) or auto.")] = "cpu",
     precision: Annotated[str, typer.Option(help="float64 or float32 (float32 needs --backend cuda).")] = "float64",
     bias_paths: Annotated[int | None, typer.Option("--bias-paths", parser=integer, help="Coupled coarse/fine pairs estimating each set's discretisation bias, in this process after the blocks (0: none).", show_default="each set's paths/48, at least 64")] = None,
-    plugin: Annotated[list[str] | None, typer.Option("--plugin", help="Load a plugin first (an installed stochpend plugin or a module's dotted name); the Dask workers load it too. A sweep file names pieces, it never loads them.", show_default="none")] = None,
+    plugin: Annotated[list[str] | None, typer.Option("--plugin", metavar="NAME", help="Load a plugin first (an installed stochpend plugin or a module's dotted name); the Dask workers load it too. A sweep file names pieces, it never loads them.", show_default="none")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:

@@ -50,12 +50,16 @@ from stochpend.paper import eq
 
 
 def _plain_flags(params: list[Any]) -> list[Any]:
-    """Boolean flags show no ``<bool>`` metavar in the help (they take no value); a default
+    """Boolean flags show no ``<bool>`` metavar in the help (they take no value), nor an argument
+    with a metavar its Python type; a default
     given as text (``show_default="every CPU"``, for an option whose None stands for it) is
     shown as ``[default: every CPU]``, without the parentheses Typer adds."""
     for param in params:
         if getattr(param, "is_flag", False) and param.metavar is None:
             param.metavar = ""
+        if getattr(param, "param_type_name", "") == "argument" and param.metavar:
+            # An argument named in words (FIGURE...) needs no Python type beside it (<list[str]>).
+            param.display_type_rich = lambda *args, **kwargs: None
         text = getattr(param, "show_default", None)
         if isinstance(text, str):
             param._get_default_string = lambda *args, _text=text, **kwargs: _text
@@ -250,8 +254,8 @@ def simulate(
     checkpoint_every: Annotated[str | None, typer.Option("--checkpoint-every", help="Checkpoint interval, e.g. 30s, 5m, 1h (needs --checkpoint).", show_default="5m")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
-    param: Annotated[list[str] | None, typer.Option("--param", "-p", help="A parameter the noise declares for itself, NAME=VALUE (repeat it; 'stochpend list' shows each noise's).", show_default="the noise's defaults")] = None,
-    plugin: Annotated[list[str] | None, typer.Option("--plugin", help="Load a noise, model or observable from outside stochpend: an installed stochpend plugin or a module's dotted name (repeat it).", show_default="none")] = None,
+    param: Annotated[list[str] | None, typer.Option("--param", "-p", metavar="NAME=VALUE", help="A parameter the noise declares for itself, NAME=VALUE (repeat it; 'stochpend list' shows each noise's).", show_default="the noise's defaults")] = None,
+    plugin: Annotated[list[str] | None, typer.Option("--plugin", metavar="NAME", help="Load a noise, model or observable from outside stochpend: an installed stochpend plugin or a module's dotted name (repeat it).", show_default="none")] = None,
     config_file: Annotated[Path | None, typer.Option("--config", parser=file_name, is_eager=True, callback=_load_config,
                                                 help="A TOML file of physics and numerics options, by their names here "
                                                 "(noise, D, tau, t_max, paths, h_max, ...); options on the command "
@@ -551,7 +555,7 @@ def show(
 @app.command("list")
 @handles_errors
 def list_pieces(
-    plugin: Annotated[list[str] | None, typer.Option("--plugin", help="Load a plugin first (an installed stochpend plugin or a module's dotted name), to list its pieces.", show_default="none")] = None,
+    plugin: Annotated[list[str] | None, typer.Option("--plugin", metavar="NAME", help="Load a plugin first (an installed stochpend plugin or a module's dotted name), to list its pieces.", show_default="none")] = None,
 ) -> None:
     """The noises (with the parameters they declare), oscillators and couplings a run can use
     (--noise, --param, --potential, --coupling), with the pieces of the plugins loaded."""

@@ -95,6 +95,12 @@ def test_flags_take_no_value(name: str) -> None:
     assert "--no-" not in text
 
 
+@pytest.mark.parametrize("name", NAMES)
+def test_no_python_type_shows_as_a_metavar(name: str) -> None:
+    # Typer names a list option's value <list[str]>: every option says what it takes in words.
+    assert not re.search(r"<(list|dict|tuple)\[", _help(name)), name
+
+
 def test_root_help_has_no_bool_metavar() -> None:
     assert "<bool>" not in _help()
 
