@@ -352,7 +352,7 @@ def host_check() -> tuple[list[str], bool]:
             k = np.zeros(1, dtype=np.uint64)
             status = np.zeros(1, dtype=np.uint8)
             kern.advance_path(0, (*arrays, k, status), steps * h, steps, key0, key1, int(path),
-                              (1.0, 1.0), (1.0, 2, h, 0.0))
+                              (1.0, 1.0), (1.0, (2.0,), h, 0.0))
             for a, b in zip(got, (arrays[0][0], arrays[1][0], arrays[2][0]), strict=True):
                 worst["30 steps"] = max(worst["30 steps"], abs(a - b) / max(1.0, abs(b)))
     ok = (worst["kat"] == 0 and worst["f64 normals"] <= HOST_F64_RTOL

@@ -46,6 +46,8 @@ class Paths:
     def advance(self, kern, t_target, max_steps, seed, *, path0=0, D=1.0, tau=1.0, W=0.0,
                 omega2=1.0, n=2, h_max=0.05, step_c=0.0):
         key0, key1 = rng.seed_to_key(seed)
-        run = (float(omega2), int(n), float(h_max), float(step_c))
+        # n: the power family's n, or the oscillator's whole record q (Oscillator.record)
+        q = tuple(float(v) for v in n) if isinstance(n, tuple) else (float(n),)
+        run = (float(omega2), q, float(h_max), float(step_c))
         return kern.advance(self.arrays(), t_target, max_steps, key0, key1, path0,
                             record(kern, D, tau, W), run)

@@ -366,6 +366,8 @@ def summary_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Tabl
         title += f", W={float(attrs['omega_noise']):g}"
     if attrs.get("noise_parameters"):  # the noise's own parameters (stochpend.parameters)
         title += f", {markup(str(attrs['noise_parameters']))}"
+    if attrs.get("potential_parameters"):  # the oscillator's own parameters
+        title += f", {markup(str(attrs['potential_parameters']))}"
     title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {markup(attrs.get('seed'))}"
     scaled: Any = _scaled_column(ds)  # (header, variable, norm) or None
     has_bias = "mean_E_bias" in ds

@@ -145,7 +145,7 @@ _NO_EDGES = np.array([np.inf])
 
 def _accumulate_pairs(accumulate: Any, x: np.ndarray, Omega: np.ndarray, xf: np.ndarray,
                       Omegaf: np.ndarray, xi: np.ndarray, t: np.ndarray, status: np.ndarray, omega2: float,
-                      n: int, batch_size: int, sums: np.ndarray, hist: np.ndarray) -> None:
+                      q: tuple[float, ...], batch_size: int, sums: np.ndarray, hist: np.ndarray) -> None:
     """sums[b, 0 or 1, :]: the power sums of the coarse (0) and fine (1) members of batch b's
     pairs, both over the same pairs: a pair is counted only when both members are (a member
     whose moments overflow marks the pair non-finite in ``status``).
@@ -155,11 +155,11 @@ def _accumulate_pairs(accumulate: Any, x: np.ndarray, Omega: np.ndarray, xf: np.
     whose coarse member overflows), the fine members (marking those whose fine member does),
     and, only when the fine members marked a pair, the coarse members again, without it. Each
     sum is added in path order, as the run's are: the numbers of a kernel of its own."""
-    accumulate(x, Omega, xi, t, status, omega2, n, batch_size, _NO_EDGES, sums[:, 0], hist)
+    accumulate(x, Omega, xi, t, status, omega2, q, batch_size, _NO_EDGES, sums[:, 0], hist)
     marked = np.count_nonzero(status)
-    accumulate(xf, Omegaf, xi, t, status, omega2, n, batch_size, _NO_EDGES, sums[:, 1], hist)
+    accumulate(xf, Omegaf, xi, t, status, omega2, q, batch_size, _NO_EDGES, sums[:, 1], hist)
     if np.count_nonzero(status) != marked:
-        accumulate(x, Omega, xi, t, status, omega2, n, batch_size, _NO_EDGES, sums[:, 0], hist)
+        accumulate(x, Omega, xi, t, status, omega2, q, batch_size, _NO_EDGES, sums[:, 0], hist)
 
 
 # -- the estimate -------------------------------------------------------------------------------
@@ -245,6 +245,7 @@ def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_
     draws = 0
     progress.start(n_paths * c.t_max, "bias estimate")
     done_work = 0.0
+    q = integrator.run_record(c)[1]  # the oscillator's record
     for b0 in range(0, n_batches, chunk_batches):
         b1 = min(b0 + chunk_batches, n_batches)
         p0 = b0 * batch_size
@@ -256,7 +257,7 @@ def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_
             while not pairs.advance(float(t_target), max_steps):
                 progress.update(done_work + pairs.time_sum())
             x, Omega, xf, Omegaf, xi, t, status = pairs.members()
-            _accumulate_pairs(accumulate, x, Omega, xf, Omegaf, xi, t, status, c.omega**2, c.power_n,
+            _accumulate_pairs(accumulate, x, Omega, xf, Omegaf, xi, t, status, c.omega**2, q,
                               batch_size, sums[b0:b1, j], hist)
             pairs.set_status(status)  # pairs whose moments overflowed stay excluded
             progress.update(done_work + n * float(t_target))

@@ -581,7 +581,11 @@ def list_pieces(
     for name in oscillators.names():
         table.add_row("--potential", name, plain(getattr(oscillators.get(name), "description", "")))
     for name in models.names():
-        table.add_row("--potential", name, "user model: " + plain(getattr(models.get(name), "description", None) or ""))
+        model = models.get(name)
+        text = "user model: " + plain(getattr(model, "description", None) or "")
+        for p in own(model):  # its own parameters: --param NAME=VALUE
+            text += f"; --param {p.name}=... ({p.default:g}): {plain(p.meaning)}"
+        table.add_row("--potential", name, text)
     table.add_row("--coupling", "force", "the noise multiplies the force U'(x) (the paper's pendulum)")
     table.add_row("--coupling", "position", "the noise multiplies x (the random-frequency oscillator)")
     table.caption = ("A noise or oscillator of your own: stochpend.noises.register / "

@@ -118,12 +118,16 @@ def advance_clock(t, t_comp, h, last, t_target):
     return t_new, (t_new - t) - y
 
 
-def run_record(config: Any) -> tuple[float, int, float, float]:
-    """The run's scalars as the kernels take them, one record ``(omega2, n, h_max, step_c)``:
-    omega**2, the power of the potential, the largest step and the step control's constant
-    (0: fixed steps) of a :class:`stochpend.params.SimulationConfig`. With the noise's record
-    (``Noise.record``) it is everything of the configuration a step reads."""
-    return (float(config.omega**2), int(config.power_n), float(config.h_max), float(config.step_c))
+def run_record(config: Any) -> tuple[float, tuple[float, ...], float, float]:
+    """The run's scalars as the kernels take them, one record ``(omega2, q, h_max, step_c)``:
+    omega**2, the oscillator's parameter record q (:meth:`stochpend.oscillators.Oscillator.record`:
+    ``(power_n,)`` for the power family, a model's own parameters in declared order, ``(0.0,)``
+    for none), the largest step and the step control's constant (0: fixed steps) of a
+    :class:`stochpend.params.SimulationConfig`. With the noise's record (``Noise.record``) it is
+    everything of the configuration a step reads."""
+    oscillator = _oscillators.get(config.potential)
+    assert oscillator is not None, config.potential  # validated when the config was built
+    return (float(config.omega**2), oscillator.record(config), float(config.h_max), float(config.step_c))
 
 
 # -- what a kernel is specialised for ------------------------------------------------------------
@@ -204,14 +208,14 @@ def build(spec: Spec) -> SimpleNamespace:
     mathlib_sincos = mathlib.sincos
 
     @register_jitable
-    def G(x, n):
+    def G(x, q):
         """What the noise multiplies in dOmega/dt (Eq. `dynOmega`: sin x)."""
         if POSITION:
             return x
-        return noise_shape(x, n)
+        return noise_shape(x, q)
 
     @register_jitable
-    def step_size(x, Omega, xi, h_max, c, omega2, n):
+    def step_size(x, Omega, xi, h_max, c, omega2, q):
         """h = min(h_max, c/v, c/sqrt(k)), v a speed and k a stiffness (docs/numerics.md).
 
         The first bound resolves the motion (x moves by at most c per step), the second the
@@ -221,7 +225,7 @@ def build(spec: Spec) -> SimpleNamespace:
         choice does not look into the future of the noise.
         """
         h = h_max
-        speed, curv = step_scales(x, Omega, omega2, n)
+        speed, curv = step_scales(x, Omega, omega2, q)
         if speed * h > c:
             h = c / speed
         if POSITION:
@@ -233,12 +237,12 @@ def build(spec: Spec) -> SimpleNamespace:
         return h
 
     @register_jitable
-    def verlet(x, Omega, h, omega2, noise_integral, n):
+    def verlet(x, Omega, h, omega2, noise_integral, q):
         """One drift-kick-drift step; the kick uses the noise integral over the whole step.
         Returns (x_{n+1}, Omega_{n+1}), a periodic coordinate reduced to [-pi, pi)."""
         x_half = x + half * h * Omega
-        kick = omega2 * h * force(x_half, n)
-        kick += noise_integral * G(x_half, n)
+        kick = omega2 * h * force(x_half, q)
+        kick += noise_integral * G(x_half, q)
         Omega_new = Omega - kick
         x_new = x_half + half * h * Omega_new
         return wrap(x_new), Omega_new
@@ -248,7 +252,7 @@ def build(spec: Spec) -> SimpleNamespace:
         """Advance path i of the arrays towards ``t_target``, at most ``max_steps`` steps.
 
         ``state``: the arrays ``(x, Omega, xi, xi_aux, t, t_comp, k, status)``; ``p``: the
-        noise's record (``Noise.record``); ``run``: ``(omega2, n, h_max, step_c)``
+        noise's record (``Noise.record``); ``run``: ``(omega2, q, h_max, step_c)``
         (:func:`run_record`).
 
         The last step is shortened to land exactly on ``t_target`` (and, for a noise with
@@ -274,7 +278,7 @@ def build(spec: Spec) -> SimpleNamespace:
         status = state[7]
         if status[i] != 0 or t[i] >= t_target:
             return 0, 0
-        omega2, n, h_max, step_c = run
+        omega2, q, h_max, step_c = run
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         c_r = real(step_c)
@@ -295,7 +299,7 @@ def build(spec: Spec) -> SimpleNamespace:
         bad = False
         while steps < max_steps:
             if ADAPTIVE:
-                h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, n)
+                h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
                 if h < escape * h_max_r:
                     bad = True  # running away (see ESCAPE_STEP_FRACTION)
                     break
@@ -315,7 +319,7 @@ def build(spec: Spec) -> SimpleNamespace:
                 h_cached = h
             z, S = draw(key0, key1, path, kk, S)
             noise_integral, xn, xa = update(xn, xa, C, z)
-            xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, n)
+            xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, q)
             if HAS_EVENTS and event:
                 xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
             kk += _U64(1)
@@ -370,7 +374,7 @@ def build(spec: Spec) -> SimpleNamespace:
         status = state[9]
         if status[i] != 0 or t[i] >= t_target:
             return 0, 0
-        omega2, n, h_max, step_c = run
+        omega2, q, h_max, step_c = run
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         c_r = real(step_c)
@@ -392,7 +396,7 @@ def build(spec: Spec) -> SimpleNamespace:
         bad = False
         while steps < max_steps:
             if ADAPTIVE:
-                h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, n)
+                h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
                 if h < escape * h_max_r:
                     bad = True
                     break
@@ -415,9 +419,9 @@ def build(spec: Spec) -> SimpleNamespace:
             I1, xn, xa = update(xn, xa, C, z)
             z, S = draw(key0, key1, path, kk + _U64(1), S)
             I2, xn, xa = update(xn, xa, C, z)
-            xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I1, n)
-            xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I2, n)
-            xs, Om = verlet(xs, Om, h, omega2_r, I1 + I2, n)
+            xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I1, q)
+            xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I2, q)
+            xs, Om = verlet(xs, Om, h, omega2_r, I1 + I2, q)
             if HAS_EVENTS and event:
                 xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
             kk += _U64(2)
@@ -469,7 +473,7 @@ def build(spec: Spec) -> SimpleNamespace:
         bc3 = block[5]
         br = block[6]
         bph = block[7]
-        omega2, n, h_max, _ = run
+        omega2, q, h_max, _ = run
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         tt = t0
@@ -498,7 +502,7 @@ def build(spec: Spec) -> SimpleNamespace:
                 noise_integral, xn, xa = update(bxi[lane], bxa[lane], C, z)
                 bxi[lane] = xn
                 bxa[lane] = xa
-                bx[lane], bO[lane] = verlet(bx[lane], bO[lane], h, omega2_r, noise_integral, n)
+                bx[lane], bO[lane] = verlet(bx[lane], bO[lane], h, omega2_r, noise_integral, q)
             kk += _U64(1)
             steps += 1
             tt, tc = advance_clock(tt, tc, h_clock, last, t_target)
@@ -544,7 +548,8 @@ def initial_state(noise: Noise):
 
 @functools.cache
 def statistics(oscillator: Oscillator, coupling: str):
-    """``path_values(x, Omega, omega2, n) -> (ok, E, values)`` of (oscillator, coupling), in
+    """``path_values(x, Omega, omega2, q) -> (ok, E, values)`` of (oscillator, coupling), q the
+    oscillator's record (the generated source names it ``n``), in
     float64 whatever the kernel's precision: the summed values of :data:`stochpend.observables.SUMS`,
     generated from that table (:func:`stochpend.observables.path_values_source`)."""
     osc64 = oscillator.kernel(np.float64, LIBM)
@@ -552,7 +557,7 @@ def statistics(oscillator: Oscillator, coupling: str):
     noise_shape64 = osc64.noise_shape
 
     @register_jitable
-    def position(x, n):
+    def position(x, q):
         return x
 
     namespace = {"potential": potential64, "shape": position if coupling == "position" else noise_shape64,
@@ -677,7 +682,7 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
         fs = scratch[0]
         us = scratch[1]
         js = scratch[2]
-        omega2, n, h_max, step_c = run
+        omega2, q, h_max, step_c = run
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         c_r = real(step_c)
@@ -739,7 +744,7 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
                 c2 = bc2[lane]
                 c3 = bc3[lane]
                 if ADAPTIVE:
-                    h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, n)
+                    h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
                     esc = h < escape * h_max_r
                 else:
                     h = h_max_r
@@ -751,7 +756,7 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
                 C = coefficients(h, p)
                 z = draw_keyed(rk0, rk1, c2, c3, kk)
                 noise_integral, xn_new, xa_new = update(xn, xa, C, z)
-                xs_new, Om_new = verlet(xs, Om, h, omega2_r, noise_integral, n)
+                xs_new, Om_new = verlet(xs, Om, h, omega2_r, noise_integral, q)
                 y = h_clock - tc
                 t_sum = tt + y
                 tc_new = (t_sum - tt) - y
@@ -895,7 +900,7 @@ def build_pair_lanes(spec: Spec) -> SimpleNamespace:
         fs = scratch[0]
         us = scratch[1]
         js = scratch[2]
-        omega2, n, h_max, step_c = run
+        omega2, q, h_max, step_c = run
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         c_r = real(step_c)
@@ -962,7 +967,7 @@ def build_pair_lanes(spec: Spec) -> SimpleNamespace:
                 c2 = bc2[lane]
                 c3 = bc3[lane]
                 if ADAPTIVE:
-                    h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, n)
+                    h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
                     esc = h < escape * h_max_r
                 else:
                     h = h_max_r
@@ -977,9 +982,9 @@ def build_pair_lanes(spec: Spec) -> SimpleNamespace:
                 I1, xn1, xa1 = update(xn, xa, C, z)
                 z = draw_keyed(rk0, rk1, c2, c3, kk + _U64(1))
                 I2, xn_new, xa_new = update(xn1, xa1, C, z)
-                xf1, Of1 = verlet(xs2, Om2, hh, omega2_r, I1, n)
-                xf_new, Of_new = verlet(xf1, Of1, hh, omega2_r, I2, n)
-                xs_new, Om_new = verlet(xs, Om, h, omega2_r, I1 + I2, n)
+                xf1, Of1 = verlet(xs2, Om2, hh, omega2_r, I1, q)
+                xf_new, Of_new = verlet(xf1, Of1, hh, omega2_r, I2, q)
+                xs_new, Om_new = verlet(xs, Om, h, omega2_r, I1 + I2, q)
                 y = h_clock - tc
                 t_sum = tt + y
                 tc_new = (t_sum - tt) - y

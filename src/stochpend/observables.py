@@ -143,8 +143,9 @@ def path_values_source() -> str:
     """Source of ``path_values(x, Omega, omega2, n) -> (ok, E, values)``, the function every
     backend's accumulate kernel calls for a path: ``values`` the tuple of :data:`SUMS` in
     float64, ``ok`` False when one of them or G(x) is not finite (the path has escaped: it is
-    counted as non-finite, never averaged in). Its globals: ``potential`` (U(x, n)) and
-    ``shape`` (G(x, n), or x for the position coupling), ``isfinite``."""
+    counted as non-finite, never averaged in). ``n`` is the oscillator's parameter record q
+    (``Oscillator.record``). Its globals: ``potential`` (U(x, q)) and ``shape`` (G(x, q), or x
+    for the position coupling), ``isfinite``."""
     lines = ["def path_values(x, Omega, omega2, n):",
              "    E = 0.5 * Omega * Omega + omega2 * potential(x, n)",
              "    g = shape(x, n)"]

@@ -1,4 +1,5 @@
-"""Parameters that a noise declares for itself (issue 22, "pieces declare their parameters").
+"""Parameters that a noise or an oscillator declares for itself (issue 22, "pieces declare
+their parameters").
 
 A :class:`~stochpend.noises.Noise` lists the fields of its kernel record in ``parameters``:
 a name of the run's shared settings (``"D"``, ``"tau"``, ``"omega_noise"``, validated by
@@ -13,6 +14,14 @@ name, default, accepted range and meaning once. From that one declaration:
   (NetCDF attributes, ``noise_parameters``) and ``show`` carry it;
 * the kernels receive it in the noise's record (:meth:`stochpend.noises.Noise.record`).
 
+An oscillator does the same (:attr:`stochpend.oscillators.Oscillator.parameters`, a user
+model's ``parameters``): its values are stored in ``SimulationConfig.osc_params`` and reach the
+kernels in the oscillator's record (:meth:`stochpend.oscillators.Oscillator.record`); the API,
+``--param``, sweep keys, ``list`` and ``show`` take and print them like a noise's. One keyword
+space serves both (:func:`split`): a name both the run's noise and its oscillator declare is
+refused, and a model whose parameter a registered noise already declares is refused when it is
+registered.
+
 The values are floats (the kernels' parameters are real numbers).
 """
 
@@ -24,7 +33,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["Parameter", "resolve", "own", "describe"]
+__all__ = ["Parameter", "resolve", "own", "describe", "split"]
 
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,31}")
 #: Names a noise's own parameter may not take: the shared settings of every run.
@@ -78,27 +87,58 @@ class Parameter:
         return v
 
 
-def own(noise: Any) -> tuple[Parameter, ...]:
-    """The parameters a noise declares for itself (not the run's shared D, tau, omega_noise)."""
-    return tuple(p for p in getattr(noise, "parameters", ()) if isinstance(p, Parameter))
+def own(piece: Any) -> tuple[Parameter, ...]:
+    """The parameters a noise or oscillator declares for itself (not the run's shared D, tau,
+    omega_noise, power_n)."""
+    return tuple(p for p in getattr(piece, "parameters", ()) if isinstance(p, Parameter))
 
 
-def resolve(noise: Any, values: Mapping[str, Any] | Any) -> tuple[tuple[str, float], ...]:
-    """Validate ``values`` (name -> value) against ``noise``'s own parameters, fill the
+def resolve(piece: Any, values: Mapping[str, Any] | Any, kind: str = "noise") -> tuple[tuple[str, float], ...]:
+    """Validate ``values`` (name -> value) against ``piece``'s own parameters, fill the
     defaults, and return them as sorted (name, float) pairs, the form a configuration stores.
-    A name the noise does not declare is refused in one line that lists those it does."""
-    declared = {p.name: p for p in own(noise)}
+    A name the piece does not declare is refused in one line that lists those it does.
+    ``kind``: "noise" or "potential" (an oscillator), for the messages."""
+    declared = {p.name: p for p in own(piece)}
+    field_name = "noise_params" if kind == "noise" else "osc_params"
     try:
         values = dict(values or {})  # a mapping, or (name, value) pairs (a checkpoint's JSON)
     except (TypeError, ValueError):
-        raise ValueError(f"noise_params={values!r} is not accepted: a mapping of the noise's own parameters "
+        raise ValueError(f"{field_name}={values!r} is not accepted: a mapping of the {kind}'s own parameters "
                          "to numbers") from None
     for name in values:
         if name not in declared:
             accepted = ", ".join(declared) or "none"
-            raise ValueError(f"{name}={values[name]!r} is not accepted: not a parameter of noise "
-                             f"{getattr(noise, 'name', noise)!r} (its own parameters: {accepted})")
+            raise ValueError(f"{name}={values[name]!r} is not accepted: not a parameter of {kind} "
+                             f"{getattr(piece, 'name', piece)!r} (its own parameters: {accepted})")
     return tuple(sorted((name, p.check(values.get(name, p.default))) for name, p in declared.items()))
+
+
+def split(noise: Any, oscillator: Any, values: Mapping[str, Any] | Any) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``values`` (name -> value: the keywords of ``simulate``, ``--param``, a sweep set's keys)
+    as (the noise's, the oscillator's): a name the oscillator declares goes to it, any other to
+    the noise (which refuses a name it does not declare, listing both pieces' parameters). A
+    name both declare is refused in one line: the two pieces cannot run together."""
+    noise_names = {p.name for p in own(noise)}
+    osc_names = {p.name for p in own(oscillator)}
+    both = sorted(noise_names & osc_names)
+    if both:
+        raise ValueError(f"noise={getattr(noise, 'name', noise)!r} with potential="
+                         f"{getattr(oscillator, 'name', oscillator)!r} is not accepted: both declare the "
+                         f"parameter {both[0]!r} (rename one)")
+    try:
+        values = dict(values or {})
+    except (TypeError, ValueError):
+        raise ValueError(f"noise_params={values!r} is not accepted: a mapping of the noise's and the "
+                         "oscillator's own parameters to numbers") from None
+    for name in values:  # (an oscillator without parameters: the noise's own message)
+        if osc_names and name not in noise_names and name not in osc_names:
+            raise ValueError(f"{name}={values[name]!r} is not accepted: not a parameter of noise "
+                             f"{getattr(noise, 'name', noise)!r} (its own parameters: "
+                             f"{', '.join(sorted(noise_names)) or 'none'}) nor of potential "
+                             f"{getattr(oscillator, 'name', oscillator)!r} (its own parameters: "
+                             f"{', '.join(sorted(osc_names)) or 'none'})")
+    return ({k: v for k, v in values.items() if k not in osc_names},
+            {k: v for k, v in values.items() if k in osc_names})
 
 
 def describe(pairs: tuple[tuple[str, float], ...]) -> str:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
+from types import SimpleNamespace
 from typing import Any, NoReturn
 
 import numpy as np
@@ -122,6 +123,8 @@ class SimulationConfig:
     observables: tuple[str, ...] = ()
     #: The noise's own parameters (stochpend.parameters), sorted (name, value) pairs.
     noise_params: tuple[tuple[str, float], ...] = ()
+    #: The oscillator's own parameters (a model's ``parameters``), sorted (name, value) pairs.
+    osc_params: tuple[tuple[str, float], ...] = ()
     extra: dict = field(default_factory=dict)
 
     # -- derived, cheap -------------------------------------------------------------------
@@ -155,6 +158,10 @@ class SimulationConfig:
         if self.noise_params:  # the noise's own parameters: one line, and each exactly
             d["noise_parameters"] = _parameters.describe(self.noise_params)
             d.update({f"noise_{name}": value for name, value in self.noise_params})
+        d.pop("osc_params", None)
+        if self.osc_params:  # the oscillator's own parameters, likewise
+            d["potential_parameters"] = _parameters.describe(self.osc_params)
+            d.update({f"potential_{name}": value for name, value in self.osc_params})
         return d
 
     @classmethod
@@ -184,10 +191,16 @@ class SimulationConfig:
         omega_noise: float | None = None,
         observables: Any = (),
         noise_params: Any = None,
+        osc_params: Any = None,
     ) -> SimulationConfig:
         """Validate every argument and return the frozen configuration. ``noise_params``: the
         values of the parameters the noise declares for itself (:mod:`stochpend.parameters`),
-        a mapping or (name, value) pairs; the noise's defaults fill the others."""
+        a mapping or (name, value) pairs; the noise's defaults fill the others. It may also hold
+        the oscillator's own parameters (one keyword space, as ``simulate(**kwargs)``, ``--param``
+        and sweep keys give them; :func:`stochpend.parameters.split` routes each name to the
+        piece that declares it, refusing a name both declare). ``osc_params``: the oscillator's,
+        given apart (a checkpoint's JSON); stored in ``osc_params``, the oscillator's defaults
+        filling the others."""
         observables = _observables.resolve(observables)
         noise_piece = _noises.get(noise)
         if noise_piece is None:
@@ -284,6 +297,15 @@ class SimulationConfig:
             _fail("coupling", coupling, f"one of {', '.join(_oscillators.COUPLINGS)}")
         power_n = _integer("power_n", power_n, f"power_n must be an integer in [1, {MAX_POWER_N}]", 1,
                            MAX_POWER_N)
+        noise_given, osc_given = _parameters.split(noise_piece, oscillator, noise_params)
+        if osc_params:
+            try:
+                osc_given.update(dict(osc_params))
+            except (TypeError, ValueError):
+                _fail("osc_params", osc_params, "a mapping of the oscillator's own parameters to numbers")
+        noise_params_v = _parameters.resolve(noise_piece, noise_given)
+        osc_params_v = _parameters.resolve(oscillator, osc_given, kind="potential")
+        q = oscillator.record(SimpleNamespace(power_n=power_n, osc_params=osc_params_v))
         if oscillator.periodic and coupling == "position":
             if oscillator.builtin:
                 _fail("coupling", coupling, f"the {potential}'s angle is periodic, so its noise can "
@@ -293,8 +315,8 @@ class SimulationConfig:
         if theta0_v is not None and Omega0 == 0.0:
             functions = oscillator.functions
             try:
-                f = float(functions.force(theta0_v, power_n))
-                g = theta0_v if coupling == "position" else float(functions.noise_shape(theta0_v, power_n))
+                f = float(functions.force(theta0_v, q))
+                g = theta0_v if coupling == "position" else float(functions.noise_shape(theta0_v, q))
             except OverflowError:  # |theta0| ** (2n - 1) beyond float: far from rest
                 g = f = math.inf
             at_rest = abs(g) < 1e-12 and abs(f) < 1e-12
@@ -351,7 +373,8 @@ class SimulationConfig:
             coupling=coupling,
             omega_noise=omega_noise,
             observables=observables,
-            noise_params=_parameters.resolve(noise_piece, noise_params),
+            noise_params=noise_params_v,
+            osc_params=osc_params_v,
         )
 
 
@@ -387,7 +410,7 @@ def hist_edges(config: SimulationConfig) -> np.ndarray:
     """
     oscillator = _oscillators.get(config.potential)
     assert oscillator is not None, config.potential  # validated when the config was built
-    e_min = config.omega**2 * oscillator.energy_floor(config.power_n)
+    e_min = config.omega**2 * oscillator.energy_floor(oscillator.record(config))
     u = np.linspace(0.0, 1.0, config.hist_bins + 1) ** 2
     e_max = np.asarray(config.hist_E_max)[:, None]
     return e_min + (e_max - e_min) * u[None, :]

@@ -63,17 +63,18 @@ __all__ = ["BlockResult", "SweepSpec", "Task", "load_spec", "plan_tasks", "run_b
 #: Every parameter a sweep may set: the keywords of SimulationConfig.build.
 PARAMETERS: tuple[str, ...] = tuple(
     name for name in inspect.signature(SimulationConfig.build).parameters
-    if name not in ("cls", "noise_params", "observables")  # a noise's own parameters are keys of their own
+    if name not in ("cls", "noise_params", "osc_params", "observables")  # own parameters are keys of their own
 )
 
 
 def _declared() -> tuple[str, ...]:
-    """The parameters the registered noises declare for themselves (keys a sweep file may set
-    besides :data:`PARAMETERS`; the set's noise validates them)."""
-    from stochpend import noises
+    """The parameters the registered noises and user models declare for themselves (keys a sweep
+    file may set besides :data:`PARAMETERS`; the set's noise or oscillator validates them)."""
+    from stochpend import models, noises
     from stochpend.parameters import own
 
-    return tuple(dict.fromkeys(p.name for name in noises.names() for p in own(noises.get(name))))
+    pieces = [noises.get(name) for name in noises.names()] + [models.get(name) for name in models.names()]
+    return tuple(dict.fromkeys(p.name for piece in pieces for p in own(piece)))
 
 
 #: Parameters whose value is a list: settable in [base] and [[case]], not a grid axis.
@@ -146,7 +147,7 @@ def _check_params(table: Any, where: str, source: str, *, grid: bool = False) ->
 
 
 def _build(params: dict[str, Any], source: str, where: str) -> SimulationConfig:
-    own = {k: v for k, v in params.items() if k not in PARAMETERS}  # the noise's own parameters
+    own = {k: v for k, v in params.items() if k not in PARAMETERS}  # the noise's and oscillator's own
     try:
         return SimulationConfig.build(**{k: v for k, v in params.items() if k in PARAMETERS}, noise_params=own)
     except ValueError as exc:
@@ -160,6 +161,8 @@ def _coord_value(config: SimulationConfig, key: str, raw: Any) -> Any:
     names = {f.name for f in fields(config)}
     if key in dict(config.noise_params):
         return dict(config.noise_params)[key]
+    if key in dict(config.osc_params):
+        return dict(config.osc_params)[key]
     if key in names:
         v = getattr(config, key)
         if v is None:

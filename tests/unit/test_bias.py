@@ -94,7 +94,7 @@ def test_pairs_without_noise_are_the_run_at_h_and_at_h_over_2(step_c):
     Om[:] = Omega0
     Of[:] = Omega0
     advance((x, Om, xf, Of, xi, xa, t, tc, k, status), 3.0, 10**6, key0, key1, np.uint64(0),
-            (0.0, 1.0), (1.0, 2, 0.1, step_c))
+            (0.0, 1.0), (1.0, (2.0,), 0.1, step_c))
     kern = kernels("ou", adaptive=step_c > 0)
     for h, (xs, Os) in ((0.1, (x, Om)), (0.05, (xf, Of))):
         if h == 0.05 and step_c > 0:
@@ -269,7 +269,7 @@ def test_pairs_in_simd_lanes_are_the_one_pair_kernel_bit_for_bit(noise, adaptive
                 while True:
                     d, unfinished = advance((x, Om, xf, Of, xi, xa, t, tc, k, status), t_target, 37,
                                             key0, key1, path0, p,
-                                            (1.0, 2, 0.05, 0.1 if adaptive else 0.0))
+                                            (1.0, (2.0,), 0.05, 0.1 if adaptive else 0.0))
                     draws += d
                     if unfinished == 0:
                         break

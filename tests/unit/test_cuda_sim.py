@@ -223,7 +223,7 @@ def _check_cpu_kernels_are_current() -> None:
     z1, z2 = rng.draw_normals(key0, key1, np.uint64(0), np.uint64(rng.N_FIRST_STEP))
     a, s_xi, m_I, c_I, s_I = ou.step_coefficients(0.1, (1.0, 1.0))
     verlet = integrator.build(integrator.spec("ou", adaptive=False)).verlet
-    x1, Omega1 = verlet(x0, 0.0, 0.1, 1.0, m_I * xi0 + c_I * z1 + s_I * z2, 2)
+    x1, Omega1 = verlet(x0, 0.0, 0.1, 1.0, m_I * xi0 + c_I * z1 + s_I * z2, (2.0,))
     expected = (x1, Omega1, a * xi0 + s_xi * z1)
     found = (state["x"][0], state["Omega"][0], state["xi"][0])
     if found != expected:
@@ -375,8 +375,8 @@ def test_float32_pieces_compute_in_float32():
 
     @numba.njit
     def step(x, Om, h, omega2, I, xi, D, tau, key0, key1):
-        x1, Om1 = verlet(x, Om, h, omega2, I, 2)
-        hh = step_size(x1, Om1, xi, h, f(0.25), omega2, 2)
+        x1, Om1 = verlet(x, Om, h, omega2, I, (2.0,))
+        hh = step_size(x1, Om1, xi, h, f(0.25), omega2, (2.0,))
         C = coefficients(hh, (D, tau))
         z, _ = draw(key0, key1, np.uint64(3), np.uint64(3), 0)
         I2, xi2, _ = update(xi, xi, C, z)
@@ -387,8 +387,8 @@ def test_float32_pieces_compute_in_float32():
     out = step(*args)
     signature = step.nopython_signatures[0].return_type
     assert all(str(t) == "float32" for t in signature.types), signature
-    x1, Om1 = f64.verlet(3.1, 2.5, 0.05, 1.0, 0.01, 2)
-    hh = f64.step_size(x1, Om1, 0.4, 0.05, 0.25, 1.0, 2)
+    x1, Om1 = f64.verlet(3.1, 2.5, 0.05, 1.0, 0.01, (2.0,))
+    hh = f64.step_size(x1, Om1, 0.4, 0.05, 0.25, 1.0, (2.0,))
     C = ou.step_coefficients(hh, (1.0, 1.0))
     z1, z2 = rng.draw_normals(key0, key1, np.uint64(3), np.uint64(rng.N_FIRST_STEP + 3))
     ref = (x1, Om1, hh, *C, z1, z2, C[2] * 0.4 + C[3] * z1 + C[4] * z2, C[0] * 0.4 + C[1] * z1)

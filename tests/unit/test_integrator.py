@@ -64,14 +64,14 @@ def test_ou_coefficients_tend_to_white_noise_as_tau_vanishes():
 def test_verlet_is_time_reversible_and_symplectic_at_zero_noise():
     x, O, h, w2 = 0.7, -0.3, 0.05, 1.3
     verlet = _steps().verlet
-    x1, O1 = verlet(x, O, h, w2, 0.0, 2)
-    xb, Ob = verlet(x1, -O1, h, w2, 0.0, 2)
+    x1, O1 = verlet(x, O, h, w2, 0.0, (2.0,))
+    xb, Ob = verlet(x1, -O1, h, w2, 0.0, (2.0,))
     assert xb == pytest.approx(x, abs=1e-14) and -Ob == pytest.approx(O, abs=1e-14)
     # Jacobian determinant 1 (area preserving), by central differences
     eps = 1e-6
 
     def f(v):
-        return np.array(verlet(v[0], v[1], h, w2, 0.0, 2))
+        return np.array(verlet(v[0], v[1], h, w2, 0.0, (2.0,)))
 
     J = np.column_stack([(f(np.array([x, O]) + eps * e) - f(np.array([x, O]) - eps * e)) / (2 * eps)
                          for e in np.eye(2)])
@@ -91,7 +91,7 @@ def test_ito_and_stratonovich_coincide():
         G = _steps(pot, cpl).G
         for x, O in [(0.3, 1.1), (-1.2, 4.0), (2.0, -0.5)]:
             def b(xx, OO, G=G):
-                return np.array([0.0, -G(xx, 2) + 0.0 * OO])
+                return np.array([0.0, -G(xx, (2.0,)) + 0.0 * OO])
 
             db_dx = (b(x + eps, O) - b(x - eps, O)) / (2 * eps)
             db_dO = (b(x, O + eps) - b(x, O - eps)) / (2 * eps)
@@ -102,10 +102,10 @@ def test_ito_and_stratonovich_coincide():
 
 def test_step_size_rules():
     h_max, c = 0.05, 0.25
-    step_size = _steps().step_size  # (x, Omega, xi, h_max, c, omega2, n)
-    assert step_size(0.0, 0.1, 0.0, h_max, c, 1.0, 2) == h_max
-    assert step_size(0.0, 100.0, 0.0, h_max, c, 1.0, 2) == pytest.approx(c / 100.0)
-    assert step_size(0.0, 0.0, 399.0, h_max, c, 1.0, 2) == pytest.approx(c / 20.0)
+    step_size = _steps().step_size  # (x, Omega, xi, h_max, c, omega2, q)
+    assert step_size(0.0, 0.1, 0.0, h_max, c, 1.0, (2.0,)) == h_max
+    assert step_size(0.0, 100.0, 0.0, h_max, c, 1.0, (2.0,)) == pytest.approx(c / 100.0)
+    assert step_size(0.0, 0.0, 399.0, h_max, c, 1.0, (2.0,)) == pytest.approx(c / 20.0)
 
 
 def test_zero_step_c_compiles_the_fixed_step():
@@ -133,13 +133,13 @@ def test_step_size_stiffness_follows_the_coupling():
     (the linearized force of each model)."""
     c, h_max, x, xi = 0.1, 1.0, 2.0, 30.0  # quartic: U'' = 3 x**2 = 12
     # omega = 0 makes the power oscillator's step control use the instantaneous U''(x)
-    force = _steps("power", "force").step_size(x, 0.0, xi, h_max, c, 0.0, 2)
-    position = _steps("power", "position").step_size(x, 0.0, xi, h_max, c, 0.0, 2)
+    force = _steps("power", "force").step_size(x, 0.0, xi, h_max, c, 0.0, (2.0,))
+    position = _steps("power", "position").step_size(x, 0.0, xi, h_max, c, 0.0, (2.0,))
     assert force == pytest.approx(c / math.sqrt(30.0 * 12.0))
     assert position == pytest.approx(c / math.sqrt(30.0))
     # omega = 1: the orbit's U'' at the amplitude A (A**4/4 = U(2) = 4, so U''(A) = 12 too)
-    force = _steps("power", "force").step_size(x, 0.0, xi, h_max, c, 1.0, 2)
-    position = _steps("power", "position").step_size(x, 0.0, xi, h_max, c, 1.0, 2)
+    force = _steps("power", "force").step_size(x, 0.0, xi, h_max, c, 1.0, (2.0,))
+    position = _steps("power", "position").step_size(x, 0.0, xi, h_max, c, 1.0, (2.0,))
     assert force == pytest.approx(c / math.sqrt(31.0 * 12.0))
     assert position == pytest.approx(c / math.sqrt(12.0 + 30.0))
 
@@ -183,13 +183,13 @@ def test_step_of_an_oscillator_is_constant_along_its_orbit():
         steps = []
         step_size = _steps(pot, "position").step_size
         for x in (0.0, 0.7, 1.9, 2.5):
-            U = oscillators.get(pot).functions.potential(x, 2)
+            U = oscillators.get(pot).functions.potential(x, (2.0,))
             if U > E:
                 continue
             Omega = math.sqrt(2.0 * (E - omega2 * U))
-            steps.append(step_size(x, Omega, 0.0, h_max, c, omega2, 2))
+            steps.append(step_size(x, Omega, 0.0, h_max, c, omega2, (2.0,)))
         assert len(steps) >= 3 and max(steps) == pytest.approx(min(steps), rel=1e-12), (pot, steps)
     step_size = _steps().step_size
-    a = step_size(0.0, 3.0, 0.0, h_max, c, omega2, 2)
-    b = step_size(2.0, 1.0, 0.0, h_max, c, omega2, 2)
+    a = step_size(0.0, 3.0, 0.0, h_max, c, omega2, (2.0,))
+    b = step_size(2.0, 1.0, 0.0, h_max, c, omega2, (2.0,))
     assert a == pytest.approx(c / 3.0) and b == pytest.approx(c / 1.0)

@@ -125,6 +125,6 @@ def test_each_model_gets_its_own_functions_even_when_ids_are_reused():
 
     for c in range(1, 60):
         m = Model(name=f"tmp-linear-{c}", potential=lambda x, c=c: c * x * x, force=lambda x, c=c: 2 * c * x)
-        assert m.oscillator.functions.potential(1.0, 2) == c
+        assert m.oscillator.functions.potential(1.0, (0.0,)) == c
         del m
         gc.collect()

@@ -157,7 +157,7 @@ def advance_kernel(spec: Spec):
     paths_unfinished)``: every unfinished path of ``state = (x, Omega, xi, xi_aux, t, t_comp,
     k, status)`` towards ``t_target``, at most ``max_steps`` steps each (the SIMD drivers when
     the Spec allows them; see the module docstring). ``p`` the noise's record
-    (``Noise.record``), ``run`` the run's ``(omega2, n, h_max, step_c)``
+    (``Noise.record``), ``run`` the run's ``(omega2, q, h_max, step_c)``
     (``integrator.run_record``)."""
     if spec.fast_math and integrator.build(spec).lockstep:
         return _with_workers(_lockstep_kernel(spec), (6, BLOCK), (2, BLOCK), (0, BLOCK),
@@ -481,7 +481,7 @@ def _lockstep_kernel(spec: Spec):
 
 
 def accumulate_kernel(spec: Spec, observables: tuple[str, ...] = ()):
-    """``accumulate(x, Omega, xi, t, status, omega2, n, batch_size, edges, sums, hist)``:
+    """``accumulate(x, Omega, xi, t, status, omega2, q, batch_size, edges, sums, hist)``:
     per-batch sums of the values of the statistics table (:mod:`stochpend.observables`) and of
     the run's user ``observables``, and the energy histogram, at one output time (float64
     whatever the precision of the state); depends on the oscillator, the coupling and the user
@@ -507,7 +507,7 @@ def _accumulate_kernel(spec: Spec, user: tuple):
 
     @numba.njit(nogil=True, cache=spec.oscillator.builtin and not user)
     @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables_.TABLE_KEY}/{observables_.user_key(user)}")
-    def accumulate(b_lo, b_hi, x, Omega, xi, t, status, omega2, n, batch_size, edges, sums,
+    def accumulate(b_lo, b_hi, x, Omega, xi, t, status, omega2, q, batch_size, edges, sums,
                    hist):  # pragma: no cover - compiled
         n_paths = x.shape[0]
         n_edges = edges.shape[0]
@@ -522,7 +522,7 @@ def _accumulate_kernel(spec: Spec, user: tuple):
                 if status[i] != 0:
                     sums[b, S_NONFINITE] += 1.0
                     continue
-                ok, E, values = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, n)
+                ok, E, values = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, q)
                 mine = user_values(np.float64(x[i]), np.float64(Omega[i]), np.float64(xi[i]), t[i])
                 for c in range(n_user):
                     ok = ok and math.isfinite(mine[c])
@@ -641,7 +641,7 @@ class Engine:
     def accumulate(self, j: int, edges_j: np.ndarray) -> None:
         c = self.config
         nb = self.nb
-        self.kernels.accumulate(self.x, self.Omega, self.xi, self.t, self.status, c.omega**2, c.power_n,
+        self.kernels.accumulate(self.x, self.Omega, self.xi, self.t, self.status, c.omega**2, self.run[1],
                                 c.batch_size, edges_j, self.chunk_sums[:, j, :], self.hist[:nb])
         self.chunk_hist[j] = self.hist[:nb].sum(axis=0)
 

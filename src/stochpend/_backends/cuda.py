@@ -349,7 +349,7 @@ class PairEngine:
 
 
 def accumulate_kernel(spec: Spec, observables_: tuple[str, ...] = ()):
-    """``accumulate[n_batches, STATS_THREADS](x, Omega, xi, t, status, omega2, n, batch_size,
+    """``accumulate[n_batches, STATS_THREADS](x, Omega, xi, t, status, omega2, q, batch_size,
     edges, j, sums, hist)``: the CPU's per-batch sums at output time j, block b summing batch b
     of the chunk into ``sums[b, j, :]`` in path order (the statistics table's values, then the
     user observables'); the histogram counts go to ``hist[j, :]`` (they depend on the
@@ -370,7 +370,7 @@ def _accumulate_kernel(spec: Spec, user: tuple):
 
     @cuda.jit(cache=spec.oscillator.builtin and not user)
     @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables.TABLE_KEY}/{observables.user_key(user)}")
-    def accumulate(x, Omega, xi, t, status, omega2, n, batch_size, edges, j, sums,
+    def accumulate(x, Omega, xi, t, status, omega2, q, batch_size, edges, j, sums,
                    hist):  # pragma: no cover - device
         b = cuda.blockIdx.x
         tid = cuda.threadIdx.x
@@ -397,7 +397,7 @@ def _accumulate_kernel(spec: Spec, user: tuple):
             if i < stop:
                 counted = False
                 if status[i] == 0:
-                    ok, E, path = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, n)
+                    ok, E, path = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, q)
                     mine = user_values(np.float64(x[i]), np.float64(Omega[i]), np.float64(xi[i]), t[i])
                     for c in range(n_user):
                         ok = ok and math.isfinite(mine[c])
@@ -565,7 +565,7 @@ class Engine:
         x, Omega, xi, _, t, _, _, status = self._views()
         with _quiet():
             self.accumulate_k[self.nb, STATS_THREADS](
-                x, Omega, xi, t, status, c.omega**2, c.power_n, c.batch_size, self.d_edges, j,
+                x, Omega, xi, t, status, c.omega**2, self.run[1], c.batch_size, self.d_edges, j,
                 self.d_sums, self.d_hist)
 
     def steps(self) -> int:

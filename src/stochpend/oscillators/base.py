@@ -14,12 +14,15 @@ Because the noise multiplies a function of x alone and enters only the Omega equ
 and Stratonovich readings of the white-noise system coincide.
 
 An :class:`Oscillator` builds, for one precision and math library, an
-:class:`OscillatorKernel` of ``register_jitable`` functions of (x, n), n the integer
-parameter of the family (the power of x**(2n); ignored by the others):
+:class:`OscillatorKernel` of ``register_jitable`` functions of (x, q), q the oscillator's
+parameter **record** (:meth:`Oscillator.record`): a tuple of float64, one entry per entry of
+:attr:`Oscillator.parameters`, in that order (``(0.0,)`` for an oscillator without parameters,
+so that a record is never an empty tuple). The power family reads its integer n back as
+``int(q[0])``, so that ``x ** (2 * n)`` stays an integer power (bit for bit what it was):
 
-* ``potential(x, n)``: U(x); ``force(x, n)``: U'(x); ``noise_shape(x, n)``: G(x) for the force
+* ``potential(x, q)``: U(x); ``force(x, q)``: U'(x); ``noise_shape(x, q)``: G(x) for the force
   coupling;
-* ``step_scales(x, Omega, omega2, n) -> (speed, curvature)``: what the step control resolves
+* ``step_scales(x, Omega, omega2, q) -> (speed, curvature)``: what the step control resolves
   (docs/numerics.md): a speed v (x moves by at most c per step) and |U''| (c radians of the
   local oscillation per step);
 * ``wrap(x)``: an angle reduced to [-pi, pi) (periodic oscillators); else x.
@@ -53,17 +56,41 @@ class Oscillator:
     """An oscillator the simulator can run (built-in, or a user's ``stochpend.models.Model``).
 
     ``periodic``: x is an angle (then the noise can only multiply the force). ``energy_floor``:
-    min U, for the histogram's lower edge (a function of n). ``builtin``: kernels may be cached
-    on disk. ``float64_only``: the user functions are plain Python floats (they compute in
-    float64 whatever the kernel's precision; their results are rounded to it).
+    min U, for the histogram's lower edge (a function of the record q). ``builtin``: kernels may
+    be cached on disk.
+
+    ``parameters``: the fields, in order, of the oscillator's kernel record ``q``
+    (:meth:`record`): the name of one of the run's shared settings (``"power_n"``) or a
+    :class:`stochpend.parameters.Parameter` the oscillator declares for itself (a user model's
+    ``parameters``), whose value the run's configuration holds in ``osc_params``.
     """
 
     name: str
     build: Callable[[Any, Any], OscillatorKernel]
     description: str
     periodic: bool = False
-    energy_floor: Callable[[int], float] = lambda n: 0.0
+    energy_floor: Callable[[tuple[float, ...]], float] = lambda q: 0.0
     builtin: bool = False
+    parameters: tuple[Any, ...] = ()
+
+    def record(self, config: Any) -> tuple[float, ...]:
+        """The kernel record of this oscillator for a run of ``config`` (a SimulationConfig, or
+        anything with its fields): for each entry of :attr:`parameters`, ``getattr(config,
+        name)`` when the config has that field, else the value in ``config.osc_params`` (sorted
+        (name, value) pairs). A tuple of float64; ``(0.0,)`` when there are no parameters."""
+        own = dict(getattr(config, "osc_params", ()) or ())
+        values = []
+        for entry in self.parameters:
+            name = getattr(entry, "name", entry)  # a Parameter of its own, or a config field
+            if hasattr(config, name):
+                value = getattr(config, name)
+            elif name in own:
+                value = own[name]
+            else:
+                raise ValueError(f"potential={self.name!r} needs the parameter {name!r}: give it in "
+                                 "osc_params")
+            values.append(float(value))
+        return tuple(values) or (0.0,)
 
     def kernel(self, real: Any, mathlib: Any) -> OscillatorKernel:
         return _kernel(self, real, mathlib.name)

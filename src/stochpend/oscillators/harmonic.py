@@ -22,21 +22,21 @@ def build(real, mathlib) -> OscillatorKernel:
     two = real(2.0)
 
     @register_jitable
-    def potential(x, n):
+    def potential(x, q):
         return half * x * x
 
     @register_jitable
-    def force(x, n):
+    def force(x, q):
         return x
 
     @register_jitable
-    def noise_shape(x, n):
+    def noise_shape(x, q):
         return x
 
     @register_jitable
-    def step_scales(x, Omega, omega2, n):
+    def step_scales(x, Omega, omega2, q):
         if omega2 > zero:
-            u_max = potential(x, n) + half * Omega * Omega / omega2
+            u_max = potential(x, q) + half * Omega * Omega / omega2
             return math.sqrt(two * omega2 * u_max), one
         return abs(Omega), one
 

@@ -22,19 +22,19 @@ def build(real, mathlib) -> OscillatorKernel:
     two_pi = real(2.0 * math.pi)
 
     @register_jitable
-    def potential(x, n):
+    def potential(x, q):
         return -cos(x)
 
     @register_jitable
-    def force(x, n):
+    def force(x, q):
         return sin(x)
 
     @register_jitable
-    def noise_shape(x, n):
+    def noise_shape(x, q):
         return sin(x)
 
     @register_jitable
-    def step_scales(x, Omega, omega2, n):
+    def step_scales(x, Omega, omega2, q):
         return abs(Omega), one
 
     @register_jitable
@@ -49,6 +49,6 @@ PENDULUM = Oscillator(
     build=build,
     description="pendulum, U = -cos(theta)",
     periodic=True,
-    energy_floor=lambda n: -1.0,
+    energy_floor=lambda q: -1.0,
     builtin=True,
 )

@@ -18,22 +18,28 @@ def build(real, mathlib) -> OscillatorKernel:
     half = real(0.5)
     two = real(2.0)
 
+    # q = (power_n,): n is read back as an integer, so x ** (2 * n) stays an integer power
+    # (repeated multiplication, bit for bit what an int n gave), never pow(x, float).
     @register_jitable
-    def potential(x, n):
+    def potential(x, q):
+        n = int(q[0])
         return real(x ** (2 * n) / (2 * n))
 
     @register_jitable
-    def force(x, n):
+    def force(x, q):
+        n = int(q[0])
         return real(x ** (2 * n - 1))
 
     @register_jitable
-    def noise_shape(x, n):
+    def noise_shape(x, q):
+        n = int(q[0])
         return real(x ** (2 * n - 1))
 
     @register_jitable
-    def step_scales(x, Omega, omega2, n):
+    def step_scales(x, Omega, omega2, q):
+        n = int(q[0])
         if omega2 > zero:
-            u_max = potential(x, n) + half * Omega * Omega / omega2
+            u_max = potential(x, q) + half * Omega * Omega / omega2
             speed = math.sqrt(two * omega2 * u_max)
             return speed, real((2 * n - 1) * (2 * n * u_max) ** ((n - 1) / n))
         return abs(Omega), real((2 * n - 1) * x ** (2 * n - 2))
@@ -50,4 +56,5 @@ POWER = Oscillator(
     build=build,
     description="x^(2n) oscillator, U = x^(2n)/(2n)",
     builtin=True,
+    parameters=("power_n",),
 )
