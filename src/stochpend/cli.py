@@ -254,7 +254,7 @@ def simulate(
     checkpoint_every: Annotated[str | None, typer.Option("--checkpoint-every", help="Checkpoint interval, e.g. 30s, 5m, 1h (needs --checkpoint).", show_default="5m")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
-    param: Annotated[list[str] | None, typer.Option("--param", "-p", metavar="NAME=VALUE", help="A parameter the noise declares for itself, NAME=VALUE (repeat it; 'stochpend list' shows each noise's).", show_default="the noise's defaults")] = None,
+    param: Annotated[list[str] | None, typer.Option("--param", "-p", metavar="NAME=VALUE", help="A parameter the noise or the oscillator declares for itself, NAME=VALUE (repeat it; 'stochpend list' shows each piece's).", show_default="the pieces' defaults")] = None,
     plugin: Annotated[list[str] | None, typer.Option("--plugin", metavar="NAME", help="Load a noise, model or observable from outside stochpend: an installed stochpend plugin or a module's dotted name (repeat it).", show_default="none")] = None,
     config_file: Annotated[Path | None, typer.Option("--config", parser=file_name, is_eager=True, callback=_load_config,
                                                 help="A TOML file of physics and numerics options, by their names here "

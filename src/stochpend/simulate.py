@@ -87,7 +87,9 @@ def simulate(
         adds ``mean_<name>`` with its standard error and bias estimate, on every backend.
     **noise_params : float
         The parameters a noise declares for itself (``stochpend list`` names them), e.g.
-        ``simulate(noise="two-ou", tau1=0.5, weight=0.3)``; the noise's defaults fill the rest.
+        ``simulate(noise="two-ou", tau1=0.5, weight=0.3)``, and those the oscillator (a
+        model's ``parameters``) declares, e.g. ``simulate(potential="tilted-well", a=0.2)``;
+        the pieces' defaults fill the rest.
     omega : float
         Pendulum frequency, >= 0.
     paths : int
