@@ -40,8 +40,9 @@ MAX_OMEGA, MAX_POWER_N = 1e150, 1000
 
 
 def note(message: str) -> None:
-    """Print one yellow line (a fallback the user should know about)."""
-    console.print(f"[yellow]note:[/] {escape(message)}", highlight=False, soft_wrap=True)
+    """Print one yellow line (a fallback the user should know about): folded to a terminal's
+    width, one line in a pipe or a log (for grep)."""
+    console.print(f"[yellow]note:[/] {escape(message)}", highlight=False, soft_wrap=not console.is_terminal)
 
 
 def fail(message: str, code: int = 2) -> None:
@@ -260,8 +261,8 @@ class RichProgress:
         self._beat: tuple[float, float, str, float] | None = None  # started, total, what, next
 
     def start(self, total: float, description: str) -> None:
-        if self.announce:
-            console.print(self.announce, highlight=False, soft_wrap=True)
+        if self.announce:  # folded to a terminal's width, one line in a pipe
+            console.print(self.announce, highlight=False, soft_wrap=not console.is_terminal)
             self.announce = None
         if self.heartbeat is not None:
             now = self._clock()

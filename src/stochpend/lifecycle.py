@@ -275,8 +275,14 @@ def compile_note(config: SimulationConfig, backend: str, precision: str, *,
     seconds = resources.compile_seconds(config, backend=backend, precision=precision,
                                         pairs=pairs)
     expected = f"~{resources.format_seconds(seconds)}, " if seconds > 0 else ""
-    print(f"compiling kernels for {label} (first use: {expected}cached after)", file=sys.stderr,
-          flush=True)
+    text = f"compiling kernels for {label} (first use: {expected}cached after)"
+    if sys.stderr.isatty():  # folded to the terminal; one line in a pipe or a log, for grep
+        import shutil
+        import textwrap
+
+        text = textwrap.fill(text, width=max(40, shutil.get_terminal_size().columns), break_on_hyphens=False,
+                             break_long_words=False)
+    print(text, file=sys.stderr, flush=True)
 
 
 def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_time_s: float,
