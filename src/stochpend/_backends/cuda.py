@@ -607,22 +607,29 @@ def path_states(
 
 
 # -- offline compilation (benchmarks/cuda_registers.py) ----------------------------------------
-def _advance_signature(precision: str, noise: Any):
+def _advance_signature(precision: str, noise: Any, oscillator: Any):
     """(state, t_target, max_steps, key0, key1, path0, p, run, unfinished) as the host launches
-    the advance kernel of ``noise`` (its record: one float64 per ``noise.parameters``)."""
+    the advance kernel of ``noise`` and ``oscillator``: the noise's record, one float64 per
+    ``noise.parameters``; the run record (omega2, q, h_max, step_c) with the oscillator's record
+    q, one float64 per ``oscillator.parameters`` (at least one: ``Oscillator.record``)."""
     real = nbtypes.float32 if precision == "float32" else nbtypes.float64
     f64 = nbtypes.Array(nbtypes.float64, 1, "C")
     r = nbtypes.Array(real, 1, "C")
     state = nbtypes.Tuple((r, r, r, f64, f64, f64, nbtypes.Array(nbtypes.uint64, 1, "C"),
                            nbtypes.Array(nbtypes.uint8, 1, "C")))
     record = nbtypes.UniTuple(nbtypes.float64, len(noise.parameters))
-    run = nbtypes.Tuple((nbtypes.float64, nbtypes.int64, nbtypes.float64, nbtypes.float64))
+    # The oscillator's record as Oscillator.record builds it: an integer setting (power_n) stays
+    # an integer, everything else is a float.
+    q_types = [nbtypes.int64 if getattr(e, "name", e) == "power_n" else nbtypes.float64
+               for e in oscillator.parameters] or [nbtypes.float64]
+    q = nbtypes.Tuple(tuple(q_types))
+    run = nbtypes.Tuple((nbtypes.float64, q, nbtypes.float64, nbtypes.float64))
     return (state, nbtypes.float64, nbtypes.int64, nbtypes.uint64, nbtypes.uint64, nbtypes.int64,
             record, run, nbtypes.Array(nbtypes.int32, 1, "C"))
 
 
-def _pair_advance_signature(noise: Any):
-    sig = _advance_signature("float64", noise)
+def _pair_advance_signature(noise: Any, oscillator: Any):
+    sig = _advance_signature("float64", noise, oscillator)
     f64 = nbtypes.Array(nbtypes.float64, 1, "C")
     x, Omega, *rest = sig[0].types
     # x, Omega, then the fine member's xf, Omegaf; path0 is a uint64 (2**63 + pair index)
@@ -647,8 +654,8 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
                         spec = Spec(osc, coupling, noise, precision, adaptive)
                         kernel = advance_kernel(spec)
                         out.append((f"advance {spec.label}", kernel.py_func,
-                                    _advance_signature(precision, noise)))
+                                    _advance_signature(precision, noise, osc)))
                         if precision == "float64":
                             out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
-                                        _pair_advance_signature(noise)))
+                                        _pair_advance_signature(noise, osc)))
     return out

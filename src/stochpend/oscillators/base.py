@@ -77,7 +77,9 @@ class Oscillator:
         """The kernel record of this oscillator for a run of ``config`` (a SimulationConfig, or
         anything with its fields): for each entry of :attr:`parameters`, ``getattr(config,
         name)`` when the config has that field, else the value in ``config.osc_params`` (sorted
-        (name, value) pairs). A tuple of float64; ``(0.0,)`` when there are no parameters."""
+        (name, value) pairs). Floats, except that an integer setting stays an integer (the power
+        family's ``power_n``: ``x ** (2 * n)`` is then an integer power with no conversion in the
+        kernel, as before records); ``(0.0,)`` when there are no parameters."""
         own = dict(getattr(config, "osc_params", ()) or ())
         values = []
         for entry in self.parameters:
@@ -89,7 +91,7 @@ class Oscillator:
             else:
                 raise ValueError(f"potential={self.name!r} needs the parameter {name!r}: give it in "
                                  "osc_params")
-            values.append(float(value))
+            values.append(value if isinstance(value, int) and not isinstance(value, bool) else float(value))
         return tuple(values) or (0.0,)
 
     def kernel(self, real: Any, mathlib: Any) -> OscillatorKernel:

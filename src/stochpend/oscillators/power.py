@@ -18,8 +18,8 @@ def build(real, mathlib) -> OscillatorKernel:
     half = real(0.5)
     two = real(2.0)
 
-    # q = (power_n,): n is read back as an integer, so x ** (2 * n) stays an integer power
-    # (repeated multiplication, bit for bit what an int n gave), never pow(x, float).
+    # q = (power_n,), an integer in the record (Oscillator.record): x ** (2 * n) stays an integer
+    # power (repeated multiplication), never pow(x, float); int() of it costs nothing.
     @register_jitable
     def potential(x, q):
         n = int(q[0])
