@@ -31,12 +31,6 @@ S_E1 = _table.column("E")
 # Each statistic: a function of the means m[..., c] = sums[..., c] / count.
 STATISTICS: dict[str, Callable[[np.ndarray], np.ndarray]] = {s.name: s.of for s in _table.STATISTICS}
 
-#: Short names for plot labels (``long_name``) and units: xarray's ``ds.mean_E.plot()`` reads
-#: "⟨E⟩ [paper units]". The equations are dimensionless (the paper's units); ratios have unit 1.
-LABELS = {s.name: (s.label, s.units) for s in _table.STATISTICS}
-
-DESCRIPTIONS = {s.name: s.description for s in _table.STATISTICS}
-
 
 @dataclass
 class EnsembleSums:
