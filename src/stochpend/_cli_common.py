@@ -308,6 +308,51 @@ def _fmt(value: float, se: float | None = None) -> str:
     return ve(value, se)
 
 
+def observable_variables(ds: Any) -> list[str]:
+    """The result's variables of user observables and accumulators (``attrs["observables"]``:
+    mean_, passed_ and var_ of each name, those present), in order; from the file alone, so
+    ``show`` lists them in a process that never registered them."""
+    names = str(ds.attrs.get("observables", "") or "")
+    out = []
+    for name in (n.strip() for n in names.split(",")):
+        for prefix in ("mean", "passed", "var"):
+            v = f"{prefix}_{name}"
+            if name and v in ds and f"{v}_stderr" in ds and v not in out:
+                out.append(v)
+    return out
+
+
+def observables_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Table | None:
+    """The user observables' statistics at the summary table's times (value(error)), None
+    without any; one table a few columns wide at a time, so that it fits ``width``."""
+    variables = observable_variables(ds)
+    if not variables:
+        return None
+    idx = shown_rows(ds, max_rows)
+    columns: dict[str, list[str]] = {"t": [f"{float(ds.time.values[i]):.4g}" for i in idx]}
+    for v in variables:
+        columns[markup(v)] = [_fmt(float(ds[v].values[i]), float(ds[f"{v}_stderr"].values[i])) for i in idx]
+    dropped: list[str] = []
+    if width is not None:
+        def needed() -> int:
+            return 1 + sum(3 + max(len(n), *(len(c) for c in cells)) for n, cells in columns.items())
+
+        while needed() > width and len(columns) > 2:
+            dropped.append(list(columns)[-1])
+            del columns[list(columns)[-1]]
+    table = Table(title="user observables")
+    for name in columns:
+        table.add_column(name, justify="right", no_wrap=True)
+    for k in range(len(idx)):
+        table.add_row(*(cells[k] for cells in columns.values()))
+    caption = ("Values as v(e), e one standard error (jackknife). Per-path accumulators (time averages, "
+               "first passages, running sums) have no bias estimate: the coupled pairs do not carry them.")
+    if dropped:
+        caption += f" Not shown at this width: {', '.join(dropped)} (a wider terminal or a pipe shows them)."
+    table.caption = caption
+    return table
+
+
 def shown_rows(ds: Any, max_rows: int = 12) -> list[int]:
     """The output-time indices a table of at most ``max_rows`` rows shows (evenly spread, the
     first and last always)."""

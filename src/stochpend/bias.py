@@ -145,7 +145,8 @@ _NO_EDGES = np.array([np.inf])
 
 def _accumulate_pairs(accumulate: Any, x: np.ndarray, Omega: np.ndarray, xf: np.ndarray,
                       Omegaf: np.ndarray, xi: np.ndarray, t: np.ndarray, status: np.ndarray, omega2: float,
-                      q: tuple[float, ...], batch_size: int, sums: np.ndarray, hist: np.ndarray) -> None:
+                      q: tuple[float, ...], batch_size: int, sums: np.ndarray, hist: np.ndarray,
+                      tracks: np.ndarray) -> None:
     """sums[b, 0 or 1, :]: the power sums of the coarse (0) and fine (1) members of batch b's
     pairs, both over the same pairs: a pair is counted only when both members are (a member
     whose moments overflow marks the pair non-finite in ``status``).
@@ -154,12 +155,15 @@ def _accumulate_pairs(accumulate: Any, x: np.ndarray, Omega: np.ndarray, xf: np.
     kernel cache compiles one statistics kernel, not two: the coarse members (marking the pairs
     whose coarse member overflows), the fine members (marking those whose fine member does),
     and, only when the fine members marked a pair, the coarse members again, without it. Each
-    sum is added in path order, as the run's are: the numbers of a kernel of its own."""
-    accumulate(x, Omega, xi, t, status, omega2, q, batch_size, _NO_EDGES, sums[:, 0], hist)
+    sum is added in path order, as the run's are: the numbers of a kernel of its own.
+
+    ``tracks``: zeros for a run's per-path accumulators, which the pairs do not carry (their
+    statistics have no Richardson estimate: ``Statistic.richardson``)."""
+    accumulate(x, Omega, xi, t, status, tracks, omega2, q, batch_size, _NO_EDGES, sums[:, 0], hist)
     marked = np.count_nonzero(status)
-    accumulate(xf, Omegaf, xi, t, status, omega2, q, batch_size, _NO_EDGES, sums[:, 1], hist)
+    accumulate(xf, Omegaf, xi, t, status, tracks, omega2, q, batch_size, _NO_EDGES, sums[:, 1], hist)
     if np.count_nonzero(status) != marked:
-        accumulate(x, Omega, xi, t, status, omega2, q, batch_size, _NO_EDGES, sums[:, 0], hist)
+        accumulate(x, Omega, xi, t, status, tracks, omega2, q, batch_size, _NO_EDGES, sums[:, 0], hist)
 
 
 # -- the estimate -------------------------------------------------------------------------------
@@ -235,6 +239,7 @@ def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_
     from stochpend._backends import cpu
 
     accumulate = cpu.accumulate_kernel(spec, config.observables)  # the run's own (compiled once for both)
+    n_tracks = len(observables.accumulators(observables.objects(config.observables)))
     times = np.asarray(config.times, dtype=np.float64)
     n_batches = min(BIAS_BATCHES, n_paths)
     batch_size = -(-n_paths // n_batches)
@@ -253,12 +258,13 @@ def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_
         pairs = (_GpuPairs if backend == "cuda" else _CpuPairs)(config, spec, p0, n)
         max_steps = max(1000, _WORK_PER_CALL // max(n, 1))
         hist = np.zeros((b1 - b0, 2), dtype=np.int64)  # the run's kernel counts; not used
+        tracks = np.zeros((n_tracks, n))
         for j, t_target in enumerate(times):
             while not pairs.advance(float(t_target), max_steps):
                 progress.update(done_work + pairs.time_sum())
             x, Omega, xf, Omegaf, xi, t, status = pairs.members()
             _accumulate_pairs(accumulate, x, Omega, xf, Omegaf, xi, t, status, c.omega**2, q,
-                              batch_size, sums[b0:b1, j], hist)
+                              batch_size, sums[b0:b1, j], hist, tracks)
             pairs.set_status(status)  # pairs whose moments overflowed stay excluded
             progress.update(done_work + n * float(t_target))
         draws += pairs.draws()
@@ -382,6 +388,11 @@ def _statistics(sums: np.ndarray, statistics: Sequence[observables.Statistic]):
     with np.errstate(invalid="ignore", divide="ignore"):
         for statistic in statistics:
             name, f = statistic.name, statistic.of
+            if not statistic.richardson:  # a per-path accumulator: no estimate (see Statistic)
+                nan = np.full(m_all.shape[:-2], np.nan)
+                bias[name] = (nan, nan.copy())
+                coarse[name] = (nan.copy(), nan.copy())
+                continue
             for out, g in ((bias, lambda m, f=f: RICHARDSON * (f(m[..., 0, :]) - f(m[..., 1, :]))),
                            (coarse, lambda m, f=f: f(m[..., 0, :]))):
                 value = g(m_all)

@@ -90,7 +90,11 @@ _RUN_FIELDS = ("first_batch", "stop_batch", "b0", "b1", "j", "path_steps", "done
 _CHUNK_ARRAYS = {"chunk_sums": "<f8", "chunk_hist": "<i8"}
 _ACC_ARRAYS = {"acc_sums": "<f8", "acc_hist": "<i8", "acc_filled": "|b1"}
 _PATH_ARRAYS = tuple(f.name for f in fields(RunState)
-                     if f.name not in (*_RUN_FIELDS, *_CHUNK_ARRAYS, "acc", "backend", "precision", "_sync"))
+                     if f.name not in (*_RUN_FIELDS, *_CHUNK_ARRAYS, "acc", "backend", "precision", "_sync",
+                                       "tracks"))
+#: The per-path accumulators' slots (stochpend.observables), (n_slots, n), written when the run
+#: has accumulators.
+_TRACK_ARRAYS = {"tracks": "<f8"}
 #: Dtype kinds a per-path array may have (never object: nothing here can hold a pickle).
 _NUMERIC_KINDS = "biuf"
 #: An ``accuracy="auto"`` run's pilot (:class:`stochpend.bias.BiasEstimate`): (value, stderr)
@@ -231,6 +235,8 @@ def _state_arrays(state: RunState) -> dict[str, np.ndarray]:
     arrays["acc_sums"] = np.ascontiguousarray(state.acc.sums, dtype=_ACC_ARRAYS["acc_sums"])
     arrays["acc_hist"] = np.ascontiguousarray(state.acc.hist, dtype=_ACC_ARRAYS["acc_hist"])
     arrays["acc_filled"] = np.ascontiguousarray(state.acc.filled, dtype=_ACC_ARRAYS["acc_filled"])
+    if state.tracks is not None and state.tracks.shape[0] > 0:
+        arrays["tracks"] = np.ascontiguousarray(state.tracks, dtype=_TRACK_ARRAYS["tracks"])
     for name in _PATH_ARRAYS:
         a = arrays[name]
         if a.dtype.kind not in _NUMERIC_KINDS:  # pragma: no cover - a RunState field of another kind
@@ -431,6 +437,9 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
         "acc_hist": (n_times, n_cols),
         "acc_filled": (config.n_batches,),
     })
+    n_slots = len(observables.accumulators(observables.objects(config.observables)))
+    if n_slots:
+        shapes["tracks"] = (n_slots, n)
     record = header.get("accuracy")
     if record is not None:
         n_stats = len(_statistic_names(config))
@@ -442,7 +451,8 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
         raise _refuse(p, f"unknown backend {backend!r} or precision {precision!r}")
     # Every array has the one dtype its engine holds it in (S15, S16: an '<i8' position or a
     # '|b1' status, same size, was accepted and reinterpreted as garbage).
-    fixed: dict[str, Any] = {**_CHUNK_ARRAYS, **_ACC_ARRAYS, **_PILOT_ARRAYS, **path_dtypes(backend, precision)}
+    fixed: dict[str, Any] = {**_CHUNK_ARRAYS, **_ACC_ARRAYS, **_PILOT_ARRAYS, **_TRACK_ARRAYS,
+                             **path_dtypes(backend, precision)}
     arrays: dict[str, np.ndarray] = {}
     entry: Any
     for entry in header["arrays"]:
@@ -471,7 +481,7 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     fields_read.update({name: arrays[name] for name in _PATH_ARRAYS})
     state = RunState(**fields_read,
                      chunk_sums=arrays["chunk_sums"], chunk_hist=arrays["chunk_hist"], acc=acc,
-                     backend=backend, precision=precision)
+                     backend=backend, precision=precision, tracks=arrays.get("tracks"))
     out = header.get("out")
     return Checkpoint(
         config=config, state=state, out=None if out is None else Path(out),

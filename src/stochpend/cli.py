@@ -37,6 +37,7 @@ from stochpend._cli_common import (  # the shared layer; several are also used a
     handles_errors,
     load_plugins,
     note,
+    observables_table,
     parse_params,
     parse_theta0,
     parse_times,
@@ -256,6 +257,7 @@ def simulate(
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
     param: Annotated[list[str] | None, typer.Option("--param", "-p", metavar="NAME=VALUE", help="A parameter the noise or the oscillator declares for itself, NAME=VALUE (repeat it; 'stochpend list' shows each piece's).", show_default="the pieces' defaults")] = None,
     plugin: Annotated[list[str] | None, typer.Option("--plugin", metavar="NAME", help="Load a noise, model or observable from outside stochpend: an installed stochpend plugin or a module's dotted name (repeat it).", show_default="none")] = None,
+    observable: Annotated[list[str] | None, typer.Option("--observable", metavar="NAME", help="Also report a registered observable or per-path accumulator ('displacement', or one a --plugin registers; repeat it; 'stochpend list' shows them).", show_default="none")] = None,
     config_file: Annotated[Path | None, typer.Option("--config", parser=file_name, is_eager=True, callback=_load_config,
                                                 help="A TOML file of physics and numerics options, by their names here "
                                                 "(noise, D, tau, t_max, paths, h_max, ...); options on the command "
@@ -293,7 +295,7 @@ def simulate(
         noise_params=noise_params,
         noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max,
         times=parse_times(times), n_times=n_times, seed=seed, theta0=parse_theta0(theta0),
-        Omega0=Omega0, **kwargs,
+        Omega0=Omega0, observables=tuple(observable or ()), **kwargs,
     )
     from stochpend import bias as _bias
 
@@ -338,7 +340,7 @@ def simulate(
                 times=parse_times(times), n_times=n_times, seed=seed, theta0=parse_theta0(theta0),
                 Omega0=Omega0, backend=backend, threads=threads, progress=progress,
                 precision=precision, max_path_steps=max_path_steps, bias_paths=bias_paths,
-                accuracy=accuracy, rtol=rtol, **kwargs, **noise_params,
+                accuracy=accuracy, rtol=rtol, observables=config.observables, **kwargs, **noise_params,
             )
         ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
         if config_file is not None and ctx is not None:  # provenance: the file as it was read
@@ -348,6 +350,9 @@ def simulate(
             io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
         results.print(summary_table(ds, width=results.width))
+        extra = observables_table(ds, width=results.width)
+        if extra is not None:
+            results.print(extra)
         for line in bias_warnings(ds, shown_rows(ds)):
             console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
         for line in bias_notes(ds):
@@ -535,6 +540,9 @@ def show(
             tables = [bfpe_table(ds, max_rows=rows, width=results.width)]
         else:
             tables = [summary_table(ds, max_rows=rows, width=results.width)]
+            extra = observables_table(ds, max_rows=rows, width=results.width)
+            if extra is not None:
+                tables.append(extra)
             if kind == "reduced":
                 from stochpend._cli_theory import reduced_table
 
@@ -588,8 +596,16 @@ def list_pieces(
         table.add_row("--potential", name, text)
     table.add_row("--coupling", "force", "the noise multiplies the force U'(x) (the paper's pendulum)")
     table.add_row("--coupling", "position", "the noise multiplies x (the random-frequency oscillator)")
-    table.caption = ("A noise or oscillator of your own: stochpend.noises.register / "
-                     "stochpend.models.register (docs/models.md), loaded with --plugin MODULE.")
+    from stochpend import observables
+
+    for name in observables.names():
+        o = observables.get(name)
+        kind = {"Observable": "mean of a per-path value", "TimeAverage": "per-path time average",
+                "FirstPassage": "first-passage time", "RunningSum": "per-path running sum"}.get(type(o).__name__, "")
+        table.add_row("--observable", name, plain(f"{kind}: {o.description or o.name}"))
+    table.caption = ("A noise, oscillator or observable of your own: stochpend.noises.register / "
+                     "stochpend.models.register / stochpend.observables.register (docs/models.md), "
+                     "loaded with --plugin MODULE.")
     results.print(table)
 
 

@@ -179,9 +179,31 @@ class Spec:
 
 
 # -- the integrator ------------------------------------------------------------------------------
+@register_jitable
+def _no_tracks(state):
+    return 0
+
+
+@register_jitable
+def _tracks_of(state):
+    return state[8]
+
+
+@register_jitable
+def _track_nothing(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):
+    return None
+
+
 @functools.cache
-def build(spec: Spec) -> SimpleNamespace:
-    """The device functions of ``spec`` (see the module docstring); cached per Spec."""
+def build(spec: Spec, track: Any = None) -> SimpleNamespace:
+    """The device functions of ``spec`` (see the module docstring); cached per Spec.
+
+    ``track``: the per-path accumulators' step update
+    (:func:`stochpend.observables.track_step`), called by ``advance_path`` after each step of a
+    path that stays finite, with the state before and after it; their slots are ``state[8]``,
+    a float64 array (n_slots, n_paths). ``None`` (every run without accumulators): no tracking
+    is compiled, and the kernels are those of the Spec alone.
+    """
     real = np.float32 if spec.precision == "float32" else np.float64
     mathlib = FAST if spec.fast_math else LIBM
     osc = spec.oscillator.kernel(real, mathlib)
@@ -189,6 +211,9 @@ def build(spec: Spec) -> SimpleNamespace:
 
     POSITION = spec.coupling == "position"
     ADAPTIVE = spec.adaptive
+    TRACK = track is not None
+    tracks_of = _tracks_of if TRACK else _no_tracks
+    track_step = track if TRACK else _track_nothing
     HAS_EVENTS = spec.noise.has_events
     half = real(0.5)
     escape = real(ESCAPE_STEP_FRACTION)
@@ -290,6 +315,7 @@ def build(spec: Spec) -> SimpleNamespace:
         tt = t[i]
         tc = t_comp[i]
         kk = k[i]
+        tracks = tracks_of(state)
         # Everything of the noise's step that depends on h only, cached while h is unchanged
         # (h = h_max most of the time).
         h_cached = h_max_r
@@ -317,6 +343,11 @@ def build(spec: Spec) -> SimpleNamespace:
             if h != h_cached:
                 C = coefficients(h, p)
                 h_cached = h
+            if TRACK:
+                x_before = xs
+                Om_before = Om
+                xn_before = xn
+                t_before = tt
             z, S = draw(key0, key1, path, kk, S)
             noise_integral, xn, xa = update(xn, xa, C, z)
             xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, q)
@@ -329,6 +360,10 @@ def build(spec: Spec) -> SimpleNamespace:
                     and math.isfinite(xa)):
                 bad = True
                 break
+            if TRACK:
+                track_step(tracks, i, np.float64(x_before), np.float64(Om_before),
+                           np.float64(xn_before), np.float64(xs), np.float64(Om), np.float64(xn),
+                           t_before, tt)
             if last:
                 break
         x[i] = xs
@@ -513,7 +548,8 @@ def build(spec: Spec) -> SimpleNamespace:
                 break
         return steps, tt, tc, kk, finite
 
-    name_closures([G, step_size, verlet, advance_path, advance_pair, advance_lanes], spec.label)
+    name_closures([G, step_size, verlet, advance_path, advance_pair, advance_lanes],
+                  spec.label if track is None else f"{spec.label}/track/{id(track):x}")
     return SimpleNamespace(
         spec=spec, real=real, G=G, step_size=step_size, verlet=verlet,
         init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,

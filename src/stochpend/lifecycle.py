@@ -297,7 +297,7 @@ def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_tim
         attrs["model"] = f"user-defined ({user_model.description or 'stochpend.models.Model'})"
         attrs["model_source"] = user_model.source()
     for name in config.observables:  # the code of each user observable, as for a user's model
-        attrs[f"observable_{name}_source"] = observables.get(name).source()  # type: ignore[union-attr]
+        attrs[f"observable_{name}_source"] = observables.get(name).source()
     attrs.update({f"scheme_{k}": v for k, v in integrator.SCHEME.items()})
     attrs.update(
         {

@@ -49,8 +49,10 @@ from typing import Any
 import numpy as np
 
 __all__ = ["SUMS", "STATISTICS", "SUM_COMPONENTS", "N_SUMS", "S_COUNT", "S_NONFINITE", "column",
-           "path_values_source", "reduced_values_source", "TABLE_KEY", "Observable", "register",
-           "unregister", "get", "names", "resolve", "objects", "user_statistics", "user_key"]
+           "path_values_source", "reduced_values_source", "TABLE_KEY", "Observable", "TimeAverage",
+           "FirstPassage", "RunningSum", "DISPLACEMENT", "register", "unregister", "get", "names",
+           "resolve", "objects", "user_statistics", "user_key", "accumulators", "track_step",
+           "track_initial"]
 
 
 @dataclass(frozen=True)
@@ -75,6 +77,9 @@ class Statistic:
     description: str
     short: str
     controlled: bool = True
+    #: The coupled pairs' Richardson estimate applies (False: a per-path accumulator, which the
+    #: pairs do not carry, or whose step error is not O(h^2): its bias is not estimated).
+    richardson: bool = True
 
 
 def _ratio(num: np.ndarray, den: np.ndarray) -> np.ndarray:
@@ -216,13 +221,16 @@ class Observable:
             return f"{self.name}: source unavailable"
 
 
-_REGISTRY: dict[str, Observable] = {}
+_REGISTRY: dict[str, Any] = {}
 
 
-def register(observable: Observable) -> Observable:
-    """Make ``observable`` available to runs by its name (replaces one of the same name)."""
-    if not isinstance(observable, Observable):
-        raise ValueError(f"observable={observable!r} is not accepted: a stochpend.observables.Observable")
+def register(observable: Any) -> Any:
+    """Make ``observable`` (an :class:`Observable`, or a per-path accumulator:
+    :class:`TimeAverage`, :class:`FirstPassage`, :class:`RunningSum`) available to runs by its
+    name (replaces one of the same name)."""
+    if not isinstance(observable, (Observable, TimeAverage, FirstPassage, RunningSum)):
+        raise ValueError(f"observable={observable!r} is not accepted: a stochpend.observables.Observable, "
+                         "TimeAverage, FirstPassage or RunningSum")
     _REGISTRY[observable.name] = observable
     return observable
 
@@ -235,7 +243,7 @@ def names() -> tuple[str, ...]:
     return tuple(_REGISTRY)
 
 
-def get(name: str) -> Observable | None:
+def get(name: str) -> Any:
     return _REGISTRY.get(name)
 
 
@@ -261,52 +269,367 @@ def resolve(value: Any) -> tuple[str, ...]:
     return items
 
 
-def objects(names_: tuple[str, ...]) -> tuple[Observable, ...]:
+def check_windows(names_: tuple[str, ...], times: Any) -> None:
+    """A time average's window ends must be 0 or output times of the run (steps land there, so
+    no step straddles an end): a one-line ValueError naming the observable otherwise."""
+    allowed = {0.0, *(float(t) for t in times)}
+    for name in names_:
+        o = _REGISTRY.get(name)
+        if isinstance(o, TimeAverage):
+            for end in o.window:
+                if end not in allowed:
+                    raise ValueError(f"observables={names_!r} is not accepted: the window {o.window} of "
+                                     f"{name!r} must start and end at 0 or an output time of the run "
+                                     f"(its steps land there), and {end:g} is not one")
+
+
+def objects(names_: tuple[str, ...]) -> tuple[Any, ...]:
     """The registered observables of these names (the kernels are specialised on the objects,
     so that a name registered again gets kernels of its new function)."""
     found = tuple(_REGISTRY.get(name) for name in names_)
     missing = [name for name, o in zip(names_, found, strict=True) if o is None]
     if missing:
         raise ValueError(f"observables={names_!r} is not accepted: {missing[0]!r} is not a registered observable")
-    return found  # type: ignore[return-value]  # no None left
+    return found
 
 
 def n_sums(config: Any) -> int:
-    """Columns of a run's per-batch sums: the table's and one per user observable."""
-    return N_SUMS + len(getattr(config, "observables", ()))
+    """Columns of a run's per-batch sums: the table's, one per user observable and two per
+    per-path accumulator."""
+    return N_SUMS + sum(_columns(_REGISTRY[name]) for name in getattr(config, "observables", ()))
 
 
-def user_key(user: tuple[Observable, ...]) -> str:
+def _columns(o: Any) -> int:
+    return 1 if isinstance(o, Observable) else 2
+
+
+def n_user_columns(user: tuple[Any, ...]) -> int:
+    """Columns of these user observables' sums (objects): one per observable, two per
+    accumulator."""
+    return sum(_columns(o) for o in user)
+
+
+def user_key(user: tuple[Any, ...]) -> str:
     """What names a kernel compiled for these user observables (objects of this process)."""
     return ",".join(f"{o.name}@{id(o):x}" for o in user) or "none"
 
 
 def user_statistics(names_: tuple[str, ...]) -> tuple[Statistic, ...]:
-    """The statistics of a run's user observables: mean_<name> of column N_SUMS + i."""
-    out = []
-    for i, name in enumerate(names_):
+    """The statistics of a run's user observables and accumulators, in the order of their
+    columns (from N_SUMS): mean_<name> of an observable's column; an accumulator's own
+    (:meth:`TimeAverage.statistics` ...)."""
+    out: list[Statistic] = []
+    c = N_SUMS
+    for name in names_:
         obs = _REGISTRY[name]
+        if isinstance(obs, Observable):
+            def of(m: np.ndarray, c: int = c) -> np.ndarray:
+                return m[..., c]
 
-        def of(m: np.ndarray, c: int = N_SUMS + i) -> np.ndarray:
-            return m[..., c]
-
-        out.append(Statistic(obs.statistic, of, obs.label or f"⟨{name}⟩", obs.units,
-                             obs.description or f"<{name}>, ensemble mean of a user observable", f"<{name}>"))
+            out.append(Statistic(obs.statistic, of, obs.label or f"⟨{name}⟩", obs.units,
+                                 obs.description or f"<{name}>, ensemble mean of a user observable", f"<{name}>"))
+        else:
+            out.extend(obs.statistics(c))
+        c += _columns(obs)
     return tuple(out)
 
 
-def user_values(observables: tuple[Observable, ...]) -> Callable:
-    """``user_values(x, Omega, xi, t) -> tuple`` of the observables' values (float64), for the
-    accumulate kernels; ``(0.0,)`` when there are none (the kernels then read no value)."""
+def user_values(observables: tuple[Any, ...]) -> Callable:
+    """``user_values(x, Omega, xi, t, tracks, i) -> tuple`` of the run's user columns (float64),
+    for the accumulate kernels: an observable's value, an accumulator's two columns read from its
+    slot ``tracks[slot, i]`` of path i; ``(0.0,)`` when there are none (the kernels then read no
+    value)."""
     from numba.extending import register_jitable
 
-    functions = {f"f{i}": register_jitable(o.value) for i, o in enumerate(observables)}
-    calls = [f"float(f{i}(x, Omega, xi, t))" for i in range(len(observables))] or ["0.0"]
-    namespace: dict[str, Any] = dict(functions)
-    exec(f"def user_values(x, Omega, xi, t):\n    return ({', '.join(calls)},)\n", namespace)
+    namespace: dict[str, Any] = {}
+    calls: list[str] = []
+    slot = 0
+    for n, o in enumerate(observables):
+        if isinstance(o, Observable):
+            namespace[f"f{n}"] = register_jitable(o.value)
+            calls.append(f"float(f{n}(x, Omega, xi, t))")
+        else:
+            namespace[f"v{n}"] = o.values_function()
+            calls.append(f"*v{n}(tracks[{slot}, i], t)")
+            slot += 1
+    if not calls:
+        calls = ["0.0"]
+    exec(f"def user_values(x, Omega, xi, t, tracks, i):\n    return ({', '.join(calls)},)\n", namespace)
     function = namespace["user_values"]
     function.__module__, function.__qualname__ = __name__, "user_values.<locals>.user_values"
     from stochpend._jitcache import name_closures
 
     name_closures([function], f"user_values/{user_key(observables)}")
     return register_jitable(function)
+
+
+def accumulators(user: tuple[Any, ...]) -> tuple[Any, ...]:
+    """The per-path accumulators among a run's user observables (objects), in slot order."""
+    return tuple(o for o in user if not isinstance(o, Observable))
+
+
+def track_step(accs: tuple[Any, ...]) -> Callable | None:
+    """``track(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1)``: every accumulator's update
+    of its slot ``tracks[slot, i]`` over one step of path i from time t0 (state x0, Omega0, xi0)
+    to t1, in float64; ``None`` without accumulators (the integrator then compiles no tracking
+    at all)."""
+    if not accs:
+        return None
+    from numba.extending import register_jitable
+
+    namespace: dict[str, Any] = {}
+    lines = ["def track(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):"]
+    for slot, a in enumerate(accs):
+        namespace[f"s{slot}"] = a.step_function()
+        lines.append(f"    tracks[{slot}, i] = s{slot}(tracks[{slot}, i], x0, Omega0, xi0, x1, Omega1, xi1, t0, t1)")
+    exec("\n".join(lines) + "\n", namespace)
+    function = namespace["track"]
+    function.__module__, function.__qualname__ = __name__, "track_step.<locals>.track"
+    from stochpend._jitcache import name_closures
+
+    name_closures([function], f"track/{user_key(accs)}")
+    return register_jitable(function)
+
+
+def track_initial(accs: tuple[Any, ...]) -> np.ndarray:
+    """Each slot's value at t = 0, shape (len(accs), 1) (broadcast over the paths)."""
+    return np.array([[a.initial] for a in accs], dtype=np.float64).reshape(len(accs), 1)
+
+
+# -- per-path accumulators -----------------------------------------------------------------------
+def _check_name(name: Any, prefixes: tuple[str, ...]) -> None:
+    if not isinstance(name, str) or not _NAME.fullmatch(name):
+        raise ValueError(f"name={name!r} is not accepted: a letter, then letters, digits or _ (at most 64)")
+    taken = {s.name for s in STATISTICS} | {s.name for s in SUMS}
+    if name in taken or any(f"{p}_{name}" in taken for p in prefixes):
+        raise ValueError(f"name={name!r} is not accepted: it names a built-in statistic")
+
+
+def _probe(function: Any, what: str, n_args: int) -> None:
+    if not callable(function):
+        raise ValueError(f"{what}={function!r} is not accepted: a function of {n_args} floats -> float")
+    try:
+        probe = float(function(*([0.5] * n_args)))
+    except Exception as error:
+        raise ValueError(f"{what} is not accepted: calling it with {n_args} arguments 0.5 raised "
+                         f"{type(error).__name__}: {error}") from None
+    if not math.isfinite(probe):
+        raise ValueError(f"{what} is not accepted: it returned {probe} with {n_args} arguments 0.5")
+
+
+def _ratio_of(c: int) -> Callable[[np.ndarray], np.ndarray]:
+    def of(m: np.ndarray) -> np.ndarray:
+        return _ratio(m[..., c], np.where(m[..., c + 1] > 0, m[..., c + 1], np.nan))
+
+    return of
+
+
+@dataclass(frozen=True, eq=False)
+class TimeAverage:
+    """A per-path time average over a window: (1/(t' - t0)) ∫ value(x, Omega, xi, t) dt over
+    [t0, t'], t' = min(t, t1) at output time t > t0, by the trapezoidal rule over the
+    integrator's own steps (second order, as the scheme is). ``window = (t0, t1)``: each end 0 or
+    one of the run's output times, so that steps land on it and no step straddles it (checked
+    when the run is built). Reported as ``mean_<name>``, the ensemble mean over the paths, from
+    the first output time after t0 (NaN before)."""
+
+    name: str
+    value: Callable[[float, float, float, float], float]
+    window: tuple[float, float]
+    label: str | None = None
+    units: str = "paper units"
+    description: str = ""
+    initial = 0.0
+
+    def __post_init__(self) -> None:
+        _check_name(self.name, ("mean",))
+        _probe(self.value, "value", 4)
+        try:
+            t0, t1 = (float(w) for w in self.window)
+        except (TypeError, ValueError):
+            raise ValueError(f"window={self.window!r} is not accepted: (t0, t1), 0 <= t0 < t1") from None
+        if not (math.isfinite(t0) and math.isfinite(t1) and 0.0 <= t0 < t1):
+            raise ValueError(f"window={self.window!r} is not accepted: (t0, t1), 0 <= t0 < t1")
+        object.__setattr__(self, "window", (t0, t1))
+
+    def statistics(self, c: int) -> list[Statistic]:
+        return [Statistic(f"mean_{self.name}", _ratio_of(c), self.label or f"⟨{self.name}⟩_T", self.units,
+                          self.description or f"<{self.name}>, ensemble mean of a per-path time average "
+                          f"over [{self.window[0]:g}, min(t, {self.window[1]:g})]", f"<{self.name}>_T",
+                          controlled=False, richardson=False)]
+
+    def step_function(self) -> Callable:
+        from numba.extending import register_jitable
+
+        f = register_jitable(self.value)
+        w0, w1 = self.window
+
+        def step(a, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):
+            if t0 >= w0 and t1 <= w1:
+                return a + 0.5 * (t1 - t0) * (float(f(x0, Omega0, xi0, t0)) + float(f(x1, Omega1, xi1, t1)))
+            return a
+
+        return register_jitable(step)
+
+    def values_function(self) -> Callable:
+        from numba.extending import register_jitable
+
+        w0, w1 = self.window
+
+        def values(a, t):
+            if t > w0:
+                return a / (min(t, w1) - w0), 1.0
+            return 0.0, 0.0
+
+        return register_jitable(values)
+
+    def source(self) -> str:
+        return _source(self.value, self.name)
+
+
+@dataclass(frozen=True, eq=False)
+class FirstPassage:
+    """The first time a path's ``value(x, Omega, xi, t)`` reaches ``threshold`` (at t = 0 if it
+    starts there), interpolated linearly within the step that crosses. Reported as
+    ``mean_<name>``, the mean first-passage time of the paths that have passed by the output
+    time (conditional: the others are censored), and ``passed_<name>``, the fraction that has.
+    Its step error is O(sqrt(h)) (a path can cross and come back within a step unseen), not the
+    scheme's O(h^2): the coupled-pair bias estimate does not apply and is not reported."""
+
+    name: str
+    value: Callable[[float, float, float, float], float]
+    threshold: float
+    label: str | None = None
+    units: str = "paper units"
+    description: str = ""
+    initial = -1.0
+
+    def __post_init__(self) -> None:
+        _check_name(self.name, ("mean", "passed"))
+        _probe(self.value, "value", 4)
+        if isinstance(self.threshold, bool) or not isinstance(self.threshold, (int, float)) \
+                or not math.isfinite(self.threshold):
+            raise ValueError(f"threshold={self.threshold!r} is not accepted: a finite number")
+        object.__setattr__(self, "threshold", float(self.threshold))
+
+    def statistics(self, c: int) -> list[Statistic]:
+        def passed(m: np.ndarray, c: int = c) -> np.ndarray:
+            return m[..., c + 1]
+
+        return [Statistic(f"mean_{self.name}", _ratio_of(c), self.label or f"⟨τ_{self.name}⟩", "time",
+                          self.description or f"mean first-passage time of {self.name} >= {self.threshold:g}, "
+                          "over the paths that have passed by t (censored otherwise)", f"<tau_{self.name}>",
+                          controlled=False, richardson=False),
+                Statistic(f"passed_{self.name}", passed, f"P(τ_{self.name} ≤ t)", "1",
+                          f"fraction of the paths whose {self.name} has reached {self.threshold:g} by t",
+                          f"P(tau_{self.name}<=t)", controlled=False, richardson=False)]
+
+    def step_function(self) -> Callable:
+        from numba.extending import register_jitable
+
+        f = register_jitable(self.value)
+        level = self.threshold
+
+        def step(a, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):
+            if a >= 0.0:
+                return a
+            g0 = float(f(x0, Omega0, xi0, t0))
+            if g0 >= level:
+                return t0
+            g1 = float(f(x1, Omega1, xi1, t1))
+            if g1 >= level:
+                return t0 + (t1 - t0) * (level - g0) / (g1 - g0)
+            return a
+
+        return register_jitable(step)
+
+    def values_function(self) -> Callable:
+        from numba.extending import register_jitable
+
+        def values(a, t):
+            if a >= 0.0:
+                return a, 1.0
+            return 0.0, 0.0
+
+        return register_jitable(values)
+
+    def source(self) -> str:
+        return _source(self.value, self.name)
+
+
+@dataclass(frozen=True, eq=False)
+class RunningSum:
+    """A per-path sum of ``increment(x0, Omega0, xi0, x1, Omega1, xi1, t0, t1)`` over the
+    integrator's steps (from the state at t0 to the state at t1, xi the noise's value): a counter,
+    a work, a displacement, an integral of the noise. Reported as
+    ``mean_<name>`` and ``var_<name>``, the ensemble mean and variance of the sum at each output
+    time. :data:`DISPLACEMENT` is one: the increment (t1 - t0)(Omega0 + Omega1)/2 is the step's
+    own drift (x1 - x0 before x is wrapped), so its sum is the unwrapped displacement x(t) - x(0)
+    of a periodic coordinate, in float64 whatever the run's precision."""
+
+    name: str
+    increment: Callable[..., float]
+    label: str | None = None
+    units: str = "paper units"
+    description: str = ""
+    initial = 0.0
+
+    def __post_init__(self) -> None:
+        _check_name(self.name, ("mean", "var"))
+        _probe(self.increment, "increment", 8)
+
+    def statistics(self, c: int) -> list[Statistic]:
+        def mean_(m: np.ndarray, c: int = c) -> np.ndarray:
+            return m[..., c]
+
+        def var_(m: np.ndarray, c: int = c) -> np.ndarray:
+            return m[..., c + 1] - m[..., c] * m[..., c]
+
+        label = self.label or self.name
+        return [Statistic(f"mean_{self.name}", mean_, f"⟨{label}⟩", self.units,
+                          self.description or f"<{self.name}>, ensemble mean of a per-path running sum",
+                          f"<{self.name}>", controlled=False, richardson=False),
+                Statistic(f"var_{self.name}", var_, f"var {label}", self.units,
+                          f"ensemble variance of {self.name}", f"var({self.name})", controlled=False,
+                          richardson=False)]
+
+    def step_function(self) -> Callable:
+        from numba.extending import register_jitable
+
+        f = register_jitable(self.increment)
+
+        def step(a, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):
+            return a + float(f(x0, Omega0, xi0, x1, Omega1, xi1, t0, t1))
+
+        return register_jitable(step)
+
+    def values_function(self) -> Callable:
+        from numba.extending import register_jitable
+
+        def values(a, t):
+            return a, a * a
+
+        return register_jitable(values)
+
+    def source(self) -> str:
+        return _source(self.increment, self.name)
+
+
+def _source(function: Any, name: str) -> str:
+    try:
+        return inspect.getsource(function).strip()
+    except Exception:  # noqa: BLE001 - provenance never stops a run
+        return f"{name}: source unavailable"
+
+
+def _drift(x0: float, Omega0: float, xi0: float, x1: float, Omega1: float, xi1: float, t0: float,
+           t1: float) -> float:
+    return 0.5 * (t1 - t0) * (Omega0 + Omega1)
+
+
+#: The unwrapped displacement x(t) - x(0) (see :class:`RunningSum`): mean velocity
+#: ``mean_displacement / t`` and effective diffusion ``var_displacement / (2 t)``. Registered.
+DISPLACEMENT = RunningSum("displacement", _drift, label="x(t) − x(0)",
+                          description="unwrapped displacement x(t) - x(0), the sum of each step's drift "
+                          "(t1 - t0)(Omega0 + Omega1)/2")
+register(DISPLACEMENT)

@@ -351,6 +351,7 @@ class SimulationConfig:
             if not np.all(np.isfinite(e_max)) or np.any(e_max <= -(omega**2)):
                 _fail("hist_E_max", hist_E_max, accepted)
 
+        _observables.check_windows(observables, grid)
         return cls(
             noise=noise,
             D=D,

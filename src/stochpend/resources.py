@@ -29,7 +29,7 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from stochpend.observables import N_SUMS
+from stochpend.observables import N_SUMS, n_sums
 from stochpend.params import DEFAULT_H_MAX, DEFAULT_STEP_C, SimulationConfig, short_repr
 
 __all__ = [
@@ -367,7 +367,7 @@ def estimate(
     parts = _memory_parts(paths=config.paths, chunk=chunk, chunk_given=given, batch_size=config.batch_size,
                           n_batches=config.n_batches, n_times=len(config.times), hist_bins=config.hist_bins,
                           bytes_per_path=STATE_BYTES_PER_PATH[precision],
-                          n_sums=N_SUMS + len(getattr(config, "observables", ())))
+                          n_sums=n_sums(config))
     device = 0
     if cuda:  # the state lives on the GPU
         device = next(b for label, b, _ in parts if label == "path state")

@@ -66,6 +66,9 @@ class RunState:
     done_work: float
     backend: str = field(default="cpu", compare=False)
     precision: str = field(default="float64", compare=False)
+    #: The per-path accumulators' slots, (n_slots, n) float64 (stochpend.observables); None or
+    #: empty without accumulators.
+    tracks: Any = None
     #: Set by run_batches: copies a GPU chunk's arrays here (see pull); not saved.
     _sync: Any = field(default=None, init=False, repr=False, compare=False)
 

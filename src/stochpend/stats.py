@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 import xarray as xr
@@ -53,7 +54,7 @@ class EnsembleSums:
         when first written, so the per-batch sums would grow the process's memory batch by
         batch over a long run (a slow rise that looks like a leak, and a shortfall that shows
         late). Written now, the memory the resource check counted is held from the start."""
-        sums = np.empty((n_batches, n_times, N_SUMS + len(observables_)))
+        sums = np.empty((n_batches, n_times, _table.n_sums(SimpleNamespace(observables=observables_))))
         sums.fill(0.0)
         filled = np.empty(n_batches, dtype=bool)
         filled.fill(False)

@@ -191,6 +191,32 @@ def path_kernel(spec: Spec):
     return _ranges(advance, summed=True)
 
 
+@functools.cache
+def tracked_kernel(spec: Spec, accs: tuple):
+    """``advance`` of a run with per-path accumulators ``accs``
+    (:func:`stochpend.observables.track_step`): :func:`path_kernel`'s driver, one path at a
+    time, with ``state`` holding the accumulators' slots as ``state[8]``. The same Spec (fast
+    math included), so every other number of the run is what the run without them gives, bit
+    for bit (the SIMD drivers agree with ``path_kernel`` of their Spec). Compiled in memory (a
+    user's functions)."""
+    from stochpend import observables
+
+    advance_path = integrator.build(spec, observables.track_step(accs)).advance_path
+
+    @numba.njit(nogil=True)
+    def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
+                run):  # pragma: no cover - compiled
+        steps_taken = 0
+        unfinished = 0
+        for i in range(lo, hi):
+            s, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)
+            steps_taken += s
+            unfinished += u
+        return steps_taken, unfinished
+
+    return _ranges(advance, summed=True)
+
+
 #: Pieces of work per worker: the workers take them one after the other, so that a worker that
 #: the operating system holds back (a shared machine) does not hold the call back with it.
 #: More pieces balance better; each piece ends with its lanes draining (a fraction of a path's
@@ -481,11 +507,12 @@ def _lockstep_kernel(spec: Spec):
 
 
 def accumulate_kernel(spec: Spec, observables: tuple[str, ...] = ()):
-    """``accumulate(x, Omega, xi, t, status, omega2, q, batch_size, edges, sums, hist)``:
+    """``accumulate(x, Omega, xi, t, status, tracks, omega2, q, batch_size, edges, sums, hist)``:
     per-batch sums of the values of the statistics table (:mod:`stochpend.observables`) and of
-    the run's user ``observables``, and the energy histogram, at one output time (float64
-    whatever the precision of the state); depends on the oscillator, the coupling and the user
-    observables only.
+    the run's user ``observables`` (a per-path accumulator's columns read from its slot of
+    ``tracks``, (n_slots, n_paths) float64; any 2-d float64 array without accumulators), and the
+    energy histogram, at one output time (float64 whatever the precision of the state); depends
+    on the oscillator, the coupling and the user observables only.
 
     A path whose summed values or G(x) are not finite is marked non-finite here (status 1):
     the state is finite but its moments overflow, so the path has escaped; it stays excluded
@@ -502,12 +529,12 @@ def _accumulate_kernel(spec: Spec, user: tuple):
     path_values = integrator.statistics(spec.oscillator, spec.coupling)
     user_values = observables_.user_values(user)
     n_values = len(observables_.SUMS)
-    n_user = len(user)
+    n_user = observables_.n_user_columns(user)
     first_user = N_SUMS
 
     @numba.njit(nogil=True, cache=spec.oscillator.builtin and not user)
     @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables_.TABLE_KEY}/{observables_.user_key(user)}")
-    def accumulate(b_lo, b_hi, x, Omega, xi, t, status, omega2, q, batch_size, edges, sums,
+    def accumulate(b_lo, b_hi, x, Omega, xi, t, status, tracks, omega2, q, batch_size, edges, sums,
                    hist):  # pragma: no cover - compiled
         n_paths = x.shape[0]
         n_edges = edges.shape[0]
@@ -523,7 +550,8 @@ def _accumulate_kernel(spec: Spec, user: tuple):
                     sums[b, S_NONFINITE] += 1.0
                     continue
                 ok, E, values = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, q)
-                mine = user_values(np.float64(x[i]), np.float64(Omega[i]), np.float64(xi[i]), t[i])
+                mine = user_values(np.float64(x[i]), np.float64(Omega[i]), np.float64(xi[i]), t[i],
+                                   tracks, i)
                 for c in range(n_user):
                     ok = ok and math.isfinite(mine[c])
                 if not ok:
@@ -542,7 +570,7 @@ def _accumulate_kernel(spec: Spec, user: tuple):
                 else:
                     hist[b, np.searchsorted(edges, E, side="right")] += 1
 
-    return _ranges(accumulate, items=9)  # the batches, rows of sums
+    return _ranges(accumulate, items=10)  # the batches, rows of sums
 
 
 def compiled_kernels(spec: Spec, *, pairs: bool = True) -> dict[str, object]:
@@ -584,6 +612,11 @@ class Engine:
         self.spec = spec
         self.kernels = kernels(spec)
         self.kernels.accumulate = accumulate_kernel(spec, config.observables)
+        # Per-path accumulators (stochpend.observables): their slots ride with the state, and
+        # the paths go one at a time through the integrator's step loop with tracking.
+        self.accs = observables_.accumulators(observables_.objects(config.observables))
+        if self.accs:
+            self.kernels.advance = tracked_kernel(spec, self.accs)
         self.key0, self.key1 = rng.seed_to_key(config.seed)
         self.record = spec.noise.record(config)
         self.run = integrator.run_record(config)
@@ -600,6 +633,7 @@ class Engine:
     def _allocate(self, n: int, nb: int) -> None:
         for name, dtype in path_dtypes("cpu", "float64").items():
             setattr(self, name, np.empty(n, dtype=dtype))
+        self.tracks = np.empty((len(self.accs), n))
         self.chunk_sums = np.zeros((nb, self.n_times, observables_.n_sums(self.config)))
         self.chunk_hist = np.zeros((self.n_times, self.n_cols), dtype=np.int64)
 
@@ -613,6 +647,7 @@ class Engine:
         self.kernels.init(self.state(), self.key0, self.key1, _U64(p0),
                           0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
                           0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
+        self.tracks[:] = observables_.track_initial(self.accs)
 
     def load(self, p0: int, arrays: dict[str, np.ndarray]) -> None:
         """Continue a chunk from host arrays (a checkpoint's RunState fields)."""
@@ -621,6 +656,8 @@ class Engine:
         self.nb = arrays["chunk_sums"].shape[0]
         for name, value in arrays.items():
             setattr(self, name, value)
+        if arrays.get("tracks") is None:
+            self.tracks = np.empty((0, self.n))
 
     def max_steps(self) -> int:
         return max(MIN_STEPS_PER_CALL, WORK_PER_CALL // max(self.n, 1))
@@ -628,7 +665,8 @@ class Engine:
     def state(self) -> tuple[np.ndarray, ...]:
         """The chunk's arrays as the kernels take them: (x, Omega, xi, xi_aux, t, t_comp, k,
         status)."""
-        return (self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k, self.status)
+        state = (self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k, self.status)
+        return (*state, self.tracks) if self.accs else state
 
     def advance(self, t_target: float, max_steps: int) -> bool:
         _, unfinished = self.kernels.advance(self.state(), t_target, max_steps, self.key0,
@@ -641,7 +679,7 @@ class Engine:
     def accumulate(self, j: int, edges_j: np.ndarray) -> None:
         c = self.config
         nb = self.nb
-        self.kernels.accumulate(self.x, self.Omega, self.xi, self.t, self.status, c.omega**2, self.run[1],
+        self.kernels.accumulate(self.x, self.Omega, self.xi, self.t, self.status, self.tracks, c.omega**2, self.run[1],
                                 c.batch_size, edges_j, self.chunk_sums[:, j, :], self.hist[:nb])
         self.chunk_hist[j] = self.hist[:nb].sum(axis=0)
 

@@ -277,6 +277,26 @@ def advance_kernel(spec: Spec):
 
 
 @functools.cache
+def tracked_kernel(spec: Spec, accs: tuple):
+    """:func:`advance_kernel` of a run with per-path accumulators ``accs``
+    (:func:`stochpend.observables.track_step`): ``state`` holds their slots as ``state[8]``,
+    (n_slots, n_paths) float64. Compiled in memory (a user's functions)."""
+    advance_path = integrator.build(spec, observables.track_step(accs)).advance_path
+
+    @cuda.jit
+    def advance(state, t_target, max_steps, key0, key1, path0, p, run,
+                unfinished):  # pragma: no cover
+        i = cuda.grid(1)
+        if i >= state[0].shape[0]:
+            return
+        _, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)
+        if u != 0:
+            unfinished[0] = 1
+
+    return advance
+
+
+@functools.cache
 def pair_advance_kernel(spec: Spec):
     """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, run,
     unfinished)``: the integrator's ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate) for
@@ -349,11 +369,12 @@ class PairEngine:
 
 
 def accumulate_kernel(spec: Spec, observables_: tuple[str, ...] = ()):
-    """``accumulate[n_batches, STATS_THREADS](x, Omega, xi, t, status, omega2, q, batch_size,
-    edges, j, sums, hist)``: the CPU's per-batch sums at output time j, block b summing batch b
-    of the chunk into ``sums[b, j, :]`` in path order (the statistics table's values, then the
-    user observables'); the histogram counts go to ``hist[j, :]`` (they depend on the
-    oscillator, the coupling and the user observables only)."""
+    """``accumulate[n_batches, STATS_THREADS](x, Omega, xi, t, status, tracks, omega2, q,
+    batch_size, edges, j, sums, hist)``: the CPU's per-batch sums at output time j, block b
+    summing batch b of the chunk into ``sums[b, j, :]`` in path order (the statistics table's
+    values, then the user observables', an accumulator's read from its slot of ``tracks``);
+    the histogram counts go to ``hist[j, :]`` (they depend on the oscillator, the coupling and
+    the user observables only)."""
     return _accumulate_kernel(spec, observables.objects(observables_))
 
 
@@ -364,13 +385,13 @@ def _accumulate_kernel(spec: Spec, user: tuple):
     tpb = STATS_THREADS
     hist_max = SHARED_HIST_MAX
     n_values = _N_VALUES
-    n_user = len(user)
-    n_all = _N_VALUES + len(user)
+    n_user = observables.n_user_columns(user)
+    n_all = _N_VALUES + n_user
     first_user = N_SUMS
 
     @cuda.jit(cache=spec.oscillator.builtin and not user)
     @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables.TABLE_KEY}/{observables.user_key(user)}")
-    def accumulate(x, Omega, xi, t, status, omega2, q, batch_size, edges, j, sums,
+    def accumulate(x, Omega, xi, t, status, tracks, omega2, q, batch_size, edges, j, sums,
                    hist):  # pragma: no cover - device
         b = cuda.blockIdx.x
         tid = cuda.threadIdx.x
@@ -398,7 +419,8 @@ def _accumulate_kernel(spec: Spec, user: tuple):
                 counted = False
                 if status[i] == 0:
                     ok, E, path = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, q)
-                    mine = user_values(np.float64(x[i]), np.float64(Omega[i]), np.float64(xi[i]), t[i])
+                    mine = user_values(np.float64(x[i]), np.float64(Omega[i]), np.float64(xi[i]), t[i],
+                                       tracks, i)
                     for c in range(n_user):
                         ok = ok and math.isfinite(mine[c])
                     if ok:
@@ -483,6 +505,10 @@ class Engine:
         self.init = init_kernel(spec)
         self.advance_k = advance_kernel(spec)
         self.accumulate_k = accumulate_kernel(spec, config.observables)
+        # Per-path accumulators (stochpend.observables): their slots ride with the state.
+        self.accs = observables.accumulators(observables.objects(config.observables))
+        if self.accs:
+            self.advance_k = tracked_kernel(spec, self.accs)
         self.capacity = capacity
         self.n_times = len(config.times)
         self.n_cols = config.hist_bins + 2
@@ -490,6 +516,7 @@ class Engine:
             for name, dtype in path_dtypes("cuda", spec.precision).items():
                 setattr(self, "d_" + name, cuda.device_array(capacity, dtype=dtype))
             self.flag = cuda.device_array(1, dtype=np.int32)
+            self.d_tracks = cuda.device_array((max(len(self.accs), 1), capacity), dtype=np.float64)
             self.d_sums = cuda.device_array((n_chunk_batches, self.n_times, observables.n_sums(config)),
                                             dtype=np.float64)
             self.d_hist = cuda.device_array((self.n_times, self.n_cols), dtype=np.int64)
@@ -520,6 +547,11 @@ class Engine:
         return (self.d_x[:n], self.d_Omega[:n], self.d_xi[:n], self.d_xi_aux[:n], self.d_t[:n],
                 self.d_t_comp[:n], self.d_k[:n], self.d_status[:n])
 
+    def _state(self) -> tuple:
+        """The views as the advance kernel takes them: with the accumulators' slots last."""
+        views = self._views()
+        return (*views, self.d_tracks[:, : self.n]) if self.accs else views
+
     def start(self, p0: int, n: int, nb: int) -> None:
         """Initial conditions of global paths p0 .. p0 + n - 1."""
         c = self.config
@@ -530,6 +562,13 @@ class Engine:
                 0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
                 0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
             self.d_hist.copy_to_device(np.zeros((self.n_times, self.n_cols), dtype=np.int64))
+            if self.accs:
+                self._put_tracks(np.broadcast_to(observables.track_initial(self.accs), (len(self.accs), n)))
+
+    def _put_tracks(self, tracks: np.ndarray) -> None:
+        full = np.zeros(self.d_tracks.shape)
+        full[:, : tracks.shape[1]] = tracks
+        self.d_tracks.copy_to_device(full)
 
     def load(self, p0: int, arrays: dict[str, np.ndarray]) -> None:
         """Continue a chunk from host arrays (a checkpoint's RunState fields)."""
@@ -544,6 +583,8 @@ class Engine:
             sums[: self.nb] = arrays["chunk_sums"]
             self.d_sums.copy_to_device(sums)
             self.d_hist.copy_to_device(np.ascontiguousarray(arrays["chunk_hist"], dtype=np.int64))
+            if self.accs:
+                self._put_tracks(np.asarray(arrays["tracks"], dtype=np.float64))
 
     def max_steps(self) -> int:
         return max(_MIN_STEPS_PER_LAUNCH, _WORK_PER_LAUNCH // max(self.n, 1))
@@ -553,7 +594,7 @@ class Engine:
         with _quiet():
             self.flag.copy_to_device(self._zero_flag)
             self.advance_k[_blocks(self.n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
-                self._views(), t_target, max_steps, self.key0, self.key1, self.p0, self.record,
+                self._state(), t_target, max_steps, self.key0, self.key1, self.p0, self.record,
                 self.run, self.flag)
             return int(self.flag.copy_to_host()[0]) == 0
 
@@ -565,8 +606,8 @@ class Engine:
         x, Omega, xi, _, t, _, _, status = self._views()
         with _quiet():
             self.accumulate_k[self.nb, STATS_THREADS](
-                x, Omega, xi, t, status, c.omega**2, self.run[1], c.batch_size, self.d_edges, j,
-                self.d_sums, self.d_hist)
+                x, Omega, xi, t, status, self.d_tracks[:, : self.n], c.omega**2, self.run[1],
+                c.batch_size, self.d_edges, j, self.d_sums, self.d_hist)
 
     def steps(self) -> int:
         return int(np.sum(self.d_k[: self.n].copy_to_host(), dtype=np.uint64))
@@ -576,6 +617,7 @@ class Engine:
         names = ("x", "Omega", "xi", "xi_aux", "t", "t_comp", "k", "status")
         out = {name: view.copy_to_host() for name, view in zip(names, self._views(), strict=True)}
         out["chunk_sums"], out["chunk_hist"] = self.results()
+        out["tracks"] = self.d_tracks.copy_to_host()[: len(self.accs), : self.n]
         return out
 
     def results(self) -> tuple[np.ndarray, np.ndarray]:
@@ -602,7 +644,7 @@ def path_states(
         while not engine.advance(float(t_target), max_steps):
             pass
     state = engine.arrays()
-    del state["chunk_sums"], state["chunk_hist"]
+    del state["chunk_sums"], state["chunk_hist"], state["tracks"]
     return state
 
 

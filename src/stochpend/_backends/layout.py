@@ -12,9 +12,10 @@ import numpy as np
 
 __all__ = ["CHUNK_ARRAYS", "path_dtypes"]
 
-#: The per-chunk arrays of a RunState (what an engine holds).
+#: The per-chunk arrays of a RunState (what an engine holds). ``tracks``: the per-path
+#: accumulators' slots, (n_slots, n_paths) float64 (``stochpend.observables``; none: empty).
 CHUNK_ARRAYS = ("x", "Omega", "xi", "t", "k", "status", "t_comp", "xi_aux", "chunk_sums",
-                "chunk_hist")
+                "chunk_hist", "tracks")
 
 
 def path_dtypes(backend: str, precision: str) -> dict[str, np.dtype]:

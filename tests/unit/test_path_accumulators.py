@@ -1,0 +1,224 @@
+"""Per-path accumulators (issue 22, item 3): a time average over a window, a first-passage
+time and a running sum, carried in each path's state through the integrator's step loop and
+reduced over the ensemble at every output time.
+
+References they must meet: a running sum of the noise's integral has the exact variance of the
+integral of a stationary OU process; a first-passage time and a time average of a deterministic
+harmonic oscillator have closed forms, met to the scheme's second order (the error falls
+4-fold when the step halves); the displacement of a rotating pendulum is its wrapped angle plus
+whole turns. Adding accumulators moves no other number of a run (bit for bit), a checkpointed
+run resumes to the same numbers, and the CUDA simulator gives the CPU's.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import stochpend
+from stochpend import checkpoint as ck
+from stochpend.observables import FirstPassage, Observable, RunningSum, TimeAverage, register, unregister
+from stochpend.params import SimulationConfig
+from stochpend.simulate import run
+
+RUN = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=2000, t_max=10.0, n_times=4, seed=11)
+NAMES = ("Om2_avg", "t_avg", "t_late", "xi_int", "escape", "at_t", "x_now", "minus_x", "x2_avg")
+
+
+@pytest.fixture(autouse=True)
+def accumulators():
+    register(TimeAverage("Om2_avg", lambda x, Omega, xi, t: Omega * Omega, window=(0.0, 10.0)))
+    register(TimeAverage("t_avg", lambda x, Omega, xi, t: t, window=(0.0, 10.0)))
+    register(TimeAverage("t_late", lambda x, Omega, xi, t: t, window=(1.0, 4.0)))
+    register(RunningSum("xi_int", lambda x0, O0, xi0, x1, O1, xi1, t0, t1: 0.5 * (t1 - t0) * (xi0 + xi1)))
+    register(FirstPassage("escape", lambda x, Omega, xi, t: 0.5 * Omega * Omega - math.cos(x), threshold=1.5))
+    register(FirstPassage("at_t", lambda x, Omega, xi, t: t, threshold=3.3))
+    register(Observable("x_now", lambda x, Omega, xi, t: x))
+    register(FirstPassage("minus_x", lambda x, Omega, xi, t: -x, threshold=0.5))
+    register(TimeAverage("x2_avg", lambda x, Omega, xi, t: x * x, window=(0.0, 2.0 * math.pi)))
+    yield
+    for name in NAMES:
+        unregister(name)
+
+
+def test_accumulators_move_no_other_number_and_report_their_statistics():
+    plain = stochpend.simulate(**RUN, bias_paths=128)
+    ds = stochpend.simulate(**RUN, bias_paths=128, observables=("Om2_avg", "escape", "displacement"))
+    for name in plain.data_vars:
+        if not name.endswith("_bias_verdict"):  # the family of simultaneous tests is the same size
+            assert np.array_equal(plain[name].values, ds[name].values, equal_nan=True), name
+    for name in ("mean_Om2_avg", "mean_escape", "passed_escape", "mean_displacement", "var_displacement"):
+        assert np.all(np.isfinite(ds[f"{name}_stderr"].values[-1])), name
+        # Not estimated: the coupled pairs do not carry accumulators (a first passage's step
+        # error is not O(h^2) anyway). NaN, never a 0 that reads as "no bias".
+        assert np.all(np.isnan(ds[f"{name}_bias"].values)), name
+    # <(1/t) int_0^t Omega^2> lies between the ensemble's <Omega^2> at the first and last times.
+    assert ds.mean_Omega2.values[0] < ds.mean_Om2_avg.values[-1] < ds.mean_Omega2.values[-1]
+    passed = ds.passed_escape.values
+    assert np.all(np.diff(passed) >= 0) and 0 < passed[-1] < 1  # censored: some have not passed
+    assert np.isnan(ds.mean_escape.values[0]) and passed[0] == 0  # none passed yet: undefined, not 0
+
+
+def test_time_averages_are_exact_for_a_linear_function_and_respect_their_window():
+    ds = stochpend.simulate(**{**RUN, "paths": 200}, times=(0.5, 1.0, 2.5, 4.0, 7.0, 10.0), bias_paths=0,
+                            observables=("t_avg", "t_late"))
+    t = ds.time.values
+    # The trapezoidal rule integrates t exactly: the average over [0, t] is t/2.
+    assert np.allclose(ds.mean_t_avg.values, t / 2, rtol=1e-12, atol=0)
+    late = ds.mean_t_late.values
+    assert np.all(np.isnan(late[t <= 1.0]))  # before its window opens: undefined
+    inside = (t > 1.0) & (t <= 4.0)
+    assert np.allclose(late[inside], (1.0 + t[inside]) / 2, rtol=1e-12, atol=0)
+    assert np.allclose(late[t > 4.0], 2.5, rtol=1e-12, atol=0)  # closed at 4: frozen
+
+
+def test_the_running_integral_of_ou_noise_has_the_exact_variance():
+    """Var int_0^T xi dt = 2 s2 tau (T - tau (1 - exp(-T/tau))) for a stationary OU noise of
+    variance s2 = D/(2 tau) (the package's convention, checked in test_user_observables)."""
+    D, tau = 1.0, 0.5
+    ds = stochpend.simulate(noise="ou", D=D, tau=tau, omega=1.0, paths=20000, t_max=4.0, times=(1.0, 4.0),
+                            seed=5, bias_paths=0, observables=("xi_int",))
+    s2 = D / (2 * tau)
+    T = ds.time.values
+    exact = 2 * s2 * tau * (T - tau * (1 - np.exp(-T / tau)))
+    z = (ds.var_xi_int.values - exact) / ds.var_xi_int_stderr.values
+    assert np.all(np.abs(z) < 4), z
+    assert np.all(ds.var_xi_int_stderr.values / exact < 0.03)  # resolved to a few percent
+    z_mean = ds.mean_xi_int.values / ds.mean_xi_int_stderr.values
+    assert np.all(np.abs(z_mean) < 4), z_mean
+
+
+def _harmonic(h: float, names: tuple[str, ...]):
+    return stochpend.simulate(potential="harmonic", noise="white", D=0.0, omega=1.0, paths=16, theta0=1.0,
+                              Omega0=0.0, t_max=2 * math.pi, times=(1.0, 2 * math.pi), h_max=h, step_c=0.0,
+                              bias_paths=0, observables=names)
+
+
+def test_a_first_passage_and_a_time_average_converge_at_second_order():
+    """x(t) = cos t from x = 1 at rest (D = 0): -x reaches 1/2 first at t* = 2 pi/3, and the
+    average of x^2 over one period is 1/2. The time average's error falls 4-fold per halved
+    step (the scheme's order). The passage time's is a phase error and an interpolation error of
+    varying sign, both O(h^2): it stays below 0.1 h^2 (measured: up to 0.06 h^2), where the end
+    time of the crossing step, uninterpolated, would be off by a fraction of h."""
+    errors = []
+    for h in (0.04, 0.02, 0.01, 0.005):
+        ds = _harmonic(h, ("minus_x", "x2_avg"))
+        assert ds.passed_minus_x.values.tolist() == [0.0, 1.0]
+        passage = abs(ds.mean_minus_x.values[-1] - 2 * math.pi / 3)
+        assert passage < 0.1 * h * h, (h, passage)
+        errors.append(abs(ds.mean_x2_avg.values[-1] - 0.5))
+    ratios = np.array(errors[:-1]) / np.array(errors[1:])
+    assert np.all((ratios > 3.6) & (ratios < 4.4)), (errors, ratios)
+
+
+def test_a_first_passage_between_output_times_is_censored_until_then():
+    ds = stochpend.simulate(**{**RUN, "paths": 100}, times=(1.0, 3.0, 3.3, 5.0), bias_paths=0, observables=("at_t",))
+    assert ds.passed_at_t.values.tolist() == [0.0, 0.0, 1.0, 1.0]
+    assert np.allclose(ds.mean_at_t.values[2:], 3.3, rtol=1e-12, atol=0)
+
+
+def test_the_displacement_of_a_rotating_pendulum_is_its_angle_plus_whole_turns():
+    # D = 0: every path is the same rotation (E = 4.5 - 1 above the separatrix at 1).
+    ds = stochpend.simulate(noise="white", D=0.0, omega=1.0, paths=8, theta0=0.0, Omega0=3.0, t_max=20.0,
+                            times=(5.0, 20.0), bias_paths=0, observables=("x_now", "displacement"))
+    turns = (ds.mean_displacement.values - ds.mean_x_now.values) / (2 * math.pi)
+    assert np.allclose(turns, np.round(turns), rtol=0, atol=1e-9), turns
+    assert turns[-1] >= 8  # ~2.6 rad/time over 20: many turns, kept exactly
+    assert np.all(ds.var_displacement.values < 1e-20)  # identical paths
+
+
+def test_a_checkpointed_run_with_accumulators_resumes_to_the_same_numbers(tmp_path):
+    config = SimulationConfig.build(**{**RUN, "paths": 300}, observables=("Om2_avg", "escape", "displacement"))
+    ref = run(config, chunk_paths=90, bias_paths=0)
+
+    class StopAfter(ck.FileCheckpointer):
+        def maybe_save(self, state):
+            self.save(state)
+            if self.saves >= 5:
+                raise KeyboardInterrupt
+
+    path = tmp_path / "run.ckpt"
+    with pytest.raises(KeyboardInterrupt):
+        ck.run_checkpointed(config, checkpoint_path=path, every_s=None, chunk_paths=90,
+                            checkpointer=StopAfter(path, None, config=config, chunk_paths=90))
+    done = ck.resume(path)
+    for name in ref.data_vars:
+        assert np.array_equal(done[name].values, ref[name].values, equal_nan=True), name
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: TimeAverage("a", lambda x, Omega, xi, t: x, window=(2.0, 1.0)), "0 <= t0 < t1"),
+    (lambda: TimeAverage("a", lambda x, Omega, xi, t: x, window="late"), "window='late' is not accepted"),
+    (lambda: TimeAverage("E", lambda x, Omega, xi, t: x, window=(0, 1)), "built-in statistic"),
+    (lambda: FirstPassage("a", lambda x, Omega, xi, t: x, threshold=math.inf), "threshold=inf is not accepted"),
+    (lambda: FirstPassage("a", lambda x, Omega: x, threshold=1.0), "raised TypeError"),
+    (lambda: RunningSum("a", lambda x0, O0: 0.0), "increment is not accepted"),
+])
+def test_an_accumulator_that_cannot_work_is_refused_where_it_is_declared(make, message):
+    with pytest.raises(ValueError, match=message) as info:
+        make()
+    assert "\n" not in str(info.value)
+
+
+def test_a_window_that_does_not_end_on_an_output_time_is_refused_in_one_line():
+    with pytest.raises(ValueError, match=r"the window \(1\.0, 4\.0\) of 't_late' must start and end") as info:
+        stochpend.simulate(**RUN, times=(1.0, 5.0, 10.0), observables=("t_late",))
+    assert "\n" not in str(info.value)
+
+
+_CUDASIM = """
+import json, math
+import numpy as np
+import stochpend
+from stochpend.observables import FirstPassage, TimeAverage, register
+register(TimeAverage("x2_avg", lambda x, Omega, xi, t: x * x, window=(0.0, 1.0)))
+register(FirstPassage("far", lambda x, Omega, xi, t: abs(x), threshold=0.6))
+out = {}
+for backend in ("cpu", "cuda"):
+    ds = stochpend.simulate(potential="harmonic", noise="white", D=1.0, omega=1.0, paths=48, t_max=1.0,
+                            times=[0.5, 1.0], seed=3, n_batches=4, backend=backend, bias_paths=0,
+                            observables=("x2_avg", "far", "displacement"))
+    out[backend] = {v: ds[v].values.tolist() for v in ("mean_x2_avg", "mean_far", "passed_far",
+                                                        "mean_displacement", "var_displacement", "mean_E")}
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.gpu
+def test_accumulators_in_the_cuda_simulator_give_the_cpu_numbers():
+    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1",
+           "PYTHONPATH": os.pathsep.join([str(Path(stochpend.__file__).resolve().parents[1]),
+                                          os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run([sys.executable, "-c", _CUDASIM], env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    r = json.loads(done.stdout.strip().splitlines()[-1])
+    for name, cpu in r["cpu"].items():
+        assert np.allclose(r["cuda"][name], cpu, rtol=1e-12, atol=1e-15, equal_nan=True), name
+    assert 0 < r["cpu"]["passed_far"][-1] < 1
+
+
+def test_the_command_line_reports_an_accumulator_and_show_lists_it(tmp_path):
+    from typer.testing import CliRunner
+
+    from stochpend.cli import app
+
+    out = tmp_path / "run.nc"
+    runner = CliRunner()
+    done = runner.invoke(app, ["simulate", "--paths", "400", "--t-max", "10", "--n-times", "3", "--seed", "2",
+                               "--observable", "displacement", "--out", str(out)])
+    assert done.exit_code == 0, done.output
+    assert "mean_displacement" in done.stdout and "var_displacement" in done.stdout
+    shown = runner.invoke(app, ["show", str(out)])
+    assert shown.exit_code == 0 and "var_displacement" in shown.stdout
+    listed = runner.invoke(app, ["list"])
+    assert "--observable" in listed.stdout and "displacement" in listed.stdout
+    bad = runner.invoke(app, ["simulate", "--paths", "400", "--observable", "nope"])
+    assert bad.exit_code == 2
+    assert "'nope' is not a registered observable" in bad.stderr and "Traceback" not in bad.output
