@@ -272,214 +272,178 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         x_new = x_half + half * h * Omega_new
         return wrap(x_new), Omega_new
 
-    @register_jitable
-    def advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run):
-        """Advance path i of the arrays towards ``t_target``, at most ``max_steps`` steps.
+    def step_loop(PAIR):
+        """The step loop of one path (``PAIR`` False: :func:`advance_path`) or of a coupled
+        coarse/fine pair (True: :func:`advance_pair`), written once: the step control, the
+        escape rule, the landing, the noise's events, the clock, the finiteness check and the
+        bookkeeping are shared; what differs is what a step advances (one member with one draw,
+        or two members with two draws) and the arrays it reads and writes. ``PAIR`` is a
+        compile-time constant: each variant compiles to its own straight-line code."""
+        J = 2 if PAIR else 0  # the pair's state has the fine member's xf, Omegaf at 2, 3
+        I_XI, I_XA, I_T, I_TC, I_K, I_ST = 2 + J, 3 + J, 4 + J, 5 + J, 6 + J, 7 + J
+        TRACKED = TRACK and not PAIR
+        tracks_in = tracks_of if TRACKED else _no_tracks
+        DRAWS = 2 if PAIR else 1
 
-        ``state``: the arrays ``(x, Omega, xi, xi_aux, t, t_comp, k, status)``; ``p``: the
-        noise's record (``Noise.record``); ``run``: ``(omega2, q, h_max, step_c)``
-        (:func:`run_record`).
-
-        The last step is shortened to land exactly on ``t_target`` (and, for a noise with
-        events, a step is cut at each event). A path whose state becomes non-finite, or whose
-        step control asks for less than ``ESCAPE_STEP_FRACTION * h_max``, gets status 1 and
-        is never advanced again. The step, the noise and the dynamics run in the Spec's
-        precision; the clock, the landing rule and the step counter in float64/uint64, with
-        the float64 h_max whenever the step is the largest one, so float32 takes the same
-        steps and draws as float64. Returns ``(steps_taken, unfinished)`` (1 if the path
-        stopped short of ``t_target``).
-        """
-        # The arrays of a tuple are taken by index, never unpacked (``x, Omega, ... = state``):
-        # with an unpacked tuple, Numba (0.68) dropped the stores into the arrays once it had
-        # inlined an ``inline="always"`` function (the fast-math OU coefficients) into this
-        # function's IR. The same in every function here that takes a tuple of arrays.
-        x = state[0]
-        Omega = state[1]
-        xi = state[2]
-        xi_aux = state[3]
-        t = state[4]
-        t_comp = state[5]
-        k = state[6]
-        status = state[7]
-        if status[i] != 0 or t[i] >= t_target:
-            return 0, 0
-        omega2, q, h_max, step_c = run
-        omega2_r = real(omega2)
-        h_max_r = real(h_max)
-        c_r = real(step_c)
-        path = _U64(path0 + i)
-        xs = x[i]
-        Om = Omega[i]
-        xn = xi[i]
-        xa = load_aux(xi_aux[i])
-        tt = t[i]
-        tc = t_comp[i]
-        kk = k[i]
-        tracks = tracks_of(state)
-        # Everything of the noise's step that depends on h only, cached while h is unchanged
-        # (h = h_max most of the time).
-        h_cached = h_max_r
-        C = coefficients(h_max_r, p)
-        S = scratch0()
-        steps = 0
-        bad = False
-        while steps < max_steps:
-            if ADAPTIVE:
-                h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
-                if h < escape * h_max_r:
-                    bad = True  # running away (see ESCAPE_STEP_FRACTION)
-                    break
-            else:
-                h = h_max_r
-            h_clock = h_max if h == h_max_r else np.float64(h)
-            if HAS_EVENTS:
-                h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
-                                                                 next_event(xn, xa))
-            else:
-                h_clock, last = landing_step(tt, h_clock, t_target)
-                event = False
-                t_land = t_target
-            h = real(h_clock)
-            if h != h_cached:
-                C = coefficients(h, p)
-                h_cached = h
-            if TRACK:
-                x_before = xs
-                Om_before = Om
-                xn_before = xn
-                t_before = tt
-            z, S = draw(key0, key1, path, kk, S)
-            noise_integral, xn, xa = update(xn, xa, C, z)
-            xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, q)
-            if HAS_EVENTS and event:
-                xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
-            kk += _U64(1)
-            steps += 1
-            tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
-            if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)
-                    and math.isfinite(xa)):
-                bad = True
-                break
-            if TRACK:
-                track_step(tracks, i, np.float64(x_before), np.float64(Om_before),
-                           np.float64(xn_before), np.float64(xs), np.float64(Om), np.float64(xn),
-                           t_before, tt)
-            if last:
-                break
-        x[i] = xs
-        Omega[i] = Om
-        xi[i] = xn
-        xi_aux[i] = xa
-        t[i] = tt
-        t_comp[i] = tc
-        k[i] = kk
-        if bad:
-            status[i] = 1
-        return steps, (1 if (not bad and tt < t_target) else 0)
-
-    @register_jitable
-    def advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, run):
-        """Advance a *coupled pair* of path i towards ``t_target`` (the bias estimate,
-        :mod:`stochpend.bias`).
-
-        The coarse member (``x``, ``Omega``) takes exactly :func:`advance_path`'s steps: the
-        step control on its own state, the landing, the noise's events. The fine member
-        (``xf``, ``Omegaf``) takes each of those steps as two half steps. Both see one
-        realization of the noise: the half steps draw it (draws ``2m`` and ``2m + 1`` for
-        coarse step m; the noise state ``xi``, ``xi_aux`` is shared) and the coarse kick uses
-        the sum of the two half-step integrals, which is the exact integral over the whole
-        step. So the coarse member has the law of an ordinary path of this Spec, the fine one
-        that of the same scheme at half the step, and their difference is small path by path
-        (strong order 1), which is what makes the bias estimate cheap.
-
-        ``state``: the arrays ``(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status)``;
-        ``p``, ``run`` as for :func:`advance_path`. ``k`` counts draws (two per coarse step).
-        Returns ``(draws_taken, unfinished)``; a pair with either member non-finite or escaped
-        gets status 1.
-        """
-        x = state[0]
-        Omega = state[1]
-        xf = state[2]
-        Omegaf = state[3]
-        xi = state[4]
-        xi_aux = state[5]
-        t = state[6]
-        t_comp = state[7]
-        k = state[8]
-        status = state[9]
-        if status[i] != 0 or t[i] >= t_target:
-            return 0, 0
-        omega2, q, h_max, step_c = run
-        omega2_r = real(omega2)
-        h_max_r = real(h_max)
-        c_r = real(step_c)
-        path = _U64(path0 + i)
-        xs = x[i]
-        Om = Omega[i]
-        xs2 = xf[i]
-        Om2 = Omegaf[i]
-        xn = xi[i]
-        xa = load_aux(xi_aux[i])
-        tt = t[i]
-        tc = t_comp[i]
-        kk = k[i]
-        h_cached = h_max_r
-        hh = half * h_max_r
-        C = coefficients(hh, p)
-        S = scratch0()
-        steps = 0
-        bad = False
-        while steps < max_steps:
-            if ADAPTIVE:
-                h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
-                if h < escape * h_max_r:
+        def advance(i, state, t_target, max_steps, key0, key1, path0, p, run):
+            # The arrays of a tuple are taken by index, never unpacked (``x, Omega, ... =
+            # state``): with an unpacked tuple, Numba (0.68) dropped the stores into the arrays
+            # once it had inlined an ``inline="always"`` function (the fast-math OU
+            # coefficients) into this function's IR. The same in every function here that
+            # takes a tuple of arrays.
+            x = state[0]
+            Omega = state[1]
+            xf = state[2]  # the pair's fine member (a path: unused)
+            Omegaf = state[3]
+            xi = state[I_XI]
+            xi_aux = state[I_XA]
+            t = state[I_T]
+            t_comp = state[I_TC]
+            k = state[I_K]
+            status = state[I_ST]
+            if status[i] != 0 or t[i] >= t_target:
+                return 0, 0
+            omega2, q, h_max, step_c = run
+            omega2_r = real(omega2)
+            h_max_r = real(h_max)
+            c_r = real(step_c)
+            path = _U64(path0 + i)
+            xs = x[i]
+            Om = Omega[i]
+            xs2 = xf[i]
+            Om2 = Omegaf[i]
+            xn = xi[i]
+            xa = load_aux(xi_aux[i])
+            tt = t[i]
+            tc = t_comp[i]
+            kk = k[i]
+            tracks = tracks_in(state)
+            # Everything of the noise's step that depends on h only (for a pair, on its half
+            # steps h/2), cached while h is unchanged (h = h_max most of the time).
+            h_cached = h_max_r
+            hh = half * h_max_r
+            C = coefficients(hh if PAIR else h_max_r, p)
+            S = scratch0()
+            steps = 0
+            bad = False
+            while steps < max_steps:
+                if ADAPTIVE:
+                    h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
+                    if h < escape * h_max_r:
+                        bad = True  # running away (see ESCAPE_STEP_FRACTION)
+                        break
+                else:
+                    h = h_max_r
+                h_clock = h_max if h == h_max_r else np.float64(h)
+                if HAS_EVENTS:
+                    h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
+                                                                     next_event(xn, xa))
+                else:
+                    h_clock, last = landing_step(tt, h_clock, t_target)
+                    event = False
+                    t_land = t_target
+                h = real(h_clock)
+                if PAIR:
+                    if h != h_cached:
+                        hh = half * h
+                        C = coefficients(hh, p)
+                        h_cached = h
+                    # The half steps draw the noise (draws 2m and 2m + 1 for coarse step m);
+                    # the coarse kick uses the sum of their integrals, the exact integral over
+                    # the whole step.
+                    z, S = draw(key0, key1, path, kk, S)
+                    I1, xn, xa = update(xn, xa, C, z)
+                    z, S = draw(key0, key1, path, kk + _U64(1), S)
+                    I2, xn, xa = update(xn, xa, C, z)
+                    xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I1, q)
+                    xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I2, q)
+                    xs, Om = verlet(xs, Om, h, omega2_r, I1 + I2, q)
+                else:
+                    if h != h_cached:
+                        C = coefficients(h, p)
+                        h_cached = h
+                    if TRACKED:
+                        x_before = xs
+                        Om_before = Om
+                        xn_before = xn
+                        t_before = tt
+                    z, S = draw(key0, key1, path, kk, S)
+                    noise_integral, xn, xa = update(xn, xa, C, z)
+                    xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, q)
+                if HAS_EVENTS and event:
+                    xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
+                kk += _U64(DRAWS)
+                steps += 1
+                tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
+                if PAIR:
+                    finite = (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xs2)
+                              and math.isfinite(Om2) and math.isfinite(xn) and math.isfinite(xa))
+                else:
+                    finite = (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)
+                              and math.isfinite(xa))
+                if not finite:
                     bad = True
                     break
-            else:
-                h = h_max_r
-            h_clock = h_max if h == h_max_r else np.float64(h)
-            if HAS_EVENTS:
-                h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
-                                                                 next_event(xn, xa))
-            else:
-                h_clock, last = landing_step(tt, h_clock, t_target)
-                event = False
-                t_land = t_target
-            h = real(h_clock)
-            if h != h_cached:
-                hh = half * h
-                C = coefficients(hh, p)
-                h_cached = h
-            z, S = draw(key0, key1, path, kk, S)
-            I1, xn, xa = update(xn, xa, C, z)
-            z, S = draw(key0, key1, path, kk + _U64(1), S)
-            I2, xn, xa = update(xn, xa, C, z)
-            xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I1, q)
-            xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I2, q)
-            xs, Om = verlet(xs, Om, h, omega2_r, I1 + I2, q)
-            if HAS_EVENTS and event:
-                xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
-            kk += _U64(2)
-            steps += 1
-            tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
-            if not (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xs2)
-                    and math.isfinite(Om2) and math.isfinite(xn) and math.isfinite(xa)):
-                bad = True
-                break
-            if last:
-                break
-        x[i] = xs
-        Omega[i] = Om
-        xf[i] = xs2
-        Omegaf[i] = Om2
-        xi[i] = xn
-        xi_aux[i] = xa
-        t[i] = tt
-        t_comp[i] = tc
-        k[i] = kk
-        if bad:
-            status[i] = 1
-        return 2 * steps, (1 if (not bad and tt < t_target) else 0)
+                if TRACKED:
+                    track_step(tracks, i, np.float64(x_before), np.float64(Om_before),
+                               np.float64(xn_before), np.float64(xs), np.float64(Om),
+                               np.float64(xn), t_before, tt)
+                if last:
+                    break
+            x[i] = xs
+            Omega[i] = Om
+            if PAIR:
+                xf[i] = xs2
+                Omegaf[i] = Om2
+            xi[i] = xn
+            xi_aux[i] = xa
+            t[i] = tt
+            t_comp[i] = tc
+            k[i] = kk
+            if bad:
+                status[i] = 1
+            return DRAWS * steps, (1 if (not bad and tt < t_target) else 0)
+
+        name = "advance_pair" if PAIR else "advance_path"
+        advance.__name__ = name
+        advance.__qualname__ = advance.__qualname__.replace("advance", name)
+        return register_jitable(advance)
+
+    #: ``advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)``: advance path
+    #: i of the arrays towards ``t_target``, at most ``max_steps`` steps.
+    #:
+    #: ``state``: the arrays ``(x, Omega, xi, xi_aux, t, t_comp, k, status)`` (with per-path
+    #: accumulators, their slots ``tracks`` last); ``p``: the noise's record
+    #: (``Noise.record``); ``run``: ``(omega2, q, h_max, step_c)`` (:func:`run_record`).
+    #:
+    #: The last step is shortened to land exactly on ``t_target`` (and, for a noise with events,
+    #: a step is cut at each event). A path whose state becomes non-finite, or whose step
+    #: control asks for less than ``ESCAPE_STEP_FRACTION * h_max``, gets status 1 and is never
+    #: advanced again. The step, the noise and the dynamics run in the Spec's precision; the
+    #: clock, the landing rule and the step counter in float64/uint64, with the float64 h_max
+    #: whenever the step is the largest one, so float32 takes the same steps and draws as
+    #: float64. Returns ``(steps_taken, unfinished)`` (1 if the path stopped short of
+    #: ``t_target``).
+    advance_path = step_loop(False)
+
+    #: ``advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, run)``: advance a
+    #: *coupled pair* of path i towards ``t_target`` (the bias estimate, :mod:`stochpend.bias`).
+    #:
+    #: The coarse member (``x``, ``Omega``) takes exactly :func:`advance_path`'s steps: the step
+    #: control on its own state, the landing, the noise's events. The fine member (``xf``,
+    #: ``Omegaf``) takes each of those steps as two half steps. Both see one realization of the
+    #: noise: the half steps draw it (draws ``2m`` and ``2m + 1`` for coarse step m; the noise
+    #: state ``xi``, ``xi_aux`` is shared) and the coarse kick uses the sum of the two half-step
+    #: integrals, which is the exact integral over the whole step. So the coarse member has the
+    #: law of an ordinary path of this Spec, the fine one that of the same scheme at half the
+    #: step, and their difference is small path by path (strong order 1), which is what makes
+    #: the bias estimate cheap.
+    #:
+    #: ``state``: the arrays ``(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status)``;
+    #: ``p``, ``run`` as for ``advance_path``. ``k`` counts draws (two per coarse step). Returns
+    #: ``(draws_taken, unfinished)``; a pair with either member non-finite or escaped gets
+    #: status 1.
+    advance_pair = step_loop(True)
 
     @register_jitable
     def advance_lanes(block, t0, tc0, k0, t_target, max_steps, rk0, rk1, p, run):
@@ -661,8 +625,44 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
     (``rng.round_keys``); ``scratch = (fs, us, js)`` the thread's scratch, shapes
     (``LANE_F_ROWS``, ``LANE_COUNT``), (``LANE_U_ROWS``, ...), (``LANE_I_ROWS``, ...).
     """
+    return _lane_machine(spec, False)
+
+
+#: Rows of the pair lane machine's float64 scratch: the lane machine's six, then the fine
+#: member's x and Omega.
+PAIR_LANE_F_ROWS = LANE_F_ROWS + 2
+
+
+@functools.cache
+def build_pair_lanes(spec: Spec) -> SimpleNamespace:
+    """:func:`build`'s ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate)
+    for ``LANE_COUNT`` pairs side by side, as :func:`build_lanes` runs ``advance_path``.
+
+    Each lane carries one pair: the coarse member takes the step control's step h on its own
+    state, the fine member the same step as two halves, both driven by draws ``k`` and
+    ``k + 1`` of the pair's stream (the coarse kick uses the sum of the two half-step
+    integrals). The arithmetic is ``advance_pair``'s of the same fast-math Spec, operation for
+    operation, so a pair's numbers do not depend on its lane or its neighbours (tests), and the
+    coarse member has the law of the run's own paths (which run :func:`build_lanes` with the same
+    math). Needs :func:`lanes_supported`.
+
+    ``advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch) ->
+    (draws_taken, unfinished)``, ``state`` the pair arrays of ``advance_pair``; ``scratch =
+    (fs, us, js)``, ``fs`` of shape (``PAIR_LANE_F_ROWS``, ``LANE_COUNT``), ``us`` and ``js``
+    as for :func:`build_lanes`. ``k`` counts draws (two per coarse step).
+    """
+    return _lane_machine(spec, True)
+
+
+def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
+    """The lane machine of :func:`build_lanes` (``PAIR`` False: one path a lane) and of
+    :func:`build_pair_lanes` (True: a coupled pair a lane), written once: the lanes' loading,
+    masking, step control, landing, clock, write-back and refill are shared; what a step
+    advances (one member and one draw, or two members and two draws) differs. ``PAIR`` is a
+    compile-time constant, so each machine compiles to its own branch-free lane loop."""
+    kind = "pair lane" if PAIR else "lane"
     if not lanes_supported(spec):
-        raise ValueError(f"spec {spec.label} is not accepted: the lane machine needs "
+        raise ValueError(f"spec {spec.label} is not accepted: the {kind} machine needs "
                          "integrator.lanes_supported(spec)")
     steps = build(spec)
     real = steps.real
@@ -675,18 +675,22 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
     load_aux = nz.load_aux
     ADAPTIVE = spec.adaptive
     lanes = LANE_COUNT
+    half = real(0.5)
     escape = real(ESCAPE_STEP_FRACTION)
     slack = 1.0 + LANDING_SLACK
+    J = 2 if PAIR else 0  # the pair's state has the fine member's xf, Omegaf at 2, 3
+    I_XI, I_XA, I_T, I_TC, I_K, I_ST = 2 + J, 3 + J, 4 + J, 5 + J, 6 + J, 7 + J
+    DRAWS = 2 if PAIR else 1
 
     @register_jitable
     def load(lane, i, state, path0, scratch):
         x = state[0]
         Omega = state[1]
-        xi = state[2]
-        xi_aux = state[3]
-        t = state[4]
-        t_comp = state[5]
-        k = state[6]
+        xi = state[I_XI]
+        xi_aux = state[I_XA]
+        t = state[I_T]
+        t_comp = state[I_TC]
+        k = state[I_K]
         fs = scratch[0]
         us = scratch[1]
         js = scratch[2]
@@ -696,6 +700,11 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
         fs[3, lane] = load_aux(xi_aux[i])
         fs[4, lane] = t[i]
         fs[5, lane] = t_comp[i]
+        if PAIR:
+            xf = state[2]
+            Omegaf = state[3]
+            fs[6, lane] = xf[i]
+            fs[7, lane] = Omegaf[i]
         path = _U64(path0 + i)
         us[0, lane] = k[i]
         us[1, lane] = path & rng._MASK32
@@ -709,12 +718,12 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
     def advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch):
         x = state[0]
         Omega = state[1]
-        xi = state[2]
-        xi_aux = state[3]
-        t = state[4]
-        t_comp = state[5]
-        k = state[6]
-        status = state[7]
+        xi = state[I_XI]
+        xi_aux = state[I_XA]
+        t = state[I_T]
+        t_comp = state[I_TC]
+        k = state[I_K]
+        status = state[I_ST]
         fs = scratch[0]
         us = scratch[1]
         js = scratch[2]
@@ -735,10 +744,18 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
         bs = js[1]
         ba = js[2]
         bbad = js[3]
+        if PAIR:
+            xf = state[2]
+            Omegaf = state[3]
+            bxf = fs[6]
+            bOf = fs[7]
         # Idle lanes compute on harmless numbers and are never written back.
         for lane in range(lanes):
             bx[lane] = 0.0
             bO[lane] = 0.0
+            if PAIR:
+                bxf[lane] = 0.0
+                bOf[lane] = 0.0
             bxi[lane] = 0.0
             bxa[lane] = 0.0
             bt[lane] = t_target
@@ -772,6 +789,9 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
                 steps_before = bs[lane]
                 xs = bx[lane]
                 Om = bO[lane]
+                if PAIR:
+                    xs2 = bxf[lane]
+                    Om2 = bOf[lane]
                 xn = bxi[lane]
                 xa = bxa[lane]
                 tt = bt[lane]
@@ -789,17 +809,35 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
                 last = tt + h_clock * slack >= t_target
                 h_clock = t_target - tt if last else h_clock
                 h = real(h_clock)
-                C = coefficients(h, p)
-                z = draw_keyed(rk0, rk1, c2, c3, kk)
-                noise_integral, xn_new, xa_new = update(xn, xa, C, z)
-                xs_new, Om_new = verlet(xs, Om, h, omega2_r, noise_integral, q)
+                if PAIR:
+                    # The fine member's two half steps draw the noise (draws k and k + 1);
+                    # the coarse kick uses the sum of their integrals.
+                    hh = half * h
+                    C = coefficients(hh, p)
+                    z = draw_keyed(rk0, rk1, c2, c3, kk)
+                    I1, xn1, xa1 = update(xn, xa, C, z)
+                    z = draw_keyed(rk0, rk1, c2, c3, kk + _U64(1))
+                    I2, xn_new, xa_new = update(xn1, xa1, C, z)
+                    xf1, Of1 = verlet(xs2, Om2, hh, omega2_r, I1, q)
+                    xf_new, Of_new = verlet(xf1, Of1, hh, omega2_r, I2, q)
+                    xs_new, Om_new = verlet(xs, Om, h, omega2_r, I1 + I2, q)
+                else:
+                    C = coefficients(h, p)
+                    z = draw_keyed(rk0, rk1, c2, c3, kk)
+                    noise_integral, xn_new, xa_new = update(xn, xa, C, z)
+                    xs_new, Om_new = verlet(xs, Om, h, omega2_r, noise_integral, q)
                 y = h_clock - tc
                 t_sum = tt + y
                 tc_new = (t_sum - tt) - y
                 t_new = t_target if last else t_sum
                 tc_new = 0.0 if last else tc_new
-                finite = (math.isfinite(xs_new) & math.isfinite(Om_new)
-                          & math.isfinite(xn_new) & math.isfinite(xa_new))
+                if PAIR:
+                    finite = (math.isfinite(xs_new) & math.isfinite(Om_new)
+                              & math.isfinite(xf_new) & math.isfinite(Of_new)
+                              & math.isfinite(xn_new) & math.isfinite(xa_new))
+                else:
+                    finite = (math.isfinite(xs_new) & math.isfinite(Om_new)
+                              & math.isfinite(xn_new) & math.isfinite(xa_new))
                 act = active != 0
                 go = act & (not esc)
                 steps_after = steps_before + (1 if go else 0)
@@ -807,30 +845,36 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
                 done = act & (esc | (go & (last | (not finite) | (steps_after >= max_steps))))
                 bx[lane] = xs_new if go else xs
                 bO[lane] = Om_new if go else Om
+                if PAIR:
+                    bxf[lane] = xf_new if go else xs2
+                    bOf[lane] = Of_new if go else Om2
                 bxi[lane] = xn_new if go else xn
                 bxa[lane] = xa_new if go else xa
                 bt[lane] = t_new if go else tt
                 btc[lane] = tc_new if go else tc
-                bk[lane] = kk + _U64(1) if go else kk
+                bk[lane] = kk + _U64(DRAWS) if go else kk
                 bs[lane] = steps_after
                 bbad[lane] = 1 if bad else bad_before
                 ba[lane] = 0 if done else active
                 n_done += 1 if done else 0
             if n_done == 0:
                 continue
-            # Write the finished paths back and refill their lanes (scalar, rare).
+            # Write the finished lanes back and refill them (scalar, rare).
             for lane in range(lanes):
                 i = bi[lane]
                 if i < 0 or ba[lane] != 0:
                     continue
                 x[i] = bx[lane]
                 Omega[i] = bO[lane]
+                if PAIR:
+                    xf[i] = bxf[lane]
+                    Omegaf[i] = bOf[lane]
                 xi[i] = bxi[lane]
                 xi_aux[i] = bxa[lane]
                 t[i] = bt[lane]
                 t_comp[i] = btc[lane]
                 k[i] = bk[lane]
-                steps_taken += bs[lane]
+                steps_taken += DRAWS * bs[lane]
                 if bbad[lane] != 0:
                     status[i] = 1
                 elif bt[lane] < t_target:
@@ -845,238 +889,5 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
                     n_active += 1
         return steps_taken, unfinished
 
-    name_closures([advance_range, lanes], f"lanes/{spec.label}")
-    return SimpleNamespace(spec=spec, advance_range=advance_range, lanes=lanes)
-
-
-#: Rows of the pair lane machine's float64 scratch: the lane machine's six, then the fine
-#: member's x and Omega.
-PAIR_LANE_F_ROWS = LANE_F_ROWS + 2
-
-
-@functools.cache
-def build_pair_lanes(spec: Spec) -> SimpleNamespace:
-    """:func:`build`'s ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate)
-    for ``LANE_COUNT`` pairs side by side, as :func:`build_lanes` runs ``advance_path``.
-
-    Each lane carries one pair: the coarse member takes the step control's step h on its own
-    state, the fine member the same step as two halves, both driven by draws ``k`` and
-    ``k + 1`` of the pair's stream (the coarse kick uses the sum of the two half-step
-    integrals). The arithmetic is ``advance_pair``'s of the same fast-math Spec, operation for
-    operation, so a pair's numbers do not depend on its lane or its neighbours (tests), and the
-    coarse member has the law of the run's own paths (which run :func:`build_lanes` with the same
-    math). Needs :func:`lanes_supported`.
-
-    ``advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch) ->
-    (draws_taken, unfinished)``, ``state`` the pair arrays of ``advance_pair``; ``scratch =
-    (fs, us, js)``, ``fs`` of shape (``PAIR_LANE_F_ROWS``, ``LANE_COUNT``), ``us`` and ``js``
-    as for :func:`build_lanes`. ``k`` counts draws (two per coarse step).
-    """
-    if not lanes_supported(spec):
-        raise ValueError(f"spec {spec.label} is not accepted: the pair lane machine needs "
-                         "integrator.lanes_supported(spec)")
-    steps = build(spec)
-    real = steps.real
-    nz = spec.noise.kernel(real, FAST)
-    verlet = steps.verlet
-    step_size = steps.step_size
-    coefficients = nz.coefficients
-    draw_keyed = nz.draw_keyed
-    update = nz.update
-    load_aux = nz.load_aux
-    ADAPTIVE = spec.adaptive
-    lanes = LANE_COUNT
-    half = real(0.5)
-    escape = real(ESCAPE_STEP_FRACTION)
-    slack = 1.0 + LANDING_SLACK
-
-    @register_jitable
-    def load(lane, i, state, path0, scratch):
-        x = state[0]
-        Omega = state[1]
-        xf = state[2]
-        Omegaf = state[3]
-        xi = state[4]
-        xi_aux = state[5]
-        t = state[6]
-        t_comp = state[7]
-        k = state[8]
-        fs = scratch[0]
-        us = scratch[1]
-        js = scratch[2]
-        fs[0, lane] = x[i]
-        fs[1, lane] = Omega[i]
-        fs[2, lane] = xi[i]
-        fs[3, lane] = load_aux(xi_aux[i])
-        fs[4, lane] = t[i]
-        fs[5, lane] = t_comp[i]
-        fs[6, lane] = xf[i]
-        fs[7, lane] = Omegaf[i]
-        path = _U64(path0 + i)
-        us[0, lane] = k[i]
-        us[1, lane] = path & rng._MASK32
-        us[2, lane] = path >> rng._SHIFT32
-        js[0, lane] = i
-        js[1, lane] = 0
-        js[2, lane] = 1
-        js[3, lane] = 0
-
-    @register_jitable
-    def advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch):
-        x = state[0]
-        Omega = state[1]
-        xf = state[2]
-        Omegaf = state[3]
-        xi = state[4]
-        xi_aux = state[5]
-        t = state[6]
-        t_comp = state[7]
-        k = state[8]
-        status = state[9]
-        fs = scratch[0]
-        us = scratch[1]
-        js = scratch[2]
-        omega2, q, h_max, step_c = run
-        omega2_r = real(omega2)
-        h_max_r = real(h_max)
-        c_r = real(step_c)
-        bx = fs[0]
-        bO = fs[1]
-        bxi = fs[2]
-        bxa = fs[3]
-        bt = fs[4]
-        btc = fs[5]
-        bxf = fs[6]
-        bOf = fs[7]
-        bk = us[0]
-        bc2 = us[1]
-        bc3 = us[2]
-        bi = js[0]
-        bs = js[1]
-        ba = js[2]
-        bbad = js[3]
-        # Idle lanes compute on harmless numbers and are never written back.
-        for lane in range(lanes):
-            bx[lane] = 0.0
-            bO[lane] = 0.0
-            bxf[lane] = 0.0
-            bOf[lane] = 0.0
-            bxi[lane] = 0.0
-            bxa[lane] = 0.0
-            bt[lane] = t_target
-            btc[lane] = 0.0
-            bk[lane] = 0
-            bc2[lane] = 0
-            bc3[lane] = 0
-            bi[lane] = -1
-            bs[lane] = 0
-            ba[lane] = 0
-            bbad[lane] = 0
-        draws_taken = 0
-        unfinished = 0
-        nxt = lo
-        n_active = 0
-        if max_steps > 0:
-            for lane in range(lanes):
-                while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
-                    nxt += 1
-                if nxt < hi:
-                    load(lane, nxt, state, path0, scratch)
-                    nxt += 1
-                    n_active += 1
-        while n_active > 0:
-            n_done = 0
-            for lane in range(lanes):
-                # As in build_lanes: every load first, every store last, unconditionally.
-                active = ba[lane]
-                bad_before = bbad[lane]
-                steps_before = bs[lane]
-                xs = bx[lane]
-                Om = bO[lane]
-                xs2 = bxf[lane]
-                Om2 = bOf[lane]
-                xn = bxi[lane]
-                xa = bxa[lane]
-                tt = bt[lane]
-                tc = btc[lane]
-                kk = bk[lane]
-                c2 = bc2[lane]
-                c3 = bc3[lane]
-                if ADAPTIVE:
-                    h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
-                    esc = h < escape * h_max_r
-                else:
-                    h = h_max_r
-                    esc = False
-                h_clock = h_max if h == h_max_r else np.float64(h)
-                last = tt + h_clock * slack >= t_target
-                h_clock = t_target - tt if last else h_clock
-                h = real(h_clock)
-                hh = half * h
-                C = coefficients(hh, p)
-                z = draw_keyed(rk0, rk1, c2, c3, kk)
-                I1, xn1, xa1 = update(xn, xa, C, z)
-                z = draw_keyed(rk0, rk1, c2, c3, kk + _U64(1))
-                I2, xn_new, xa_new = update(xn1, xa1, C, z)
-                xf1, Of1 = verlet(xs2, Om2, hh, omega2_r, I1, q)
-                xf_new, Of_new = verlet(xf1, Of1, hh, omega2_r, I2, q)
-                xs_new, Om_new = verlet(xs, Om, h, omega2_r, I1 + I2, q)
-                y = h_clock - tc
-                t_sum = tt + y
-                tc_new = (t_sum - tt) - y
-                t_new = t_target if last else t_sum
-                tc_new = 0.0 if last else tc_new
-                finite = (math.isfinite(xs_new) & math.isfinite(Om_new)
-                          & math.isfinite(xf_new) & math.isfinite(Of_new)
-                          & math.isfinite(xn_new) & math.isfinite(xa_new))
-                act = active != 0
-                go = act & (not esc)
-                steps_after = steps_before + (1 if go else 0)
-                bad = act & (esc | (go & (not finite)))
-                done = act & (esc | (go & (last | (not finite) | (steps_after >= max_steps))))
-                bx[lane] = xs_new if go else xs
-                bO[lane] = Om_new if go else Om
-                bxf[lane] = xf_new if go else xs2
-                bOf[lane] = Of_new if go else Om2
-                bxi[lane] = xn_new if go else xn
-                bxa[lane] = xa_new if go else xa
-                bt[lane] = t_new if go else tt
-                btc[lane] = tc_new if go else tc
-                bk[lane] = kk + _U64(2) if go else kk
-                bs[lane] = steps_after
-                bbad[lane] = 1 if bad else bad_before
-                ba[lane] = 0 if done else active
-                n_done += 1 if done else 0
-            if n_done == 0:
-                continue
-            # Write the finished pairs back and refill their lanes (scalar, rare).
-            for lane in range(lanes):
-                i = bi[lane]
-                if i < 0 or ba[lane] != 0:
-                    continue
-                x[i] = bx[lane]
-                Omega[i] = bO[lane]
-                xf[i] = bxf[lane]
-                Omegaf[i] = bOf[lane]
-                xi[i] = bxi[lane]
-                xi_aux[i] = bxa[lane]
-                t[i] = bt[lane]
-                t_comp[i] = btc[lane]
-                k[i] = bk[lane]
-                draws_taken += 2 * bs[lane]
-                if bbad[lane] != 0:
-                    status[i] = 1
-                elif bt[lane] < t_target:
-                    unfinished += 1
-                bi[lane] = -1
-                n_active -= 1
-                while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
-                    nxt += 1
-                if nxt < hi:
-                    load(lane, nxt, state, path0, scratch)
-                    nxt += 1
-                    n_active += 1
-        return draws_taken, unfinished
-
-    name_closures([advance_range, lanes], f"pair-lanes/{spec.label}")
+    name_closures([advance_range, lanes], f"{'pair-lanes' if PAIR else 'lanes'}/{spec.label}")
     return SimpleNamespace(spec=spec, advance_range=advance_range, lanes=lanes)
