@@ -426,3 +426,51 @@ def test_bad_input_is_one_line(call, needle) -> None:
         call()
     message = str(info.value)
     assert needle in message and "\n" not in message and "is not accepted" in message
+
+
+# ---------------------------------------------------------------------------------------------
+# The command: stochpend theory --family
+# ---------------------------------------------------------------------------------------------
+
+
+def _invoke(args: list[str]):
+    from typer.testing import CliRunner
+
+    from stochpend import cli
+
+    return CliRunner().invoke(cli.app, ["theory", *args])
+
+
+def test_cli_family_tables() -> None:
+    result = _invoke(["--family", "--noise", "white", "--gamma", "0.5", "--D-a", "0.2", "--F", "2"])
+    assert result.exit_code == 0, result.output
+    for needle in ("Damped, driven family, white noise", "Boltzmann", "Kramers", "washboard", "random frequency",
+                   "0.893383", "1.12832e-05"):
+        assert needle in result.output, (needle, result.output)
+    result = _invoke(["--family", "--noise", "ou", "--tau", "0.5", "--D-a", "0.2", "--gamma", "0.5"])
+    assert result.exit_code == 0, result.output
+    assert "Hermite hierarchy" in result.output and "0.166667" in result.output
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--family", "--gamma", "0"], "--gamma 0.0 is not accepted"),
+    (["--family", "--D-a", "-1"], "--D-a -1.0 is not accepted"),
+    (["--family", "--bfpe"], "--bfpe"),
+    (["--family", "--noise", "dichotomous"], "--noise 'dichotomous' is not accepted"),
+])
+def test_cli_family_bad_input_one_line(args, needle) -> None:
+    result = _invoke(args)
+    lines = [ln for ln in result.output.splitlines() if ln.strip()]
+    assert result.exit_code == 2 and len(lines) == 1 and lines[0].startswith("error:"), result.output
+    assert needle in lines[0]
+
+
+def test_cli_family_table_fits_80_columns() -> None:
+    from rich.console import Console
+
+    from stochpend._cli_theory import theory_table
+
+    for kw in ({"noise": "white", "F": 2.0}, {"noise": "ou", "tau": 0.5}):
+        console = Console(width=80, record=True, file=__import__("io").StringIO())
+        console.print(theory_table(f.family_predictions(D_a=0.2, gamma=0.5, omega=1.0, D=1.0, **kw), title="t"))
+        assert max(len(line) for line in console.export_text().splitlines()) <= 80

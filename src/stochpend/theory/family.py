@@ -1030,7 +1030,7 @@ def family_predictions(
     T = temperature(D_a=D_a, gamma=gamma)
     reg = "Boltzmann, additive white noise"
     ref = "FPE stationary law"
-    valid = "gamma > 0, D = F = 0, t >> 1/gamma"
+    valid = "D = F = 0, t >> 1/gamma"
     rows += [
         P(reg, "T", T, ref, valid, "D_a/(2 gamma): <xi_a xi_a'> = D_a delta"),
         P(reg, "<Omega^2>", boltzmann_mean_Omega2(D_a=D_a, gamma=gamma), ref, valid, "T, any potential"),
