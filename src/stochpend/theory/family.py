@@ -731,8 +731,9 @@ def random_frequency_ou_growth_rate(
     with A0 the noiseless moment matrix and B q the xi-part (B = [[0,0,0],[-1,0,0],[0,-2,0]]).
     This block-tridiagonal system is exact; it is truncated at ``levels`` and its largest real
     eigenvalue returned. The truncation converges fast (the diagonal grows like k/tau, the
-    coupling like sqrt(k)): 64 levels reproduce 120 to ~1e-12 for D tau**2 omega**... of
-    order one; check with a larger ``levels`` far from that. tau -> 0 recovers the white-noise
+    coupling like sqrt(k), and B is nilpotent): with gamma = 0.1, omega = 1, 32 and 512 levels
+    agree to 1e-9 for D tau**2/2 from 0.25 to 250 (the tests compare 64 with 128 levels); check
+    with a larger ``levels`` beyond that. tau -> 0 recovers the white-noise
     rate (:func:`random_frequency_moment_growth_rate`, since (D/2) B**2 adds D <x**2> to
     d<Omega**2>/dt). Numerically exact, not a closed form. D >= 0, tau > 0, gamma >= 0,
     omega >= 0, levels an integer in [4, 2000].
@@ -799,10 +800,10 @@ def random_frequency_ou_threshold_weak_noise(*, tau: float, gamma: float, omega:
     with noise on x grows at the rate S(2 omega)/(2 omega**2) (the parametric resonance at twice
     the frequency; :func:`stochpend.theory.harmonic_growth_rate`), with the OU spectrum
     S(nu) = D/(1 + nu**2 tau**2); friction removes energy at the rate gamma. Equating gives
-    D_c. Validity: leading order in gamma/omega, which also requires the noise to be weak,
-    D_c/(2 tau) << omega**2, i.e. 4 gamma omega**2 tau (1 + 4 omega**2 tau**2)... << omega**2
-    (checked against the hierarchy: 0.7 % off at gamma/omega = 0.01, omega tau = 0.3; 29 % at
-    omega tau = 3). Agrees with :func:`random_frequency_ou_threshold_series` to O(tau**2) at
+    D_c. Validity: leading order in gamma/omega, which also requires the noise to be weak: its
+    variance at the threshold, D_c/(2 tau) = gamma omega**2 (1 + 4 omega**2 tau**2)/tau, must
+    stay << omega**2 (against the hierarchy: 0.7 % off at gamma/omega = 0.01, omega tau = 0.3;
+    29 % at omega tau = 3). Agrees with :func:`random_frequency_ou_threshold_series` to O(tau**2) at
     gamma -> 0. tau >= 0, gamma >= 0, omega >= 0.
     """
     tau = _nonnegative("tau", tau, _TAU)
