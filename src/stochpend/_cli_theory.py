@@ -65,13 +65,30 @@ def theory_command(
     time: Annotated[float, typer.Option("--time", help="Time at which the predictions are evaluated, >= 0.")] = 1000.0,
     t: Annotated[float | None, typer.Option("--t", hidden=True, help="Former name of --time.")] = None,
     bfpe: Annotated[bool, typer.Option("--bfpe", help=f"Also solve the averaged Best Fokker-Planck Equation (omega = 0, {eq('avbfpe')}) up to that time.")] = False,
+    family: Annotated[bool, typer.Option("--family", help="Instead, the laws of the damped, driven family (docs/theory.md): Boltzmann, Kramers, washboard, random-frequency oscillator; --D is then the multiplicative noise on x, --time is not used.")] = False,
+    gamma: Annotated[float, typer.Option("--gamma", help="With --family: damping gamma > 0.")] = 0.5,
+    D_a: Annotated[float, typer.Option("--D-a", help="With --family: additive noise intensity D_a > 0, <xi_a xi_a'> = D_a delta (T = D_a/(2 gamma)).")] = 0.2,
+    F: Annotated[float, typer.Option("--F", help="With --family: constant torque F (washboard rows).")] = 0.0,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
-    """Print the paper's predictions at a time: every regime, its equation and where it is valid."""
+    """Print the paper's predictions at a time: every regime, its equation and where it is valid
+    (with --family: the damped, driven family's stationary laws and rates)."""
     from stochpend.theory import predictions
 
     if t is not None:  # --t, the former name, still works
         time = t
+    if family:
+        from stochpend.theory.family import family_predictions
+
+        if bfpe:
+            raise ValueError("bfpe=True is not accepted with --family: the B.F.P.E. is the paper's (omega = 0, "
+                             "no damping); drop --bfpe or --family")
+        ou = noise.lower() == "ou"
+        rows = family_predictions(noise=noise, D_a=D_a, gamma=gamma, omega=omega, D=D, tau=tau if ou else None, F=F)
+        params = (f"gamma={gamma:g}, D_a={D_a:g}, D={D:g}" + (f", tau={tau:g}" if ou else "")
+                  + f", omega={omega:g}" + ("" if ou else f", F={F:g}"))
+        results.print(theory_table(rows, title=f"Damped, driven family, {noise.lower()} noise: {params}"))
+        return
 
     rows = predictions(noise=noise, D=D, tau=tau if noise.lower() != "white" else None, omega=omega, t=time,
                        bfpe=bfpe)

@@ -1,6 +1,7 @@
 """The paper's theory as code: closed forms (:mod:`.laws`), the averaged B.F.P.E. solver
-(:mod:`.bfpe`), the table of predictions (:mod:`.table`), and the long-time growth laws of the
-other oscillators and noises (:mod:`.scaling`, docs/scaling.md).
+(:mod:`.bfpe`), the table of predictions (:mod:`.table`), the long-time growth laws of the
+other oscillators and noises (:mod:`.scaling`, docs/scaling.md), and the laws of the damped,
+driven family (:mod:`.family`: Boltzmann, Kramers, washboard, random-frequency oscillator).
 
 Equation labels in the docstrings are the ``\\label`` names of Mallick & Marcq (2004); see
 ``docs/theory.md`` for the map from each equation to its function.
