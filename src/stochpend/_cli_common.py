@@ -379,6 +379,8 @@ def _scaled_column(ds: Any) -> tuple[str, str, Callable[[float], float]] | None:
     attrs = ds.attrs
     if attrs.get("potential", "pendulum") != "pendulum" or attrs.get("coupling", "force") != "force":
         return None
+    if attrs.get("dynamics_parameters"):  # damping, drives, a second noise: the paper's laws do not apply
+        return None
     D = float(attrs.get("D", 1.0))
     if D <= 0:
         return None
@@ -414,6 +416,8 @@ def summary_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Tabl
         title += f", {markup(str(attrs['noise_parameters']))}"
     if attrs.get("potential_parameters"):  # the oscillator's own parameters
         title += f", {markup(str(attrs['potential_parameters']))}"
+    if attrs.get("dynamics_parameters"):  # the family's terms that are on (damping, drives, ...)
+        title += f", {markup(str(attrs['dynamics_parameters']))}"
     title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {markup(attrs.get('seed'))}"
     scaled: Any = _scaled_column(ds)  # (header, variable, norm) or None
     has_bias = "mean_E_bias" in ds

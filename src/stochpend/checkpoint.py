@@ -125,11 +125,11 @@ def config_to_json(config: SimulationConfig) -> dict[str, Any]:
     """Every field of the configuration as plain JSON values (floats round-trip exactly)."""
     out: dict[str, Any] = {}
     for f in fields(config):
-        if f.name == "extra" or (f.name in ("observables", "noise_params", "osc_params")
+        if f.name == "extra" or (f.name in ("observables", "noise_params", "osc_params", "dyn_params")
                                  and not getattr(config, f.name)):
             continue  # written only when used: checkpoints from before keep their hash
         v = getattr(config, f.name)
-        pairs = f.name in ("noise_params", "osc_params")
+        pairs = f.name in ("noise_params", "osc_params", "dyn_params")
         out[f.name] = [list(p) for p in v] if pairs else list(v) if isinstance(v, tuple) else v
     return out
 

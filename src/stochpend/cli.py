@@ -387,6 +387,8 @@ def growth_lines(ds: Any) -> list[tuple[str, str]]:
     if not growth.startswith("exponential"):
         return []
     attrs = ds.attrs
+    if attrs.get("dynamics_parameters"):  # damping, drives, a second noise: no law predicted here to contradict
+        return [("note", f"growth of <E>: {growth}")]
     try:
         law = predicted_exponent(str(attrs.get("potential", "pendulum")), str(attrs.get("noise", "ou")),
                                  str(attrs.get("coupling", "force")), int(attrs.get("power_n", 2)))
@@ -596,6 +598,10 @@ def list_pieces(
         table.add_row("--potential", name, text)
     table.add_row("--coupling", "force", "the noise multiplies the force U'(x) (the paper's pendulum)")
     table.add_row("--coupling", "position", "the noise multiplies x (the random-frequency oscillator)")
+    from stochpend import dynamics
+
+    for p in dynamics.FAMILY.parameters:  # the family's terms, on any model: --param NAME=VALUE
+        table.add_row("--param", f"{p.name}=...", plain(f"({p.default:g}) {p.meaning}"))
     from stochpend import observables
 
     for name in observables.names():

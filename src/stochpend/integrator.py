@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 from numba.extending import register_jitable
 
+from stochpend import dynamics as _dynamics
 from stochpend import noises as _noises
 from stochpend import observables, rng
 from stochpend import oscillators as _oscillators
@@ -118,8 +119,9 @@ def advance_clock(t, t_comp, h, last, t_target):
     return t_new, (t_new - t) - y
 
 
-def run_record(config: Any) -> tuple[float, tuple[float, ...], float, float]:
-    """The run's scalars as the kernels take them, one record ``(omega2, q, h_max, step_c)``:
+def run_record(config: Any) -> tuple[Any, ...]:
+    """The run's scalars as the kernels take them, one record ``(omega2, q, h_max, step_c)``
+    (and, for a run with the family's terms on, their record ``d`` fifth):
     omega**2, the oscillator's parameter record q (:meth:`stochpend.oscillators.Oscillator.record`:
     ``(power_n,)`` for the power family, a model's own parameters in declared order, ``(0.0,)``
     for none), the largest step and the step control's constant (0: fixed steps) of a
@@ -127,7 +129,10 @@ def run_record(config: Any) -> tuple[float, tuple[float, ...], float, float]:
     everything of the configuration a step reads."""
     oscillator = _oscillators.get(config.potential)
     assert oscillator is not None, config.potential  # validated when the config was built
-    return (float(config.omega**2), oscillator.record(config), float(config.h_max), float(config.step_c))
+    run = (float(config.omega**2), oscillator.record(config), float(config.h_max), float(config.step_c))
+    if _dynamics.terms_of(getattr(config, "dyn_params", ())):  # terms on: their record d
+        return (*run, _dynamics.record(config))
+    return run
 
 
 # -- what a kernel is specialised for ------------------------------------------------------------
@@ -146,6 +151,9 @@ class Spec:
     precision: str = "float64"
     adaptive: bool = True
     fast_math: bool = False
+    #: The family's terms that are on (:mod:`stochpend.dynamics`: "damping", "torque", "drive",
+    #: "parametric", "additive"); empty: the paper's model, today's kernels.
+    terms: frozenset = frozenset()
 
     def __post_init__(self) -> None:
         if self.coupling not in _oscillators.COUPLINGS:
@@ -163,7 +171,8 @@ class Spec:
         if oscillator is None or noise is None:  # validated configs never get here
             raise ValueError(f"potential={config.potential!r}, noise={config.noise!r}: not registered "
                              "in this process")
-        return cls(oscillator, config.coupling, noise, precision, config.step_c > 0.0, fast_math)
+        return cls(oscillator, config.coupling, noise, precision, config.step_c > 0.0, fast_math,
+                   _dynamics.terms_of(getattr(config, "dyn_params", ())))
 
     @property
     def cacheable(self) -> bool:
@@ -174,11 +183,22 @@ class Spec:
     def label(self) -> str:
         step = "adaptive" if self.adaptive else "fixed"
         math_name = "fast" if self.fast_math else "libm"
+        terms = "".join(f"+{t}" for t in sorted(self.terms))
         return (f"{self.oscillator.name}/{self.coupling}/{self.noise.name}/{self.precision}/"
-                f"{step}/{math_name}")
+                f"{step}/{math_name}{terms}")
 
 
 # -- the integrator ------------------------------------------------------------------------------
+@register_jitable
+def _no_dyn(run):
+    return (0.0,)
+
+
+@register_jitable
+def _dyn_of(run):
+    return run[4]
+
+
 @register_jitable
 def _no_tracks(state):
     return 0
@@ -272,6 +292,76 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         x_new = x_half + half * h * Omega_new
         return wrap(x_new), Omega_new
 
+    FAMILY = bool(spec.terms)
+    DAMPED = "damping" in spec.terms
+    TORQUE = "torque" in spec.terms
+    DRIVE = "drive" in spec.terms
+    PARAMETRIC = "parametric" in spec.terms
+    ADDITIVE = "additive" in spec.terms
+    O_STEP = DAMPED or ADDITIVE
+    dyn_of = _dyn_of if FAMILY else _no_dyn
+
+    @register_jitable
+    def family_bounds(h, c, d):
+        """The step control's bounds of the family's time scales: h <= c/gamma, c/nu, c/nu_p."""
+        if DAMPED and d[0] * h > c:
+            h = c / d[0]
+        if DRIVE and d[3] * h > c:
+            h = c / d[3]
+        if PARAMETRIC and d[6] * h > c:
+            h = c / d[6]
+        return h
+
+    @register_jitable
+    def family_step(x, Omega, h, omega2, noise_integral, q, t0, h_clock, za, d):
+        """One step with the family's terms (``d``: ``stochpend.dynamics.record``): drift h/2,
+        half the kick, the exact Ornstein-Uhlenbeck flow of Omega over h (damping and the
+        additive white noise, normal ``za``), the other half of the kick, drift h/2. The kick
+        holds the force, the parametric noise's exact integral and the drives' exact integrals
+        over the step (``t0``: its start, float64). With the O flow in the middle the harmonic
+        oscillator's stationary x is Boltzmann's exactly for every gamma h, and Omega's has the
+        O(h^2) error of Stormer-Verlet, independent of gamma (docs/numerics.md); half-step
+        damping factors around the kick would not (their error grows with gamma h)."""
+        x_half = x + half * h * Omega
+        g = G(x_half, q)
+        kick = omega2 * h * force(x_half, q)
+        kick += noise_integral * g
+        if PARAMETRIC:  # eps int cos(nu_p s) ds over [t0, t0 + h], without cancellation
+            nu_p = d[6]
+            kick += real(2.0 * d[5] / nu_p * math.cos(nu_p * (t0 + 0.5 * h_clock))
+                         * math.sin(0.5 * nu_p * h_clock)) * g
+        if TORQUE:
+            kick -= real(d[1] * h_clock)
+        if DRIVE:  # A int cos(nu s + phi) ds
+            nu = d[3]
+            kick -= real(2.0 * d[2] / nu * math.cos(nu * (t0 + 0.5 * h_clock) + d[4])
+                         * math.sin(0.5 * nu * h_clock))
+        if O_STEP:
+            Omega_mid = Omega - half * kick
+            if DAMPED:
+                e = math.exp(-d[0] * h_clock)
+                spread = d[8] * math.sqrt(-math.expm1(-2.0 * d[0] * h_clock))
+            else:
+                e = 1.0
+                spread = d[8] * math.sqrt(h_clock)
+            if ADDITIVE:
+                Omega_mid = real(e * Omega_mid + spread * za)
+            else:
+                Omega_mid = real(e * Omega_mid)
+            Omega_new = Omega_mid - half * kick
+        else:
+            Omega_new = Omega - kick
+        x_new = x_half + half * h * Omega_new
+        return wrap(x_new), Omega_new
+
+    @register_jitable
+    def additive_normal(key0, key1, path, n):
+        """The additive noise's normal of draw n (its own Philox draws, ``rng.N_ADDITIVE + n``)."""
+        if ADDITIVE:
+            z, _ = rng.draw_normals(key0, key1, path, _U64(rng.N_ADDITIVE) + n)
+            return z
+        return 0.0
+
     def step_loop(PAIR):
         """The step loop of one path (``PAIR`` False: :func:`advance_path`) or of a coupled
         coarse/fine pair (True: :func:`advance_pair`), written once: the step control, the
@@ -303,7 +393,11 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
             status = state[I_ST]
             if status[i] != 0 or t[i] >= t_target:
                 return 0, 0
-            omega2, q, h_max, step_c = run
+            omega2 = run[0]
+            q = run[1]
+            h_max = run[2]
+            step_c = run[3]
+            d = dyn_of(run)
             omega2_r = real(omega2)
             h_max_r = real(h_max)
             c_r = real(step_c)
@@ -329,6 +423,8 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
             while steps < max_steps:
                 if ADAPTIVE:
                     h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
+                    if FAMILY:
+                        h = family_bounds(h, c_r, d)
                     if h < escape * h_max_r:
                         bad = True  # running away (see ESCAPE_STEP_FRACTION)
                         break
@@ -355,9 +451,22 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                     I1, xn, xa = update(xn, xa, C, z)
                     z, S = draw(key0, key1, path, kk + _U64(1), S)
                     I2, xn, xa = update(xn, xa, C, z)
-                    xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I1, q)
-                    xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I2, q)
-                    xs, Om = verlet(xs, Om, h, omega2_r, I1 + I2, q)
+                    if FAMILY:
+                        # The additive noise likewise: the fine member's half steps draw it, the
+                        # coarse member's one step uses the normal of their sum over the step
+                        # (the exact composition of the two O flows).
+                        hc = 0.5 * h_clock
+                        z1 = additive_normal(key0, key1, path, kk)
+                        z2 = additive_normal(key0, key1, path, kk + _U64(1))
+                        e1 = math.exp(-d[0] * hc) if DAMPED else 1.0
+                        zc = (e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1)
+                        xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I1, q, tt, hc, z1, d)
+                        xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I2, q, tt + hc, hc, z2, d)
+                        xs, Om = family_step(xs, Om, h, omega2_r, I1 + I2, q, tt, h_clock, zc, d)
+                    else:
+                        xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I1, q)
+                        xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I2, q)
+                        xs, Om = verlet(xs, Om, h, omega2_r, I1 + I2, q)
                 else:
                     if h != h_cached:
                         C = coefficients(h, p)
@@ -369,7 +478,11 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                         t_before = tt
                     z, S = draw(key0, key1, path, kk, S)
                     noise_integral, xn, xa = update(xn, xa, C, z)
-                    xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, q)
+                    if FAMILY:
+                        za = additive_normal(key0, key1, path, kk)
+                        xs, Om = family_step(xs, Om, h, omega2_r, noise_integral, q, tt, h_clock, za, d)
+                    else:
+                        xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, q)
                 if HAS_EVENTS and event:
                     xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
                 kk += _U64(DRAWS)
@@ -472,7 +585,9 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         bc3 = block[5]
         br = block[6]
         bph = block[7]
-        omega2, q, h_max, _ = run
+        omega2 = run[0]
+        q = run[1]
+        h_max = run[2]
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         tt = t0
@@ -515,11 +630,11 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     name_closures([G, step_size, verlet, advance_path, advance_pair, advance_lanes],
                   spec.label if track is None else f"{spec.label}/track/{id(track):x}")
     return SimpleNamespace(
-        spec=spec, real=real, G=G, step_size=step_size, verlet=verlet,
+        spec=spec, real=real, G=G, step_size=step_size, verlet=verlet, family_step=family_step,
         init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
         advance_lanes=advance_lanes,
         path_values=statistics(spec.oscillator, spec.coupling),
-        lockstep=(not spec.adaptive) and spec.noise.pair_draws and not HAS_EVENTS,
+        lockstep=(not spec.adaptive) and spec.noise.pair_draws and not HAS_EVENTS and not FAMILY,
     )
 
 
@@ -573,15 +688,17 @@ def statistics(oscillator: Oscillator, coupling: str):
 
 
 def spec(noise: str = "ou", potential: str = "pendulum", coupling: str = "force", *,
-         precision: str = "float64", adaptive: bool = True, fast_math: bool = False) -> Spec:
-    """A Spec from names (for tests and benchmarks): ``spec("white", "harmonic", adaptive=False)``."""
+         precision: str = "float64", adaptive: bool = True, fast_math: bool = False,
+         terms: frozenset = frozenset()) -> Spec:
+    """A Spec from names (for tests and benchmarks): ``spec("white", "harmonic", adaptive=False)``;
+    ``terms``: the family's terms that are on (``frozenset({"damping", "additive"})``)."""
     oscillator = _oscillators.get(potential)
     noise_piece = _noises.get(noise)
     if oscillator is None:
         raise ValueError(f"potential={potential!r} is not accepted: not registered")
     if noise_piece is None:
         raise ValueError(f"noise={noise!r} is not accepted: not registered")
-    return Spec(oscillator, coupling, noise_piece, precision, adaptive, fast_math)
+    return Spec(oscillator, coupling, noise_piece, precision, adaptive, fast_math, frozenset(terms))
 
 
 # -- the SIMD lane machine (CPU) -----------------------------------------------------------------
@@ -600,7 +717,7 @@ LANE_I_ROWS = 4
 def lanes_supported(spec: Spec) -> bool:
     """Whether :func:`build_lanes` runs ``spec``: float64, a noise without events whose fast-math
     kernel has ``draw_keyed``, the fast math library."""
-    if not spec.fast_math or spec.precision != "float64" or spec.noise.has_events:
+    if not spec.fast_math or spec.precision != "float64" or spec.noise.has_events or spec.terms:
         return False
     return spec.noise.kernel(np.float64, FAST).draw_keyed is not None
 
@@ -727,7 +844,10 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
         fs = scratch[0]
         us = scratch[1]
         js = scratch[2]
-        omega2, q, h_max, step_c = run
+        omega2 = run[0]
+        q = run[1]
+        h_max = run[2]
+        step_c = run[3]
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         c_r = real(step_c)

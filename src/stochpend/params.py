@@ -14,6 +14,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from stochpend import dynamics as _dynamics
 from stochpend import noises as _noises
 from stochpend import observables as _observables
 from stochpend import oscillators as _oscillators
@@ -125,6 +126,9 @@ class SimulationConfig:
     noise_params: tuple[tuple[str, float], ...] = ()
     #: The oscillator's own parameters (a model's ``parameters``), sorted (name, value) pairs.
     osc_params: tuple[tuple[str, float], ...] = ()
+    #: The family's terms that differ from their defaults (stochpend.dynamics: damping, torque,
+    #: drives, additive noise), sorted (name, value) pairs; empty for the paper's model.
+    dyn_params: tuple[tuple[str, float], ...] = ()
     extra: dict = field(default_factory=dict)
 
     # -- derived, cheap -------------------------------------------------------------------
@@ -162,6 +166,10 @@ class SimulationConfig:
         if self.osc_params:  # the oscillator's own parameters, likewise
             d["potential_parameters"] = _parameters.describe(self.osc_params)
             d.update({f"potential_{name}": value for name, value in self.osc_params})
+        d.pop("dyn_params", None)
+        if self.dyn_params:  # the family's terms that are on (stochpend.dynamics)
+            d["dynamics_parameters"] = _parameters.describe(self.dyn_params)
+            d.update(dict(self.dyn_params))
         return d
 
     @classmethod
@@ -192,6 +200,7 @@ class SimulationConfig:
         observables: Any = (),
         noise_params: Any = None,
         osc_params: Any = None,
+        dyn_params: Any = None,
     ) -> SimulationConfig:
         """Validate every argument and return the frozen configuration. ``noise_params``: the
         values of the parameters the noise declares for itself (:mod:`stochpend.parameters`),
@@ -297,7 +306,20 @@ class SimulationConfig:
             _fail("coupling", coupling, f"one of {', '.join(_oscillators.COUPLINGS)}")
         power_n = _integer("power_n", power_n, f"power_n must be an integer in [1, {MAX_POWER_N}]", 1,
                            MAX_POWER_N)
-        noise_given, osc_given = _parameters.split(noise_piece, oscillator, noise_params)
+        # The family's terms (stochpend.dynamics) share the keyword space: taken out first.
+        try:
+            given = dict(noise_params or {})
+            dyn_given = dict(dyn_params or {})
+        except (TypeError, ValueError):
+            _fail("noise_params", noise_params, "a mapping of parameter names to numbers")
+        for piece, kind in ((noise_piece, "noise"), (oscillator, "potential")):
+            clash = sorted({q.name for q in _parameters.own(piece)} & set(_dynamics.names()))
+            if clash:  # the family's terms own these names (stochpend.dynamics)
+                _fail(kind, getattr(piece, "name", piece), f"it declares {clash[0]!r}, a name of the family's "
+                      "terms (stochpend.dynamics): rename its parameter")
+        dyn_given.update({k: given.pop(k) for k in list(given) if k in _dynamics.names()})
+        dyn_params_v = _dynamics.resolve(dyn_given)
+        noise_given, osc_given = _parameters.split(noise_piece, oscillator, given)
         if osc_params:
             try:
                 osc_given.update(dict(osc_params))
@@ -312,7 +334,8 @@ class SimulationConfig:
                       "only multiply the force (coupling='force')")
             _fail("coupling", coupling, f"model {potential!r} is periodic, so its noise can only "
                   "multiply a periodic function (coupling='force')")
-        if theta0_v is not None and Omega0 == 0.0:
+        leaves = _dynamics.terms_of(dyn_params_v) & {"additive", "torque", "drive"}
+        if theta0_v is not None and Omega0 == 0.0 and not leaves:
             functions = oscillator.functions
             try:
                 f = float(functions.force(theta0_v, q))
@@ -376,6 +399,7 @@ class SimulationConfig:
             observables=observables,
             noise_params=noise_params_v,
             osc_params=osc_params_v,
+            dyn_params=dyn_params_v,
         )
 
 

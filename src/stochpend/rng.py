@@ -60,6 +60,9 @@ N_INIT_THETA = 0
 N_INIT_XI = 1
 #: Draw index of integrator step 0; step k uses N_FIRST_STEP + k.
 N_FIRST_STEP = 2
+#: Draw index of the additive noise's normal of step k (stochpend.dynamics): N_ADDITIVE + k, a
+#: range of the counter no other draw reaches (the multiplicative noise's are N_FIRST_STEP + k).
+N_ADDITIVE = 1 << 62
 
 
 @register_jitable

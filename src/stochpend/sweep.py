@@ -70,11 +70,11 @@ PARAMETERS: tuple[str, ...] = tuple(
 def _declared() -> tuple[str, ...]:
     """The parameters the registered noises and user models declare for themselves (keys a sweep
     file may set besides :data:`PARAMETERS`; the set's noise or oscillator validates them)."""
-    from stochpend import models, noises
+    from stochpend import dynamics, models, noises
     from stochpend.parameters import own
 
     pieces = [noises.get(name) for name in noises.names()] + [models.get(name) for name in models.names()]
-    return tuple(dict.fromkeys(p.name for piece in pieces for p in own(piece)))
+    return tuple(dict.fromkeys([*dynamics.names(), *(p.name for piece in pieces for p in own(piece))]))
 
 
 #: Parameters whose value is a list: settable in [base] and [[case]], not a grid axis.

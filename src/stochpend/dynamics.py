@@ -1,0 +1,94 @@
+"""The family's terms beside the oscillator and its parametric noise, declared once.
+
+    dx/dt = Omega
+    dOmega/dt = -gamma Omega - omega**2 U'(x) - (xi(t) + eps cos(nu_p t)) G(x)
+                + F + A cos(nu t + phi) + xi_a(t)
+
+Each term is a :class:`stochpend.parameters.Parameter` of :data:`FAMILY`, so the Python API takes
+it as a keyword (``simulate(gamma=0.5, additive_D=0.2)``), the command line as ``--param
+gamma=0.5``, a sweep file as a key, and the configuration (``SimulationConfig.dyn_params``, the
+values that differ from their defaults), checkpoints, NetCDF attributes, ``show`` and ``list``
+carry it, exactly as a noise's own parameters.
+
+A term that is zero is not compiled: a kernel is specialised for the terms that are on
+(:attr:`stochpend.integrator.Spec.terms`), so a run with every term zero runs today's kernel,
+bit for bit (the golden fixture).
+
+The additive noise xi_a is white, <xi_a(t) xi_a(s)> = D_a delta(t - s) (the package's
+convention for white noise, :mod:`stochpend.noises.white`), independent of xi: its normals are
+Philox draws of their own (``rng.N_ADDITIVE + k`` for step k). With damping and no other force
+its stationary law is Boltzmann at T = D_a / (2 gamma) (:mod:`stochpend.theory.family`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from stochpend.parameters import Parameter
+
+__all__ = ["FAMILY", "TERMS", "names", "record", "terms_of"]
+
+
+@dataclass(frozen=True)
+class Dynamics:
+    """The piece that declares the family's terms (``parameters``, as a noise declares its own)."""
+
+    name: str
+    parameters: tuple[Parameter, ...]
+
+
+FAMILY = Dynamics("family", (
+    Parameter("gamma", 0.0, "linear damping gamma, -gamma Omega in dOmega/dt", low=0.0),
+    Parameter("torque", 0.0, "constant force F (the tilted washboard)"),
+    Parameter("drive_amplitude", 0.0, "amplitude A of the external force A cos(nu t + phi)"),
+    Parameter("drive_frequency", 1.0, "frequency nu of the external force", low=0.0, low_open=True),
+    Parameter("drive_phase", 0.0, "phase phi of the external force"),
+    Parameter("parametric_amplitude", 0.0, "amplitude eps of the modulation eps cos(nu_p t) G(x)"),
+    Parameter("parametric_frequency", 1.0, "frequency nu_p of the modulation", low=0.0, low_open=True),
+    Parameter("additive_D", 0.0, "intensity D_a of the additive white noise, <xi_a xi_a'> = D_a delta",
+              low=0.0),
+))
+
+#: The record's order (what the kernels read, by index).
+_ORDER = tuple(p.name for p in FAMILY.parameters)
+_DEFAULTS = {p.name: p.default for p in FAMILY.parameters}
+
+#: The terms a kernel can be specialised for, and the parameter that switches each on.
+TERMS = {"damping": "gamma", "torque": "torque", "drive": "drive_amplitude",
+         "parametric": "parametric_amplitude", "additive": "additive_D"}
+
+
+def names() -> tuple[str, ...]:
+    """The family's parameter names (keywords, ``--param`` names, sweep keys)."""
+    return _ORDER
+
+
+def resolve(values: dict[str, Any]) -> tuple[tuple[str, float], ...]:
+    """Validate the family's parameters among ``values`` and return those that differ from
+    their defaults as sorted (name, float) pairs: what a configuration stores (empty for a run
+    of the paper's model, so its configuration, hash and file are what they were)."""
+    declared = {p.name: p for p in FAMILY.parameters}
+    out = {name: declared[name].check(value) for name, value in values.items()}
+    return tuple(sorted((name, v) for name, v in out.items() if v != _DEFAULTS[name]))
+
+
+def value(pairs: tuple[tuple[str, float], ...], name: str) -> float:
+    return dict(pairs).get(name, _DEFAULTS[name])
+
+
+def terms_of(pairs: tuple[tuple[str, float], ...]) -> frozenset[str]:
+    """The terms that are on (their parameter nonzero): what a kernel is specialised for."""
+    return frozenset(term for term, name in TERMS.items() if value(pairs, name) != 0.0)
+
+
+def record(config: Any) -> tuple[float, ...]:
+    """The kernels' record of the family's terms, ``(gamma, torque, A, nu, phi, eps, nu_p, D_a,
+    sigma_a)``: the parameters in declared order, then sigma_a = sqrt(D_a / (2 gamma)) (the
+    additive noise's stationary velocity scale, sqrt(T); sqrt(D_a) without damping)."""
+    pairs = getattr(config, "dyn_params", ())
+    values = tuple(float(value(pairs, name)) for name in _ORDER)
+    gamma, D_a = values[0], values[-1]
+    sigma = math.sqrt(D_a / (2.0 * gamma)) if gamma > 0 else math.sqrt(D_a)
+    return (*values, sigma)
