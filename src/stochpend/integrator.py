@@ -251,6 +251,8 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     at_event = nz.at_event
     mathlib_log = mathlib.log
     mathlib_sincos = mathlib.sincos
+    mathlib_expm1 = mathlib.expm1
+    additive_normals = rng.normals_with(mathlib, real)
 
     @register_jitable
     def G(x, q):
@@ -328,19 +330,21 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         kick += noise_integral * g
         if PARAMETRIC:  # eps int cos(nu_p s) ds over [t0, t0 + h], without cancellation
             nu_p = d[6]
-            kick += real(2.0 * d[5] / nu_p * math.cos(nu_p * (t0 + 0.5 * h_clock))
-                         * math.sin(0.5 * nu_p * h_clock)) * g
+            s_half, _ = mathlib_sincos(0.5 * nu_p * h_clock)
+            _, c_mid = mathlib_sincos(nu_p * (t0 + 0.5 * h_clock))
+            kick += real(2.0 * d[5] / nu_p * c_mid * s_half) * g
         if TORQUE:
             kick -= real(d[1] * h_clock)
         if DRIVE:  # A int cos(nu s + phi) ds
             nu = d[3]
-            kick -= real(2.0 * d[2] / nu * math.cos(nu * (t0 + 0.5 * h_clock) + d[4])
-                         * math.sin(0.5 * nu * h_clock))
+            s_half, _ = mathlib_sincos(0.5 * nu * h_clock)
+            _, c_mid = mathlib_sincos(nu * (t0 + 0.5 * h_clock) + d[4])
+            kick -= real(2.0 * d[2] / nu * c_mid * s_half)
         if O_STEP:
             Omega_mid = Omega - half * kick
             if DAMPED:
-                e = math.exp(-d[0] * h_clock)
-                spread = d[8] * math.sqrt(-math.expm1(-2.0 * d[0] * h_clock))
+                e = 1.0 + mathlib_expm1(-d[0] * h_clock)
+                spread = d[8] * math.sqrt(-mathlib_expm1(-2.0 * d[0] * h_clock))
             else:
                 e = 1.0
                 spread = d[8] * math.sqrt(h_clock)
@@ -356,11 +360,22 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
 
     @register_jitable
     def additive_normal(key0, key1, path, n):
-        """The additive noise's normal of draw n (its own Philox draws, ``rng.N_ADDITIVE + n``)."""
+        """The additive noise's normal of draw n (its own Philox draws, ``rng.N_ADDITIVE + n``),
+        with the Spec's math (the lane machine's keyed draw gives the same number)."""
         if ADDITIVE:
-            z, _ = rng.draw_normals(key0, key1, path, _U64(rng.N_ADDITIVE) + n)
+            z, _ = additive_normals(key0, key1, path, _U64(rng.N_ADDITIVE) + n)
             return z
-        return 0.0
+        return real(0.0)
+
+    @register_jitable
+    def pair_normals(key0, key1, path, kk, hc, d):
+        """The pair's additive normals: the fine member's half steps' z1, z2 (draws kk, kk + 1)
+        and the coarse member's zc, the normal of the exact composition of the two half-step
+        O flows, (e z1 + z2)/sqrt(1 + e^2), e = exp(-gamma h/2)."""
+        z1 = additive_normal(key0, key1, path, kk)
+        z2 = additive_normal(key0, key1, path, kk + _U64(1))
+        e1 = 1.0 + mathlib_expm1(-d[0] * hc) if DAMPED else 1.0
+        return z1, z2, real((e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1))
 
     def step_loop(PAIR):
         """The step loop of one path (``PAIR`` False: :func:`advance_path`) or of a coupled
@@ -456,10 +471,7 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                         # coarse member's one step uses the normal of their sum over the step
                         # (the exact composition of the two O flows).
                         hc = 0.5 * h_clock
-                        z1 = additive_normal(key0, key1, path, kk)
-                        z2 = additive_normal(key0, key1, path, kk + _U64(1))
-                        e1 = math.exp(-d[0] * hc) if DAMPED else 1.0
-                        zc = (e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1)
+                        z1, z2, zc = pair_normals(key0, key1, path, kk, hc, d)
                         xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I1, q, tt, hc, z1, d)
                         xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I2, q, tt + hc, hc, z2, d)
                         xs, Om = family_step(xs, Om, h, omega2_r, I1 + I2, q, tt, h_clock, zc, d)
@@ -631,6 +643,7 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                   spec.label if track is None else f"{spec.label}/track/{id(track):x}")
     return SimpleNamespace(
         spec=spec, real=real, G=G, step_size=step_size, verlet=verlet, family_step=family_step,
+        family_bounds=family_bounds,
         init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
         advance_lanes=advance_lanes,
         path_values=statistics(spec.oscillator, spec.coupling),
@@ -717,7 +730,7 @@ LANE_I_ROWS = 4
 def lanes_supported(spec: Spec) -> bool:
     """Whether :func:`build_lanes` runs ``spec``: float64, a noise without events whose fast-math
     kernel has ``draw_keyed``, the fast math library."""
-    if not spec.fast_math or spec.precision != "float64" or spec.noise.has_events or spec.terms:
+    if not spec.fast_math or spec.precision != "float64" or spec.noise.has_events:
         return False
     return spec.noise.kernel(np.float64, FAST).draw_keyed is not None
 
@@ -798,6 +811,22 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
     J = 2 if PAIR else 0  # the pair's state has the fine member's xf, Omegaf at 2, 3
     I_XI, I_XA, I_T, I_TC, I_K, I_ST = 2 + J, 3 + J, 4 + J, 5 + J, 6 + J, 7 + J
     DRAWS = 2 if PAIR else 1
+    FAMILY = bool(spec.terms)
+    DAMPED = "damping" in spec.terms
+    family_step = steps.family_step
+    family_bounds = steps.family_bounds
+    dyn_of = _dyn_of if FAMILY else _no_dyn
+    normals_keyed = rng.normals_keyed_with(FAST)
+    expm1 = FAST.expm1
+    ADDITIVE = "additive" in spec.terms
+
+    @register_jitable
+    def additive_keyed(rk0, rk1, c2, c3, n):
+        """The path loop's ``additive_normal`` of draw n, keyed (the same number)."""
+        if ADDITIVE:
+            z, _ = normals_keyed(rk0, rk1, c2, c3, _U64(rng.N_ADDITIVE) + n)
+            return z
+        return real(0.0)
 
     @register_jitable
     def load(lane, i, state, path0, scratch):
@@ -848,6 +877,7 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
         q = run[1]
         h_max = run[2]
         step_c = run[3]
+        d = dyn_of(run)
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         c_r = real(step_c)
@@ -921,6 +951,8 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                 c3 = bc3[lane]
                 if ADAPTIVE:
                     h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
+                    if FAMILY:
+                        h = family_bounds(h, c_r, d)
                     esc = h < escape * h_max_r
                 else:
                     h = h_max_r
@@ -938,14 +970,28 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                     I1, xn1, xa1 = update(xn, xa, C, z)
                     z = draw_keyed(rk0, rk1, c2, c3, kk + _U64(1))
                     I2, xn_new, xa_new = update(xn1, xa1, C, z)
-                    xf1, Of1 = verlet(xs2, Om2, hh, omega2_r, I1, q)
-                    xf_new, Of_new = verlet(xf1, Of1, hh, omega2_r, I2, q)
-                    xs_new, Om_new = verlet(xs, Om, h, omega2_r, I1 + I2, q)
+                    if FAMILY:  # as advance_pair's pair_normals, operation for operation
+                        hc = 0.5 * h_clock
+                        z1 = additive_keyed(rk0, rk1, c2, c3, kk)
+                        z2 = additive_keyed(rk0, rk1, c2, c3, kk + _U64(1))
+                        e1 = 1.0 + expm1(-d[0] * hc) if DAMPED else 1.0
+                        zc = real((e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1))
+                        xf1, Of1 = family_step(xs2, Om2, hh, omega2_r, I1, q, tt, hc, z1, d)
+                        xf_new, Of_new = family_step(xf1, Of1, hh, omega2_r, I2, q, tt + hc, hc, z2, d)
+                        xs_new, Om_new = family_step(xs, Om, h, omega2_r, I1 + I2, q, tt, h_clock, zc, d)
+                    else:
+                        xf1, Of1 = verlet(xs2, Om2, hh, omega2_r, I1, q)
+                        xf_new, Of_new = verlet(xf1, Of1, hh, omega2_r, I2, q)
+                        xs_new, Om_new = verlet(xs, Om, h, omega2_r, I1 + I2, q)
                 else:
                     C = coefficients(h, p)
                     z = draw_keyed(rk0, rk1, c2, c3, kk)
                     noise_integral, xn_new, xa_new = update(xn, xa, C, z)
-                    xs_new, Om_new = verlet(xs, Om, h, omega2_r, noise_integral, q)
+                    if FAMILY:
+                        za = additive_keyed(rk0, rk1, c2, c3, kk)
+                        xs_new, Om_new = family_step(xs, Om, h, omega2_r, noise_integral, q, tt, h_clock, za, d)
+                    else:
+                        xs_new, Om_new = verlet(xs, Om, h, omega2_r, noise_integral, q)
                 y = h_clock - tc
                 t_sum = tt + y
                 tc_new = (t_sum - tt) - y

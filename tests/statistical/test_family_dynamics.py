@@ -264,3 +264,33 @@ def test_a_sweep_over_the_damping_gives_each_runs_numbers():
                                    additive_D=0.2, gamma=gamma, bias_paths=0)
         got = ds.sel(gamma=gamma)
         assert np.array_equal(got.mean_E.values, alone.mean_E.values), gamma
+
+
+FAMILY_RUN = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=600, t_max=6.0, n_times=3, seed=9, gamma=0.4,
+                  additive_D=0.3, torque=0.2, drive_amplitude=0.3, drive_frequency=1.3, drive_phase=0.5,
+                  parametric_amplitude=0.2, parametric_frequency=2.0)
+
+
+@pytest.mark.parametrize("step", [dict(), dict(step_c=0.0, h_max=0.02)])
+def test_the_lanes_run_the_family_with_the_one_path_numbers(step, monkeypatch):
+    """The SIMD lane machines (the runs' and the pairs') against the one-path loops of the same
+    fast-math Spec: a run with an accumulator goes one path at a time, and must change no other
+    number; the pairs' one-path kernel must give the lanes' bias estimate bit for bit."""
+    from stochpend import bias
+    from stochpend._backends import cpu
+    from stochpend.params import SimulationConfig
+
+    lanes = stochpend.simulate(**FAMILY_RUN, **step, bias_paths=64)
+    one_path = stochpend.simulate(**FAMILY_RUN, **step, bias_paths=64, observables=("displacement",))
+    assert lanes.attrs["path_steps"] == one_path.attrs["path_steps"]
+    for name in lanes.data_vars:
+        assert np.array_equal(lanes[name].values, one_path[name].values, equal_nan=True), name
+    config = SimulationConfig.build(**{k: v for k, v in FAMILY_RUN.items()
+                                       if k not in dynamics.names()}, **step,
+                                    noise_params={k: v for k, v in FAMILY_RUN.items() if k in dynamics.names()})
+    assert integrator.lanes_supported(cpu.spec_for(config))
+    a = bias.estimate(config, 64)
+    monkeypatch.setattr(cpu, "pair_advance_kernel", cpu._pair_path_kernel)
+    b = bias.estimate(config, 64)
+    for name in a.bias:
+        assert np.array_equal(a.bias[name][0], b.bias[name][0], equal_nan=True), name
