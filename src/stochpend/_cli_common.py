@@ -310,12 +310,12 @@ def _fmt(value: float, se: float | None = None) -> str:
 
 def observable_variables(ds: Any) -> list[str]:
     """The result's variables of user observables and accumulators (``attrs["observables"]``:
-    mean_, passed_ and var_ of each name, those present), in order; from the file alone, so
+    mean_, passed_, var_ and n_ of each name, those present), in order; from the file alone, so
     ``show`` lists them in a process that never registered them."""
     names = str(ds.attrs.get("observables", "") or "")
     out = []
     for name in (n.strip() for n in names.split(",")):
-        for prefix in ("mean", "passed", "var"):
+        for prefix in ("mean", "passed", "var", "n"):
             v = f"{prefix}_{name}"
             if name and v in ds and f"{v}_stderr" in ds and v not in out:
                 out.append(v)

@@ -50,7 +50,7 @@ import numpy as np
 
 __all__ = ["SUMS", "STATISTICS", "SUM_COMPONENTS", "N_SUMS", "S_COUNT", "S_NONFINITE", "column",
            "path_values_source", "reduced_values_source", "TABLE_KEY", "Observable", "TimeAverage",
-           "FirstPassage", "RunningSum", "DISPLACEMENT", "register", "unregister", "get", "names",
+           "FirstPassage", "RunningSum", "DISPLACEMENT", "EnergyObservable", "LOG_ENERGY", "register", "unregister", "get", "names",
            "resolve", "objects", "user_statistics", "user_key", "accumulators", "track_step",
            "track_initial"]
 
@@ -228,7 +228,7 @@ def register(observable: Any) -> Any:
     """Make ``observable`` (an :class:`Observable`, or a per-path accumulator:
     :class:`TimeAverage`, :class:`FirstPassage`, :class:`RunningSum`) available to runs by its
     name (replaces one of the same name)."""
-    if not isinstance(observable, (Observable, TimeAverage, FirstPassage, RunningSum)):
+    if not isinstance(observable, (Observable, EnergyObservable, TimeAverage, FirstPassage, RunningSum)):
         raise ValueError(f"observable={observable!r} is not accepted: a stochpend.observables.Observable, "
                          "TimeAverage, FirstPassage or RunningSum")
     _REGISTRY[observable.name] = observable
@@ -300,7 +300,7 @@ def n_sums(config: Any) -> int:
 
 
 def _columns(o: Any) -> int:
-    return 1 if isinstance(o, Observable) else 2
+    return 1 if isinstance(o, Observable) else 2  # accumulators and EnergyObservable: value, count
 
 
 def n_user_columns(user: tuple[Any, ...]) -> int:
@@ -334,27 +334,52 @@ def user_statistics(names_: tuple[str, ...]) -> tuple[Statistic, ...]:
     return tuple(out)
 
 
-def user_values(observables: tuple[Any, ...]) -> Callable:
-    """``user_values(x, Omega, xi, t, tracks, i) -> tuple`` of the run's user columns (float64),
-    for the accumulate kernels: an observable's value, an accumulator's two columns read from its
-    slot ``tracks[slot, i]`` of path i; ``(0.0,)`` when there are none (the kernels then read no
+def user_values(observables: tuple[Any, ...], oscillator: Any = None) -> Callable:
+    """``user_values(x, Omega, xi, t, tracks, i, omega2, q) -> tuple`` of the run's user columns
+    (float64), for the accumulate kernels: an observable's value; an accumulator's two columns
+    read from its slot ``tracks[slot, i]`` of path i; an :class:`EnergyObservable`'s value of
+    e = E - E_min and 1 (0 and 0 where the value is not finite), E computed with ``oscillator``'s
+    potential (its record q, omega2). ``(0.0,)`` when there are none (the kernels then read no
     value)."""
     from numba.extending import register_jitable
 
     namespace: dict[str, Any] = {}
     calls: list[str] = []
     slot = 0
+    lines = ["def user_values(x, Omega, xi, t, tracks, i, omega2, q):"]
+    if any(isinstance(o, EnergyObservable) for o in observables):
+        if oscillator is None:
+            raise ValueError("an EnergyObservable needs the run's oscillator")
+        from stochpend.mathlib import LIBM
+
+        namespace["potential"] = oscillator.kernel(np.float64, LIBM).potential
+        namespace["floor"] = register_jitable(oscillator.energy_floor)
+        lines.append("    e = 0.5 * Omega * Omega + omega2 * (potential(x, q) - floor(q))")
     for n, o in enumerate(observables):
         if isinstance(o, Observable):
             namespace[f"f{n}"] = register_jitable(o.value)
             calls.append(f"float(f{n}(x, Omega, xi, t))")
+        elif isinstance(o, EnergyObservable):
+            # Plain names in the returned tuple: a conditional or a starred item inside the
+            # tuple display makes Python build a list (list_to_tuple), which Numba cannot type.
+            namespace[f"f{n}"] = register_jitable(o.value)
+            lines.append(f"    v{n} = float(f{n}(e))")
+            lines.append(f"    a{n} = 0.0")
+            lines.append(f"    b{n} = 0.0")
+            lines.append(f"    if isfinite(v{n}):")
+            lines.append(f"        a{n} = v{n}")
+            lines.append(f"        b{n} = 1.0")
+            calls.append(f"a{n}, b{n}")
         else:
             namespace[f"v{n}"] = o.values_function()
-            calls.append(f"*v{n}(tracks[{slot}, i], t)")
+            lines.append(f"    a{n}, b{n} = v{n}(tracks[{slot}, i], t)")
+            calls.append(f"a{n}, b{n}")
             slot += 1
     if not calls:
         calls = ["0.0"]
-    exec(f"def user_values(x, Omega, xi, t, tracks, i):\n    return ({', '.join(calls)},)\n", namespace)
+    namespace["isfinite"] = math.isfinite
+    lines.append(f"    return ({', '.join(calls)},)")
+    exec("\n".join(lines) + "\n", namespace)
     function = namespace["user_values"]
     function.__module__, function.__qualname__ = __name__, "user_values.<locals>.user_values"
     from stochpend._jitcache import name_closures
@@ -363,9 +388,44 @@ def user_values(observables: tuple[Any, ...]) -> Callable:
     return register_jitable(function)
 
 
+@dataclass(frozen=True, eq=False)
+class EnergyObservable:
+    """A function ``value(e)`` of a path's energy above the potential's floor, e = E - E_min =
+    Omega^2/2 + omega^2 (U(x) - min U) >= 0, reported as ``mean_<name>``, the mean over the paths
+    where it is finite (a path at the floor, where ln e = -inf, is left out of this statistic
+    only, and ``n_<name>`` counts the paths averaged). Built in: :data:`LOG_ENERGY`, ln e, whose
+    mean grows as 2 lambda t for the random-frequency oscillator (lambda its Lyapunov exponent:
+    the typical growth, against the mean growth of <E>). A power e**q is one line:
+    ``register(EnergyObservable("e_q", lambda e: e ** 1.5))``."""
+
+    name: str
+    value: Callable[[float], float]
+    label: str | None = None
+    units: str = "paper units"
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        _check_name(self.name, ("mean", "n"))
+        _probe(self.value, "value", 1)
+
+    def statistics(self, c: int) -> list[Statistic]:
+        def n_(m: np.ndarray, c: int = c) -> np.ndarray:
+            return m[..., c + 1]
+
+        return [Statistic(f"mean_{self.name}", _ratio_of(c), self.label or f"⟨{self.name}⟩", self.units,
+                          self.description or f"<{self.name}>, mean of a function of E - E_min over the paths "
+                          "where it is finite", f"<{self.name}>", controlled=False),
+                Statistic(f"n_{self.name}", n_, f"share of paths in ⟨{self.name}⟩", "1",
+                          f"fraction of the paths where {self.name} is finite", f"n({self.name})",
+                          controlled=False, richardson=False)]
+
+    def source(self) -> str:
+        return _source(self.value, self.name)
+
+
 def accumulators(user: tuple[Any, ...]) -> tuple[Any, ...]:
     """The per-path accumulators among a run's user observables (objects), in slot order."""
-    return tuple(o for o in user if not isinstance(o, Observable))
+    return tuple(o for o in user if isinstance(o, (TimeAverage, FirstPassage, RunningSum)))
 
 
 def track_step(accs: tuple[Any, ...]) -> Callable | None:
@@ -633,3 +693,8 @@ DISPLACEMENT = RunningSum("displacement", _drift, label="x(t) − x(0)",
                           description="unwrapped displacement x(t) - x(0), the sum of each step's drift "
                           "(t1 - t0)(Omega0 + Omega1)/2")
 register(DISPLACEMENT)
+
+#: ln(E - E_min): its mean is the typical energy's log (see :class:`EnergyObservable`). Registered.
+LOG_ENERGY = EnergyObservable("log_energy", math.log, label="⟨ln(E − E_min)⟩",
+                              description="<ln(E - E_min)>, over the paths above the potential's floor")
+register(LOG_ENERGY)

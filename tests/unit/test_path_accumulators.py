@@ -184,9 +184,10 @@ out = {}
 for backend in ("cpu", "cuda"):
     ds = stochpend.simulate(potential="harmonic", noise="white", D=1.0, omega=1.0, paths=48, t_max=1.0,
                             times=[0.5, 1.0], seed=3, n_batches=4, backend=backend, bias_paths=0,
-                            observables=("x2_avg", "far", "displacement"))
+                            observables=("x2_avg", "far", "displacement", "log_energy"))
     out[backend] = {v: ds[v].values.tolist() for v in ("mean_x2_avg", "mean_far", "passed_far",
-                                                        "mean_displacement", "var_displacement", "mean_E")}
+                                                        "mean_displacement", "var_displacement", "mean_E",
+                                                        "mean_log_energy")}
 print(json.dumps(out))
 """
 
@@ -222,3 +223,21 @@ def test_the_command_line_reports_an_accumulator_and_show_lists_it(tmp_path):
     bad = runner.invoke(app, ["simulate", "--paths", "400", "--observable", "nope"])
     assert bad.exit_code == 2
     assert "'nope' is not a registered observable" in bad.stderr and "Traceback" not in bad.output
+
+
+def test_log_energy_is_the_mean_log_of_the_energy_above_the_floor_and_leaves_no_path_out():
+    """Harmonic oscillator from x = 1 at rest, D = 0: E - E_min = 1/2 for ever (to the scheme's
+    modified energy), so <ln e> = ln(1/2); from rest at the bottom (additive noise moves it
+    later) e = 0 at t = 0: ln e = -inf is left out of that statistic only."""
+    ds = stochpend.simulate(potential="harmonic", noise="white", D=0.0, omega=1.0, paths=8, theta0=1.0, Omega0=0.0,
+                            t_max=2.0, times=(1.0, 2.0), h_max=0.001, step_c=0.0, bias_paths=0,
+                            observables=("log_energy",))
+    assert np.allclose(ds.mean_log_energy.values, math.log(0.5), atol=1e-6)
+    assert np.all(ds.n_log_energy.values == 1.0)
+    # The pendulum at rest at its bottom, kicked by additive noise from t = 0: every path counted
+    # in <E> at every time; e > 0 once the noise has acted.
+    ds = stochpend.simulate(noise="white", D=0.0, omega=1.0, paths=200, theta0=0.0, Omega0=0.0, t_max=1.0,
+                            times=(0.5, 1.0), gamma=0.5, additive_D=0.2, bias_paths=0, observables=("log_energy",))
+    assert np.all(ds.n_finite_paths.values == 200) and np.all(ds.n_log_energy.values == 1.0)
+    e = ds.mean_E.values + 1.0  # E_min = -omega^2
+    assert np.all(ds.mean_log_energy.values < np.log(e))  # Jensen: <ln e> < ln <e>

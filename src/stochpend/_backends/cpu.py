@@ -527,7 +527,7 @@ def accumulate_kernel(spec: Spec, observables: tuple[str, ...] = ()):
 @functools.cache
 def _accumulate_kernel(spec: Spec, user: tuple):
     path_values = integrator.statistics(spec.oscillator, spec.coupling)
-    user_values = observables_.user_values(user)
+    user_values = observables_.user_values(user, spec.oscillator)
     n_values = len(observables_.SUMS)
     n_user = observables_.n_user_columns(user)
     first_user = N_SUMS
@@ -551,7 +551,7 @@ def _accumulate_kernel(spec: Spec, user: tuple):
                     continue
                 ok, E, values = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, q)
                 mine = user_values(np.float64(x[i]), np.float64(Omega[i]), np.float64(xi[i]), t[i],
-                                   tracks, i)
+                                   tracks, i, omega2, q)
                 for c in range(n_user):
                     ok = ok and math.isfinite(mine[c])
                 if not ok:

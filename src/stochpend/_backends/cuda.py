@@ -381,7 +381,7 @@ def accumulate_kernel(spec: Spec, observables_: tuple[str, ...] = ()):
 @functools.cache
 def _accumulate_kernel(spec: Spec, user: tuple):
     path_values = integrator.statistics(spec.oscillator, spec.coupling)
-    user_values = observables.user_values(user)
+    user_values = observables.user_values(user, spec.oscillator)
     tpb = STATS_THREADS
     hist_max = SHARED_HIST_MAX
     n_values = _N_VALUES
@@ -420,7 +420,7 @@ def _accumulate_kernel(spec: Spec, user: tuple):
                 if status[i] == 0:
                     ok, E, path = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, q)
                     mine = user_values(np.float64(x[i]), np.float64(Omega[i]), np.float64(xi[i]), t[i],
-                                       tracks, i)
+                                       tracks, i, omega2, q)
                     for c in range(n_user):
                         ok = ok and math.isfinite(mine[c])
                     if ok:
@@ -441,13 +441,14 @@ def _accumulate_kernel(spec: Spec, user: tuple):
                 skip[tid] = 0 if counted else 1
             cuda.syncthreads()
             if tid == 0:
-                for q in range(min(tpb, stop - base)):
-                    if skip[q] != 0:
+                # (not named q: that is the oscillator's record, read above)
+                for lane in range(min(tpb, stop - base)):
+                    if skip[lane] != 0:
                         s_bad += 1.0
                     else:
                         s_count += 1.0
                         for c in range(n_all):
-                            total[c] += values[c, q]
+                            total[c] += values[c, lane]
             cuda.syncthreads()
         if tid == 0:
             sums[b, j, S_COUNT] = s_count
