@@ -650,7 +650,7 @@ def path_states(
 
 
 # -- offline compilation (benchmarks/cuda_registers.py) ----------------------------------------
-def _advance_signature(precision: str, noise: Any, oscillator: Any):
+def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: frozenset = frozenset()):
     """(state, t_target, max_steps, key0, key1, path0, p, run, unfinished) as the host launches
     the advance kernel of ``noise`` and ``oscillator``: the noise's record, one float64 per
     ``noise.parameters``; the run record (omega2, q, h_max, step_c) with the oscillator's record
@@ -666,13 +666,16 @@ def _advance_signature(precision: str, noise: Any, oscillator: Any):
     q_types = [nbtypes.int64 if getattr(e, "name", e) == "power_n" else nbtypes.float64
                for e in oscillator.parameters] or [nbtypes.float64]
     q = nbtypes.Tuple(tuple(q_types))
-    run = nbtypes.Tuple((nbtypes.float64, q, nbtypes.float64, nbtypes.float64))
+    run_fields = [nbtypes.float64, q, nbtypes.float64, nbtypes.float64]
+    if terms:  # the family's record d (stochpend.dynamics.record): nine float64
+        run_fields.append(nbtypes.UniTuple(nbtypes.float64, 9))
+    run = nbtypes.Tuple(tuple(run_fields))
     return (state, nbtypes.float64, nbtypes.int64, nbtypes.uint64, nbtypes.uint64, nbtypes.int64,
             record, run, nbtypes.Array(nbtypes.int32, 1, "C"))
 
 
-def _pair_advance_signature(noise: Any, oscillator: Any):
-    sig = _advance_signature("float64", noise, oscillator)
+def _pair_advance_signature(noise: Any, oscillator: Any, terms: frozenset = frozenset()):
+    sig = _advance_signature("float64", noise, oscillator, terms)
     f64 = nbtypes.Array(nbtypes.float64, 1, "C")
     x, Omega, *rest = sig[0].types
     # x, Omega, then the fine member's xf, Omegaf; path0 is a uint64 (2**63 + pair index)
@@ -701,4 +704,19 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
                         if precision == "float64":
                             out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
                                         _pair_advance_signature(noise, osc)))
+    # The family's terms (stochpend.dynamics) on the paper's pendulum: damping with the additive
+    # noise, and every term on.
+    pendulum = oscillators.BUILTIN["pendulum"]
+    for terms in (frozenset({"damping", "additive"}),
+                  frozenset({"damping", "additive", "torque", "drive", "parametric"})):
+        for precision in precisions:
+            for noise in noises.BUILTIN:
+                if noise.name not in ("ou", "white"):
+                    continue
+                spec = Spec(pendulum, "force", noise, precision, True, False, terms)
+                out.append((f"advance {spec.label}", advance_kernel(spec).py_func,
+                            _advance_signature(precision, noise, pendulum, terms)))
+                if precision == "float64":
+                    out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
+                                _pair_advance_signature(noise, pendulum, terms)))
     return out
