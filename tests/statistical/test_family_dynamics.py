@@ -294,3 +294,23 @@ def test_the_lanes_run_the_family_with_the_one_path_numbers(step, monkeypatch):
     b = bias.estimate(config, 64)
     for name in a.bias:
         assert np.array_equal(a.bias[name][0], b.bias[name][0], equal_nan=True), name
+
+
+def test_the_typical_growth_of_the_damped_random_frequency_oscillator_is_its_lyapunov_exponent():
+    """x'' + gamma x' + (omega^2 + xi) x = 0, white xi: <ln(E - E_min)> grows as 2 lambda t, lambda
+    the top Lyapunov exponent (Riccati quadrature, stochpend.theory.family), while <E> grows at
+    the larger mean-square rate. The slope between t = 100 and 200, with the two times' errors
+    added in quadrature (an upper bound: the two means are positively correlated). Fixed steps:
+    the linear oscillator's step control follows its amplitude, which grows exponentially."""
+    D, gamma = 1.0, 0.2
+    lam = family.random_frequency_lyapunov(D=D, gamma=gamma, omega=1.0)
+    ds = stochpend.simulate(potential="harmonic", coupling="position", noise="white", D=D, omega=1.0, paths=8000,
+                            t_max=200.0, times=(100.0, 200.0), seed=13, theta0=1.0, Omega0=0.0, gamma=gamma,
+                            h_max=0.02, step_c=0.0, bias_paths=0, observables=("log_energy",))
+    m, se = ds.mean_log_energy.values, ds.mean_log_energy_stderr.values
+    slope = (m[1] - m[0]) / (2 * 100.0)
+    z = (slope - lam) / (math.hypot(se[0], se[1]) / 200.0)
+    assert abs(z) < Z, (slope, lam, z)
+    assert np.all(ds.n_log_energy.values == 1.0)
+    mean_rate = family.random_frequency_moment_growth_rate(D=D, gamma=gamma, omega=1.0)
+    assert mean_rate > 2 * lam  # the mean grows faster than the typical energy
