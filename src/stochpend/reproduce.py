@@ -486,12 +486,24 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None,
         {"long_name": "per-batch power sums (for jackknife errors of derived quantities)",
          "components": ", ".join(SUM_COMPONENTS)},
     )
-    ds = ds.assign_coords(sum_component=("sum_component", list(SUM_COMPONENTS)))
+    ds = ds.assign_coords(sum_component=("sum_component", _sum_components(config)))
     ds.attrs["reproduce_cache_key"] = spec.cache_key(__version__, *where)
     ds.attrs["reproduce_run_key"] = spec.key
     ds.attrs["reproduce_label"] = spec.label
     ds.attrs["command_line"] = "stochpend reproduce"
     return ds
+
+
+def _sum_components(config: Any) -> list[str]:
+    """Names of the per-batch sums' columns: the table's, then one per user observable and two
+    per per-path accumulator (``displacement[0]``, ``displacement[1]``: its sum and square)."""
+    from stochpend import observables
+
+    names = list(SUM_COMPONENTS)
+    for name in config.observables:
+        k = observables.n_user_columns((observables.get(name),))
+        names += [name] if k == 1 else [f"{name}[{i}]" for i in range(k)]
+    return names
 
 
 def _draw_and_tabulate(module: Any, out: Path, specs: list[RunSpec], datasets: dict[str, xr.Dataset],

@@ -237,6 +237,10 @@ def leave_one_out(ds: xr.Dataset, var: str) -> np.ndarray | None:
         return None
     from stochpend.stats import STATISTICS
 
+    of = STATISTICS[var] if var in STATISTICS else _user_statistic(ds, var)
+    if of is None:
+        return None
+
     sums = np.asarray(ds["batch_sums"].values, dtype=np.float64)
     if sums.shape[0] < 2:
         return None
@@ -245,7 +249,19 @@ def leave_one_out(ds: xr.Dataset, var: str) -> np.ndarray | None:
     count = loo[..., 0]
     with np.errstate(divide="ignore", invalid="ignore"):
         means = loo / np.where(count > 0, count, np.nan)[..., None]
-        return np.asarray(STATISTICS[var](means))
+        return np.asarray(of(means))
+
+
+def _user_statistic(ds: xr.Dataset, var: str) -> Any:
+    """The function of the means that gives a user observable's statistic ``var`` (e.g.
+    ``mean_displacement``) of a run that asked for it, or None."""
+    names = tuple(n.strip() for n in str(ds.attrs.get("observables", "")).split(",") if n.strip())
+    if not names or any(observables.get(n) is None for n in names):
+        return None
+    for s in observables.user_statistics(names):
+        if s.name == var:
+            return s.of
+    return None
 
 
 @dataclass
