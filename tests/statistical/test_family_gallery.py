@@ -97,6 +97,8 @@ def test_washboard_theory_is_family(result: rep.ReproduceResult) -> None:
     g, w = fw.CONFIG["gamma"], fw.CONFIG["omega"]
     assert th["locking"] == fam.locking_torque(omega=w)
     assert th["retrapping"] == fam.retrapping_torque(gamma=g, omega=w)
+    assert fw.tilted_barrier(0.0, w) == fam.pendulum_barrier(omega=w)
+    assert fw.tilted_barrier(fam.locking_torque(omega=w), w) == 0.0
     for F, v in th["F/gamma"].items():
         assert v == fam.running_velocity(F=F, gamma=g)
         # The noiseless orbit: 0 below the retrapping torque, then close to F/gamma (second-order
