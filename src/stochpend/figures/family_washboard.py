@@ -35,6 +35,7 @@ CONFIG: dict[str, Any] = {
     "gamma": 0.1,
     "omega": 1.0,
     "F": [0.05, 0.2, 0.35, 0.5, 0.65, 0.8, 1.1, 1.4],
+    "quick_F": [0.05, 0.5, 1.4],  # --quick: below F_r, bistable, above omega^2
     # (T, which ensembles); the low temperature shows the hysteresis, the higher one the escape
     # of the locked ensemble towards the running one.
     "temperatures": [(0.05, ("locked", "running")), (0.5, ("locked", "running"))],
@@ -57,11 +58,12 @@ def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
     n = max(2, round(CONFIG["paths"] * paths / DEFAULT_PATHS))
     g, w = CONFIG["gamma"], CONFIG["omega"]
     out = []
-    seed = CONFIG["seed0"]
-    for T, ensembles in CONFIG["temperatures"]:
-        for F in CONFIG["F"]:
+    for iT, (T, ensembles) in enumerate(CONFIG["temperatures"]):
+        for F in CONFIG["quick_F" if quick else "F"]:
             for ens in ensembles:
-                seed += 1
+                # A run's seed is its place in the full grid (the same run with --quick or not).
+                seed = CONFIG["seed0"] + 1 + (iT * len(CONFIG["F"]) + CONFIG["F"].index(F)) * 2 \
+                    + ("locked", "running").index(ens)
                 if ens == "locked":  # at rest at the tilted well's bottom (its top for F >= omega^2)
                     theta0, Omega0 = math.asin(min(F / (w * w), 1.0)), 0.0
                 else:
@@ -85,7 +87,7 @@ def _info(ds: xr.Dataset) -> tuple[float, float, float, str]:
 def caption(specs: list[RunSpec]) -> str:
     s = specs[0]
     g = s.param("gamma")
-    Fs = ", ".join(f"{F:g}" for F in CONFIG["F"])
+    Fs = ", ".join(f"{F:g}" for F in sorted({x.param("torque") for x in specs}))
     Ts = ", ".join(f"{T:g}" for T, _ in CONFIG["temperatures"])
     seeds = f"{min(x.seed for x in specs)}–{max(x.seed for x in specs)}"
     T_lo, T_hi = CONFIG["temperatures"][0][0], CONFIG["temperatures"][-1][0]
