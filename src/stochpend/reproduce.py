@@ -394,8 +394,8 @@ def _figure_names(figures: str | Iterable[str]) -> list[str]:
             chosen = list(FIGURES) if part == "all" else list(GALLERY) if part == "family" else [part]
             for c in chosen:
                 if c not in FIGURES and c not in CASES and c not in GALLERY:
-                    raise ValueError(f"figure={part!r} is not accepted: one of "
-                                     f"{', '.join([*FIGURES, *CASES, *GALLERY])}, all, family")
+                    raise ValueError(f"figure={part!r} is not accepted: one of {', '.join([*FIGURES, *CASES])}, all; "
+                                     f"or the family's gallery, {', '.join(GALLERY)}, family")
                 if c not in names:
                     names.append(c)
     if not names:
