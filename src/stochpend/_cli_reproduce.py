@@ -101,7 +101,8 @@ class _SimulationBar:
 def reproduce_command(
     figures: Annotated[list[str] | None, typer.Argument(metavar="FIGURE...",
         help="Figures to reproduce: fig1, fig2, fig3, fig4, exponents (the scaling-exponent table, docs/scaling.md) or all (default all); "
-             "or a long run for a GPU: fig4-crossover (tau = 0.01 to t = 1e5), fig2-long ((D, tau) = (1, 10) to t = 1e5).")] = None,
+             "or a long run for a GPU: fig4-crossover (tau = 0.01 to t = 1e5), fig2-long ((D, tau) = (1, 10) to t = 1e5); or the family's gallery (docs/family.md): family-boltzmann, "
+             "family-kramers, family-washboard, family-random-frequency, or family (the four; not part of all).")] = None,
     paths: Annotated[int | None, typer.Option(
         parser=integer, help="Realizations per run.", show_default="10000, as in the paper; 500 with --quick")] = None,
     t_max: Annotated[float | None, typer.Option(

@@ -33,7 +33,7 @@ import xarray as xr
 
 from stochpend._files import write_atomic
 from stochpend._version import __version__
-from stochpend.figures import CASES, FIGURES
+from stochpend.figures import CASES, FIGURES, GALLERY
 from stochpend.figures._common import COLUMNS, SUM_COMPONENTS, Row, RunSpec
 from stochpend.progress import NoProgress, Progress
 
@@ -182,7 +182,9 @@ def reproduce(
     figures : str or iterable of str
         Any of "fig1" ... "fig4", "exponents" (the scaling-exponent table), or "all" (these
         five); or a named long run for a GPU, "fig4-crossover" or "fig2-long"
-        (:mod:`stochpend.figures.cases`). Before simulating, one line per run to simulate
+        (:mod:`stochpend.figures.cases`); or the family's gallery, "family-boltzmann",
+        "family-kramers", "family-washboard", "family-random-frequency", or "family" (these
+        four; not part of "all", docs/family.md). Before simulating, one line per run to simulate
         gives its cost (``progress.log``: "cost: ...").
     paths : int, optional
         Realizations per run; default 10^4 (the paper's), or 500 with ``quick``.
@@ -338,7 +340,7 @@ def reproduce(
 
 
 def _module(name: str) -> Any:
-    return FIGURES[name] if name in FIGURES else CASES[name]
+    return FIGURES[name] if name in FIGURES else GALLERY[name] if name in GALLERY else CASES[name]
 
 
 def _cost_lines(specs: dict[str, list[RunSpec]], estimates: dict, to_simulate: set, out: Path,
@@ -389,10 +391,11 @@ def _figure_names(figures: str | Iterable[str]) -> list[str]:
     names: list[str] = []
     for item in items:
         for part in str(item).replace(",", " ").split():
-            chosen = list(FIGURES) if part == "all" else [part]
+            chosen = list(FIGURES) if part == "all" else list(GALLERY) if part == "family" else [part]
             for c in chosen:
-                if c not in FIGURES and c not in CASES:
-                    raise ValueError(f"figure={part!r} is not accepted: one of {', '.join([*FIGURES, *CASES])}, all")
+                if c not in FIGURES and c not in CASES and c not in GALLERY:
+                    raise ValueError(f"figure={part!r} is not accepted: one of {', '.join([*FIGURES, *CASES])}, all; "
+                                     f"or the family's gallery, {', '.join(GALLERY)}, family")
                 if c not in names:
                     names.append(c)
     if not names:
@@ -486,12 +489,24 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None,
         {"long_name": "per-batch power sums (for jackknife errors of derived quantities)",
          "components": ", ".join(SUM_COMPONENTS)},
     )
-    ds = ds.assign_coords(sum_component=("sum_component", list(SUM_COMPONENTS)))
+    ds = ds.assign_coords(sum_component=("sum_component", _sum_components(config)))
     ds.attrs["reproduce_cache_key"] = spec.cache_key(__version__, *where)
     ds.attrs["reproduce_run_key"] = spec.key
     ds.attrs["reproduce_label"] = spec.label
     ds.attrs["command_line"] = "stochpend reproduce"
     return ds
+
+
+def _sum_components(config: Any) -> list[str]:
+    """Names of the per-batch sums' columns: the table's, then one per user observable and two
+    per per-path accumulator (``displacement[0]``, ``displacement[1]``: its sum and square)."""
+    from stochpend import observables
+
+    names = list(SUM_COMPONENTS)
+    for name in config.observables:
+        k = observables.n_user_columns((observables.get(name),))
+        names += [name] if k == 1 else [f"{name}[{i}]" for i in range(k)]
+    return names
 
 
 def _draw_and_tabulate(module: Any, out: Path, specs: list[RunSpec], datasets: dict[str, xr.Dataset],

@@ -10,7 +10,9 @@ Each module in :data:`FIGURES` provides
 * ``draw(datasets, theory) -> matplotlib.figure.Figure`` (Agg canvas, no pyplot),
 * ``table(datasets, theory=None) -> list[Row]``: late-time values against the predictions.
 
-:data:`CASES` holds named long runs for a GPU (``fig4-crossover``, ``fig2-long``:
+:data:`GALLERY` holds the family's figures (``family-boltzmann``, ``family-kramers``,
+``family-washboard``, ``family-random-frequency``; ``family`` names the four), with the same
+interface; ``all`` does not include them. :data:`CASES` holds named long runs for a GPU (``fig4-crossover``, ``fig2-long``:
 :mod:`stochpend.figures.cases`), with the same interface; ``all`` does not include them.
 
 ``datasets`` maps each run's key (``RunSpec.key``) to its result ``Dataset``, in the order of
@@ -21,7 +23,17 @@ from __future__ import annotations
 
 from types import ModuleType
 
-from stochpend.figures import exponents, fig1, fig2, fig3, fig4
+from stochpend.figures import (
+    exponents,
+    family_boltzmann,
+    family_kramers,
+    family_random_frequency,
+    family_washboard,
+    fig1,
+    fig2,
+    fig3,
+    fig4,
+)
 from stochpend.figures._common import COLUMNS, Fit, Row, RunSpec
 from stochpend.figures.cases import CASES
 
@@ -30,4 +42,11 @@ FIGURES: dict[str, ModuleType] = {
     "fig1": fig1, "fig2": fig2, "fig3": fig3, "fig4": fig4, "exponents": exponents,
 }
 
-__all__ = ["CASES", "COLUMNS", "FIGURES", "Fit", "Row", "RunSpec"]
+#: The family's gallery (issue 23 item 5): one command each, ``stochpend reproduce family-*``,
+#: or ``family`` for the four. Not part of ``all``, which stays the paper's reproduction
+#: (docs/family.md, "Gallery": together they add several minutes on two cores).
+GALLERY: dict[str, ModuleType] = {
+    m.NAME: m for m in (family_boltzmann, family_kramers, family_washboard, family_random_frequency)
+}
+
+__all__ = ["CASES", "COLUMNS", "FIGURES", "GALLERY", "Fit", "Row", "RunSpec"]

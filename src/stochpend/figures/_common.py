@@ -78,6 +78,13 @@ class RunSpec:
     # Step controls when the defaults are not fine enough for the model (None: the defaults).
     h_max: float | None = None
     step_c: float | None = None
+    # The family's terms (stochpend.dynamics: gamma, torque, additive_D, ...), sorted (name,
+    # value) pairs; the initial state; registered observables (e.g. "displacement"). Each enters
+    # the keyword arguments only when set, so a paper run's cache key is what it was.
+    params: tuple[tuple[str, float], ...] = ()
+    theta0: float | str = "uniform"
+    Omega0: float = 0.0
+    observables: tuple[str, ...] = ()
 
     def times(self) -> np.ndarray:
         """Log-spaced output times from ``t_min`` to ``t_max`` (``per_decade`` a decade)."""
@@ -98,15 +105,21 @@ class RunSpec:
             "t_max": float(self.t_max),
             "times": [float(x) for x in self.times()],
             "seed": int(self.seed),
-            "theta0": "uniform",
-            "Omega0": 0.0,
+            "theta0": self.theta0 if isinstance(self.theta0, str) else float(self.theta0),
+            "Omega0": float(self.Omega0),
             "potential": self.potential,
             "power_n": int(self.power_n),
             "coupling": self.coupling,
             "omega_noise": None if self.omega_noise is None else float(self.omega_noise),
             **({} if self.h_max is None else {"h_max": float(self.h_max)}),
             **({} if self.step_c is None else {"step_c": float(self.step_c)}),
+            **({"dyn_params": {k: float(v) for k, v in self.params}} if self.params else {}),
+            **({"observables": tuple(self.observables)} if self.observables else {}),
         }
+
+    def param(self, name: str, default: float = 0.0) -> float:
+        """The value of one of the family's terms (``params``), or ``default``."""
+        return float(dict(self.params).get(name, default))
 
     def cache_key(self, version: str, backend: str = "cpu", precision: str = "float64") -> str:
         """SHA-256 of the fully resolved configuration, the package version, the code, and the
@@ -123,9 +136,11 @@ class RunSpec:
         resolved = {**config.to_attrs(), "times": list(config.times), "hist_E_max": list(config.hist_E_max)}
         # The code that determines the numbers is part of the key: a run made by an older
         # integrator (same version string, e.g. during development) is never reused.
-        payload = json.dumps({"run": resolved, "stochpend": version, "code": _sources.digest(),
-                              "backend": backend, "precision": precision},
-                             sort_keys=True, default=str)
+        content: dict[str, Any] = {"run": resolved, "stochpend": version, "code": _sources.digest(),
+                                   "backend": backend, "precision": precision}
+        if self.observables:  # a user observable's code decides its numbers (absent: the key as before)
+            content["observables_source"] = [observables.get(n).source() for n in self.observables]
+        payload = json.dumps(content, sort_keys=True, default=str)
         return hashlib.sha256(payload.encode()).hexdigest()
 
     @property
@@ -222,6 +237,10 @@ def leave_one_out(ds: xr.Dataset, var: str) -> np.ndarray | None:
         return None
     from stochpend.stats import STATISTICS
 
+    of = STATISTICS[var] if var in STATISTICS else _user_statistic(ds, var)
+    if of is None:
+        return None
+
     sums = np.asarray(ds["batch_sums"].values, dtype=np.float64)
     if sums.shape[0] < 2:
         return None
@@ -230,7 +249,19 @@ def leave_one_out(ds: xr.Dataset, var: str) -> np.ndarray | None:
     count = loo[..., 0]
     with np.errstate(divide="ignore", invalid="ignore"):
         means = loo / np.where(count > 0, count, np.nan)[..., None]
-        return np.asarray(STATISTICS[var](means))
+        return np.asarray(of(means))
+
+
+def _user_statistic(ds: xr.Dataset, var: str) -> Any:
+    """The function of the means that gives a user observable's statistic ``var`` (e.g.
+    ``mean_displacement``) of a run that asked for it, or None."""
+    names = tuple(n.strip() for n in str(ds.attrs.get("observables", "")).split(",") if n.strip())
+    if not names or any(observables.get(n) is None for n in names):
+        return None
+    for s in observables.user_statistics(names):
+        if s.name == var:
+            return s.of
+    return None
 
 
 @dataclass
