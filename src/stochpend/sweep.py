@@ -63,7 +63,7 @@ __all__ = ["BlockResult", "SweepSpec", "Task", "load_spec", "plan_tasks", "run_b
 #: Every parameter a sweep may set: the keywords of SimulationConfig.build.
 PARAMETERS: tuple[str, ...] = tuple(
     name for name in inspect.signature(SimulationConfig.build).parameters
-    if name not in ("cls", "noise_params", "osc_params", "observables")  # own parameters are keys of their own
+    if name not in ("cls", "noise_params", "osc_params", "dyn_params")  # own parameters are keys of their own
 )
 
 
@@ -78,7 +78,7 @@ def _declared() -> tuple[str, ...]:
 
 
 #: Parameters whose value is a list: settable in [base] and [[case]], not a grid axis.
-LIST_PARAMETERS = ("times", "hist_E_max")
+LIST_PARAMETERS = ("times", "hist_E_max", "observables")
 TOP_LEVEL = ("description", "base", "grid", "case")
 #: Attributes that differ between runs of the same numbers (never data variables).
 _RUN_ATTRS = ("backend", "threads", "wall_time_s", "path_steps", "path_steps_per_s", "created", "bias_wall_time_s")
@@ -276,6 +276,9 @@ def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepSpec) -> SweepS
             why = " (a swept parameter has no effect there)" if kind == "grid" else ""
             raise ValueError(f"{source}: {b} is not accepted: it is the same simulation as {a}{why}")
         seen[key] = i
+    if len({c.observables for c in configs}) > 1:
+        raise ValueError(f"{source}: observables is not accepted: it differs between sets; set it once, in "
+                         "[base] (every set reports the same variables)")
     n_times = {len(c.times) for c in configs}
     if len(n_times) > 1:
         raise ValueError(f"{source}: n_times is not accepted: it differs between sets ({sorted(n_times)}); "

@@ -241,3 +241,36 @@ def test_log_energy_is_the_mean_log_of_the_energy_above_the_floor_and_leaves_no_
     assert np.all(ds.n_finite_paths.values == 200) and np.all(ds.n_log_energy.values == 1.0)
     e = ds.mean_E.values + 1.0  # E_min = -omega^2
     assert np.all(ds.mean_log_energy.values < np.log(e))  # Jensen: <ln e> < ln <e>
+
+
+@pytest.mark.parametrize("scheduler", ["sync", "local"])
+def test_a_sweep_reports_user_observables_and_accumulators_on_every_scheduler(scheduler):
+    """A plugin's observable and time average, and the built-in displacement, in a sweep: each
+    set's numbers are its run's alone, also on a two-worker Dask cluster (the workers load the
+    plugin the client loaded)."""
+    if scheduler == "local":
+        pytest.importorskip("distributed")
+    from stochpend import plugins
+
+    plugins.load("tests.unit._observables_plugin")
+    names = ["Omega2_plugin", "Omega2_avg_plugin", "displacement"]
+    spec = {"base": {"noise": "ou", "D": 1.0, "omega": 1.0, "paths": 200, "times": [2.0, 4.0], "seed": 6,
+                     "observables": names},
+            "grid": {"tau": [0.5, 2.0]}}
+    kwargs = dict(scheduler="local", workers=2) if scheduler == "local" else dict(scheduler="sync")
+    ds = stochpend.sweep.sweep(spec, bias_paths=0, **kwargs)
+    for tau in (0.5, 2.0):
+        alone = stochpend.simulate(noise="ou", D=1.0, tau=tau, omega=1.0, paths=200, times=(2.0, 4.0), seed=6,
+                                   bias_paths=0, observables=names)
+        got = ds.sel(tau=tau)
+        for v in ("mean_Omega2_plugin", "mean_Omega2_avg_plugin", "var_displacement", "mean_E"):
+            assert np.array_equal(got[v].values, alone[v].values), (tau, v)
+        assert np.array_equal(got.mean_Omega2_plugin.values, got.mean_Omega2.values)
+
+
+def test_a_sweep_whose_sets_ask_for_different_observables_is_refused_in_one_line():
+    spec = {"base": {"noise": "ou", "paths": 100, "t_max": 1.0, "n_times": 2},
+            "case": [{"seed": 1, "observables": ["displacement"]}, {"seed": 2}]}
+    with pytest.raises(ValueError, match="observables is not accepted: it differs between sets") as info:
+        stochpend.sweep.load_spec(spec)
+    assert "\n" not in str(info.value)
