@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from stochpend import integrator, observables, rng, stats
+from stochpend import initial, integrator, observables, rng, stats
 from stochpend._jitcache import CompileClock
 from stochpend.integrator import Spec
 from stochpend.params import SimulationConfig
@@ -300,6 +300,8 @@ class _CpuPairs:
                                self.status), self.key0, self.key1, self.path0,
                               0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
                               0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
+        if initial.temperature(c) > 0.0:  # as the run's paths (stochpend.initial)
+            self.x[:], self.Omega[:] = initial.boltzmann(c, int(self.path0), n)
         self.xf[:] = self.x
         self.Omegaf[:] = self.Omega
 

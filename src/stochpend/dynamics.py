@@ -49,6 +49,8 @@ FAMILY = Dynamics("family", (
     Parameter("parametric_frequency", 1.0, "frequency nu_p of the modulation", low=0.0, low_open=True),
     Parameter("additive_D", 0.0, "intensity D_a of the additive white noise, <xi_a xi_a'> = D_a delta",
               low=0.0),
+    Parameter("initial_temperature", 0.0, "start from the Boltzmann law at this temperature (0: theta0, "
+              "Omega0 as given; stochpend.initial)", low=0.0),
 ))
 
 #: The record's order (what the kernels read, by index).
@@ -83,12 +85,16 @@ def terms_of(pairs: tuple[tuple[str, float], ...]) -> frozenset[str]:
     return frozenset(term for term, name in TERMS.items() if value(pairs, name) != 0.0)
 
 
+#: The parameters the kernels read (the initial temperature is used on the host, stochpend.initial).
+_KERNEL_ORDER = _ORDER[:8]
+
+
 def record(config: Any) -> tuple[float, ...]:
     """The kernels' record of the family's terms, ``(gamma, torque, A, nu, phi, eps, nu_p, D_a,
     sigma_a)``: the parameters in declared order, then sigma_a = sqrt(D_a / (2 gamma)) (the
     additive noise's stationary velocity scale, sqrt(T); sqrt(D_a) without damping)."""
     pairs = getattr(config, "dyn_params", ())
-    values = tuple(float(value(pairs, name)) for name in _ORDER)
+    values = tuple(float(value(pairs, name)) for name in _KERNEL_ORDER)
     gamma, D_a = values[0], values[-1]
     sigma = math.sqrt(D_a / (2.0 * gamma)) if gamma > 0 else math.sqrt(D_a)
     return (*values, sigma)

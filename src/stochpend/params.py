@@ -335,7 +335,15 @@ class SimulationConfig:
             _fail("coupling", coupling, f"model {potential!r} is periodic, so its noise can only "
                   "multiply a periodic function (coupling='force')")
         leaves = _dynamics.terms_of(dyn_params_v) & {"additive", "torque", "drive"}
-        if theta0_v is not None and Omega0 == 0.0 and not leaves:
+        boltzmann_T = _dynamics.value(dyn_params_v, "initial_temperature")
+        if boltzmann_T > 0.0:
+            from stochpend import initial as _initial
+
+            try:
+                _initial.check(oscillator, float(omega), boltzmann_T)
+            except ValueError as exc:
+                raise ValueError(str(exc)) from None
+        if theta0_v is not None and Omega0 == 0.0 and not leaves and boltzmann_T == 0.0:
             functions = oscillator.functions
             try:
                 f = float(functions.force(theta0_v, q))

@@ -63,6 +63,9 @@ N_FIRST_STEP = 2
 #: Draw index of the additive noise's normal of step k (stochpend.dynamics): N_ADDITIVE + k, a
 #: range of the counter no other draw reaches (the multiplicative noise's are N_FIRST_STEP + k).
 N_ADDITIVE = 1 << 62
+#: Draw index of the Boltzmann initial conditions (stochpend.initial): Omega from N_BOLTZMANN, x's
+#: rejection attempts from N_BOLTZMANN + 1 + j.
+N_BOLTZMANN = 1 << 61
 
 
 @register_jitable

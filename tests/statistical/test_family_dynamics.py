@@ -236,7 +236,7 @@ out = {}
 for backend in ("cpu", "cuda"):
     ds = stochpend.simulate(noise="white", D=0.5, omega=1.0, paths=48, t_max=1.0, times=[0.5, 1.0], seed=3,
                             n_batches=4, backend=backend, bias_paths=16, gamma=0.7, additive_D=0.3, torque=0.2,
-                            drive_amplitude=0.5, drive_frequency=1.5, parametric_amplitude=0.4)
+                            drive_amplitude=0.5, drive_frequency=1.5, parametric_amplitude=0.4, initial_temperature=0.3)
     out[backend] = {v: ds[v].values.tolist() for v in ("mean_E", "mean_Omega2", "mean_E_bias")}
 print(json.dumps(out))
 """
@@ -338,3 +338,31 @@ def test_the_pendulum_hops_at_the_kramers_rate():
     z = (k - k_K * (1 - accuracy)) / k_se
     assert abs(z) < Z, (k, k_se, k_K, z)
     assert abs(k / k_K - 1) < accuracy + 4 * k_se / k_K, (k, k_K)
+
+
+@pytest.mark.parametrize("potential", ["pendulum", "harmonic"])
+def test_an_ensemble_started_from_the_boltzmann_law_is_there_and_stays(potential):
+    """initial_temperature = T = D_a/(2 gamma): the first output time (t = 0.01) already shows
+    the Boltzmann law, and so does every later one (the run starts in its stationary law)."""
+    gamma, D_a, omega = 0.5, 0.6, 1.0
+    T = D_a / (2 * gamma)
+    ds = stochpend.simulate(potential=potential, noise="white", D=0.0, omega=omega, paths=40_000, t_max=10.0,
+                            times=(0.01, 2.0, 10.0), seed=17, gamma=gamma, additive_D=D_a, initial_temperature=T,
+                            bias_paths=64)
+    E = (family.boltzmann_pendulum_mean_E if potential == "pendulum" else family.boltzmann_harmonic_mean_E)(
+        D_a=D_a, gamma=gamma, omega=omega)
+    for name, want in (("mean_Omega2", T), ("mean_E", E)):
+        z = (ds[name].values - want) / ds[f"{name}_stderr"].values
+        assert np.all(np.abs(z) < Z), (name, ds[name].values, want, z)
+    assert ds.attrs["initial_temperature"] == T and int(ds.nonfinite_paths[-1]) == 0
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(potential="power", initial_temperature=0.5), "is not accepted for potential='power'"),
+    (dict(omega=0.0, initial_temperature=0.5), "with omega=0.0"),
+    (dict(initial_temperature=-1.0), "initial_temperature=-1.0 is not accepted"),
+])
+def test_a_boltzmann_start_that_cannot_be_drawn_is_refused_in_one_line(kwargs, message):
+    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")) as info:
+        stochpend.simulate(noise="white", D=0.5, paths=100, t_max=1.0, n_times=2, **kwargs)
+    assert "\n" not in str(info.value)

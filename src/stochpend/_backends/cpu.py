@@ -56,7 +56,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from stochpend import integrator, rng
+from stochpend import initial, integrator, rng
 from stochpend import observables as observables_
 from stochpend._backends.layout import CHUNK_ARRAYS, path_dtypes
 from stochpend._jitcache import own_index
@@ -648,6 +648,8 @@ class Engine:
                           0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
                           0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
         self.tracks[:] = observables_.track_initial(self.accs)
+        if initial.temperature(c) > 0.0:  # the Boltzmann law (stochpend.initial), on the host
+            self.x[:], self.Omega[:] = initial.boltzmann(c, p0, n)
 
     def load(self, p0: int, arrays: dict[str, np.ndarray]) -> None:
         """Continue a chunk from host arrays (a checkpoint's RunState fields)."""

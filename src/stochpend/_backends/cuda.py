@@ -42,7 +42,7 @@ from numba import types as nbtypes
 from numba.core.errors import NumbaPerformanceWarning
 from numba.extending import register_jitable
 
-from stochpend import integrator, observables, rng
+from stochpend import initial, integrator, observables, rng
 from stochpend._backends.layout import path_dtypes
 from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
@@ -343,6 +343,10 @@ class PairEngine:
                 (x, Omega, xi, xi_aux, t, t_comp, self.d_k, self.d_status), self.key0, self.key1,
                 p0, 0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
                 0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
+            if initial.temperature(c) > 0.0:  # as the run's paths (Engine.start)
+                bx, bO = initial.boltzmann(c, int(p0), n)
+                x.copy_to_device(bx)
+                Omega.copy_to_device(bO)
             xf.copy_to_device(x)
             Omegaf.copy_to_device(Omega)
         self._zero_flag = np.zeros(1, dtype=np.int32)
@@ -565,6 +569,10 @@ class Engine:
             self.d_hist.copy_to_device(np.zeros((self.n_times, self.n_cols), dtype=np.int64))
             if self.accs:
                 self._put_tracks(np.broadcast_to(observables.track_initial(self.accs), (len(self.accs), n)))
+            if initial.temperature(c) > 0.0:  # the Boltzmann law, drawn on the host (stochpend.initial)
+                x, Omega = initial.boltzmann(c, p0, n)
+                self.d_x[:n].copy_to_device(x.astype(self.d_x.dtype))
+                self.d_Omega[:n].copy_to_device(Omega.astype(self.d_Omega.dtype))
 
     def _put_tracks(self, tracks: np.ndarray) -> None:
         full = np.zeros(self.d_tracks.shape)

@@ -1,0 +1,105 @@
+"""Initial conditions drawn from the Boltzmann law, P(x, Omega) ∝ exp(-E/T) (issue 23).
+
+``initial_temperature=T`` (a parameter of :data:`stochpend.dynamics.FAMILY`: the API keyword,
+``--param initial_temperature=T``, a sweep key) starts every path from the Boltzmann law of the
+run's oscillator at temperature T, E = Omega^2/2 + omega^2 U(x), instead of ``theta0`` and
+``Omega0``: Omega ~ N(0, T), and x
+
+* for a periodic oscillator (the pendulum), by rejection from the uniform law on [-pi, pi):
+  accept x with probability exp(-omega^2 (U(x) - min U)/T) (the acceptance rate is about
+  sqrt(T/(2 pi omega^2)) at low T; exact whatever T);
+* for the harmonic oscillator, x ~ N(0, T/omega^2) exactly.
+
+Other oscillators are refused in one line (their x has no bounded proposal here). The numbers are
+Philox draws of their own (``rng.N_BOLTZMANN``: Omega from draw N_BOLTZMANN, x from draws
+N_BOLTZMANN + 1 + j for attempt j), a function of (seed, path) alone, computed on the host in
+float64 for every backend and for the bias estimate's pairs, so a run's paths start at the same
+numbers wherever they run. With the damping and the additive noise on, T = D_a/(2 gamma) starts
+the ensemble in its own stationary law (docs/family.md).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Any
+
+import numba
+import numpy as np
+
+from stochpend import dynamics, rng
+from stochpend.mathlib import LIBM
+
+__all__ = ["MAX_ATTEMPTS", "boltzmann", "check", "temperature"]
+
+#: Rejection attempts per path before the path is given up as non-finite (NaN): at the lowest
+#: acceptance rate a run can ask for (check), the chance of reaching it is below 1e-300.
+MAX_ATTEMPTS = 100_000
+
+
+def temperature(config: Any) -> float:
+    """The run's ``initial_temperature`` (0: theta0 and Omega0 as given)."""
+    return float(dynamics.value(getattr(config, "dyn_params", ()), "initial_temperature"))
+
+
+def check(oscillator: Any, omega: float, T: float) -> None:
+    """One-line ValueError where the Boltzmann law cannot be drawn: an oscillator other than a
+    periodic one or the harmonic one, omega = 0 (no bound state), or a temperature so low that
+    rejection would take more than about 1e4 attempts a path."""
+    if T <= 0.0:
+        return
+    if not (oscillator.periodic or oscillator.name == "harmonic"):
+        raise ValueError(f"initial_temperature={T!r} is not accepted for potential={oscillator.name!r}: the "
+                         "Boltzmann law is drawn for the periodic oscillators and the harmonic one")
+    if omega <= 0.0:
+        raise ValueError(f"initial_temperature={T!r} is not accepted with omega={omega!r}: at omega = 0 there "
+                         "is no Boltzmann law in x (give omega > 0)")
+    if oscillator.periodic and math.sqrt(T / (2 * math.pi * omega * omega)) < 1e-4:
+        raise ValueError(f"initial_temperature={T!r} is not accepted: below about 6e-8 omega^2 the rejection "
+                         "sampler would take more than 1e4 attempts a path")
+
+
+@functools.cache
+def _kernel(oscillator: Any):
+    potential = oscillator.kernel(np.float64, LIBM).potential
+    PERIODIC = oscillator.periodic
+    two_pi = 2.0 * math.pi
+    first = np.uint64(rng.N_BOLTZMANN)
+    max_attempts = MAX_ATTEMPTS
+
+    @numba.njit(nogil=True)
+    def draw(x, Omega, key0, key1, path0, T, omega2, q, floor):  # pragma: no cover - compiled
+        sigma = math.sqrt(T)
+        for i in range(x.shape[0]):
+            path = np.uint64(path0 + np.uint64(i))
+            z, z2 = rng.draw_normals(key0, key1, path, first)
+            Omega[i] = sigma * z
+            if not PERIODIC:  # the harmonic oscillator: exact
+                x[i] = math.sqrt(T / omega2) * z2
+                continue
+            x[i] = math.nan
+            for j in range(max_attempts):
+                u, v = rng.draw_uniforms(key0, key1, path, first + np.uint64(1 + j))
+                xi = two_pi * u - math.pi
+                if v < math.exp(-omega2 * (potential(xi, q) - floor) / T):
+                    x[i] = xi
+                    break
+
+    return draw
+
+
+def boltzmann(config: Any, path0: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(x, Omega) of global paths path0 .. path0 + n - 1 (path0 a uint64-sized integer: the bias
+    pairs' start at 2**63) drawn from the Boltzmann law at the run's ``initial_temperature``."""
+    from stochpend import oscillators
+
+    oscillator = oscillators.get(config.potential)
+    assert oscillator is not None, config.potential  # validated when the config was built
+    T = temperature(config)
+    q = oscillator.record(config)
+    x = np.empty(n)
+    Omega = np.empty(n)
+    key0, key1 = rng.seed_to_key(config.seed)
+    _kernel(oscillator)(x, Omega, key0, key1, np.uint64(path0), T, float(config.omega) ** 2, q,
+                        float(oscillator.energy_floor(q)))
+    return x, Omega
