@@ -189,6 +189,17 @@ class Spec:
 
 
 # -- the integrator ------------------------------------------------------------------------------
+def _copy(function: Any, name: str) -> Any:
+    """A second function object with ``function``'s code and closure (so that Numba can compile
+    it with other options), named ``name``."""
+    import types
+
+    copy = types.FunctionType(function.__code__, function.__globals__, name, function.__defaults__,
+                              function.__closure__)
+    copy.__qualname__ = function.__qualname__.replace(function.__name__, name)
+    return copy
+
+
 @register_jitable
 def _no_dyn(run):
     return (0.0,)
@@ -314,10 +325,6 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
             h = c / d[6]
         return h
 
-    # Inlined into its callers' IR: with the damping's expm1 polynomials the function is too large
-    # for LLVM to inline into the lane loop, and a call in that loop stops its vectorization
-    # (measured: damped lanes 4-7x slower per step).
-    @register_jitable(inline="always")
     def family_step(x, Omega, h, omega2, noise_integral, q, t0, h_clock, za, d):
         """One step with the family's terms (``d``: ``stochpend.dynamics.record``): drift h/2,
         half the kick, the exact Ornstein-Uhlenbeck flow of Omega over h (damping and the
@@ -362,6 +369,14 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
             Omega_new = Omega - kick
         x_new = x_half + half * h * Omega_new
         return wrap(x_new), Omega_new
+
+    # Two compilations of the one step: the lane machine's inlined into its IR (as a call, with
+    # the damping's expm1 polynomial, the function is too large for LLVM to inline into the lane
+    # loop, and a call in that loop stops its vectorization: damped lanes were 4-7x slower per
+    # step), the others' a plain device function (numba-cuda cannot type the inlined IR of its
+    # compile-time branches: "mul(omitted, omitted)").
+    family_step_inline = register_jitable(inline="always")(_copy(family_step, "family_step_inline"))
+    family_step = register_jitable(family_step)
 
     @register_jitable
     def additive_normal(key0, key1, path, n):
@@ -648,7 +663,7 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                   spec.label if track is None else f"{spec.label}/track/{id(track):x}")
     return SimpleNamespace(
         spec=spec, real=real, G=G, step_size=step_size, verlet=verlet, family_step=family_step,
-        family_bounds=family_bounds,
+        family_step_inline=family_step_inline, family_bounds=family_bounds,
         init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
         advance_lanes=advance_lanes,
         path_values=statistics(spec.oscillator, spec.coupling),
@@ -818,7 +833,7 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
     DRAWS = 2 if PAIR else 1
     FAMILY = bool(spec.terms)
     DAMPED = "damping" in spec.terms
-    family_step = steps.family_step
+    family_step = steps.family_step_inline
     family_bounds = steps.family_bounds
     dyn_of = _dyn_of if FAMILY else _no_dyn
     normals_keyed = rng.normals_keyed_with(FAST)
