@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import signal
+import time
 
 import pytest
 
@@ -22,3 +23,22 @@ SEED = 20040401
 @pytest.fixture(scope="session")
 def seed() -> int:
     return SEED
+
+
+#: ``reproduce("all")`` at toy size (the real --quick size is checked in the slow suite).
+TINY_REPRODUCE = {"quick": True, "paths": 40, "t_max": 10.0}
+
+
+@pytest.fixture(scope="session")
+def tiny_reproduce(tmp_path_factory):
+    """One ``reproduce("all", **TINY_REPRODUCE)`` for the session (about 20 s, most of it
+    writing 24 NetCDF files): ``(result, wall seconds, report.html's text as written)``.
+    tests/unit/test_reproduce.py checks its files and reruns figures into its folder (which
+    rewrites report.html); tests/system/test_report_browser.py renders the text kept here."""
+    from stochpend.reproduce import reproduce
+
+    out = tmp_path_factory.mktemp("reproduce")
+    started = time.perf_counter()
+    result = reproduce("all", out=out, **TINY_REPRODUCE)
+    wall = time.perf_counter() - started
+    return result, wall, result.report.read_text(encoding="utf-8")
