@@ -13,6 +13,22 @@ import pytest
 if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Start the long simulator runs the collected tests will need (tests/_background.py)."""
+    if session.config.option.collectonly:
+        return
+    from tests import _background
+
+    _background.start_for(getattr(item, "module", None) for item in session.items)
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    from tests import _background
+
+    _background.stop_all()
+
+
 #: |z| bound for statistical assertions: a correct implementation fails one such assertion
 #: with probability ~6e-5, a biased one of a few standard errors fails reliably.
 Z_TOL = 4.0
