@@ -5,9 +5,10 @@ test_cuda_sim.py, test_golden_cuda.py and test_reproduce_cases.py take a minute 
 while the test process waits, on a machine whose second core the suite otherwise leaves idle.
 A test module that needs such a run defines ``background_run(folder) -> Command``; when the
 collected tests include one of that module's (``tests/conftest.py``'s
-``pytest_collection_finish``), its run starts at once, in a folder of its own, and the module's
-fixture collects it with :func:`start` (which starts it then if it was not started) and
-:meth:`Run.wait`. The run is the very command the fixture used to start itself: the same
+``pytest_collection_finish``), its run is queued, in the order the tests come. One runs at a
+time beside the tests (the next starts between two tests once it ends: :func:`poll`), so the
+test process keeps a core of its own; the module's fixture collects its run with :func:`start`
+(which starts it at once if it has not started) and :meth:`Run.wait`. The run is the very command the fixture used to start itself: the same
 inputs, the same numbers; only the time it starts moves. Output goes to files (a full pipe
 would stall a run no one reads yet). Runs still going when the session ends are killed and
 their folders removed.
@@ -56,26 +57,41 @@ class Run:
                                            read("stderr.txt"))
 
 
+#: Runs at once beside the tests.
+AT_ONCE = 1
+
 _RUNS: dict[str, Run] = {}
+_QUEUE: dict[str, Callable[[Path], Command]] = {}
 
 
 def start(key: str, make: Callable[[Path], Command]) -> Run:
     """The run of ``key`` (a module's name), started now with ``make(folder)`` unless it was."""
     if key not in _RUNS:
+        _QUEUE.pop(key, None)
         folder = Path(tempfile.mkdtemp(prefix=f"stochpend-{key.rsplit('.', 1)[-1]}-"))
         _RUNS[key] = Run(folder, make(folder))
     return _RUNS[key]
 
 
+def poll() -> None:
+    """Start queued runs while fewer than :data:`AT_ONCE` are running."""
+    while _QUEUE and sum(run.proc.poll() is None for run in _RUNS.values()) < AT_ONCE:
+        key = next(iter(_QUEUE))
+        start(key, _QUEUE[key])
+
+
 def start_for(modules: Iterable[ModuleType | None]) -> None:
-    """Start the run of every module given that defines ``background_run``."""
+    """Queue the run of every module given that defines ``background_run``, in order, and start
+    the first."""
     for module in dict.fromkeys(modules):
         make = getattr(module, "background_run", None)
         if module is not None and callable(make):
-            start(module.__name__, make)
+            _QUEUE.setdefault(module.__name__, make)
+    poll()
 
 
 def stop_all() -> None:
+    _QUEUE.clear()
     for run in _RUNS.values():
         if run.proc.poll() is None:
             run.proc.kill()

@@ -23,6 +23,12 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     _background.start_for(getattr(item, "module", None) for item in session.items)
 
 
+def pytest_runtest_logfinish() -> None:
+    from tests import _background
+
+    _background.poll()
+
+
 def pytest_sessionfinish(session: pytest.Session) -> None:
     from tests import _background
 
