@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import signal
+import time
 
 import pytest
 
@@ -11,6 +12,28 @@ import pytest
 # Ctrl-C tests need it delivered, in this process and in the runs it starts.
 if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Start the long simulator runs the collected tests will need (tests/_background.py)."""
+    if session.config.option.collectonly:
+        return
+    from tests import _background
+
+    _background.start_for(getattr(item, "module", None) for item in session.items)
+
+
+def pytest_runtest_logfinish() -> None:
+    from tests import _background
+
+    _background.poll()
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    from tests import _background
+
+    _background.stop_all()
+
 
 #: |z| bound for statistical assertions: a correct implementation fails one such assertion
 #: with probability ~6e-5, a biased one of a few standard errors fails reliably.
@@ -22,3 +45,22 @@ SEED = 20040401
 @pytest.fixture(scope="session")
 def seed() -> int:
     return SEED
+
+
+#: ``reproduce("all")`` at toy size (the real --quick size is checked in the slow suite).
+TINY_REPRODUCE = {"quick": True, "paths": 40, "t_max": 10.0}
+
+
+@pytest.fixture(scope="session")
+def tiny_reproduce(tmp_path_factory):
+    """One ``reproduce("all", **TINY_REPRODUCE)`` for the session (about 20 s, most of it
+    writing 24 NetCDF files): ``(result, wall seconds, report.html's text as written)``.
+    tests/unit/test_reproduce.py checks its files and reruns figures into its folder (which
+    rewrites report.html); tests/system/test_report_browser.py renders the text kept here."""
+    from stochpend.reproduce import reproduce
+
+    out = tmp_path_factory.mktemp("reproduce")
+    started = time.perf_counter()
+    result = reproduce("all", out=out, **TINY_REPRODUCE)
+    wall = time.perf_counter() - started
+    return result, wall, result.report.read_text(encoding="utf-8")

@@ -10,12 +10,13 @@ Regenerate only for a change that is meant to alter numbers, and say so in its c
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from tests import _background
 
 pytestmark = pytest.mark.gpu
 
@@ -33,16 +34,21 @@ GOLDEN_ARRAYS = _load(GOLDEN)
 NAMES = sorted({key.split("/", 1)[0] for key in GOLDEN_ARRAYS})
 
 
+def background_run(folder: Path) -> _background.Command:
+    """The generator script in the CUDA simulator (about 20 s), started with the session
+    (tests/_background.py)."""
+    return _background.Command([sys.executable, str(SCRIPT), str(folder / "now.npz")],
+                               env={**os.environ, "NUMBA_ENABLE_CUDASIM": "1"})
+
+
 @pytest.fixture(scope="module")
-def simulated(tmp_path_factory) -> dict[str, np.ndarray]:
-    """The generator script run at this commit in the CUDA simulator (about 20 s)."""
-    out = tmp_path_factory.mktemp("golden_cuda") / "now.npz"
-    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1"}
-    proc = subprocess.run([sys.executable, str(SCRIPT), str(out)], env=env, capture_output=True, text=True,
-                          timeout=600)
+def simulated() -> dict[str, np.ndarray]:
+    """The generator script run at this commit in the CUDA simulator."""
+    run = _background.start(__name__, background_run)
+    proc = run.wait(timeout=600)
     if proc.returncode != 0:
         pytest.fail(f"CUDA simulator run failed:\n{proc.stdout}\n{proc.stderr[-5000:]}")
-    return _load(out)
+    return _load(run.folder / "now.npz")
 
 
 def test_fixture_covers_what_it_claims():

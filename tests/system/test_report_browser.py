@@ -17,8 +17,6 @@ import subprocess
 
 import pytest
 
-from stochpend.reproduce import reproduce
-
 BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable", "chrome")
 
 CHECK_SCRIPT = """
@@ -55,9 +53,11 @@ def find_browser() -> str | None:
 
 
 @pytest.fixture(scope="module")
-def report(tmp_path_factory: pytest.TempPathFactory):
-    out = tmp_path_factory.mktemp("report")
-    return reproduce("all", out=out, quick=True, paths=16, t_max=4.0)
+def report(tiny_reproduce):
+    """The session's tiny ``reproduce all`` (tests/conftest.py, shared with
+    tests/unit/test_reproduce.py) and its report.html as it was written."""
+    result, _, text = tiny_reproduce
+    return result, text
 
 
 def test_report_renders_in_headless_chromium(report, tmp_path) -> None:
@@ -65,7 +65,7 @@ def test_report_renders_in_headless_chromium(report, tmp_path) -> None:
     if browser is None:
         pytest.skip(f"no headless Chromium found (looked for $STOCHPEND_BROWSER and {', '.join(BROWSERS)} "
                     "on PATH); install Debian's 'chromium' package to run this test")
-    text = report.report.read_text(encoding="utf-8")
+    result, text = report
     assert text.count("</body>") == 1
     page = tmp_path / "page.html"
     page.write_text(text.replace("</body>", CHECK_SCRIPT + "</body>"), encoding="utf-8")
@@ -86,5 +86,5 @@ def test_report_renders_in_headless_chromium(report, tmp_path) -> None:
     assert checks["cells"] == text.count("<td") + text.count("<th>") > 0
     assert checks["empty_cells"] == []
     # Every row of every figure table made it into the page.
-    rows = sum(len(f.rows) for f in report.figures.values())
+    rows = sum(len(f.rows) for f in result.figures.values())
     assert text.count("<tr>") >= rows

@@ -5,28 +5,28 @@ writes verifies."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 import h5py
 import numpy as np
 import pytest
 import xarray as xr
+from typer.testing import CliRunner
 
 import stochpend
-from stochpend import io
+from stochpend import cli, io
 from stochpend._warnings import StochpendWarning
 
-SRC = str(Path(__file__).resolve().parents[2] / "src")
 
-
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PYTHONPATH": SRC, "COLUMNS": "100"}
-    return subprocess.run([sys.executable, "-m", "stochpend", *map(str, args)], capture_output=True, text=True,
-                          env=env, timeout=300)
+def _cli(*args: object) -> SimpleNamespace:
+    """The command in this process (typer's CliRunner, stdout and stderr apart): what a real
+    process's exit code and streams would be. A process of its own cost ~3 s each (imports,
+    kernels loaded from the cache); the program as a real process is tested in tests/system
+    (test_hostile's `show` of a crafted file among them)."""
+    result = CliRunner().invoke(cli.app, [str(a) for a in args], env={"COLUMNS": "100"})
+    return SimpleNamespace(returncode=result.exit_code, stdout=result.stdout, stderr=result.stderr)
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -28,6 +27,7 @@ from stochpend.noises import ou
 from stochpend.observables import S_COUNT, S_NONFINITE, Observable, column
 from stochpend.params import SimulationConfig
 from stochpend.runner import run_batches
+from tests import _background
 from tests._kernels import Paths
 from tests.unit import _phase_noise
 from tests.unit._user_models import register_all
@@ -156,31 +156,28 @@ F32_SUMS_RTOL = 1e-4
 F32_HIST_MOVES = 2
 
 
+def background_run(folder: Path) -> _background.Command:
+    """Every case in the CUDA simulator (a subprocess, about 100 s), started with the session
+    (tests/_background.py)."""
+    spec = folder / "spec.json"
+    spec.write_text(json.dumps(CASES + EXTRAS))
+    return _background.Command([sys.executable, str(HELPER), str(spec), str(folder / "out.npz")],
+                               env={**os.environ, "NUMBA_ENABLE_CUDASIM": "1"})
+
+
 @pytest.fixture(scope="module")
-def simulated(tmp_path_factory, cpu_results):
+def simulated(cpu_results):
     """Run every case once in the CUDA simulator (a subprocess); returns the saved arrays.
 
     The CPU references are computed (and the CPU kernels compiled) while the subprocess runs.
     """
-    folder = tmp_path_factory.mktemp("cudasim")
-    spec = folder / "spec.json"
-    out = folder / "out.npz"
-    spec.write_text(json.dumps(CASES + EXTRAS))
-    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1"}
-    with subprocess.Popen(
-        [sys.executable, str(HELPER), str(spec), str(out)],
-        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    ) as child:
-        try:
-            for name in CASE_NAMES:
-                cpu_results(name)
-            stdout, stderr = child.communicate(timeout=600)
-        finally:
-            if child.poll() is None:
-                child.kill()
-    if child.returncode != 0:
-        pytest.fail(f"CUDA simulator run failed:\n{stdout}\n{stderr[-5000:]}")
-    with np.load(out) as data:
+    run = _background.start(__name__, background_run)
+    for name in CASE_NAMES:
+        cpu_results(name)
+    done = run.wait(timeout=600)
+    if done.returncode != 0:
+        pytest.fail(f"CUDA simulator run failed:\n{done.stdout}\n{done.stderr[-5000:]}")
+    with np.load(run.folder / "out.npz") as data:
         return {key: data[key] for key in data.files}
 
 

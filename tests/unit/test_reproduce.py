@@ -15,17 +15,18 @@ from stochpend._cli_reproduce import reproduce_command
 from stochpend.figures import COLUMNS, FIGURES
 from stochpend.figures._common import Row, extrapolate, fmt_se, leave_one_out
 from stochpend.reproduce import reproduce
+from tests.conftest import TINY_REPRODUCE
 
 #: Tiny runs for the default test suite (the real --quick size is checked in the slow test).
-TINY = {"quick": True, "paths": 40, "t_max": 10.0}
+TINY = TINY_REPRODUCE
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory: pytest.TempPathFactory):
-    out = tmp_path_factory.mktemp("reproduce")
-    started = time.perf_counter()
-    result = reproduce("all", out=out, **TINY)
-    return result, time.perf_counter() - started
+def tiny(tiny_reproduce):
+    """``reproduce("all", **TINY)``, run once per session (tests/conftest.py; the browser test
+    renders its report too): the result and its wall time."""
+    result, wall, _ = tiny_reproduce
+    return result, wall
 
 
 def _check_complete(result) -> None:

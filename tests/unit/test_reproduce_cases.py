@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -12,6 +11,7 @@ import pytest
 
 from stochpend import reproduce as rp
 from stochpend.figures import CASES, FIGURES
+from tests import _background
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -46,16 +46,24 @@ def test_cost_model_matches_the_documented_figures():
         10 * 6.6 / 10**0.5 * (1e5**1.25 - 0.01**1.25) + 10 * 4.7 * 0.01**1.5)
 
 
-@pytest.mark.gpu
-def test_cases_run_end_to_end_in_the_cuda_simulator_and_print_their_cost(tmp_path):
+def background_run(folder: Path) -> _background.Command:
     """`stochpend reproduce fig4-crossover fig2-long --backend cuda` at toy size under
-    NUMBA_ENABLE_CUDASIM=1: a cost line per run and a total before the work, then every file."""
+    NUMBA_ENABLE_CUDASIM=1 (about 75 s, most of it the simulator's threads), started with the
+    session (tests/_background.py)."""
     env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1",
            "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])}
-    out = tmp_path / "gpu-scale"
     command = [sys.executable, "-m", "stochpend", "reproduce", "fig4-crossover", "fig2-long",
-               "--backend", "cuda", "--paths", "8", "--t-max", "0.3", "--out", str(out)]
-    res = subprocess.run(command, env=env, capture_output=True, text=True, timeout=600)
+               "--backend", "cuda", "--paths", "8", "--t-max", "0.3", "--out", str(folder / "gpu-scale")]
+    return _background.Command(command, env=env)
+
+
+@pytest.mark.gpu
+def test_cases_run_end_to_end_in_the_cuda_simulator_and_print_their_cost():
+    """`stochpend reproduce fig4-crossover fig2-long --backend cuda` at toy size under
+    NUMBA_ENABLE_CUDASIM=1: a cost line per run and a total before the work, then every file."""
+    run = _background.start(__name__, background_run)
+    out = run.folder / "gpu-scale"
+    res = run.wait(timeout=600)
     text = res.stdout + res.stderr
     assert res.returncode == 0, text[-4000:]
     cost = [line for line in text.splitlines() if line.startswith("cost:")]
