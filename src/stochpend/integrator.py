@@ -659,7 +659,11 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                 break
         return steps, tt, tc, kk, finite
 
-    name_closures([G, step_size, verlet, advance_path, advance_pair, advance_lanes],
+    # family_step_inline too: only the lane machines call it, and whichever of them was built
+    # first in a process would otherwise name it, so the pair kernel compiled by the compile
+    # helper (pairs alone) and the one this process looks up (lanes first) would differ in name
+    # and never share a cache entry.
+    name_closures([G, step_size, verlet, advance_path, advance_pair, advance_lanes, family_step_inline],
                   spec.label if track is None else f"{spec.label}/track/{id(track):x}")
     return SimpleNamespace(
         spec=spec, real=real, G=G, step_size=step_size, verlet=verlet, family_step=family_step,
