@@ -244,7 +244,7 @@ def test_log_energy_is_the_mean_log_of_the_energy_above_the_floor_and_leaves_no_
 
 
 @pytest.mark.parametrize("scheduler", ["sync", "local"])
-def test_a_sweep_reports_user_observables_and_accumulators_on_every_scheduler(scheduler):
+def test_a_sweep_reports_user_observables_and_accumulators_on_every_scheduler(scheduler, monkeypatch):
     """A plugin's observable and time average, and the built-in displacement, in a sweep: each
     set's numbers are its run's alone, also on a two-worker Dask cluster (the workers load the
     plugin the client loaded)."""
@@ -252,6 +252,9 @@ def test_a_sweep_reports_user_observables_and_accumulators_on_every_scheduler(sc
         pytest.importorskip("distributed")
     from stochpend import plugins
 
+    # Only this test's plugin: the workers load every plugin this process loaded, and another
+    # test may have loaded one from its temporary directory, which the workers cannot import.
+    monkeypatch.setattr(plugins, "_LOADED", [])
     plugins.load("tests.unit._observables_plugin")
     names = ["Omega2_plugin", "Omega2_avg_plugin", "displacement"]
     spec = {"base": {"noise": "ou", "D": 1.0, "omega": 1.0, "paths": 200, "times": [2.0, 4.0], "seed": 6,
