@@ -19,8 +19,10 @@ demo: $(STAMP)
 
 # The lint and type gates (pyproject.toml: [tool.ruff], [tool.mypy]) run first: a finding fails the test.
 # --durations: the slowest tests are listed in every run's log, to keep the suite's time watched.
+# -n auto: one pytest-xdist worker per core (at most 4), each test file on one worker
+# (tests/conftest.py shares the one tiny reproduce), docs/development.md: why, and the times.
 test: $(STAMP) lint typecheck
-	$(PY) -m pytest -q -m "not slow" --durations=25
+	$(PY) -m pytest -q -m "not slow" -n auto --maxprocesses 4 --dist loadfile --durations=25
 
 # The default suite under coverage.py (slower: Numba's compiler runs traced), then the
 # package's line coverage; docs/development.md keeps the last measured numbers.

@@ -14,9 +14,20 @@ if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+def _xdist_worker(config: pytest.Config) -> str | None:
+    """This process's pytest-xdist worker name (``make test`` runs one worker per core, each
+    test file on one worker: ``--dist loadfile``), or None outside xdist."""
+    workerinput = getattr(config, "workerinput", None)
+    return None if workerinput is None else str(workerinput["workerid"])
+
+
 def pytest_collection_finish(session: pytest.Session) -> None:
-    """Start the long simulator runs the collected tests will need (tests/_background.py)."""
-    if session.config.option.collectonly:
+    """Start the long simulator runs the collected tests will need (tests/_background.py).
+
+    An xdist worker collects every test but runs only the files the scheduler sends it, so it
+    cannot know which runs it will need: there each module's fixture starts its run when it first
+    asks for it, and the other worker keeps the second core busy meanwhile."""
+    if session.config.option.collectonly or _xdist_worker(session.config) is not None:
         return
     from tests import _background
 
@@ -52,14 +63,35 @@ TINY_REPRODUCE = {"quick": True, "paths": 40, "t_max": 10.0}
 
 
 @pytest.fixture(scope="session")
-def tiny_reproduce(tmp_path_factory):
+def tiny_reproduce(tmp_path_factory, request):
     """One ``reproduce("all", **TINY_REPRODUCE)`` for the session (about 20 s, most of it
     writing 24 NetCDF files): ``(result, wall seconds, report.html's text as written)``.
     tests/unit/test_reproduce.py checks its files and reruns figures into its folder (which
-    rewrites report.html); tests/system/test_report_browser.py renders the text kept here."""
+    rewrites report.html); tests/system/test_report_browser.py renders the text kept here.
+
+    Under xdist the two files may run on different workers: the first to ask makes it in the
+    workers' shared temporary folder, under a lock, and keeps the three values in a pickle;
+    the other waits for the lock and reads them (the same objects, so the same checks)."""
+    if _xdist_worker(request.config) is None:
+        return _tiny_reproduce(tmp_path_factory.mktemp("reproduce"))
+    import fcntl
+    import pickle
+
+    shared = tmp_path_factory.getbasetemp().parent / "tiny_reproduce"
+    shared.mkdir(exist_ok=True)
+    with open(shared / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        kept = shared / "made.pickle"
+        if kept.exists():
+            return pickle.loads(kept.read_bytes())
+        made = _tiny_reproduce(shared / "out")
+        kept.write_bytes(pickle.dumps(made))
+        return made
+
+
+def _tiny_reproduce(out):
     from stochpend.reproduce import reproduce
 
-    out = tmp_path_factory.mktemp("reproduce")
     started = time.perf_counter()
     result = reproduce("all", out=out, **TINY_REPRODUCE)
     wall = time.perf_counter() - started

@@ -94,6 +94,10 @@ def test_a_plugin_loads_once_and_is_remembered(tmp_path, monkeypatch):
     (tmp_path / "plugin_once.py").write_text("import builtins\nbuiltins.STOCHPEND_TEST_LOADS = "
                                              "getattr(builtins, 'STOCHPEND_TEST_LOADS', 0) + 1\n")
     monkeypatch.syspath_prepend(str(tmp_path))
+    # Forgotten after the test: a sweep's Dask workers load every plugin this process loaded, and
+    # they cannot import this one from the test's temporary directory (a later test in this
+    # process, on this xdist worker, would be refused).
+    monkeypatch.setattr(plugins, "_LOADED", list(plugins.loaded()))
     import builtins
 
     plugins.load("plugin_once")
