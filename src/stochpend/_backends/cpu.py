@@ -21,6 +21,8 @@ drivers' per-worker scratch is allocated by their Python wrapper (:func:`_with_w
   time through the same Spec's ``advance_path``.
 * ``accumulate``: the per-batch power sums and histogram at one output time, each batch summed
   sequentially in path order (so the sums do not depend on the thread count).
+* ``joint`` (:func:`joint_kernel`): the joint (x, Omega) histogram's per-batch counts at one
+  output time, only for a run that asks for it (``joint_bins``), after ``accumulate``.
 
 The SIMD drivers use the branch-free log/sin/cos/expm1 of :mod:`stochpend.fastmath`
 (``Spec.fast_math``, chosen by :func:`spec_for`), whose loops LLVM vectorizes; their
@@ -600,7 +602,7 @@ def joint_kernel(periodic: bool):
 
 
 def joint_sums(counts: np.ndarray, n_b: np.ndarray, out: np.ndarray) -> None:
-    """Into ``out`` (3 cells,): the per-batch ``counts`` (n_batches, cells) summed, their
+    """Into ``out`` (3 * cells,): the per-batch ``counts`` (n_batches, cells) summed, their
     squares summed, and their products with the batches' finite paths ``n_b`` summed (the
     joint histogram's errors: :meth:`stochpend.stats.EnsembleSums.joint`). Integers: exact."""
     cells = counts.shape[1]
@@ -729,8 +731,8 @@ class Engine:
         if self.joint_grid is not None:
             x_edges, O_edges = self.joint_grid
             nx, nO = c.joint_bins
-            self.joint(self.x, self.Omega, self.status, c.batch_size, x_edges[j, 0], x_edges[j, -1], nx,
-                       O_edges[j, 0], O_edges[j, -1], nO, self.joint_counts[:nb])
+            self.joint(self.x, self.Omega, self.status, c.batch_size, float(x_edges[j, 0]), float(x_edges[j, -1]),
+                       nx, float(O_edges[j, 0]), float(O_edges[j, -1]), nO, self.joint_counts[:nb])
             joint_sums(self.joint_counts[:nb], self.chunk_sums[:, j, S_COUNT], self.chunk_hist[j, self.n_e:])
 
     def steps(self) -> int:

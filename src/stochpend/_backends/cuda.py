@@ -17,6 +17,8 @@ docs/gpu.md), and the results do not depend on the chunking or the launch config
   order, so every batch is summed sequentially in path order with the CPU's exact operations:
   given the same states the float64 sums are bit-identical to the CPU's. Histogram counts use
   atomics (integers: order-independent).
+* ``joint`` kernel (a run with ``joint_bins`` only): one block per batch, the joint (x, Omega)
+  histogram's counts of the batch (atomics), reduced into the chunk's histogram columns.
 
 The host side is :class:`Engine`, driven by :mod:`stochpend.runner` like the CPU's: the
 per-path state stays on the device for a whole chunk; per output time the host reads one flag
