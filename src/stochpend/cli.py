@@ -165,7 +165,8 @@ def _root(
 #: nor code to load: those come from the command line that runs.
 CONFIG_KEYS = ("noise", "D", "tau", "omega_noise", "omega", "potential", "n", "coupling", "paths", "t_max",
                "n_times", "times", "seed", "theta0", "Omega0", "h_max", "step_c", "hist_bins", "bias_paths",
-               "accuracy", "rtol", "max_path_steps", "backend", "precision", "threads")
+               "accuracy", "rtol", "max_path_steps", "backend", "precision", "threads", "joint_bins",
+               "joint_x_range", "joint_Omega_max")
 _CONFIG_REFUSED = {"out": "the output file is named on the command line (--out)",
                    "overwrite": "only the command line that runs may allow overwriting (--overwrite)",
                    "checkpoint": "the checkpoint file is named on the command line (--checkpoint)",
@@ -177,11 +178,11 @@ _CONFIG_REFUSED = {"out": "the output file is named on the command line (--out)"
 
 def _config_value(key: str, value: Any, source: str) -> str:
     """A configuration file's value as the text the option would be given on the command line."""
-    if key == "times" and isinstance(value, list):
+    if key in ("times", "joint_bins", "joint_x_range", "joint-bins", "joint-x-range") and isinstance(value, list):
         value = ",".join(repr(v) if isinstance(v, float) else str(v) for v in value)
     if isinstance(value, bool) or not isinstance(value, str | int | float):
         raise ValueError(f"{source}: {key}={value!r} is not accepted: a number or a string"
-                         + (" (times: a list of numbers)" if key == "times" else ""))
+                         + (" (times, joint_bins, joint_x_range: a list of numbers)" if isinstance(value, list) else ""))
     return repr(value) if isinstance(value, float) else str(value)
 
 

@@ -252,3 +252,15 @@ def test_cuda_simulator_counts_equal_the_cpu(tmp_path):
         assert acc.hist.shape[1] == params.hist_columns(config) > config.hist_bins + 2
         np.testing.assert_array_equal(simulated[f"{name}/hist"], acc.hist, err_msg=name)
         np.testing.assert_allclose(simulated[f"{name}/sums"], acc.sums, rtol=1e-12, atol=0.0, err_msg=name)
+
+
+def test_a_configuration_file_sets_it(tmp_path):
+    toml = tmp_path / "run.toml"
+    toml.write_text("paths = 100\nt_max = 1.0\nn_times = 2\nbias_paths = 0\njoint_bins = [5, 3]\n"
+                    "joint_Omega_max = 2.0\n", encoding="utf-8")
+    out = tmp_path / "t.nc"
+    result = CliRunner().invoke(cli.app, ["simulate", "--config", str(toml), "--quiet", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    ds = io.open_results(out)
+    assert ds.joint_hist.shape == (2, 5, 3)
+    np.testing.assert_array_equal(ds.Omega_bin_edges.values[:, [0, -1]], [[-2.0, 2.0]] * 2)
