@@ -37,8 +37,10 @@ STATISTICS: dict[str, Callable[[np.ndarray], np.ndarray]] = {s.name: s.of for s 
 class EnsembleSums:
     """Per-batch power sums, shape (n_batches, n_times, N_SUMS), and histogram totals.
 
-    ``hist`` has shape (n_times, n_bins + 2): underflow, the bins, overflow. ``filled`` marks
-    the batches already computed (all must be filled before statistics are read).
+    ``hist`` has shape (n_times, n_bins + 2): underflow, the bins, overflow; with a joint
+    (x, Omega) histogram, its 3 * cells integer columns follow (:meth:`joint`,
+    ``stochpend.params.hist_columns``), summed like the rest. ``filled`` marks the batches
+    already computed (all must be filled before statistics are read).
     """
 
     sums: np.ndarray

@@ -264,3 +264,27 @@ def test_a_configuration_file_sets_it(tmp_path):
     ds = io.open_results(out)
     assert ds.joint_hist.shape == (2, 5, 3)
     np.testing.assert_array_equal(ds.Omega_bin_edges.values[:, [0, -1]], [[-2.0, 2.0]] * 2)
+
+
+def test_the_error_is_the_delete_one_batch_jackknife_for_equal_batches():
+    """From Σc_b, Σc_b² and Σc_b n_b alone: for batches of equal size the batch-means error
+    of p = C/N is the delete-one-batch jackknife's exactly (and close to it otherwise)."""
+    from stochpend.stats import EnsembleSums
+
+    rng = np.random.default_rng(4)
+    shape, n_e = (2, 3), 4
+    cells = (shape[0] + 2) * (shape[1] + 2)
+    for n_b in (np.full(12, 50), rng.integers(40, 60, size=12)):
+        counts = np.array([rng.multinomial(n, np.full(cells, 1.0 / cells)) for n in n_b])  # (B, cells)
+        acc = EnsembleSums.empty(len(n_b), 1, n_e - 2, (), cells)
+        acc.sums[:, 0, 0] = n_b
+        acc.filled[:] = True
+        row = np.empty(3 * cells, dtype=np.int64)
+        cpu.joint_sums(counts, n_b.astype(np.float64), row)
+        acc.hist[0, n_e:] = row
+        _, se = acc.joint(n_e, shape)
+        loo = (counts.sum(axis=0) - counts) / (n_b.sum() - n_b)[:, None]
+        b = len(n_b)
+        jack = np.sqrt((b - 1) / b * ((loo - loo.mean(axis=0)) ** 2).sum(axis=0))
+        rtol = 1e-12 if np.all(n_b == n_b[0]) else 0.05
+        np.testing.assert_allclose(se[0].ravel(), jack, rtol=rtol)
