@@ -230,6 +230,17 @@ def parse_times(text: str | None) -> list[float] | None:
         raise ValueError(f"times={text!r} is not accepted: a comma-separated list of numbers, e.g. 10,100,1000") from None
 
 
+def parse_pair(name: str, text: str | None, accepted: str) -> list[str] | None:
+    """``--joint-bins 40,30`` and the like: two comma-separated values (validated, with the
+    parameter's name, by ``SimulationConfig.build``); None when not given."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in str(text).split(",")]
+    if len(parts) != 2 or not all(parts):
+        raise ValueError(f"{name}={text!r} is not accepted: {accepted}")
+    return parts
+
+
 def parse_theta0(text: str) -> float | str:
     if text == "uniform":
         return text
@@ -522,3 +533,35 @@ def bias_notes(ds: Any) -> list[str]:
     return [f"accuracy auto chose the step from the times before t = {horizon:.4g}: from there on "
             "the coupled pairs have decorrelated and the bias is not certified; two independent "
             f"ensembles of {need:.2g} paths each, at the step and at half of it, would be needed"]
+
+
+def joint_lines(ds: Any) -> list[str]:
+    """A few lines (at most 80 columns) on the joint (x, Omega) histogram of a result that has
+    one (``joint_hist``), at its last output time: the bin grid, the paths counted against
+    the finite paths (they must agree), and the Omega marginal's <Omega^2> from the bin
+    centres beside ``mean_Omega2``. Only numbers from the file: nothing to escape."""
+    import numpy as np
+
+    if "joint_hist" not in ds or "x_bin_edges" not in ds or ds["joint_hist"].ndim != 3:
+        return []
+    hist = np.asarray(ds["joint_hist"].values[-1], dtype=np.int64)
+    x_edges = np.asarray(ds["x_bin_edges"].values[-1], dtype=np.float64)
+    O_edges = np.asarray(ds["Omega_bin_edges"].values[-1], dtype=np.float64)
+    t = float(ds.time.values[-1])
+    inside = int(hist.sum())
+    outside = int(ds["joint_hist_outside"].values[-1])
+    finite = int(ds["n_finite_paths"].values[-1])
+    agree = "equal" if inside + outside == finite else "DIFFER"
+    lines = [
+        f"joint (x, Omega) histogram: {hist.shape[0]} x {hist.shape[1]} bins at each output time",
+        f"  at t = {t:.4g}: x in [{x_edges[0]:.4g}, {x_edges[-1]:.4g}), "
+        f"Omega in [{O_edges[0]:.4g}, {O_edges[-1]:.4g})",
+        f"  {inside} paths in the bins + {outside} outside = {inside + outside}; "
+        f"finite paths {finite}: {agree}",
+    ]
+    if inside > 0 and "mean_Omega2" in ds:
+        centres = 0.5 * (O_edges[1:] + O_edges[:-1])
+        m2 = float((hist.sum(axis=0) * centres**2).sum() / inside)
+        mean = _fmt(float(ds["mean_Omega2"].values[-1]), float(ds["mean_Omega2_stderr"].values[-1]))
+        lines.append(f"  Omega marginal: <Omega^2> {m2:.4g} from bin centres; mean_Omega2 {mean}")
+    return [line[:80] for line in lines]

@@ -59,7 +59,7 @@ from stochpend._sources import BUILD
 from stochpend._version import __version__
 from stochpend.lifecycle import Checkpointing, Run, execute
 from stochpend.observables import n_sums
-from stochpend.params import SimulationConfig
+from stochpend.params import SimulationConfig, hist_columns
 from stochpend.progress import Progress
 from stochpend.runner import BACKENDS, RunState
 from stochpend.stats import EnsembleSums
@@ -125,7 +125,8 @@ def config_to_json(config: SimulationConfig) -> dict[str, Any]:
     """Every field of the configuration as plain JSON values (floats round-trip exactly)."""
     out: dict[str, Any] = {}
     for f in fields(config):
-        if f.name == "extra" or (f.name in ("observables", "noise_params", "osc_params", "dyn_params")
+        if f.name == "extra" or (f.name in ("observables", "noise_params", "osc_params", "dyn_params",
+                                            "joint_bins", "joint_x_range", "joint_Omega_max")
                                  and not getattr(config, f.name)):
             continue  # written only when used: checkpoints from before keep their hash
         v = getattr(config, f.name)
@@ -428,7 +429,7 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
         raise _refuse(p, f"inconsistent run position {r}")
     _check_settings(p, header)  # before the arrays: `accuracy` says which arrays there are
     n = min(r["b1"] * bs, config.paths) - r["b0"] * bs
-    n_cols = config.hist_bins + 2
+    n_cols = hist_columns(config)
     shapes: dict[str, tuple[int, ...]] = {name: (n,) for name in _PATH_ARRAYS}
     shapes.update({
         "chunk_sums": (r["b1"] - r["b0"], n_times, n_sums(config)),

@@ -35,9 +35,11 @@ from stochpend._cli_common import (  # the shared layer; several are also used a
     console,
     fail,
     handles_errors,
+    joint_lines,
     load_plugins,
     note,
     observables_table,
+    parse_pair,
     parse_params,
     parse_theta0,
     parse_times,
@@ -163,7 +165,8 @@ def _root(
 #: nor code to load: those come from the command line that runs.
 CONFIG_KEYS = ("noise", "D", "tau", "omega_noise", "omega", "potential", "n", "coupling", "paths", "t_max",
                "n_times", "times", "seed", "theta0", "Omega0", "h_max", "step_c", "hist_bins", "bias_paths",
-               "accuracy", "rtol", "max_path_steps", "backend", "precision", "threads")
+               "accuracy", "rtol", "max_path_steps", "backend", "precision", "threads", "joint_bins",
+               "joint_x_range", "joint_Omega_max")
 _CONFIG_REFUSED = {"out": "the output file is named on the command line (--out)",
                    "overwrite": "only the command line that runs may allow overwriting (--overwrite)",
                    "checkpoint": "the checkpoint file is named on the command line (--checkpoint)",
@@ -175,11 +178,11 @@ _CONFIG_REFUSED = {"out": "the output file is named on the command line (--out)"
 
 def _config_value(key: str, value: Any, source: str) -> str:
     """A configuration file's value as the text the option would be given on the command line."""
-    if key == "times" and isinstance(value, list):
+    if key in ("times", "joint_bins", "joint_x_range", "joint-bins", "joint-x-range") and isinstance(value, list):
         value = ",".join(repr(v) if isinstance(v, float) else str(v) for v in value)
     if isinstance(value, bool) or not isinstance(value, str | int | float):
         raise ValueError(f"{source}: {key}={value!r} is not accepted: a number or a string"
-                         + (" (times: a list of numbers)" if key == "times" else ""))
+                         + (" (times, joint_bins, joint_x_range: a list of numbers)" if isinstance(value, list) else ""))
     return repr(value) if isinstance(value, float) else str(value)
 
 
@@ -221,6 +224,28 @@ def _config_keys_in_use(ctx: typer.Context) -> None:
     ctx.meta["stochpend.config_keys"] = used
 
 
+def _joint_options(bins: str | None, x_range: str | None, Omega_max: float | None) -> dict[str, Any]:
+    """``--joint-bins``, ``--joint-x-range`` and ``--joint-Omega-max`` as the API's keywords
+    (those given); a piece that is not a number stays text, so the API's refusal names it."""
+    out: dict[str, Any] = {}
+
+    def number(text: str, parse: Any) -> Any:
+        try:
+            return parse(text)
+        except (ValueError, OverflowError):
+            return text
+
+    pair = parse_pair("joint_bins", bins, "two integers NX,NO, e.g. 40,30")
+    if pair is not None:
+        out["joint_bins"] = [number(p, integer) for p in pair]
+    pair = parse_pair("joint_x_range", x_range, "two numbers LO,HI with LO < HI, e.g. -5,5")
+    if pair is not None:
+        out["joint_x_range"] = [number(p, float) for p in pair]
+    if Omega_max is not None:
+        out["joint_Omega_max"] = Omega_max
+    return out
+
+
 @app.command()
 @handles_errors
 def simulate(
@@ -257,6 +282,9 @@ def simulate(
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
     param: Annotated[list[str] | None, typer.Option("--param", "-p", metavar="NAME=VALUE", help="A parameter the noise or the oscillator declares for itself, NAME=VALUE (repeat it; 'stochpend list' shows each piece's).", show_default="the pieces' defaults")] = None,
     plugin: Annotated[list[str] | None, typer.Option("--plugin", metavar="NAME", help="Load a noise, model or observable from outside stochpend: an installed stochpend plugin or a module's dotted name (repeat it).", show_default="none")] = None,
+    joint_bins: Annotated[str | None, typer.Option("--joint-bins", metavar="NX,NO", help="Also histogram (x, Omega) jointly at every output time on NX x NO uniform bins (each 1..500): counts, density and its error in the result.", show_default="none")] = None,
+    joint_x_range: Annotated[str | None, typer.Option("--joint-x-range", metavar="LO,HI", help="With --joint-bins, a non-periodic oscillator: the x range (a periodic one's angle is binned over [-pi, pi)).", show_default="+-joint Omega max/omega")] = None,
+    joint_Omega_max: Annotated[float | None, typer.Option("--joint-Omega-max", help="With --joint-bins: the Omega range [-W, W).", show_default="every Omega the energy histogram covers")] = None,
     observable: Annotated[list[str] | None, typer.Option("--observable", metavar="NAME", help="Also report a registered observable or per-path accumulator ('displacement', or one a --plugin registers; repeat it; 'stochpend list' shows them).", show_default="none")] = None,
     config_file: Annotated[Path | None, typer.Option("--config", parser=file_name, is_eager=True, callback=_load_config,
                                                 help="A TOML file of physics and numerics options, by their names here "
@@ -288,6 +316,7 @@ def simulate(
         kwargs["step_c"] = step_c
     if hist_bins is not None:
         kwargs["hist_bins"] = hist_bins
+    kwargs.update(_joint_options(joint_bins, joint_x_range, joint_Omega_max))
     # Validate everything before any work (and before the JIT compiles).
     kwargs.update(potential=potential, power_n=n, coupling=coupling, omega_noise=omega_noise)
     noise_params = parse_params(param)
@@ -353,6 +382,8 @@ def simulate(
         extra = observables_table(ds, width=results.width)
         if extra is not None:
             results.print(extra)
+        for line in joint_lines(ds):
+            results.print(line, markup=False, highlight=False)
         for line in bias_warnings(ds, shown_rows(ds)):
             console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
         for line in bias_notes(ds):
@@ -556,6 +587,8 @@ def show(
                          f"command can show ({why})") from None
     for table in tables:
         results.print(table)
+    for line in joint_lines(ds) if kind != "sweep" else ():
+        results.print(line, markup=False, highlight=False)
     for line in warned:
         console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
     for line in bias_notes(ds):

@@ -33,7 +33,7 @@ import xarray as xr
 from stochpend import _compile_helper, bias, integrator, models, observables, resources, runner
 from stochpend._jitcache import CompileClock
 from stochpend._version import __version__
-from stochpend.params import SimulationConfig, hist_edges
+from stochpend.params import SimulationConfig, hist_edges, joint_grid
 from stochpend.progress import NoProgress, Progress
 from stochpend.runner import RunState
 from stochpend.stats import EnsembleSums
@@ -261,7 +261,7 @@ def execute(run: Run, *, progress: Progress | None = None) -> tuple[xr.Dataset, 
     attrs["compile_time_s"] = compile_clock.seconds
     if saving is not None:
         attrs.update(saving.saver.attrs())
-    ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs)
+    ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs, joint_grid(config))
     if est is not None:
         bias.attach(ds, est, choice)
     return ds, sums

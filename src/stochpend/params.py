@@ -129,6 +129,12 @@ class SimulationConfig:
     #: The family's terms that differ from their defaults (stochpend.dynamics: damping, torque,
     #: drives, additive noise), sorted (name, value) pairs; empty for the paper's model.
     dyn_params: tuple[tuple[str, float], ...] = ()
+    #: The joint (x, Omega) histogram (:func:`joint_grid`): (nx, nOmega) bins, empty: none.
+    joint_bins: tuple[int, ...] = ()
+    #: Its x range (lo, hi), a non-periodic oscillator's only; empty: the default.
+    joint_x_range: tuple[float, ...] = ()
+    #: Its Omega range [-max, max], one per output time; empty when there is no histogram.
+    joint_Omega_max: tuple[float, ...] = ()
     extra: dict = field(default_factory=dict)
 
     # -- derived, cheap -------------------------------------------------------------------
@@ -150,6 +156,10 @@ class SimulationConfig:
         d.pop("extra")
         d.pop("times")
         d.pop("hist_E_max")
+        for name in ("joint_bins", "joint_x_range", "joint_Omega_max"):
+            d.pop(name)
+        if self.joint_bins:  # the grid itself is in the Dataset's edge variables
+            d["joint_bins"] = ",".join(str(b) for b in self.joint_bins)
         d["tau"] = "none" if self.tau is None else self.tau
         d["theta0"] = "uniform" if self.theta0 is None else self.theta0
         d["xi0"] = "stationary" if self.xi0 is None else self.xi0
@@ -201,6 +211,9 @@ class SimulationConfig:
         noise_params: Any = None,
         osc_params: Any = None,
         dyn_params: Any = None,
+        joint_bins: Any = None,
+        joint_x_range: Any = None,
+        joint_Omega_max: Any = None,
     ) -> SimulationConfig:
         """Validate every argument and return the frozen configuration. ``noise_params``: the
         values of the parameters the noise declares for itself (:mod:`stochpend.parameters`),
@@ -383,6 +396,9 @@ class SimulationConfig:
                 _fail("hist_E_max", hist_E_max, accepted)
 
         _observables.check_windows(observables, grid)
+        joint = _joint(joint_bins, joint_x_range, joint_Omega_max, oscillator=oscillator, omega=omega,
+                       e_min=omega**2 * oscillator.energy_floor(q), e_max=e_max,
+                       thermal=_thermal_Omega2(dyn_params_v, grid))
         return cls(
             noise=noise,
             D=D,
@@ -408,7 +424,117 @@ class SimulationConfig:
             noise_params=noise_params_v,
             osc_params=osc_params_v,
             dyn_params=dyn_params_v,
+            joint_bins=joint[0],
+            joint_x_range=joint[1],
+            joint_Omega_max=joint[2],
         )
+
+
+#: The most bins of the joint histogram along x or Omega (its per-batch counts and sums of
+#: squares are held per output time: 3 (nx + 2) (nOmega + 2) integers).
+MAX_JOINT_BINS = 500
+
+
+def _thermal_Omega2(dyn_params: tuple, times: np.ndarray) -> np.ndarray:
+    """The scale of Omega**2 that the family's additive noise and Boltzmann start give at each
+    time (stochpend.dynamics): the temperature D_a/(2 gamma) with damping, D_a t without, and
+    the initial temperature; zeros without them."""
+    gamma = _dynamics.value(dyn_params, "gamma")
+    d_a = _dynamics.value(dyn_params, "additive_D")
+    heat = np.full(np.shape(times), d_a / (2.0 * gamma)) if gamma > 0 else d_a * np.asarray(times)
+    return np.maximum(heat, _dynamics.value(dyn_params, "initial_temperature"))
+
+
+def _joint(bins: Any, x_range: Any, Omega_max: Any, *, oscillator: Any, omega: float, e_min: float,
+           e_max: np.ndarray, thermal: np.ndarray) -> tuple[tuple, tuple, tuple]:
+    """The joint histogram's validated fields (``joint_bins``, ``joint_x_range``,
+    ``joint_Omega_max``); empty without ``bins``."""
+    if bins is None or (isinstance(bins, (tuple, list)) and len(bins) == 0):
+        for name, value in (("joint_x_range", x_range), ("joint_Omega_max", Omega_max)):
+            if value is not None and not (isinstance(value, (tuple, list)) and len(value) == 0):
+                _fail(name, value, "it applies to the joint histogram only: give joint_bins too")
+        return (), (), ()
+    accepted = f"joint_bins must be two integers (nx, nOmega), each in [1, {MAX_JOINT_BINS}]"
+    if isinstance(bins, (str, bytes)) or not hasattr(bins, "__len__") or len(bins) != 2:
+        _fail("joint_bins", bins, accepted)
+    nx, nO = (_integer("joint_bins", b, accepted, 1, MAX_JOINT_BINS) for b in bins)
+    if x_range is None or (isinstance(x_range, (tuple, list)) and len(x_range) == 0):
+        x_v: tuple[float, ...] = ()
+        if not oscillator.periodic and omega == 0.0:
+            _fail("joint_x_range", x_range, "give (lo, hi): at omega = 0 there is no default x range")
+    else:
+        accepted = "joint_x_range must be two finite numbers lo < hi"
+        if oscillator.periodic:
+            _fail("joint_x_range", x_range, "the angle of a periodic oscillator is binned over "
+                  "[-pi, pi): leave joint_x_range out")
+        if isinstance(x_range, (str, bytes)) or not hasattr(x_range, "__len__") or len(x_range) != 2:
+            _fail("joint_x_range", x_range, accepted)
+        x_v = tuple(_finite("joint_x_range", v, accepted) for v in x_range)
+        if not x_v[0] < x_v[1] or not math.isfinite(x_v[1] - x_v[0]):
+            _fail("joint_x_range", x_range, accepted)
+    if Omega_max is None:
+        # Every energy the energy histogram covers: Omega**2 / 2 <= E_max - E_min, and 8
+        # thermal standard deviations of the family's additive noise.
+        with np.errstate(over="ignore", invalid="ignore"):
+            w = np.maximum(np.sqrt(2.0 * (np.asarray(e_max) - e_min)), 8.0 * np.sqrt(thermal))
+        w = np.minimum(w, 1e150)
+    else:
+        accepted = "joint_Omega_max must be a finite number > 0, or one per output time"
+        try:
+            w = np.broadcast_to(_float_array(Omega_max), np.shape(e_max)).copy()
+        except (TypeError, ValueError, OverflowError):
+            _fail("joint_Omega_max", Omega_max, accepted)
+        if not np.all(np.isfinite(w)) or np.any(w <= 0) or np.any(w > 1e150):
+            _fail("joint_Omega_max", Omega_max, accepted)
+    return (nx, nO), x_v, tuple(float(v) for v in w)
+
+
+def joint_grid(config: SimulationConfig) -> tuple[np.ndarray, np.ndarray] | None:
+    """Bin edges of the joint (x, Omega) histogram, ``(x_edges, Omega_edges)`` of shapes
+    (n_times, nx + 1) and (n_times, nOmega + 1), uniform; None without one.
+
+    x: a periodic oscillator's angle over [-pi, pi) (the convention of its steps); otherwise
+    ``joint_x_range``, by default the harmonic oscillator's turning points at the Omega range,
+    +-joint_Omega_max/omega. Omega: [-joint_Omega_max, joint_Omega_max], by default the
+    velocities of every energy the energy histogram covers (sqrt(2 (hist_E_max - E_min))), or
+    8 thermal standard deviations of the family's additive noise where that is wider.
+    """
+    if not config.joint_bins:
+        return None
+    nx, nO = config.joint_bins
+    w = np.asarray(config.joint_Omega_max, dtype=np.float64)[:, None]
+    oscillator = _oscillators.get(config.potential)
+    assert oscillator is not None, config.potential
+    if oscillator.periodic:
+        lo, hi = np.full_like(w, -math.pi), np.full_like(w, math.pi)
+    elif config.joint_x_range:
+        lo, hi = np.full_like(w, config.joint_x_range[0]), np.full_like(w, config.joint_x_range[1])
+    else:
+        hi = w / config.omega
+        lo = -hi
+    u = np.linspace(0.0, 1.0, nx + 1)[None, :]
+    x_edges = lo + (hi - lo) * u
+    x_edges[:, -1] = hi[:, 0]
+    v = np.linspace(0.0, 1.0, nO + 1)[None, :]
+    Omega_edges = -w + 2.0 * w * v
+    Omega_edges[:, -1] = w[:, 0]
+    return x_edges, Omega_edges
+
+
+def joint_cells(config: SimulationConfig) -> int:
+    """Cells of the joint histogram with its outside rows and columns, (nx + 2) (nOmega + 2);
+    0 without one."""
+    if not config.joint_bins:
+        return 0
+    return (config.joint_bins[0] + 2) * (config.joint_bins[1] + 2)
+
+
+def hist_columns(config: SimulationConfig) -> int:
+    """Columns of a run's histogram counts per output time (``EnsembleSums.hist``): the energy
+    histogram's underflow, bins and overflow, then, with a joint histogram, its counts, their
+    per-batch squares and their per-batch products with the batch's finite paths, each over
+    the :func:`joint_cells` (``stochpend.stats``: the errors)."""
+    return config.hist_bins + 2 + 3 * joint_cells(config)
 
 
 def default_hist_E_max(times: np.ndarray, *, noise: str, D: float, tau: float | None, omega: float) -> np.ndarray:

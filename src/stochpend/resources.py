@@ -31,6 +31,7 @@ from typing import Any
 
 from stochpend.observables import N_SUMS, n_sums
 from stochpend.params import DEFAULT_H_MAX, DEFAULT_STEP_C, SimulationConfig, short_repr
+from stochpend.params import joint_cells as _joint_cells
 
 __all__ = [
     "DEFAULT_MAX_PATH_STEPS",
@@ -307,9 +308,10 @@ def _cores(threads: Any) -> int:
 
 def _memory_parts(*, paths: int, chunk: int, chunk_given: bool, batch_size: int, n_batches: int,
                   n_times: int, hist_bins: int, bytes_per_path: int,
-                  n_sums: int = N_SUMS) -> list[tuple[str, int, str]]:
+                  n_sums: int = N_SUMS, joint_cells: int = 0) -> list[tuple[str, int, str]]:
     """(part, bytes, the parameter that makes it large), largest first. ``n_sums``: columns of
-    the per-batch sums (the statistics table's and the run's user observables')."""
+    the per-batch sums (the statistics table's and the run's user observables').
+    ``joint_cells``: the joint (x, Omega) histogram's (``params.joint_cells``; 0: none)."""
     n_cols = hist_bins + 2
     batches_in_chunk = min(n_batches, max(1, -(-chunk // batch_size)))
     state = chunk * bytes_per_path
@@ -328,6 +330,11 @@ def _memory_parts(*, paths: int, chunk: int, chunk_given: bool, batch_size: int,
         ("per-batch sums", 2 * sums + chunk_sums, sums_name),
         ("path state", state, state_name),
     ]
+    if joint_cells:
+        # Per output time, 3 integers a cell in the run's total and the chunk's; the Dataset's
+        # counts, density and error; and one count a cell per batch of the chunk.
+        joint = n_times * joint_cells * 8 * 9 + batches_in_chunk * joint_cells * 8
+        parts.append(("joint (x, Omega) histogram", joint, "joint_bins"))
     parts.sort(key=lambda p: -p[1])
     return parts
 
@@ -367,7 +374,7 @@ def estimate(
     parts = _memory_parts(paths=config.paths, chunk=chunk, chunk_given=given, batch_size=config.batch_size,
                           n_batches=config.n_batches, n_times=len(config.times), hist_bins=config.hist_bins,
                           bytes_per_path=STATE_BYTES_PER_PATH[precision],
-                          n_sums=n_sums(config))
+                          n_sums=n_sums(config), joint_cells=_joint_cells(config))
     device = 0
     if cuda:  # the state lives on the GPU
         device = next(b for label, b, _ in parts if label == "path state")
@@ -445,6 +452,7 @@ def work_limit(max_path_steps: Any = None) -> float:
 
 _ADVICE = {
     "hist_bins": "use fewer histogram bins (hist_bins, --hist-bins)",
+    "joint_bins": "use fewer joint histogram bins (joint_bins, --joint-bins) or output times",
     "n_times": "use fewer output times (n_times or times)",
     "n_batches": "use fewer batches (n_batches)",
     "chunk_paths": "use a smaller chunk_paths",
@@ -502,7 +510,7 @@ def check(
     est = estimate(config, backend=backend, precision=precision, chunk_paths=chunk_paths, threads=threads)
     values = {"hist_bins": config.hist_bins, "n_times": len(config.times), "n_batches": config.n_batches,
               "chunk_paths": est.chunk_paths, "paths": config.paths, "t_max": config.t_max,
-              "h_max": config.h_max}
+              "h_max": config.h_max, "joint_bins": ",".join(map(str, config.joint_bins))}
     # The work first: a run that would never end is refused as such, whatever else it needs.
     factors = {"paths": config.paths / _DEFAULT_PATHS, "t_max": config.t_max / _DEFAULT_T_MAX,
                "h_max": DEFAULT_H_MAX / config.h_max}

@@ -25,7 +25,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from stochpend._backends.layout import CHUNK_ARRAYS
-from stochpend.params import SimulationConfig, hist_edges
+from stochpend.params import SimulationConfig, hist_edges, joint_cells
 from stochpend.progress import NoProgress, Progress
 from stochpend.stats import EnsembleSums
 
@@ -185,7 +185,7 @@ def run_batches(
         state = RunState(first_batch, stop_batch, first_batch, b1, 0,
                          **dict.fromkeys(CHUNK_ARRAYS),  # type: ignore[arg-type]  # filled by pull
                          acc=EnsembleSums.empty(config.n_batches, n_times, config.hist_bins,
-                                                  config.observables),
+                                                  config.observables, joint_cells(config)),
                          path_steps=0, done_work=0.0, backend=backend, precision=precision)
     else:
         state = resume

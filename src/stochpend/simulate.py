@@ -49,6 +49,9 @@ def simulate(
     coupling: str = "force",
     omega_noise: float | None = None,
     observables: Any = (),
+    joint_bins: Any = None,
+    joint_x_range: Any = None,
+    joint_Omega_max: Any = None,
     backend: str = "cpu",
     threads: int | None = None,
     chunk_paths: int | None = None,
@@ -118,6 +121,16 @@ def simulate(
         Upper histogram edge per time; default far in the tail of the expected law.
     n_batches : int
         Batches for the jackknife standard errors (capped at ``paths``).
+    joint_bins : (int, int), optional
+        Also histogram (x, Omega) jointly at every output time, on (nx, nOmega) uniform bins
+        (each in [1, 500]); default: no joint histogram (and the run's kernels are exactly
+        those without it).
+    joint_x_range : (float, float), optional
+        Its x range [lo, hi) for a non-periodic oscillator (a periodic one's angle is binned
+        over [-pi, pi)); default +-joint_Omega_max/omega, the harmonic turning points.
+    joint_Omega_max : float or array_like, optional
+        Its Omega range [-joint_Omega_max, joint_Omega_max), one number or one per time;
+        default sqrt(2 (hist_E_max - E_min)), every velocity the energy histogram covers.
     potential, power_n, coupling
         Model beyond the pendulum: "pendulum" (default), "harmonic", or "power" (U = x^2n/2n);
         noise multiplying the force ("force") or the position ("position").
@@ -152,7 +165,9 @@ def simulate(
     xarray.Dataset
         Coordinate ``time``; variables ``mean_E``, ``mean_E2``, ``mean_E3``, ``mean_E4``,
         ``skewness``, ``flatness``, ``mean_Omega2``, ``mean_Omega4``, ``mean_sin2theta``, each
-        with ``<name>_stderr``; ``E_hist`` (time, E_bin) with ``E_bin_edges``;
+        with ``<name>_stderr``; ``E_hist`` (time, E_bin) with ``E_bin_edges``; with
+        ``joint_bins``, ``joint_hist`` (time, x_bin, Omega_bin), ``joint_hist_outside``,
+        ``joint_density`` and ``joint_density_stderr``, ``x_bin_edges`` and ``Omega_bin_edges``;
         ``nonfinite_paths`` and ``n_finite_paths``; ``<name>_bias`` and ``<name>_bias_stderr``
         (the estimated discretisation bias, value minus zero-step limit) unless
         ``bias_paths=0``. Attributes hold every parameter, the seed,
@@ -168,7 +183,8 @@ def simulate(
         n_times=n_times, seed=seed, theta0=theta0, Omega0=Omega0, xi0=xi0, h_max=h_max,
         step_c=step_c, hist_bins=hist_bins, hist_E_max=hist_E_max, n_batches=n_batches,
         potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
-        observables=observables, noise_params=noise_params,
+        observables=observables, noise_params=noise_params, joint_bins=joint_bins,
+        joint_x_range=joint_x_range, joint_Omega_max=joint_Omega_max,
     )
     # Refused here, before any work (run validates again what it is handed: a few checks).
     settings = Run.build(config, backend=backend, precision=precision, threads=threads,

@@ -37,8 +37,10 @@ STATISTICS: dict[str, Callable[[np.ndarray], np.ndarray]] = {s.name: s.of for s 
 class EnsembleSums:
     """Per-batch power sums, shape (n_batches, n_times, N_SUMS), and histogram totals.
 
-    ``hist`` has shape (n_times, n_bins + 2): underflow, the bins, overflow. ``filled`` marks
-    the batches already computed (all must be filled before statistics are read).
+    ``hist`` has shape (n_times, n_bins + 2): underflow, the bins, overflow; with a joint
+    (x, Omega) histogram, its 3 * cells integer columns follow (:meth:`joint`,
+    ``stochpend.params.hist_columns``), summed like the rest. ``filled`` marks the batches
+    already computed (all must be filled before statistics are read).
     """
 
     sums: np.ndarray
@@ -49,16 +51,18 @@ class EnsembleSums:
 
     @classmethod
     def empty(cls, n_batches: int, n_times: int, n_bins: int,
-              observables_: tuple[str, ...] = ()) -> EnsembleSums:
+              observables_: tuple[str, ...] = (), joint_cells: int = 0) -> EnsembleSums:
         """Zeroed sums, written once here: ``np.zeros`` maps pages that become resident only
         when first written, so the per-batch sums would grow the process's memory batch by
         batch over a long run (a slow rise that looks like a leak, and a shortfall that shows
-        late). Written now, the memory the resource check counted is held from the start."""
+        late). Written now, the memory the resource check counted is held from the start.
+        ``joint_cells``: the joint histogram's (``stochpend.params.joint_cells``), whose counts
+        follow the energy histogram's columns (``stochpend.params.hist_columns``)."""
         sums = np.empty((n_batches, n_times, _table.n_sums(SimpleNamespace(observables=observables_))))
         sums.fill(0.0)
         filled = np.empty(n_batches, dtype=bool)
         filled.fill(False)
-        return cls(sums=sums, hist=np.zeros((n_times, n_bins + 2), dtype=np.int64), filled=filled,
+        return cls(sums=sums, hist=np.zeros((n_times, n_bins + 2 + 3 * joint_cells), dtype=np.int64), filled=filled,
                    observables=tuple(observables_))
 
     def add_batches(self, first_batch: int, sums: np.ndarray, hist: np.ndarray) -> None:
@@ -121,9 +125,36 @@ class EnsembleSums:
         """Number of finite paths averaged at each time, shape (n_times,)."""
         return self.sums[self.filled][..., S_COUNT].sum(axis=0).astype(np.int64)
 
-    def to_dataset(self, times: np.ndarray, edges: np.ndarray, attrs: dict) -> xr.Dataset:
-        """The result as an ``xarray.Dataset`` (names fixed: other tools read them)."""
+    def joint(self, n_e_cols: int, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """The joint histogram's counts and the standard error of each cell's probability,
+        each (n_times, nx + 2, nOmega + 2) (``shape``: (nx, nOmega)) with the outside rows and
+        columns; ``n_e_cols``: the energy histogram's columns before it.
+
+        The probability of a cell is p = C / N (C its count, N the finite paths); its error is
+        the batch-means (linearised delete-one-batch jackknife) error of that ratio,
+        var p = B/(B - 1) sum_b (c_b - p n_b)**2 / N**2 over the B batches, from the summed
+        c_b, c_b**2 and c_b n_b the kernels keep per cell (exact integers)."""
+        cells = (shape[0] + 2) * (shape[1] + 2)
+        block = self.hist[:, n_e_cols:n_e_cols + 3 * cells].astype(np.float64)
+        c, c2, cn = block[:, :cells], block[:, cells:2 * cells], block[:, 2 * cells:]
+        n_b = self.sums[self.filled][..., S_COUNT]  # (B, n_times)
+        b = n_b.shape[0]
+        n = n_b.sum(axis=0)[:, None]
+        n2 = (n_b * n_b).sum(axis=0)[:, None]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            p = c / n
+            var = (c2 - 2.0 * p * cn + p * p * n2) / (n * n) * (b / (b - 1) if b >= 2 else np.nan)
+            se = np.sqrt(np.maximum(var, 0.0))
+        full = (self.hist.shape[0], shape[0] + 2, shape[1] + 2)
+        return self.hist[:, n_e_cols:n_e_cols + cells].reshape(full), se.reshape(full)
+
+    def to_dataset(self, times: np.ndarray, edges: np.ndarray, attrs: dict,
+                   joint: tuple[np.ndarray, np.ndarray] | None = None) -> xr.Dataset:
+        """The result as an ``xarray.Dataset`` (names fixed: other tools read them).
+        ``joint``: the joint histogram's edges (``stochpend.params.joint_grid``), when the run
+        has one."""
         data_vars: dict[str, tuple] = {}
+        n_e = edges.shape[-1] + 1  # the energy histogram's columns, outside ones included
         declared = {s.name: s for s in self.declared()}
         for name, (value, se) in self.statistics().items():
             label, units = declared[name].label, declared[name].units
@@ -137,12 +168,14 @@ class EnsembleSums:
             )
         data_vars["E_hist"] = (
             ("time", "E_bin"),
-            self.hist[:, 1:-1],
+            self.hist[:, 1:n_e - 1],
             {"long_name": "number of finite paths with E in each bin"},
         )
         data_vars["E_bin_edges"] = (("time", "E_bin_edge"), edges, {"long_name": "histogram bin edges"})
         data_vars["E_hist_underflow"] = ("time", self.hist[:, 0])
-        data_vars["E_hist_overflow"] = ("time", self.hist[:, -1])
+        data_vars["E_hist_overflow"] = ("time", self.hist[:, n_e - 1])
+        if joint is not None:
+            data_vars.update(_joint_variables(self, n_e, *joint))
         data_vars["n_finite_paths"] = ("time", self.counts())
         # Per-batch sums, so that any function of <E(t)> over several times (an exponent fit)
         # gets a delete-one-batch jackknife error that respects the correlation between times.
@@ -163,3 +196,36 @@ class EnsembleSums:
         )
         time = ("time", np.asarray(times), {"long_name": "time t", "units": "paper units"})
         return xr.Dataset(data_vars, coords={"time": time}, attrs=attrs)
+
+
+def _joint_variables(sums: EnsembleSums, n_e: int, x_edges: np.ndarray,
+                     Omega_edges: np.ndarray) -> dict[str, tuple]:
+    """The joint (x, Omega) histogram's variables: counts, outside counts, density and its
+    standard error, edges."""
+    shape = (x_edges.shape[-1] - 1, Omega_edges.shape[-1] - 1)
+    counts, se = sums.joint(n_e, shape)
+    inside = counts[:, 1:-1, 1:-1]
+    n = sums.counts().astype(np.float64)[:, None, None]
+    area = (np.diff(x_edges, axis=-1)[:, :, None] * np.diff(Omega_edges, axis=-1)[:, None, :])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        density = inside / n / area
+        density_se = se[:, 1:-1, 1:-1] / area
+    dims = ("time", "x_bin", "Omega_bin")
+    units = "1/(paper units)^2"
+    return {
+        "joint_hist": (dims, inside, {
+            "long_name": "number of finite paths with (x, Omega) in each bin",
+            "description": "x: a periodic oscillator's angle reduced to [-pi, pi); bins "
+                           "[lo, hi) along x_bin_edges and Omega_bin_edges"}),
+        "joint_hist_outside": ("time", counts.sum(axis=(1, 2)) - inside.sum(axis=(1, 2)), {
+            "long_name": "number of finite paths with x or Omega outside the joint histogram's range"}),
+        "joint_density": (dims, density, {
+            "long_name": "probability density of (x, Omega)", "units": units,
+            "description": "joint_hist / (n_finite_paths * bin area)"}),
+        "joint_density_stderr": (dims, density_se, {
+            "long_name": "std. error of the probability density of (x, Omega)", "units": units,
+            "description": "batch-means (linearised delete-one-batch jackknife) error"}),
+        "x_bin_edges": (("time", "x_bin_edge"), x_edges, {"long_name": "joint histogram's x bin edges"}),
+        "Omega_bin_edges": (("time", "Omega_bin_edge"), Omega_edges,
+                            {"long_name": "joint histogram's Omega bin edges"}),
+    }

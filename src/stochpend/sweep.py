@@ -54,7 +54,7 @@ from stochpend import bias
 from stochpend._blocks import BlockResult, Task, run_block
 from stochpend._sources import BUILD
 from stochpend.lifecycle import provenance
-from stochpend.params import SimulationConfig, hist_edges
+from stochpend.params import SimulationConfig, hist_edges, joint_cells, joint_grid
 from stochpend.progress import NoProgress, Progress
 from stochpend.stats import EnsembleSums
 
@@ -78,7 +78,7 @@ def _declared() -> tuple[str, ...]:
 
 
 #: Parameters whose value is a list: settable in [base] and [[case]], not a grid axis.
-LIST_PARAMETERS = ("times", "hist_E_max", "observables")
+LIST_PARAMETERS = ("times", "hist_E_max", "observables", "joint_bins", "joint_x_range", "joint_Omega_max")
 TOP_LEVEL = ("description", "base", "grid", "case")
 #: Attributes that differ between runs of the same numbers (never data variables).
 _RUN_ATTRS = ("backend", "threads", "wall_time_s", "path_steps", "path_steps_per_s", "created", "bias_wall_time_s")
@@ -283,6 +283,10 @@ def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepSpec) -> SweepS
     if len(n_times) > 1:
         raise ValueError(f"{source}: n_times is not accepted: it differs between sets ({sorted(n_times)}); "
                          f"every set must have the same number of output times")
+    joint = {c.joint_bins for c in configs}
+    if len(joint) > 1:
+        raise ValueError(f"{source}: joint_bins is not accepted: it differs between sets ({sorted(joint)}); "
+                         f"every set must have the same joint histogram bins, or none")
     bins = {c.hist_bins for c in configs}
     if len(bins) > 1:
         raise ValueError(f"{source}: hist_bins is not accepted: it differs between sets ({sorted(bins)}); "
@@ -529,7 +533,8 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
     path_steps = []
     compute_s = 0.0
     for i, (config, rs) in enumerate(zip(spec.configs, results, strict=True)):
-        acc = EnsembleSums.empty(config.n_batches, len(config.times), config.hist_bins, config.observables)
+        acc = EnsembleSums.empty(config.n_batches, len(config.times), config.hist_bins, config.observables,
+                                 joint_cells(config))
         steps = 0
         for r in sorted(rs, key=lambda r: r.b0):
             acc.add_batches(r.b0, r.sums, r.hist)
@@ -537,7 +542,7 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
             compute_s += r.seconds
         if not acc.complete:
             raise RuntimeError("internal error: a sweep set is missing batches")
-        ds = acc.to_dataset(np.asarray(config.times), hist_edges(config), {})
+        ds = acc.to_dataset(np.asarray(config.times), hist_edges(config), {}, joint_grid(config))
         if estimates is not None:  # the set's variables and attributes as simulate's
             bias.attach(ds, estimates[i])
         datasets.append(ds)

@@ -21,6 +21,8 @@ drivers' per-worker scratch is allocated by their Python wrapper (:func:`_with_w
   time through the same Spec's ``advance_path``.
 * ``accumulate``: the per-batch power sums and histogram at one output time, each batch summed
   sequentially in path order (so the sums do not depend on the thread count).
+* ``joint`` (:func:`joint_kernel`): the joint (x, Omega) histogram's per-batch counts at one
+  output time, only for a run that asks for it (``joint_bins``), after ``accumulate``.
 
 The SIMD drivers use the branch-free log/sin/cos/expm1 of :mod:`stochpend.fastmath`
 (``Spec.fast_math``, chosen by :func:`spec_for`), whose loops LLVM vectorizes; their
@@ -56,7 +58,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from stochpend import initial, integrator, rng
+from stochpend import initial, integrator, params, rng
 from stochpend import observables as observables_
 from stochpend._backends.layout import CHUNK_ARRAYS, path_dtypes
 from stochpend._jitcache import own_index
@@ -573,6 +575,42 @@ def _accumulate_kernel(spec: Spec, user: tuple):
     return _ranges(accumulate, items=10)  # the batches, rows of sums
 
 
+@functools.cache
+def joint_kernel(periodic: bool):
+    """``joint(x, Omega, status, batch_size, x_lo, x_hi, nx, O_lo, O_hi, nO, counts)``: the
+    joint (x, Omega) histogram of each batch's finite paths (status 0, after ``accumulate``
+    marked the escaped ones) at one output time, ``counts`` (n_batches, (nx + 2) (nO + 2))
+    int64, overwritten (cells: :mod:`stochpend._backends.joint`); ``periodic``: x is an angle.
+    Run only when the run asks for the histogram, after ``accumulate``, which it leaves as it
+    was."""
+    from stochpend._backends.joint import cell
+
+    @numba.njit(nogil=True, cache=True)
+    @own_index(f"joint/{periodic}")
+    def joint(b_lo, b_hi, x, Omega, status, batch_size, x_lo, x_hi, nx, O_lo, O_hi, nO,
+              counts):  # pragma: no cover - compiled
+        n_paths = x.shape[0]
+        for b in range(b_lo, b_hi):
+            for c in range(counts.shape[1]):
+                counts[b, c] = 0
+            for i in range(b * batch_size, min((b + 1) * batch_size, n_paths)):
+                if status[i] == 0:
+                    counts[b, cell(np.float64(x[i]), np.float64(Omega[i]), periodic, x_lo, x_hi, nx,
+                                   O_lo, O_hi, nO)] += 1
+
+    return _ranges(joint, items=10)  # the batches, rows of counts
+
+
+def joint_sums(counts: np.ndarray, n_b: np.ndarray, out: np.ndarray) -> None:
+    """Into ``out`` (3 * cells,): the per-batch ``counts`` (n_batches, cells) summed, their
+    squares summed, and their products with the batches' finite paths ``n_b`` summed (the
+    joint histogram's errors: :meth:`stochpend.stats.EnsembleSums.joint`). Integers: exact."""
+    cells = counts.shape[1]
+    out[:cells] = counts.sum(axis=0)
+    out[cells:2 * cells] = (counts * counts).sum(axis=0)
+    out[2 * cells:] = (counts * n_b.astype(np.int64)[:, None]).sum(axis=0)
+
+
 def compiled_kernels(spec: Spec, *, pairs: bool = True) -> dict[str, object]:
     """The Numba dispatchers a run of ``spec`` calls, by kind (``resources.COMPILE_S``):
     ``init``, ``advance``, ``accumulate`` and, with ``pairs`` (the bias estimate), ``pairs``;
@@ -621,8 +659,14 @@ class Engine:
         self.record = spec.noise.record(config)
         self.run = integrator.run_record(config)
         self.n_times = len(config.times)
-        self.n_cols = config.hist_bins + 2
-        self.hist = np.empty((n_chunk_batches, self.n_cols), dtype=np.int64)
+        self.n_e = config.hist_bins + 2  # the energy histogram's columns
+        self.n_cols = params.hist_columns(config)
+        self.hist = np.empty((n_chunk_batches, self.n_e), dtype=np.int64)
+        # The joint (x, Omega) histogram, when the run asks for it (params.joint_grid).
+        self.joint_grid = params.joint_grid(config)
+        if self.joint_grid is not None:
+            self.joint = joint_kernel(spec.oscillator.periodic)
+            self.joint_counts = np.empty((n_chunk_batches, params.joint_cells(config)), dtype=np.int64)
         self.p0 = 0
         self.n = 0
 
@@ -683,7 +727,13 @@ class Engine:
         nb = self.nb
         self.kernels.accumulate(self.x, self.Omega, self.xi, self.t, self.status, self.tracks, c.omega**2, self.run[1],
                                 c.batch_size, edges_j, self.chunk_sums[:, j, :], self.hist[:nb])
-        self.chunk_hist[j] = self.hist[:nb].sum(axis=0)
+        self.chunk_hist[j, :self.n_e] = self.hist[:nb].sum(axis=0)
+        if self.joint_grid is not None:
+            x_edges, O_edges = self.joint_grid
+            nx, nO = c.joint_bins
+            self.joint(self.x, self.Omega, self.status, c.batch_size, float(x_edges[j, 0]), float(x_edges[j, -1]),
+                       nx, float(O_edges[j, 0]), float(O_edges[j, -1]), nO, self.joint_counts[:nb])
+            joint_sums(self.joint_counts[:nb], self.chunk_sums[:, j, S_COUNT], self.chunk_hist[j, self.n_e:])
 
     def steps(self) -> int:
         return int(np.sum(self.k, dtype=np.uint64))

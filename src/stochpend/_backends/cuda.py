@@ -17,6 +17,8 @@ docs/gpu.md), and the results do not depend on the chunking or the launch config
   order, so every batch is summed sequentially in path order with the CPU's exact operations:
   given the same states the float64 sums are bit-identical to the CPU's. Histogram counts use
   atomics (integers: order-independent).
+* ``joint`` kernel (a run with ``joint_bins`` only): one block per batch, the joint (x, Omega)
+  histogram's counts of the batch (atomics), reduced into the chunk's histogram columns.
 
 The host side is :class:`Engine`, driven by :mod:`stochpend.runner` like the CPU's: the
 per-path state stays on the device for a whole chunk; per output time the host reads one flag
@@ -470,6 +472,46 @@ def _accumulate_kernel(spec: Spec, user: tuple):
     return accumulate
 
 
+@functools.cache
+def joint_kernel(periodic: bool):
+    """``joint[n_batches, STATS_THREADS](x, Omega, status, batch_size, x_lo, x_hi, nx, O_lo,
+    O_hi, nO, j, sums, counts, hist, offset)``: the CPU's joint (x, Omega) histogram
+    (``cpu.joint_kernel``) at output time j, block b counting batch b's finite paths into
+    ``counts[b, :]`` (overwritten; atomics, integers: order-independent), then adding the
+    counts, their squares and their products with the batch's finite paths (``sums[b, j,
+    S_COUNT]``, which ``accumulate`` wrote before) to ``hist[j, offset:]`` as
+    ``cpu.joint_sums`` does. Launched only when the run asks for the histogram."""
+    from stochpend._backends.joint import cell
+
+    tpb = STATS_THREADS
+
+    @cuda.jit(cache=True)
+    @own_index(f"joint/{periodic}")
+    def joint(x, Omega, status, batch_size, x_lo, x_hi, nx, O_lo, O_hi, nO, j, sums, counts, hist,
+              offset):  # pragma: no cover - device
+        b = cuda.blockIdx.x
+        tid = cuda.threadIdx.x
+        cells = counts.shape[1]
+        for c in range(tid, cells, tpb):
+            counts[b, c] = 0
+        cuda.syncthreads()
+        stop = min((b + 1) * batch_size, x.shape[0])
+        for i in range(b * batch_size + tid, stop, tpb):
+            if status[i] == 0:
+                cuda.atomic.add(counts, (b, cell(np.float64(x[i]), np.float64(Omega[i]), periodic,
+                                                 x_lo, x_hi, nx, O_lo, O_hi, nO)), 1)
+        cuda.syncthreads()
+        n_b = np.int64(sums[b, j, S_COUNT])
+        for c in range(tid, cells, tpb):
+            cb = counts[b, c]
+            if cb != 0:
+                cuda.atomic.add(hist, (j, offset + c), cb)
+                cuda.atomic.add(hist, (j, offset + cells + c), cb * cb)
+                cuda.atomic.add(hist, (j, offset + 2 * cells + c), cb * n_b)
+
+    return joint
+
+
 # -- host side --------------------------------------------------------------------------------
 @contextlib.contextmanager
 def _quiet():
@@ -516,7 +558,16 @@ class Engine:
             self.advance_k = tracked_kernel(spec, self.accs)
         self.capacity = capacity
         self.n_times = len(config.times)
-        self.n_cols = config.hist_bins + 2
+        from stochpend import params
+
+        self.n_cols = params.hist_columns(config)
+        # The joint (x, Omega) histogram, when the run asks for it (params.joint_grid).
+        self.joint_grid = params.joint_grid(config)
+        if self.joint_grid is not None:
+            self.joint_k = joint_kernel(spec.oscillator.periodic)
+            with _quiet():
+                self.d_joint_counts = cuda.device_array((n_chunk_batches, params.joint_cells(config)),
+                                                        dtype=np.int64)
         with _quiet():
             for name, dtype in path_dtypes("cuda", spec.precision).items():
                 setattr(self, "d_" + name, cuda.device_array(capacity, dtype=dtype))
@@ -617,6 +668,13 @@ class Engine:
             self.accumulate_k[self.nb, STATS_THREADS](
                 x, Omega, xi, t, status, self.d_tracks[:, : self.n], c.omega**2, self.run[1],
                 c.batch_size, self.d_edges, j, self.d_sums, self.d_hist)
+            if self.joint_grid is not None:
+                x_edges, O_edges = self.joint_grid
+                nx, nO = c.joint_bins
+                self.joint_k[self.nb, STATS_THREADS](
+                    x, Omega, status, c.batch_size, float(x_edges[j, 0]), float(x_edges[j, -1]), nx,
+                    float(O_edges[j, 0]), float(O_edges[j, -1]), nO, j, self.d_sums,
+                    self.d_joint_counts, self.d_hist, c.hist_bins + 2)
 
     def steps(self) -> int:
         return int(np.sum(self.d_k[: self.n].copy_to_host(), dtype=np.uint64))
