@@ -41,6 +41,7 @@ from stochpend._cli_common import (  # the shared layer; several are also used a
     parse_params,
     parse_theta0,
     parse_times,
+    passage_tables,
     results,
     shown_rows,
     summary_table,
@@ -353,6 +354,8 @@ def simulate(
         extra = observables_table(ds, width=results.width)
         if extra is not None:
             results.print(extra)
+        for table in passage_tables(ds):
+            results.print(table)
         for line in bias_warnings(ds, shown_rows(ds)):
             console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
         for line in bias_notes(ds):
@@ -545,6 +548,7 @@ def show(
             extra = observables_table(ds, max_rows=rows, width=results.width)
             if extra is not None:
                 tables.append(extra)
+            tables += passage_tables(ds)
             if kind == "reduced":
                 from stochpend._cli_theory import reduced_table
 
