@@ -97,7 +97,11 @@ def summary(values: np.ndarray, probabilities: tuple[float, ...], bins: int, t_e
         lower[i] = 0.0 if lo == 0 else order(lo)  # a passage time is >= 0
         upper[i] = order(hi)
     edges = np.linspace(0.0, float(t_end), bins + 1)
-    hist, _ = np.histogram(np.minimum(times, edges[-1]), bins=edges)
+    if t_end > 0:
+        hist, _ = np.histogram(np.minimum(times, edges[-1]), bins=edges)
+    else:  # a run whose only output time is 0: every passage is at 0, in the first (empty) bin
+        hist = np.zeros(bins, dtype=np.int64)
+        hist[0] = k
     return {"n": n, "passed": k, "censored": n - k, "quantile": quantile, "lower": lower, "upper": upper,
             "hist": hist.astype(np.int64), "edges": edges}
 

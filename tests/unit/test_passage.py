@@ -14,7 +14,7 @@ import pytest
 import stochpend
 from stochpend import checkpoint as ck
 from stochpend import passage
-from stochpend.observables import FirstPassage, register, unregister
+from stochpend.observables import FirstPassage, Observable, register, unregister
 from stochpend.params import SimulationConfig
 from stochpend.simulate import run
 
@@ -167,3 +167,25 @@ def test_the_tables_escape_what_a_file_says():
         console.print(table)
     text = buffer.getvalue()
     assert "\x1b" not in text and "\\x1b" in text and "[red]" in text
+
+
+def test_paths_that_went_non_finite_are_excluded_from_the_law_as_from_every_statistic():
+    """An observable that is infinite where |Omega| > 1.2 makes those paths non-finite (excluded
+    from then on): the law counts the finite paths only, and its fraction passed is
+    passed_<name>'s at t_end; a run whose only output time is 0 still has a histogram."""
+    import warnings
+
+    register(Observable("boom", lambda x, Omega, xi, t: math.inf if abs(Omega) > 1.2 else 0.0))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", stochpend.StochpendWarning)
+            ds = stochpend.simulate(**RUN, bias_paths=0, observables=("boom", "escape"))
+    finally:
+        unregister("boom")
+    lost = int(ds.nonfinite_paths.values[-1])
+    n, passed = int(ds.fpt_escape_paths), int(ds.fpt_escape_passed)
+    assert 0 < lost < RUN["paths"] and n == RUN["paths"] - lost == int(ds.n_finite_paths.values[-1])
+    assert passed == round(float(ds.passed_escape.values[-1]) * n) and passed + int(ds.fpt_escape_censored) == n
+    assert f"{lost} non-finite paths excluded" in ds.fpt_escape_quantile.attrs["censoring"]
+    at_zero = stochpend.simulate(**{**RUN, "times": (0.0,)}, bias_paths=0, observables=("escape",))
+    assert int(at_zero.fpt_escape_hist.sum()) == int(at_zero.fpt_escape_passed)
