@@ -74,6 +74,8 @@ class EnsembleSums:
         n_passages = len(passage_slots(tuple(observables_)))
         passage = None
         if n_passages:
+            if paths < 1:  # an empty array would report a law of no path
+                raise ValueError(f"paths={paths!r} is not accepted: the ensemble's paths, >= 1, for its first passages")
             passage = np.empty((n_passages, paths))
             passage.fill(np.nan)
         return cls(sums=sums, hist=np.zeros((n_times, n_bins + 2), dtype=np.int64), filled=filled,
