@@ -45,6 +45,9 @@ class BlockResult:
     path_steps: int
     paths: int
     seconds: float
+    #: The final passage times of its paths for each first passage (n_passages, paths), None
+    #: without (stochpend.passage): the per-path values the law of a passage time is read from.
+    passage: np.ndarray | None = None
 
 
 def run_block(config: SimulationConfig, set_index: int, b0: int, b1: int, *,
@@ -68,6 +71,8 @@ def run_block(config: SimulationConfig, set_index: int, b0: int, b1: int, *,
     with numba_threads_of(threads):
         acc, path_steps = run_batches(config, b0, b1, backend=backend, precision=precision,
                                       progress=progress)
-    paths = min(b1 * config.batch_size, config.paths) - b0 * config.batch_size
+    p0 = b0 * config.batch_size
+    paths = min(b1 * config.batch_size, config.paths) - p0
+    passage = None if acc.passage is None else acc.passage[:, p0:p0 + paths].copy()
     return BlockResult(set_index, b0, b1, acc.sums[b0:b1].copy(), acc.hist, int(path_steps), paths,
-                       _time.perf_counter() - started)
+                       _time.perf_counter() - started, passage)

@@ -326,7 +326,7 @@ def observable_variables(ds: Any) -> list[str]:
     names = str(ds.attrs.get("observables", "") or "")
     out = []
     for name in (n.strip() for n in names.split(",")):
-        for prefix in ("mean", "passed", "var", "n"):
+        for prefix in ("mean", "passed", "var", "rate", "diffusion", "n"):
             v = f"{prefix}_{name}"
             if name and v in ds and f"{v}_stderr" in ds and v not in out:
                 out.append(v)
@@ -362,6 +362,58 @@ def observables_table(ds: Any, max_rows: int = 12, width: int | None = None) -> 
         caption += f" Not shown at this width: {', '.join(dropped)} (a wider terminal or a pipe shows them)."
     table.caption = caption
     return table
+
+
+#: Rows of a first passage's histogram on the terminal (more bins are merged for the display).
+_PASSAGE_HIST_ROWS = 20
+
+
+def passage_tables(ds: Any) -> list[Table]:
+    """Two tables per first-passage observable of a run (``fpt_<name>_...``, stochpend.passage):
+    its quantiles with their 95 % intervals, and its histogram with the paths censored; each
+    four columns, within 80. From the file alone (the names from ``attrs["observables"]``, every
+    text escaped); none for a sweep, whose variables carry the sets' dimensions."""
+    names = [n.strip() for n in str(ds.attrs.get("observables", "") or "").split(",") if n.strip()]
+    out: list[Table] = []
+    for name in names:
+        pre = f"fpt_{name}"
+        if f"{pre}_quantile" not in ds or ds[f"{pre}_quantile"].ndim != 1 or f"{pre}_hist" not in ds:
+            continue
+        p = ds[f"{pre}_probability"].values
+        q, lo, hi = (ds[f"{pre}_quantile{s}"].values for s in ("", "_lower", "_upper"))
+        n, passed, censored = (int(ds[f"{pre}_{s}"].values) for s in ("paths", "passed", "censored"))
+        edges = ds[f"{pre}_bin_edges"].values
+        t_end = float(edges[-1])
+        table = Table(title=f"τ_{markup(name)}: quantiles")
+        for column in ("p", "τ_p", "95% interval", ""):
+            table.add_column(column, justify="right" if column else "left", no_wrap=True)
+        for k in range(p.size):
+            if math.isnan(float(q[k])):
+                table.add_row(f"{float(p[k]):.4g}", "censored", "", f"p > {passed}/{n} passed")
+                continue
+            upper = "> t_end" if math.isnan(float(hi[k])) else f"{float(hi[k]):.4g}"
+            table.add_row(f"{float(p[k]):.4g}", f"{float(q[k]):.4g}", f"[{float(lo[k]):.4g}, {upper}]", "")
+        table.caption = (f"First-passage time of {markup(name)}: {passed} of {n} finite paths passed by "
+                         f"t_end = {t_end:.4g}, {censored} censored (no quantile beyond the fraction passed). "
+                         "τ_p: the order statistic of rank ceil(n p); interval: distribution-free "
+                         "(binomial). Step error O(√h): no bias estimate.")
+        out.append(table)
+        counts = [int(c) for c in ds[f"{pre}_hist"].values]
+        group = max(1, -(-len(counts) // _PASSAGE_HIST_ROWS))
+        hist = Table(title=f"τ_{markup(name)}: histogram")
+        for column in ("τ from", "to", "paths", "share"):
+            hist.add_column(column, justify="right", no_wrap=True)
+        for start in range(0, len(counts), group):
+            stop = min(start + group, len(counts))
+            c = sum(counts[start:stop])
+            hist.add_row(f"{float(edges[start]):.4g}", f"{float(edges[stop]):.4g}", str(c),
+                         f"{c / n:.4f}" if n else "nan")
+        hist.add_row("> t_end", "", str(censored), f"{censored / n:.4f}" if n else "nan")
+        hist.caption = ("Paths by passage time (share of the finite paths); '> t_end': censored."
+                        + (f" Bins merged {group} by {group} here; all {len(counts)} are in the file."
+                           if group > 1 else ""))
+        out.append(hist)
+    return out
 
 
 def shown_rows(ds: Any, max_rows: int = 12) -> list[int]:

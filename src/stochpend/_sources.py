@@ -23,9 +23,9 @@ _PACKAGE = Path(__file__).resolve().parent
 
 #: Files and folders of the package whose code decides a simulated number.
 NUMBERS_SOURCES = ("params.py", "rng.py", "mathlib.py", "fastmath.py", "integrator.py",
-                   "runner.py", "simulate.py", "stats.py", "observables.py", "models.py", "bias.py", "reduced.py",
-                   "_jitcache.py", "_backends/cpu.py", "_backends/cuda.py", "_backends/joint.py", "noises",
-                   "oscillators")
+                   "runner.py", "simulate.py", "stats.py", "observables.py", "passage.py", "models.py",
+                   "bias.py", "reduced.py", "_jitcache.py", "_backends/cpu.py", "_backends/cuda.py",
+                   "_backends/joint.py", "noises", "oscillators")
 
 
 @functools.lru_cache(maxsize=1)

@@ -62,7 +62,7 @@ from stochpend.observables import n_sums
 from stochpend.params import SimulationConfig, hist_columns
 from stochpend.progress import Progress
 from stochpend.runner import BACKENDS, RunState
-from stochpend.stats import EnsembleSums
+from stochpend.stats import EnsembleSums, passage_slots
 
 __all__ = [
     "Checkpoint",
@@ -93,8 +93,9 @@ _PATH_ARRAYS = tuple(f.name for f in fields(RunState)
                      if f.name not in (*_RUN_FIELDS, *_CHUNK_ARRAYS, "acc", "backend", "precision", "_sync",
                                        "tracks"))
 #: The per-path accumulators' slots (stochpend.observables), (n_slots, n), written when the run
-#: has accumulators.
-_TRACK_ARRAYS = {"tracks": "<f8"}
+#: has accumulators; the finished chunks' final passage times (stochpend.passage), (n_passages,
+#: paths), when it has first passages.
+_TRACK_ARRAYS = {"tracks": "<f8", "acc_passage": "<f8"}
 #: Dtype kinds a per-path array may have (never object: nothing here can hold a pickle).
 _NUMERIC_KINDS = "biuf"
 #: An ``accuracy="auto"`` run's pilot (:class:`stochpend.bias.BiasEstimate`): (value, stderr)
@@ -238,6 +239,8 @@ def _state_arrays(state: RunState) -> dict[str, np.ndarray]:
     arrays["acc_filled"] = np.ascontiguousarray(state.acc.filled, dtype=_ACC_ARRAYS["acc_filled"])
     if state.tracks is not None and state.tracks.shape[0] > 0:
         arrays["tracks"] = np.ascontiguousarray(state.tracks, dtype=_TRACK_ARRAYS["tracks"])
+    if state.acc.passage is not None:
+        arrays["acc_passage"] = np.ascontiguousarray(state.acc.passage, dtype=_TRACK_ARRAYS["acc_passage"])
     for name in _PATH_ARRAYS:
         a = arrays[name]
         if a.dtype.kind not in _NUMERIC_KINDS:  # pragma: no cover - a RunState field of another kind
@@ -441,6 +444,9 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     n_slots = len(observables.accumulators(observables.objects(config.observables)))
     if n_slots:
         shapes["tracks"] = (n_slots, n)
+    n_passages = len(passage_slots(config.observables))
+    if n_passages:
+        shapes["acc_passage"] = (n_passages, config.paths)
     record = header.get("accuracy")
     if record is not None:
         n_stats = len(_statistic_names(config))
@@ -477,7 +483,8 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     if missing:
         raise _refuse(p, f"missing arrays {sorted(missing)}")
 
-    acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"], config.observables)
+    acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"], config.observables,
+                       arrays.get("acc_passage"))
     fields_read: dict[str, Any] = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
     fields_read.update({name: arrays[name] for name in _PATH_ARRAYS})
     state = RunState(**fields_read,

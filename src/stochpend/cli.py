@@ -43,6 +43,7 @@ from stochpend._cli_common import (  # the shared layer; several are also used a
     parse_params,
     parse_theta0,
     parse_times,
+    passage_tables,
     results,
     shown_rows,
     summary_table,
@@ -384,6 +385,8 @@ def simulate(
             results.print(extra)
         for line in joint_lines(ds):
             results.print(line, markup=False, highlight=False)
+        for table in passage_tables(ds):
+            results.print(table)
         for line in bias_warnings(ds, shown_rows(ds)):
             console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
         for line in bias_notes(ds):
@@ -576,6 +579,7 @@ def show(
             extra = observables_table(ds, max_rows=rows, width=results.width)
             if extra is not None:
                 tables.append(extra)
+            tables += passage_tables(ds)
             if kind == "reduced":
                 from stochpend._cli_theory import reduced_table
 

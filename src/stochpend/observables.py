@@ -314,10 +314,12 @@ def user_key(user: tuple[Any, ...]) -> str:
     return ",".join(f"{o.name}@{id(o):x}" for o in user) or "none"
 
 
-def user_statistics(names_: tuple[str, ...]) -> tuple[Statistic, ...]:
+def user_statistics(names_: tuple[str, ...], times: Any = None) -> tuple[Statistic, ...]:
     """The statistics of a run's user observables and accumulators, in the order of their
     columns (from N_SUMS): mean_<name> of an observable's column; an accumulator's own
-    (:meth:`TimeAverage.statistics` ...)."""
+    (:meth:`TimeAverage.statistics` ...). ``times``: the run's output times, which a running
+    sum's rates divide by (:meth:`RunningSum.statistics`; their names need none, their values
+    do)."""
     out: list[Statistic] = []
     c = N_SUMS
     for name in names_:
@@ -328,6 +330,8 @@ def user_statistics(names_: tuple[str, ...]) -> tuple[Statistic, ...]:
 
             out.append(Statistic(obs.statistic, of, obs.label or f"⟨{name}⟩", obs.units,
                                  obs.description or f"<{name}>, ensemble mean of a user observable", f"<{name}>"))
+        elif isinstance(obs, RunningSum):
+            out.extend(obs.statistics(c, times))
         else:
             out.extend(obs.statistics(c))
         c += _columns(obs)
@@ -554,7 +558,13 @@ class FirstPassage:
     ``mean_<name>``, the mean first-passage time of the paths that have passed by the output
     time (conditional: the others are censored), and ``passed_<name>``, the fraction that has.
     Its step error is O(sqrt(h)) (a path can cross and come back within a step unseen), not the
-    scheme's O(h^2): the coupled-pair bias estimate does not apply and is not reported."""
+    scheme's O(h^2): the coupled-pair bias estimate does not apply and is not reported.
+
+    From each path's passage time at the end of the run the result also holds the law of the
+    passage time (:mod:`stochpend.passage`): its quantiles at ``probabilities`` with
+    distribution-free 95 % intervals (NaN where a probability exceeds the fraction passed by the
+    last output time: censored) and a histogram of ``bins`` equal bins over [0, t_end] with the
+    number censored, as ``fpt_<name>_...`` variables."""
 
     name: str
     value: Callable[[float, float, float, float], float]
@@ -562,6 +572,10 @@ class FirstPassage:
     label: str | None = None
     units: str = "paper units"
     description: str = ""
+    #: The probabilities of the reported quantiles, each in (0, 1), increasing.
+    probabilities: tuple[float, ...] = (0.1, 0.25, 0.5, 0.75, 0.9)
+    #: Bins of the passage-time histogram over [0, t_end].
+    bins: int = 20
     initial = -1.0
 
     def __post_init__(self) -> None:
@@ -571,6 +585,18 @@ class FirstPassage:
                 or not math.isfinite(self.threshold):
             raise ValueError(f"threshold={self.threshold!r} is not accepted: a finite number")
         object.__setattr__(self, "threshold", float(self.threshold))
+        accepted = "a non-empty increasing sequence of at most 99 numbers in (0, 1)"
+        try:
+            probabilities = tuple(float(p) for p in self.probabilities)
+            bad = any(isinstance(p, bool) for p in self.probabilities)
+        except (TypeError, ValueError):
+            raise ValueError(f"probabilities={self.probabilities!r} is not accepted: {accepted}") from None
+        if (bad or not 1 <= len(probabilities) <= 99 or not all(0.0 < p < 1.0 for p in probabilities)
+                or any(b <= a for a, b in zip(probabilities, probabilities[1:], strict=False))):
+            raise ValueError(f"probabilities={self.probabilities!r} is not accepted: {accepted}")
+        object.__setattr__(self, "probabilities", probabilities)
+        if isinstance(self.bins, bool) or not isinstance(self.bins, int) or not 1 <= self.bins <= 10_000:
+            raise ValueError(f"bins={self.bins!r} is not accepted: an integer in [1, 10000]")
 
     def statistics(self, c: int) -> list[Statistic]:
         def passed(m: np.ndarray, c: int = c) -> np.ndarray:
@@ -625,20 +651,33 @@ class RunningSum:
     ``mean_<name>`` and ``var_<name>``, the ensemble mean and variance of the sum at each output
     time. :data:`DISPLACEMENT` is one: the increment (t1 - t0)(Omega0 + Omega1)/2 is the step's
     own drift (x1 - x0 before x is wrapped), so its sum is the unwrapped displacement x(t) - x(0)
-    of a periodic coordinate, in float64 whatever the run's precision."""
+    of a periodic coordinate, in float64 whatever the run's precision.
+
+    ``rates=True`` also reports ``rate_<name>`` = mean/t and ``diffusion_<name>`` = var/(2t) at
+    each output time t > 0 (NaN at t = 0), with standard errors: the mean's and the variance's
+    divided by the same constants (the jackknife of c f is c times f's). For the displacement,
+    the mean velocity <x(t) - x(0)>/t and the effective diffusion D_eff(t) = var(x(t) - x(0))/(2t),
+    which tends to lim var/2t as t grows (at finite t it still holds the start's transient: read
+    it at times long after the velocity's relaxation, 1/gamma)."""
 
     name: str
     increment: Callable[..., float]
     label: str | None = None
     units: str = "paper units"
     description: str = ""
+    rates: bool = False
     initial = 0.0
 
     def __post_init__(self) -> None:
-        _check_name(self.name, ("mean", "var"))
+        _check_name(self.name, ("mean", "var", "rate", "diffusion"))
         _probe(self.increment, "increment", 8)
+        if not isinstance(self.rates, bool):
+            raise ValueError(f"rates={self.rates!r} is not accepted: True or False")
 
-    def statistics(self, c: int) -> list[Statistic]:
+    def statistics(self, c: int, times: Any = None) -> list[Statistic]:
+        """``mean_<name>``, ``var_<name>`` and, with :attr:`rates`, ``rate_<name>`` and
+        ``diffusion_<name>``, whose values need the run's output ``times`` (the time is the
+        last axis of ``m[..., column]``; their names do not)."""
         def mean_(m: np.ndarray, c: int = c) -> np.ndarray:
             return m[..., c]
 
@@ -646,12 +685,36 @@ class RunningSum:
             return m[..., c + 1] - m[..., c] * m[..., c]
 
         label = self.label or self.name
-        return [Statistic(f"mean_{self.name}", mean_, f"⟨{label}⟩", self.units,
-                          self.description or f"<{self.name}>, ensemble mean of a per-path running sum",
-                          f"<{self.name}>", controlled=False, richardson=False),
-                Statistic(f"var_{self.name}", var_, f"var {label}", self.units,
-                          f"ensemble variance of {self.name}", f"var({self.name})", controlled=False,
+        out = [Statistic(f"mean_{self.name}", mean_, f"⟨{label}⟩", self.units,
+                         self.description or f"<{self.name}>, ensemble mean of a per-path running sum",
+                         f"<{self.name}>", controlled=False, richardson=False),
+               Statistic(f"var_{self.name}", var_, f"var {label}", self.units,
+                         f"ensemble variance of {self.name}", f"var({self.name})", controlled=False,
+                         richardson=False)]
+        if not self.rates:
+            return out
+        t = None if times is None else np.asarray(times, dtype=np.float64)
+        name = self.name
+
+        def per_t(m: np.ndarray, value: np.ndarray, factor: float) -> np.ndarray:
+            if t is None:
+                raise ValueError(f"rate_{name} and diffusion_{name} need the run's output times")
+            return _ratio(value, np.where(t > 0, factor * t, np.nan))
+
+        def rate_(m: np.ndarray) -> np.ndarray:
+            return per_t(m, mean_(m), 1.0)
+
+        def diffusion_(m: np.ndarray) -> np.ndarray:
+            return per_t(m, var_(m), 2.0)
+
+        out += [Statistic(f"rate_{name}", rate_, f"⟨{label}⟩/t", f"{self.units} per time",
+                          f"<{name}>/t, the mean rate of {name} since t = 0 (for the displacement: the "
+                          "mean velocity); NaN at t = 0", f"<{name}>/t", controlled=False, richardson=False),
+                Statistic(f"diffusion_{name}", diffusion_, f"var {label}/2t", f"({self.units})^2 per time",
+                          f"var({name})/(2t) (for the displacement: the effective diffusion D_eff(t), "
+                          "-> lim var/2t at long times); NaN at t = 0", f"var({name})/2t", controlled=False,
                           richardson=False)]
+        return out
 
     def step_function(self) -> Callable:
         from numba.extending import register_jitable
@@ -687,11 +750,12 @@ def _drift(x0: float, Omega0: float, xi0: float, x1: float, Omega1: float, xi1: 
     return 0.5 * (t1 - t0) * (Omega0 + Omega1)
 
 
-#: The unwrapped displacement x(t) - x(0) (see :class:`RunningSum`): mean velocity
-#: ``mean_displacement / t`` and effective diffusion ``var_displacement / (2 t)``. Registered.
+#: The unwrapped displacement x(t) - x(0) (see :class:`RunningSum`), with its mean velocity
+#: ``rate_displacement`` = <x(t) - x(0)>/t and effective diffusion ``diffusion_displacement`` =
+#: var(x(t) - x(0))/(2t). Registered.
 DISPLACEMENT = RunningSum("displacement", _drift, label="x(t) − x(0)",
                           description="unwrapped displacement x(t) - x(0), the sum of each step's drift "
-                          "(t1 - t0)(Omega0 + Omega1)/2")
+                          "(t1 - t0)(Omega0 + Omega1)/2", rates=True)
 register(DISPLACEMENT)
 
 #: ln(E - E_min): its mean is the typical energy's log (see :class:`EnergyObservable`). Registered.

@@ -29,6 +29,7 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
+from stochpend import observables as observables_
 from stochpend.observables import N_SUMS, n_sums
 from stochpend.params import DEFAULT_H_MAX, DEFAULT_STEP_C, SimulationConfig, short_repr
 from stochpend.params import joint_cells as _joint_cells
@@ -375,6 +376,10 @@ def estimate(
                           n_batches=config.n_batches, n_times=len(config.times), hist_bins=config.hist_bins,
                           bytes_per_path=STATE_BYTES_PER_PATH[precision],
                           n_sums=n_sums(config), joint_cells=_joint_cells(config))
+    n_passages = sum(isinstance(observables_.get(name), observables_.FirstPassage) for name in config.observables)
+    if n_passages:  # every path's passage time (stochpend.passage), and its sorted copy
+        parts.append(("first-passage times", 2 * n_passages * config.paths * 8, "paths"))
+        parts.sort(key=lambda p: -p[1])
     device = 0
     if cuda:  # the state lives on the GPU
         device = next(b for label, b, _ in parts if label == "path state")

@@ -24,8 +24,10 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from stochpend import observables
 from stochpend._backends.layout import CHUNK_ARRAYS
 from stochpend.params import SimulationConfig, hist_edges, joint_cells
+from stochpend.passage import final_values
 from stochpend.progress import NoProgress, Progress
 from stochpend.stats import EnsembleSums
 
@@ -108,6 +110,8 @@ class Engine(Protocol):
 
     def results(self) -> tuple[np.ndarray, np.ndarray]: ...
 
+    def final_tracks(self) -> tuple[np.ndarray, np.ndarray]: ...
+
 
 def engine_class(backend: str) -> Any:
     """The Engine class of ``backend`` ("cpu" or "cuda")."""
@@ -185,7 +189,7 @@ def run_batches(
         state = RunState(first_batch, stop_batch, first_batch, b1, 0,
                          **dict.fromkeys(CHUNK_ARRAYS),  # type: ignore[arg-type]  # filled by pull
                          acc=EnsembleSums.empty(config.n_batches, n_times, config.hist_bins,
-                                                  config.observables, joint_cells(config)),
+                                                  config.observables, config.paths, joint_cells(config)),
                          path_steps=0, done_work=0.0, backend=backend, precision=precision)
     else:
         state = resume
@@ -195,6 +199,9 @@ def run_batches(
     # share is kept here.
     finished = [state.path_steps - (engine.steps() if resume is not None else 0)]
     state._sync = _syncer(engine, finished)
+    # The accumulator slots that hold first-passage times, in slot order.
+    passages = [i for i, a in enumerate(observables.accumulators(observables.objects(config.observables)))
+                if isinstance(a, observables.FirstPassage)]
 
     while True:
         max_steps = engine.max_steps()
@@ -211,6 +218,9 @@ def run_batches(
             state.j += 1
             if checkpointer is not None:
                 checkpointer.maybe_save(state)
+        if passages:  # each path's final passage times (stochpend.passage), before the chunk goes
+            tracks, status = engine.final_tracks()
+            state.acc.add_passage(state.b0 * bs, final_values(tracks[passages], status))
         state.acc.add_batches(state.b0, *engine.results())
         finished[0] += engine.steps()
         state.path_steps = finished[0]

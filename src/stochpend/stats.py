@@ -22,7 +22,7 @@ import xarray as xr
 
 from stochpend import observables as _table
 
-__all__ = ["EnsembleSums", "N_SUMS", "STATISTICS"]
+__all__ = ["EnsembleSums", "N_SUMS", "STATISTICS", "passage_slots"]
 
 #: Columns of the per-batch sums that every backend fills (``sums[batch, time, column]``):
 #: count, the summed values of :data:`stochpend.observables.SUMS`, non-finite paths.
@@ -31,6 +31,14 @@ S_E1 = _table.column("E")
 
 # Each statistic: a function of the means m[..., c] = sums[..., c] / count.
 STATISTICS: dict[str, Callable[[np.ndarray], np.ndarray]] = {s.name: s.of for s in _table.STATISTICS}
+
+
+def passage_slots(observables_: tuple[str, ...]) -> tuple[_table.FirstPassage, ...]:
+    """The first-passage observables among a run's user observables, in the order of their
+    accumulator slots (and of the rows of :attr:`EnsembleSums.passage`)."""
+    if not observables_:
+        return ()
+    return tuple(o for o in _table.accumulators(_table.objects(observables_)) if isinstance(o, _table.FirstPassage))
 
 
 @dataclass
@@ -48,22 +56,39 @@ class EnsembleSums:
     filled: np.ndarray
     #: The run's user observables (stochpend.observables): their sums follow the table's.
     observables: tuple[str, ...] = ()
+    #: The final passage time of every path for each first-passage observable, (n_passages,
+    #: paths) float64 (:func:`stochpend.passage.final_values`: -1 not passed, NaN non-finite
+    #: or not yet run); None without first passages.
+    passage: np.ndarray | None = None
 
     @classmethod
     def empty(cls, n_batches: int, n_times: int, n_bins: int,
-              observables_: tuple[str, ...] = (), joint_cells: int = 0) -> EnsembleSums:
+              observables_: tuple[str, ...] = (), paths: int = 0, joint_cells: int = 0) -> EnsembleSums:
         """Zeroed sums, written once here: ``np.zeros`` maps pages that become resident only
         when first written, so the per-batch sums would grow the process's memory batch by
         batch over a long run (a slow rise that looks like a leak, and a shortfall that shows
         late). Written now, the memory the resource check counted is held from the start.
+        ``paths``: the ensemble's, for the per-path passage times of its first passages;
         ``joint_cells``: the joint histogram's (``stochpend.params.joint_cells``), whose counts
         follow the energy histogram's columns (``stochpend.params.hist_columns``)."""
         sums = np.empty((n_batches, n_times, _table.n_sums(SimpleNamespace(observables=observables_))))
         sums.fill(0.0)
         filled = np.empty(n_batches, dtype=bool)
         filled.fill(False)
+        n_passages = len(passage_slots(tuple(observables_)))
+        passage = None
+        if n_passages:
+            if paths < 1:  # an empty array would report a law of no path
+                raise ValueError(f"paths={paths!r} is not accepted: the ensemble's paths, >= 1, for its first passages")
+            passage = np.empty((n_passages, paths))
+            passage.fill(np.nan)
         return cls(sums=sums, hist=np.zeros((n_times, n_bins + 2 + 3 * joint_cells), dtype=np.int64), filled=filled,
-                   observables=tuple(observables_))
+                   observables=tuple(observables_), passage=passage)
+
+    def add_passage(self, first_path: int, values: np.ndarray) -> None:
+        """Insert the final passage times of paths ``first_path ...`` (shape (n_passages, n))."""
+        if self.passage is not None:
+            self.passage[:, first_path:first_path + values.shape[1]] = values
 
     def add_batches(self, first_batch: int, sums: np.ndarray, hist: np.ndarray) -> None:
         """Insert the sums of batches ``first_batch ...`` (shape (n, n_times, N_SUMS))."""
@@ -78,7 +103,11 @@ class EnsembleSums:
         """Combine two disjoint sets of batches of the same ensemble (exact)."""
         if np.any(self.filled & other.filled):
             raise ValueError("cannot merge: the two accumulators share batches")
-        out = EnsembleSums(self.sums.copy(), self.hist + other.hist, self.filled | other.filled, self.observables)
+        passage = None
+        if self.passage is not None and other.passage is not None:  # each path's, from whichever ran it
+            passage = np.where(np.isnan(self.passage), other.passage, self.passage)
+        out = EnsembleSums(self.sums.copy(), self.hist + other.hist, self.filled | other.filled, self.observables,
+                           passage)
         out.sums[other.filled] = other.sums[other.filled]
         return out
 
@@ -87,8 +116,9 @@ class EnsembleSums:
     def complete(self) -> bool:
         return bool(np.all(self.filled))
 
-    def statistics(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Every statistic with its jackknife standard error, each of shape (n_times,)."""
+    def statistics(self, times: np.ndarray | None = None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Every statistic with its jackknife standard error, each of shape (n_times,); ``times``
+        (the output times) for the statistics that divide by t (a running sum's rates)."""
         sums = self.sums[self.filled]
         n_b = sums.shape[0]
         total = sums.sum(axis=0)
@@ -98,7 +128,7 @@ class EnsembleSums:
         loo_count = loo[..., S_COUNT]
         m_loo = loo / np.where(loo_count > 0, loo_count, np.nan)[..., None]
         out = {}
-        for statistic in self.declared():
+        for statistic in self.declared(times):
             name, f = statistic.name, statistic.of
             value = f(m_all)
             if n_b >= 2:
@@ -113,9 +143,9 @@ class EnsembleSums:
             out[name] = (value, se)
         return out
 
-    def declared(self) -> tuple[_table.Statistic, ...]:
+    def declared(self, times: np.ndarray | None = None) -> tuple[_table.Statistic, ...]:
         """The statistics this ensemble reports: the table's, then its user observables'."""
-        return _table.STATISTICS + _table.user_statistics(self.observables)
+        return _table.STATISTICS + _table.user_statistics(self.observables, times)
 
     def nonfinite(self) -> np.ndarray:
         """Number of paths already non-finite at each time, shape (n_times,)."""
@@ -155,8 +185,8 @@ class EnsembleSums:
         has one."""
         data_vars: dict[str, tuple] = {}
         n_e = edges.shape[-1] + 1  # the energy histogram's columns, outside ones included
-        declared = {s.name: s for s in self.declared()}
-        for name, (value, se) in self.statistics().items():
+        declared = {s.name: s for s in self.declared(times)}
+        for name, (value, se) in self.statistics(times).items():
             label, units = declared[name].label, declared[name].units
             data_vars[name] = ("time", value, {"long_name": label, "units": units,
                                                "description": declared[name].description})
@@ -195,7 +225,19 @@ class EnsembleSums:
             {"long_name": "paths that went non-finite by this time: excluded from every statistic"},
         )
         time = ("time", np.asarray(times), {"long_name": "time t", "units": "paper units"})
-        return xr.Dataset(data_vars, coords={"time": time}, attrs=attrs)
+        coords: dict[str, tuple] = {"time": time}
+        if self.passage is not None:  # the law of each first passage, from every path's own time
+            from stochpend import passage as _passage
+
+            t_end = float(np.asarray(times)[-1])
+            nonfinite = int(self.nonfinite()[-1])
+            for row, o in zip(self.passage, passage_slots(self.observables), strict=True):
+                if int(np.isnan(row).sum()) != nonfinite:  # every path's time, or a path was lost
+                    raise RuntimeError(f"internal error: the passage times of {o.name} miss paths")
+                more, more_coords = _passage.variables(o, row, t_end, nonfinite)
+                data_vars.update(more)
+                coords.update(more_coords)
+        return xr.Dataset(data_vars, coords=coords, attrs=attrs)
 
 
 def _joint_variables(sums: EnsembleSums, n_e: int, x_edges: np.ndarray,

@@ -534,10 +534,12 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
     compute_s = 0.0
     for i, (config, rs) in enumerate(zip(spec.configs, results, strict=True)):
         acc = EnsembleSums.empty(config.n_batches, len(config.times), config.hist_bins, config.observables,
-                                 joint_cells(config))
+                                 config.paths, joint_cells(config))
         steps = 0
         for r in sorted(rs, key=lambda r: r.b0):
             acc.add_batches(r.b0, r.sums, r.hist)
+            if r.passage is not None:
+                acc.add_passage(r.b0 * config.batch_size, r.passage)
             steps += r.path_steps
             compute_s += r.seconds
         if not acc.complete:
@@ -558,11 +560,18 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
     data_vars: dict[str, Any] = {}
     for name, var in first.data_vars.items():
         stacked = np.stack([ds[name].values for ds in datasets]).reshape(shape + var.shape)
-        data_vars[str(name)] = (spec.dims + var.dims, stacked, dict(var.attrs))
+        attrs_ = dict(var.attrs)
+        if "censoring" in attrs_:  # the first set's counts would read as every set's
+            attrs_["censoring"] = ("right-censored at each set's last output time: the paths not passed by "
+                                   "then are its fpt_<name>_censored, the non-finite ones excluded")
+        data_vars[str(name)] = (spec.dims + var.dims, stacked, attrs_)
     data_vars["path_steps"] = (spec.dims, np.asarray(path_steps, dtype=np.int64).reshape(shape),
                                {"long_name": "path-steps taken by this parameter set"})
 
     coords: dict[str, Any] = {k: (d, v) for k, (d, v) in spec.coords.items()}
+    for name, coord in first.coords.items():  # a first passage's probabilities: the same in every set
+        if name != "time" and name not in coords:
+            coords[str(name)] = (coord.dims, coord.values, dict(coord.attrs))
     if same_times:
         coords["time"] = ("time", times[0], dict(first.time.attrs))
     else:

@@ -48,6 +48,7 @@ POLICY = {
     ("models.md", 3): "python-scaled",
     ("family.md", 0): "python-scaled",
     ("family.md", 1): "python-scaled",
+    ("family.md", 2): "python-scaled",
     ("reproduction.md", 0): "cli-parse",
     ("scale-out.md", 0): "cli-parse",
     ("scale-out.md", 1): "toml-run",
@@ -65,7 +66,8 @@ REPLACE = {
     ("models.md", 2): [("paths=4000", "paths=200"), ("t_max=100.0", "t_max=5.0")],
     ("models.md", 3): [("paths=4000", "paths=200"), ("t_max=100.0", "t_max=5.0"), ("window=(0.0, 100.0)", "window=(0.0, 5.0)")],
     ("family.md", 0): [("paths=40_000", "paths=400"), ("t_max=40.0, times=(20.0, 40.0)", "t_max=4.0, times=(2.0, 4.0)")],
-    ("family.md", 1): [("paths=40_000", "paths=400"), ("t_max=40.0, times=(20.0, 40.0)", "t_max=4.0, times=(2.0, 4.0)")],
+    ("family.md", 1): [("paths=4000", "paths=400")],
+    ("family.md", 2): [("paths=40_000", "paths=400"), ("t_max=40.0, times=(20.0, 40.0)", "t_max=4.0, times=(2.0, 4.0)")],
     # fig2.toml is the first TOML block, scaled; 'local' runs a real two-process LocalCluster;
     # the CUDA line is parsed only (a GPU, or the simulator at 1e-4 of the speed).
     ("scale-out.md", 4): [("workers=8", "workers=2"),

@@ -276,7 +276,7 @@ def test_the_error_is_the_delete_one_batch_jackknife_for_equal_batches():
     cells = (shape[0] + 2) * (shape[1] + 2)
     for n_b in (np.full(12, 50), rng.integers(40, 60, size=12)):
         counts = np.array([rng.multinomial(n, np.full(cells, 1.0 / cells)) for n in n_b])  # (B, cells)
-        acc = EnsembleSums.empty(len(n_b), 1, n_e - 2, (), cells)
+        acc = EnsembleSums.empty(len(n_b), 1, n_e - 2, (), joint_cells=cells)
         acc.sums[:, 0, 0] = n_b
         acc.filled[:] = True
         row = np.empty(3 * cells, dtype=np.int64)

@@ -160,6 +160,7 @@ def test_a_checkpointed_run_with_accumulators_resumes_to_the_same_numbers(tmp_pa
     (lambda: FirstPassage("a", lambda x, Omega, xi, t: x, threshold=math.inf), "threshold=inf is not accepted"),
     (lambda: FirstPassage("a", lambda x, Omega: x, threshold=1.0), "raised TypeError"),
     (lambda: RunningSum("a", lambda x0, O0: 0.0), "increment is not accepted"),
+    (lambda: RunningSum("a", lambda *args: 0.0, rates=1), "rates=1 is not accepted: True or False"),
 ])
 def test_an_accumulator_that_cannot_work_is_refused_where_it_is_declared(make, message):
     with pytest.raises(ValueError, match=message) as info:
@@ -187,7 +188,10 @@ for backend in ("cpu", "cuda"):
                             observables=("x2_avg", "far", "displacement", "log_energy"))
     out[backend] = {v: ds[v].values.tolist() for v in ("mean_x2_avg", "mean_far", "passed_far",
                                                         "mean_displacement", "var_displacement", "mean_E",
-                                                        "mean_log_energy")}
+                                                        "mean_log_energy", "rate_displacement",
+                                                        "diffusion_displacement", "fpt_far_quantile",
+                                                        "fpt_far_quantile_lower", "fpt_far_quantile_upper",
+                                                        "fpt_far_hist", "fpt_far_censored", "fpt_far_passed")}
 print(json.dumps(out))
 """
 
@@ -203,6 +207,9 @@ def test_accumulators_in_the_cuda_simulator_give_the_cpu_numbers():
     for name, cpu in r["cpu"].items():
         assert np.allclose(r["cuda"][name], cpu, rtol=1e-12, atol=1e-15, equal_nan=True), name
     assert 0 < r["cpu"]["passed_far"][-1] < 1
+    # the law of the passage time from each path's own time (issue 23): the CPU's, censored too
+    assert r["cuda"]["fpt_far_hist"] == r["cpu"]["fpt_far_hist"] and r["cpu"]["fpt_far_censored"] > 0
+    assert np.isnan(r["cpu"]["fpt_far_quantile"][-1]) and np.isfinite(r["cpu"]["fpt_far_quantile"][0])
 
 
 def test_the_command_line_reports_an_accumulator_and_show_lists_it(tmp_path):
@@ -256,7 +263,8 @@ def test_a_sweep_reports_user_observables_and_accumulators_on_every_scheduler(sc
     # test may have loaded one from its temporary directory, which the workers cannot import.
     monkeypatch.setattr(plugins, "_LOADED", [])
     plugins.load("tests.unit._observables_plugin")
-    names = ["Omega2_plugin", "Omega2_avg_plugin", "displacement"]
+    plugins.load("tests.unit._passage_plugin")
+    names = ["Omega2_plugin", "Omega2_avg_plugin", "displacement", "Omega_up"]
     spec = {"base": {"noise": "ou", "D": 1.0, "omega": 1.0, "paths": 200, "times": [2.0, 4.0], "seed": 6,
                      "observables": names},
             "grid": {"tau": [0.5, 2.0]}}
@@ -266,8 +274,10 @@ def test_a_sweep_reports_user_observables_and_accumulators_on_every_scheduler(sc
         alone = stochpend.simulate(noise="ou", D=1.0, tau=tau, omega=1.0, paths=200, times=(2.0, 4.0), seed=6,
                                    bias_paths=0, observables=names)
         got = ds.sel(tau=tau)
-        for v in ("mean_Omega2_plugin", "mean_Omega2_avg_plugin", "var_displacement", "mean_E"):
-            assert np.array_equal(got[v].values, alone[v].values), (tau, v)
+        for v in ("mean_Omega2_plugin", "mean_Omega2_avg_plugin", "var_displacement", "mean_E",
+                  "diffusion_displacement", "fpt_Omega_up_quantile", "fpt_Omega_up_quantile_upper",
+                  "fpt_Omega_up_hist", "fpt_Omega_up_censored"):  # a passage's law: from every path's time
+            assert np.array_equal(got[v].values, alone[v].values, equal_nan=True), (tau, v)
         assert np.array_equal(got.mean_Omega2_plugin.values, got.mean_Omega2.values)
 
 

@@ -745,3 +745,8 @@ class Engine:
     def results(self) -> tuple[np.ndarray, np.ndarray]:
         """The finished chunk's per-batch sums and histogram."""
         return self.chunk_sums, self.chunk_hist
+
+    def final_tracks(self) -> tuple[np.ndarray, np.ndarray]:
+        """The accumulators' slots (n_slots, n) and the status (n,) of the chunk's paths, copies
+        (for each path's final first-passage time: stochpend.passage)."""
+        return self.tracks.copy(), self.status.copy()

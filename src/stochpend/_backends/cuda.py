@@ -690,6 +690,13 @@ class Engine:
     def results(self) -> tuple[np.ndarray, np.ndarray]:
         return self.d_sums.copy_to_host()[: self.nb], self.d_hist.copy_to_host()
 
+    def final_tracks(self) -> tuple[np.ndarray, np.ndarray]:
+        """Host copies of the accumulators' slots (n_slots, n) and the status (n,) of the
+        chunk's paths (for each path's final first-passage time: stochpend.passage)."""
+        with _quiet():
+            return (self.d_tracks.copy_to_host()[: len(self.accs), : self.n],
+                    self.d_status[: self.n].copy_to_host())
+
 
 def path_states(
     config: SimulationConfig, first_path: int, n_paths: int, *, precision: str = "float64"

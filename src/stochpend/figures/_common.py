@@ -258,7 +258,7 @@ def _user_statistic(ds: xr.Dataset, var: str) -> Any:
     names = tuple(n.strip() for n in str(ds.attrs.get("observables", "")).split(",") if n.strip())
     if not names or any(observables.get(n) is None for n in names):
         return None
-    for s in observables.user_statistics(names):
+    for s in observables.user_statistics(names, np.asarray(ds.time.values, dtype=np.float64)):
         if s.name == var:
             return s.of
     return None
