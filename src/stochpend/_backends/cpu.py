@@ -104,7 +104,7 @@ def init_kernel(spec: Spec):
     ranges (:func:`_ranges`)."""
     init_path = integrator.initial_state(spec.noise)
 
-    @numba.njit(nogil=True, cache=spec.noise.builtin)
+    @numba.njit(nogil=True, cache=spec.noise.builtin, error_model="numpy")
     @own_index(spec.noise.name)
     def init(lo, hi, state, key0, key1, path0, theta0, uniform_theta0, Omega0, xi0,
              stationary_xi0, p):  # pragma: no cover
@@ -178,7 +178,7 @@ def path_kernel(spec: Spec):
     for a fast-math Spec, the reference the SIMD drivers agree with bit for bit (tests)."""
     advance_path = integrator.build(spec).advance_path
 
-    @numba.njit(nogil=True, cache=spec.cacheable)
+    @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label)
     def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
                 run):  # pragma: no cover - compiled
@@ -205,7 +205,7 @@ def tracked_kernel(spec: Spec, accs: tuple):
 
     advance_path = integrator.build(spec, observables.track_step(accs)).advance_path
 
-    @numba.njit(nogil=True)
+    @numba.njit(nogil=True, error_model="numpy")
     def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
                 run):  # pragma: no cover - compiled
         steps_taken = 0
@@ -371,7 +371,7 @@ def pair_advance_kernel(spec: Spec):
 def _pair_path_kernel(spec: Spec):
     advance_pair = integrator.build(spec).advance_pair
 
-    @numba.njit(nogil=True, cache=spec.cacheable)
+    @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label + "/pairs")
     def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
                 run):  # pragma: no cover
@@ -534,7 +534,7 @@ def _accumulate_kernel(spec: Spec, user: tuple):
     n_user = observables_.n_user_columns(user)
     first_user = N_SUMS
 
-    @numba.njit(nogil=True, cache=spec.oscillator.builtin and not user)
+    @numba.njit(nogil=True, cache=spec.oscillator.builtin and not user, error_model="numpy")
     @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables_.TABLE_KEY}/{observables_.user_key(user)}")
     def accumulate(b_lo, b_hi, x, Omega, xi, t, status, tracks, omega2, q, batch_size, edges, sums,
                    hist):  # pragma: no cover - compiled
@@ -585,7 +585,7 @@ def joint_kernel(periodic: bool):
     was."""
     from stochpend._backends.joint import cell
 
-    @numba.njit(nogil=True, cache=True)
+    @numba.njit(nogil=True, cache=True, error_model="numpy")
     @own_index(f"joint/{periodic}")
     def joint(b_lo, b_hi, x, Omega, status, batch_size, x_lo, x_hi, nx, O_lo, O_hi, nO,
               counts):  # pragma: no cover - compiled
