@@ -2,10 +2,18 @@
 
 from __future__ import annotations
 
+import os
 import signal
 import time
+from pathlib import Path
 
 import pytest
+
+# The suite's subprocesses start with tests/_simulator_site/sitecustomize.py (the CUDA simulator
+# without its busy poll, the same numbers: see that file).
+_SITE = str(Path(__file__).resolve().parent / "_simulator_site")
+if _SITE not in os.environ.get("PYTHONPATH", "").split(os.pathsep):
+    os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (_SITE, os.environ.get("PYTHONPATH")) if p)
 
 # A suite started in the background ('make test &' in a non-interactive shell) inherits SIGINT
 # ignored, and stochpend keeps an ignored SIGINT ignored (tests/unit/test_checkpoint.py): the
