@@ -570,6 +570,8 @@ class Engine:
                                                         dtype=np.int64)
         with _quiet():
             for name, dtype in path_dtypes("cuda", spec.precision).items():
+                if name == "xi_a":  # the additive OU noise: not on the GPU (lifecycle refuses it)
+                    continue
                 setattr(self, "d_" + name, cuda.device_array(capacity, dtype=dtype))
             self.flag = cuda.device_array(1, dtype=np.int32)
             self.d_tracks = cuda.device_array((max(len(self.accs), 1), capacity), dtype=np.float64)
@@ -740,8 +742,8 @@ def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: froze
                for e in oscillator.parameters] or [nbtypes.float64]
     q = nbtypes.Tuple(tuple(q_types))
     run_fields = [nbtypes.float64, q, nbtypes.float64, nbtypes.float64]
-    if terms:  # the family's record d (stochpend.dynamics.record): nine float64
-        run_fields.append(nbtypes.UniTuple(nbtypes.float64, 9))
+    if terms:  # the family's record d (stochpend.dynamics.record): ten float64
+        run_fields.append(nbtypes.UniTuple(nbtypes.float64, 10))
     run = nbtypes.Tuple(tuple(run_fields))
     return (state, nbtypes.float64, nbtypes.int64, nbtypes.uint64, nbtypes.uint64, nbtypes.int64,
             record, run, nbtypes.Array(nbtypes.int32, 1, "C"))
