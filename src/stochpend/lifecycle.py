@@ -31,7 +31,6 @@ import numpy as np
 import xarray as xr
 
 from stochpend import _compile_helper, bias, integrator, models, observables, resources, runner
-from stochpend import dynamics as _dynamics
 from stochpend._jitcache import CompileClock
 from stochpend._version import __version__
 from stochpend.params import SimulationConfig, hist_edges, joint_grid
@@ -101,13 +100,7 @@ class Run:
         bias_paths = bias.check_bias_paths(bias_paths, config.paths)
         resources.check(config, backend=backend, precision=precision, chunk_paths=chunk_paths,
                         max_path_steps=max_path_steps)
-        if backend == "auto" and _dynamics.additive_ou(config):
-            backend = "cpu"  # the additive OU noise runs on the CPU only (below)
         backend = resolve_backend(backend)
-        if backend == "cuda" and _dynamics.additive_ou(config):
-            raise ValueError(f"additive_tau={_dynamics.value(config.dyn_params, 'additive_tau')!r} is not "
-                             "accepted with backend='cuda': the additive Ornstein-Uhlenbeck noise runs on "
-                             "the CPU (backend='cpu'); additive_tau=0 (white) runs on both")
         check_precision(precision, backend)
         check_threads(threads)
         if chunk_paths is not None and (isinstance(chunk_paths, bool) or not isinstance(chunk_paths, int)

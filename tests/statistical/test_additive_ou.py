@@ -13,7 +13,8 @@ References, each tested exactly or in standard errors:
   stationary start and the exact integral together), and xi_a(0) itself has variance
   D_a/(2 tau_a);
 * the SIMD lanes give the one-path loop's numbers, the bias pairs included; a checkpointed run
-  resumes to the straight run's numbers; the CUDA backend refuses it in one line.
+  resumes to the straight run's numbers (CPU, and CUDA in Numba's simulator); the CUDA
+  simulator gives the CPU's numbers.
 """
 
 from __future__ import annotations
@@ -239,14 +240,66 @@ def test_a_checkpointed_run_resumes_to_the_same_numbers(tmp_path):
         assert np.array_equal(done[name].values, ref[name].values, equal_nan=True), name
 
 
-def test_the_cuda_backend_refuses_it_in_one_line(monkeypatch):
-    from stochpend import lifecycle
+_CUDASIM = """
+import json, tempfile
+from pathlib import Path
+import numpy as np
+import pytest
+import stochpend
+from stochpend import checkpoint as ck
+from stochpend.params import SimulationConfig
 
-    monkeypatch.setattr(lifecycle, "resolve_backend", lambda backend, **_: "cuda")
-    with pytest.raises(ValueError, match=r"additive_tau=0.5 is not accepted with backend='cuda'") as info:
-        stochpend.simulate(noise="white", D=0.5, paths=100, t_max=1.0, n_times=2, gamma=1.0, additive_D=0.3,
-                           additive_tau=0.5, backend="cuda")
-    assert "\n" not in str(info.value)
+kw = dict(noise="ou", D=0.5, tau=0.8, omega=1.0, paths=48, t_max=1.0, times=[0.5, 1.0], seed=3, n_batches=4)
+terms = dict(gamma=0.7, additive_D=0.3, additive_tau=0.4, torque=0.2, drive_amplitude=0.5, drive_frequency=1.5,
+             parametric_amplitude=0.4, initial_temperature=0.3)
+out = {}
+for backend, precision in (("cpu", "float64"), ("cuda", "float64"), ("cuda", "float32")):
+    ds = stochpend.simulate(**kw, **terms, backend=backend, precision=precision,
+                            bias_paths=16 if precision == "float64" else 0)
+    names = ("mean_E", "mean_Omega2") + (("mean_E_bias",) if precision == "float64" else ())
+    out[backend + precision] = {v: ds[v].values.tolist() for v in names}
+# a checkpointed CUDA run, interrupted and resumed, against the straight one
+config = SimulationConfig.build(**kw, noise_params=terms)
+ref = stochpend.simulate(**kw, **terms, backend="cuda", chunk_paths=20, bias_paths=0)
+
+
+class StopAfter(ck.FileCheckpointer):
+    def maybe_save(self, state):
+        self.save(state)
+        if self.saves >= 3:
+            raise KeyboardInterrupt
+
+
+path = Path(tempfile.mkdtemp()) / "run.ckpt"
+with pytest.raises(KeyboardInterrupt):
+    ck.run_checkpointed(config, checkpoint_path=path, every_s=None, chunk_paths=20, bias_paths=0, backend="cuda",
+                        checkpointer=StopAfter(path, None, config=config, chunk_paths=20))
+assert ck.read(path).state.xi_a.shape == ck.read(path).state.x.shape
+done = ck.resume(path)
+out["resumed_equal"] = all(np.array_equal(done[v].values, ref[v].values, equal_nan=True) for v in ref.data_vars)
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.gpu
+def test_the_cuda_simulator_gives_the_cpu_numbers_and_resumes_exactly():
+    """Numba's CUDA simulator: float64 = the CPU to 1e-12 (bias included), float32 to its
+    round-off; a CUDA checkpoint (xi_a on the device, copied back) resumes bit for bit."""
+    import json
+    import os
+    from pathlib import Path
+
+    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1",
+           "PYTHONPATH": os.pathsep.join([str(Path(stochpend.__file__).resolve().parents[1]),
+                                          os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run([sys.executable, "-c", _CUDASIM], env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    r = json.loads(done.stdout.strip().splitlines()[-1])
+    assert r["resumed_equal"]
+    for name, cpu in r["cpufloat64"].items():
+        assert np.allclose(r["cudafloat64"][name], cpu, rtol=1e-12, atol=1e-15), name
+        if name in r["cudafloat32"]:
+            assert np.allclose(r["cudafloat32"][name], cpu, rtol=1e-5), name
 
 
 def test_a_bad_correlation_time_is_refused_in_one_line():
@@ -258,3 +311,22 @@ def test_a_bad_correlation_time_is_refused_in_one_line():
                            "additive_tau=-1"], capture_output=True, text=True, timeout=300)
     assert done.returncode == 2, done.stderr
     assert "additive_tau" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_a_correlation_time_without_the_noise_is_todays_kernel():
+    """additive_tau alone (additive_D = 0) switches no term on: the paper's kernel, bit for bit."""
+    run = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=300, t_max=4.0, n_times=2, seed=11, bias_paths=32)
+    plain = stochpend.simulate(**run)
+    with_tau = stochpend.simulate(**run, additive_tau=0.5)
+    assert with_tau.attrs["dynamics_parameters"] == "additive_tau=0.5"
+    for name in plain.data_vars:
+        assert np.array_equal(plain[name].values, with_tau[name].values, equal_nan=True), name
+
+
+def test_a_sweep_over_the_correlation_time_gives_each_runs_numbers():
+    base = {"noise": "white", "D": 0.5, "omega": 1.0, "paths": 200, "t_max": 4.0, "n_times": 2, "seed": 6,
+            "gamma": 0.5, "additive_D": 0.2}
+    ds = stochpend.sweep.sweep({"base": base, "grid": {"additive_tau": [0.0, 0.5]}}, scheduler="sync", bias_paths=0)
+    for tau in (0.0, 0.5):
+        alone = stochpend.simulate(**base, additive_tau=tau, bias_paths=0)
+        assert np.array_equal(ds.sel(additive_tau=tau).mean_E.values, alone.mean_E.values), tau
