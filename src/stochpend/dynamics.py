@@ -55,8 +55,8 @@ FAMILY = Dynamics("family", (
     Parameter("drive_phase", 0.0, "phase phi of the external force"),
     Parameter("parametric_amplitude", 0.0, "amplitude eps of the modulation eps cos(nu_p t) G(x)"),
     Parameter("parametric_frequency", 1.0, "frequency nu_p of the modulation", low=0.0, low_open=True),
-    Parameter("additive_D", 0.0, "intensity D_a of the additive white noise, <xi_a xi_a'> = D_a delta",
-              low=0.0),
+    Parameter("additive_D", 0.0, "intensity D_a of the additive noise, S(0) = D_a (white: <xi_a xi_a'> = "
+              "D_a delta; see additive_tau)", low=0.0),
     Parameter("initial_temperature", 0.0, "start from the Boltzmann law at this temperature (0: theta0, "
               "Omega0 as given; stochpend.initial)", low=0.0),
     Parameter("additive_tau", 0.0, "correlation time tau_a of the additive noise: 0 white, > 0 "
