@@ -18,6 +18,14 @@ The additive noise xi_a is white, <xi_a(t) xi_a(s)> = D_a delta(t - s) (the pack
 convention for white noise, :mod:`stochpend.noises.white`), independent of xi: its normals are
 Philox draws of their own (``rng.N_ADDITIVE + k`` for step k). With damping and no other force
 its stationary law is Boltzmann at T = D_a / (2 gamma) (:mod:`stochpend.theory.family`).
+
+With ``additive_tau`` tau_a > 0 it is an Ornstein-Uhlenbeck noise instead, in the convention of
+:mod:`stochpend.noises.ou`: <xi_a(t) xi_a(s)> = D_a/(2 tau_a) exp(-|t - s|/tau_a), so S(0) = D_a
+and tau_a -> 0 is the white channel of intensity D_a. Its value is a per-path state (the chunk
+array ``xi_a``), started in its stationary law N(0, D_a/(2 tau_a)) from Philox draw
+``rng.N_INIT_ADDITIVE`` and advanced with the OU noise's exact joint update of (xi_a, its
+integral over the step) from both normals of draw ``rng.N_ADDITIVE + k``; the integral enters
+the kick (the term "additive_ou"; "additive" is the white channel's).
 """
 
 from __future__ import annotations
@@ -28,7 +36,7 @@ from typing import Any
 
 from stochpend.parameters import Parameter
 
-__all__ = ["FAMILY", "TERMS", "names", "record", "terms_of"]
+__all__ = ["FAMILY", "TERMS", "additive_ou", "names", "record", "terms_of"]
 
 
 @dataclass(frozen=True)
@@ -47,19 +55,23 @@ FAMILY = Dynamics("family", (
     Parameter("drive_phase", 0.0, "phase phi of the external force"),
     Parameter("parametric_amplitude", 0.0, "amplitude eps of the modulation eps cos(nu_p t) G(x)"),
     Parameter("parametric_frequency", 1.0, "frequency nu_p of the modulation", low=0.0, low_open=True),
-    Parameter("additive_D", 0.0, "intensity D_a of the additive white noise, <xi_a xi_a'> = D_a delta",
-              low=0.0),
+    Parameter("additive_D", 0.0, "intensity D_a of the additive noise, S(0) = D_a (white: <xi_a xi_a'> = "
+              "D_a delta; see additive_tau)", low=0.0),
     Parameter("initial_temperature", 0.0, "start from the Boltzmann law at this temperature (0: theta0, "
               "Omega0 as given; stochpend.initial)", low=0.0),
+    Parameter("additive_tau", 0.0, "correlation time tau_a of the additive noise: 0 white, > 0 "
+              "Ornstein-Uhlenbeck, <xi_a xi_a'> = D_a/(2 tau_a) exp(-|t - t'|/tau_a)", low=0.0),
 ))
 
 #: The record's order (what the kernels read, by index).
 _ORDER = tuple(p.name for p in FAMILY.parameters)
 _DEFAULTS = {p.name: p.default for p in FAMILY.parameters}
 
-#: The terms a kernel can be specialised for, and the parameter that switches each on.
+#: The terms a kernel can be specialised for, and the parameter that switches each on. The
+#: additive noise is one of two terms: "additive" (white, additive_tau = 0) or "additive_ou"
+#: (additive_tau > 0), by :func:`terms_of`.
 TERMS = {"damping": "gamma", "torque": "torque", "drive": "drive_amplitude",
-         "parametric": "parametric_amplitude", "additive": "additive_D"}
+         "parametric": "parametric_amplitude", "additive": "additive_D", "additive_ou": "additive_D"}
 
 
 def names() -> tuple[str, ...]:
@@ -81,8 +93,12 @@ def value(pairs: tuple[tuple[str, float], ...], name: str) -> float:
 
 
 def terms_of(pairs: tuple[tuple[str, float], ...]) -> frozenset[str]:
-    """The terms that are on (their parameter nonzero): what a kernel is specialised for."""
-    return frozenset(term for term, name in TERMS.items() if value(pairs, name) != 0.0)
+    """The terms that are on (their parameter nonzero): what a kernel is specialised for. The
+    additive noise is "additive" (white) when ``additive_tau`` is 0, else "additive_ou"."""
+    ou = value(pairs, "additive_tau") > 0.0
+    return frozenset(term for term, name in TERMS.items()
+                     if value(pairs, name) != 0.0 and (term != "additive" or not ou)
+                     and (term != "additive_ou" or ou))
 
 
 #: The parameters the kernels read (the initial temperature is used on the host, stochpend.initial).
@@ -91,10 +107,16 @@ _KERNEL_ORDER = _ORDER[:8]
 
 def record(config: Any) -> tuple[float, ...]:
     """The kernels' record of the family's terms, ``(gamma, torque, A, nu, phi, eps, nu_p, D_a,
-    sigma_a)``: the parameters in declared order, then sigma_a = sqrt(D_a / (2 gamma)) (the
-    additive noise's stationary velocity scale, sqrt(T); sqrt(D_a) without damping)."""
+    sigma_a, tau_a)``: the parameters in declared order, then sigma_a = sqrt(D_a / (2 gamma))
+    (the additive white noise's stationary velocity scale, sqrt(T); sqrt(D_a) without damping),
+    then the additive noise's correlation time tau_a (0: white)."""
     pairs = getattr(config, "dyn_params", ())
     values = tuple(float(value(pairs, name)) for name in _KERNEL_ORDER)
     gamma, D_a = values[0], values[-1]
     sigma = math.sqrt(D_a / (2.0 * gamma)) if gamma > 0 else math.sqrt(D_a)
-    return (*values, sigma)
+    return (*values, sigma, float(value(pairs, "additive_tau")))
+
+
+def additive_ou(config: Any) -> bool:
+    """Whether the run's additive noise is the Ornstein-Uhlenbeck one (a per-path state xi_a)."""
+    return "additive_ou" in terms_of(getattr(config, "dyn_params", ()))

@@ -30,7 +30,7 @@ import numpy as np
 from stochpend import dynamics, rng
 from stochpend.mathlib import LIBM
 
-__all__ = ["MAX_ATTEMPTS", "boltzmann", "check", "temperature"]
+__all__ = ["MAX_ATTEMPTS", "additive_state", "boltzmann", "check", "temperature"]
 
 #: Rejection attempts per path before the path is given up as non-finite (NaN): at the lowest
 #: acceptance rate a run can ask for (check), the chance of reaching it is below 1e-300.
@@ -103,3 +103,26 @@ def boltzmann(config: Any, path0: int, n: int) -> tuple[np.ndarray, np.ndarray]:
     _kernel(oscillator)(x, Omega, key0, key1, np.uint64(path0), T, float(config.omega) ** 2, q,
                         float(oscillator.energy_floor(q)))
     return x, Omega
+
+
+@numba.njit(nogil=True, cache=True)
+def _additive_draw(out, key0, key1, path0, scale):  # pragma: no cover - compiled
+    first = np.uint64(rng.N_INIT_ADDITIVE)
+    for i in range(out.shape[0]):
+        z, _ = rng.draw_normals(key0, key1, np.uint64(path0 + np.uint64(i)), first)
+        out[i] = scale * z
+
+
+def additive_state(config: Any, path0: int, n: int) -> np.ndarray:
+    """xi_a(0) of global paths path0 .. path0 + n - 1 for a run whose additive noise is the
+    Ornstein-Uhlenbeck one (``additive_tau`` > 0, stochpend.dynamics): its stationary law
+    N(0, D_a/(2 tau_a)), from Philox draw ``rng.N_INIT_ADDITIVE`` of each path (its own), on the
+    host in float64 for every backend and for the bias pairs. Zeros for any other run."""
+    out = np.zeros(n)
+    if not dynamics.additive_ou(config):
+        return out
+    pairs = getattr(config, "dyn_params", ())
+    scale = math.sqrt(dynamics.value(pairs, "additive_D") / (2.0 * dynamics.value(pairs, "additive_tau")))
+    key0, key1 = rng.seed_to_key(config.seed)
+    _additive_draw(out, key0, key1, np.uint64(path0), scale)
+    return out

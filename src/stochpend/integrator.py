@@ -48,6 +48,7 @@ from stochpend import oscillators as _oscillators
 from stochpend._jitcache import name_closures
 from stochpend.mathlib import FAST, LIBM
 from stochpend.noises.base import Noise
+from stochpend.noises.ou import OU as _OU
 from stochpend.oscillators.base import Oscillator
 
 __all__ = ["SCHEME", "Spec", "build", "landing_step", "advance_clock", "run_record"]
@@ -221,6 +222,17 @@ def _tracks_of(state):
 
 
 @register_jitable
+def _ou_record(d):
+    """The additive OU noise's record (D_a, tau_a) from the family's record d."""
+    return (d[7], d[9])
+
+
+@register_jitable
+def _no_ou_record(d):
+    return (0.0, 1.0)
+
+
+@register_jitable
 def _track_nothing(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):
     return None
 
@@ -311,8 +323,21 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     DRIVE = "drive" in spec.terms
     PARAMETRIC = "parametric" in spec.terms
     ADDITIVE = "additive" in spec.terms
+    ADDITIVE_OU = "additive_ou" in spec.terms
     O_STEP = DAMPED or ADDITIVE
     dyn_of = _dyn_of if FAMILY else _no_dyn
+    # The additive Ornstein-Uhlenbeck channel (additive_tau > 0): the OU noise's exact step, in
+    # the Spec's precision and math (the fast math's branch-free coefficients for the lanes).
+    ou_kernel = _OU.kernel(real, mathlib)
+    ou_update = ou_kernel.update
+    ou_record = _ou_record if ADDITIVE_OU else _no_ou_record
+    zeros5 = (real(0.0),) * 5
+
+    @register_jitable
+    def no_ou_coefficients(h, pa):
+        return zeros5
+
+    ou_coefficients = ou_kernel.coefficients if ADDITIVE_OU else no_ou_coefficients
 
     @register_jitable
     def family_bounds(h, c, d):
@@ -330,7 +355,9 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         half the kick, the exact Ornstein-Uhlenbeck flow of Omega over h (damping and the
         additive white noise, normal ``za``), the other half of the kick, drift h/2. The kick
         holds the force, the parametric noise's exact integral and the drives' exact integrals
-        over the step (``t0``: its start, float64). With the O flow in the middle the harmonic
+        over the step (``t0``: its start, float64), and with the additive OU noise its exact
+        integral over the step (then ``za`` is that integral, not a normal), as the parametric
+        noise's. With the O flow in the middle the harmonic
         oscillator's stationary x is Boltzmann's exactly for every gamma h, and Omega's has the
         O(h^2) error of Stormer-Verlet, independent of gamma (docs/numerics.md); half-step
         damping factors around the kick would not (their error grows with gamma h)."""
@@ -350,6 +377,8 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
             s_half, _ = mathlib_sincos(0.5 * nu * h_clock)
             _, c_mid = mathlib_sincos(nu * (t0 + 0.5 * h_clock) + d[4])
             kick -= real(2.0 * d[2] / nu * c_mid * s_half)
+        if ADDITIVE_OU:  # za: the exact integral of xi_a over the step (additive_ou_step)
+            kick -= za
         if O_STEP:
             Omega_mid = Omega - half * kick
             if DAMPED:
@@ -397,6 +426,15 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         e1 = 1.0 + mathlib_expm1(-d[0] * hc) if DAMPED else 1.0
         return z1, z2, real((e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1))
 
+    @register_jitable
+    def additive_ou_step(key0, key1, path, n, xa, Ca):
+        """The additive OU noise's exact step with draw n (both normals of Philox draw
+        ``rng.N_ADDITIVE + n``, the OU noise's joint update, coefficients ``Ca``): (its
+        integral over the step, xi_a at the step's end)."""
+        z1, z2 = additive_normals(key0, key1, path, _U64(rng.N_ADDITIVE) + n)
+        Ia, xa_new, _ = ou_update(xa, real(0.0), Ca, (z1, z2))
+        return Ia, xa_new
+
     def step_loop(PAIR):
         """The step loop of one path (``PAIR`` False: :func:`advance_path`) or of a coupled
         coarse/fine pair (True: :func:`advance_pair`), written once: the step control, the
@@ -409,6 +447,9 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         TRACKED = TRACK and not PAIR
         tracks_in = tracks_of if TRACKED else _no_tracks
         DRAWS = 2 if PAIR else 1
+        # The additive OU noise's xi_a: the state's array after the others (the slots too); a
+        # constant index (as every array here, see below), x's in a Spec without it (unused).
+        I_ADD = 8 + J + (1 if TRACKED else 0) if ADDITIVE_OU else 0
 
         def advance(i, state, t_target, max_steps, key0, key1, path0, p, run):
             # The arrays of a tuple are taken by index, never unpacked (``x, Omega, ... =
@@ -447,11 +488,15 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
             tc = t_comp[i]
             kk = k[i]
             tracks = tracks_in(state)
+            xa_arr = state[I_ADD]
+            xad = real(xa_arr[i]) if ADDITIVE_OU else real(0.0)
+            pa = ou_record(d)
             # Everything of the noise's step that depends on h only (for a pair, on its half
             # steps h/2), cached while h is unchanged (h = h_max most of the time).
             h_cached = h_max_r
             hh = half * h_max_r
             C = coefficients(hh if PAIR else h_max_r, p)
+            Ca = ou_coefficients(hh if PAIR else h_max_r, pa)
             S = scratch0()
             steps = 0
             bad = False
@@ -478,6 +523,7 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                     if h != h_cached:
                         hh = half * h
                         C = coefficients(hh, p)
+                        Ca = ou_coefficients(hh, pa)
                         h_cached = h
                     # The half steps draw the noise (draws 2m and 2m + 1 for coarse step m);
                     # the coarse kick uses the sum of their integrals, the exact integral over
@@ -491,7 +537,12 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                         # coarse member's one step uses the normal of their sum over the step
                         # (the exact composition of the two O flows).
                         hc = 0.5 * h_clock
-                        z1, z2, zc = pair_normals(key0, key1, path, kk, hc, d)
+                        if ADDITIVE_OU:  # as the multiplicative noise: the half steps' integrals
+                            z1, xad = additive_ou_step(key0, key1, path, kk, xad, Ca)
+                            z2, xad = additive_ou_step(key0, key1, path, kk + _U64(1), xad, Ca)
+                            zc = z1 + z2
+                        else:
+                            z1, z2, zc = pair_normals(key0, key1, path, kk, hc, d)
                         xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I1, q, tt, hc, z1, d)
                         xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I2, q, tt + hc, hc, z2, d)
                         xs, Om = family_step(xs, Om, h, omega2_r, I1 + I2, q, tt, h_clock, zc, d)
@@ -502,6 +553,7 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                 else:
                     if h != h_cached:
                         C = coefficients(h, p)
+                        Ca = ou_coefficients(h, pa)
                         h_cached = h
                     if TRACKED:
                         x_before = xs
@@ -511,7 +563,10 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                     z, S = draw(key0, key1, path, kk, S)
                     noise_integral, xn, xa = update(xn, xa, C, z)
                     if FAMILY:
-                        za = additive_normal(key0, key1, path, kk)
+                        if ADDITIVE_OU:
+                            za, xad = additive_ou_step(key0, key1, path, kk, xad, Ca)
+                        else:
+                            za = additive_normal(key0, key1, path, kk)
                         xs, Om = family_step(xs, Om, h, omega2_r, noise_integral, q, tt, h_clock, za, d)
                     else:
                         xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, q)
@@ -542,6 +597,8 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                 Omegaf[i] = Om2
             xi[i] = xn
             xi_aux[i] = xa
+            if ADDITIVE_OU:
+                xa_arr[i] = xad
             t[i] = tt
             t_comp[i] = tc
             k[i] = kk
@@ -668,6 +725,7 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     return SimpleNamespace(
         spec=spec, real=real, G=G, step_size=step_size, verlet=verlet, family_step=family_step,
         family_step_inline=family_step_inline, family_bounds=family_bounds,
+        ou_coefficients=ou_coefficients, ou_update=ou_update, ou_record=ou_record,
         init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
         advance_lanes=advance_lanes,
         path_values=statistics(spec.oscillator, spec.coupling),
@@ -744,9 +802,10 @@ def spec(noise: str = "ou", potential: str = "pendulum", coupling: str = "force"
 LANE_COUNT = 16
 
 #: Rows of the lane machine's scratch arrays (per thread, preallocated by the driver):
-#: ``fs`` float64 (x, Omega, xi, aux, t, t_comp), ``us`` uint64 (k, the path's two counter
-#: words), ``js`` int64 (path index or -1, steps in this call, active, escaped/non-finite).
-LANE_F_ROWS = 6
+#: ``fs`` float64 (x, Omega, xi, aux, t, t_comp, the additive OU noise's xi_a), ``us`` uint64
+#: (k, the path's two counter words), ``js`` int64 (path index or -1, steps in this call,
+#: active, escaped/non-finite).
+LANE_F_ROWS = 7
 LANE_U_ROWS = 3
 LANE_I_ROWS = 4
 
@@ -782,7 +841,7 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
     return _lane_machine(spec, False)
 
 
-#: Rows of the pair lane machine's float64 scratch: the lane machine's six, then the fine
+#: Rows of the pair lane machine's float64 scratch: the lane machine's seven, then the fine
 #: member's x and Omega.
 PAIR_LANE_F_ROWS = LANE_F_ROWS + 2
 
@@ -843,6 +902,12 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
     normals_keyed = rng.normals_keyed_with(FAST)
     expm1 = FAST.expm1
     ADDITIVE = "additive" in spec.terms
+    ADDITIVE_OU = "additive_ou" in spec.terms
+    ou_coefficients = steps.ou_coefficients
+    ou_update = steps.ou_update
+    ou_record = steps.ou_record
+    I_ADD = 8 + J if ADDITIVE_OU else 0  # xi_a's array in the state (x's when there is none: unused)
+    zero_r = real(0.0)
 
     @register_jitable(inline="always")  # as family_step: a call would stop the lane loop's vectorization
     def additive_keyed(rk0, rk1, c2, c3, n):
@@ -873,8 +938,11 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
         if PAIR:
             xf = state[2]
             Omegaf = state[3]
-            fs[6, lane] = xf[i]
-            fs[7, lane] = Omegaf[i]
+            fs[7, lane] = xf[i]
+            fs[8, lane] = Omegaf[i]
+        if ADDITIVE_OU:
+            xa_arr = state[I_ADD]
+            fs[6, lane] = xa_arr[i]
         path = _U64(path0 + i)
         us[0, lane] = k[i]
         us[1, lane] = path & rng._MASK32
@@ -918,11 +986,14 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
         bs = js[1]
         ba = js[2]
         bbad = js[3]
+        bxad = fs[6]
+        xa_arr = state[I_ADD]
+        pa = ou_record(d)
         if PAIR:
             xf = state[2]
             Omegaf = state[3]
-            bxf = fs[6]
-            bOf = fs[7]
+            bxf = fs[7]
+            bOf = fs[8]
         # Idle lanes compute on harmless numbers and are never written back.
         for lane in range(lanes):
             bx[lane] = 0.0
@@ -932,6 +1003,7 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                 bOf[lane] = 0.0
             bxi[lane] = 0.0
             bxa[lane] = 0.0
+            bxad[lane] = 0.0
             bt[lane] = t_target
             btc[lane] = 0.0
             bk[lane] = 0
@@ -968,6 +1040,7 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                     Om2 = bOf[lane]
                 xn = bxi[lane]
                 xa = bxa[lane]
+                xad = bxad[lane]
                 tt = bt[lane]
                 tc = btc[lane]
                 kk = bk[lane]
@@ -994,12 +1067,21 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                     I1, xn1, xa1 = update(xn, xa, C, z)
                     z = draw_keyed(rk0, rk1, c2, c3, kk + _U64(1))
                     I2, xn_new, xa_new = update(xn1, xa1, C, z)
-                    if FAMILY:  # as advance_pair's pair_normals, operation for operation
+                    if FAMILY and ADDITIVE_OU:  # as advance_pair's additive_ou_step
+                        hc = 0.5 * h_clock
+                        Ca = ou_coefficients(hh, pa)
+                        w1, w2 = normals_keyed(rk0, rk1, c2, c3, _U64(rng.N_ADDITIVE) + kk)
+                        z1, xad1, _ = ou_update(xad, zero_r, Ca, (real(w1), real(w2)))
+                        w1, w2 = normals_keyed(rk0, rk1, c2, c3, _U64(rng.N_ADDITIVE) + kk + _U64(1))
+                        z2, xad_new, _ = ou_update(xad1, zero_r, Ca, (real(w1), real(w2)))
+                        zc = z1 + z2
+                    elif FAMILY:  # as advance_pair's pair_normals, operation for operation
                         hc = 0.5 * h_clock
                         z1 = additive_keyed(rk0, rk1, c2, c3, kk)
                         z2 = additive_keyed(rk0, rk1, c2, c3, kk + _U64(1))
                         e1 = 1.0 + expm1(-d[0] * hc) if DAMPED else 1.0
                         zc = real((e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1))
+                    if FAMILY:
                         xf1, Of1 = family_step(xs2, Om2, hh, omega2_r, I1, q, tt, hc, z1, d)
                         xf_new, Of_new = family_step(xf1, Of1, hh, omega2_r, I2, q, tt + hc, hc, z2, d)
                         xs_new, Om_new = family_step(xs, Om, h, omega2_r, I1 + I2, q, tt, h_clock, zc, d)
@@ -1011,8 +1093,13 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                     C = coefficients(h, p)
                     z = draw_keyed(rk0, rk1, c2, c3, kk)
                     noise_integral, xn_new, xa_new = update(xn, xa, C, z)
-                    if FAMILY:
+                    if FAMILY and ADDITIVE_OU:  # as advance_path's additive_ou_step
+                        Ca = ou_coefficients(h, pa)
+                        w1, w2 = normals_keyed(rk0, rk1, c2, c3, _U64(rng.N_ADDITIVE) + kk)
+                        za, xad_new, _ = ou_update(xad, zero_r, Ca, (real(w1), real(w2)))
+                    elif FAMILY:
                         za = additive_keyed(rk0, rk1, c2, c3, kk)
+                    if FAMILY:
                         xs_new, Om_new = family_step(xs, Om, h, omega2_r, noise_integral, q, tt, h_clock, za, d)
                     else:
                         xs_new, Om_new = verlet(xs, Om, h, omega2_r, noise_integral, q)
@@ -1040,6 +1127,8 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                     bOf[lane] = Of_new if go else Om2
                 bxi[lane] = xn_new if go else xn
                 bxa[lane] = xa_new if go else xa
+                if ADDITIVE_OU:
+                    bxad[lane] = xad_new if go else xad
                 bt[lane] = t_new if go else tt
                 btc[lane] = tc_new if go else tc
                 bk[lane] = kk + _U64(DRAWS) if go else kk
@@ -1061,6 +1150,8 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                     Omegaf[i] = bOf[lane]
                 xi[i] = bxi[lane]
                 xi_aux[i] = bxa[lane]
+                if ADDITIVE_OU:
+                    xa_arr[i] = bxad[lane]
                 t[i] = bt[lane]
                 t_comp[i] = btc[lane]
                 k[i] = bk[lane]

@@ -347,7 +347,7 @@ class SimulationConfig:
                       "only multiply the force (coupling='force')")
             _fail("coupling", coupling, f"model {potential!r} is periodic, so its noise can only "
                   "multiply a periodic function (coupling='force')")
-        leaves = _dynamics.terms_of(dyn_params_v) & {"additive", "torque", "drive"}
+        leaves = _dynamics.terms_of(dyn_params_v) & {"additive", "additive_ou", "torque", "drive"}
         boltzmann_T = _dynamics.value(dyn_params_v, "initial_temperature")
         if boltzmann_T > 0.0:
             from stochpend import initial as _initial

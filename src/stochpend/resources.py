@@ -77,7 +77,7 @@ COMPILE_S = {"init": 1.0, "advance": 4.0, "accumulate": 1.0, "pairs": 3.0,
 CPU_CHUNK_PATHS = 1 << 20
 CUDA_CHUNK_PATHS = 1 << 26
 #: Per-path state: x, Omega, xi in the working precision; xi_aux, t, t_comp (float64), k
-#: (uint64), status (uint8).
+#: (uint64), status (uint8); 8 bytes more for the additive OU noise's xi_a (``_additive_bytes``).
 STATE_BYTES_PER_PATH = {"float64": 4 * 8 + 8 + 8 + 8 + 1, "float32": 3 * 4 + 8 + 8 + 8 + 8 + 1}
 _DEFAULT_PATHS = 10_000
 _DEFAULT_T_MAX = 1000.0
@@ -374,7 +374,7 @@ def estimate(
     chunk = min(config.paths, max(1, requested // config.batch_size) * config.batch_size)
     parts = _memory_parts(paths=config.paths, chunk=chunk, chunk_given=given, batch_size=config.batch_size,
                           n_batches=config.n_batches, n_times=len(config.times), hist_bins=config.hist_bins,
-                          bytes_per_path=STATE_BYTES_PER_PATH[precision],
+                          bytes_per_path=STATE_BYTES_PER_PATH[precision] + _additive_bytes(config),
                           n_sums=n_sums(config), joint_cells=_joint_cells(config))
     n_passages = sum(isinstance(observables_.get(name), observables_.FirstPassage) for name in config.observables)
     if n_passages:  # every path's passage time (stochpend.passage), and its sorted copy
@@ -391,6 +391,13 @@ def estimate(
         device_bytes=int(device), chunk_paths=int(chunk), backend="cuda" if cuda else "cpu",
         precision=precision, workers=workers, rate=rate, parts=tuple(parts), formula=formula,
     )
+
+
+def _additive_bytes(config: Any) -> int:
+    """The additive Ornstein-Uhlenbeck noise's per-path value xi_a (float64), for a run with it."""
+    from stochpend import dynamics
+
+    return 8 if dynamics.additive_ou(config) else 0
 
 
 def _min_path_steps(config: Any) -> tuple[float, str]:

@@ -71,6 +71,9 @@ class RunState:
     #: The per-path accumulators' slots, (n_slots, n) float64 (stochpend.observables); None or
     #: empty without accumulators.
     tracks: Any = None
+    #: The additive Ornstein-Uhlenbeck noise's value per path, (n,) float64 (``additive_tau`` > 0,
+    #: stochpend.dynamics); None or empty for any other run.
+    xi_a: Any = None
     #: Set by run_batches: copies a GPU chunk's arrays here (see pull); not saved.
     _sync: Any = field(default=None, init=False, repr=False, compare=False)
 

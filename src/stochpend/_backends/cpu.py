@@ -658,6 +658,7 @@ class Engine:
         self.key0, self.key1 = rng.seed_to_key(config.seed)
         self.record = spec.noise.record(config)
         self.run = integrator.run_record(config)
+        self.additive_ou = "additive_ou" in spec.terms
         self.n_times = len(config.times)
         self.n_e = config.hist_bins + 2  # the energy histogram's columns
         self.n_cols = params.hist_columns(config)
@@ -677,6 +678,8 @@ class Engine:
     def _allocate(self, n: int, nb: int) -> None:
         for name, dtype in path_dtypes("cpu", "float64").items():
             setattr(self, name, np.empty(n, dtype=dtype))
+        if not self.additive_ou:  # xi_a: only for a run with the additive OU noise
+            self.xi_a = np.empty(0)
         self.tracks = np.empty((len(self.accs), n))
         self.chunk_sums = np.zeros((nb, self.n_times, observables_.n_sums(self.config)))
         self.chunk_hist = np.zeros((self.n_times, self.n_cols), dtype=np.int64)
@@ -694,6 +697,8 @@ class Engine:
         self.tracks[:] = observables_.track_initial(self.accs)
         if initial.temperature(c) > 0.0:  # the Boltzmann law (stochpend.initial), on the host
             self.x[:], self.Omega[:] = initial.boltzmann(c, p0, n)
+        if self.additive_ou:  # xi_a(0), its stationary law (stochpend.initial)
+            self.xi_a[:] = initial.additive_state(c, p0, n)
 
     def load(self, p0: int, arrays: dict[str, np.ndarray]) -> None:
         """Continue a chunk from host arrays (a checkpoint's RunState fields)."""
@@ -704,15 +709,21 @@ class Engine:
             setattr(self, name, value)
         if arrays.get("tracks") is None:
             self.tracks = np.empty((0, self.n))
+        if arrays.get("xi_a") is None:
+            self.xi_a = np.empty(0)
 
     def max_steps(self) -> int:
         return max(MIN_STEPS_PER_CALL, WORK_PER_CALL // max(self.n, 1))
 
     def state(self) -> tuple[np.ndarray, ...]:
         """The chunk's arrays as the kernels take them: (x, Omega, xi, xi_aux, t, t_comp, k,
-        status)."""
-        state = (self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k, self.status)
-        return (*state, self.tracks) if self.accs else state
+        status), then the accumulators' slots ``tracks`` (a run with accumulators) and the
+        additive OU noise's ``xi_a`` (a run with it)."""
+        state: tuple[np.ndarray, ...] = (self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp,
+                                         self.k, self.status)
+        if self.accs:
+            state = (*state, self.tracks)
+        return (*state, self.xi_a) if self.additive_ou else state
 
     def advance(self, t_target: float, max_steps: int) -> bool:
         _, unfinished = self.kernels.advance(self.state(), t_target, max_steps, self.key0,

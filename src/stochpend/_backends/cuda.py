@@ -349,6 +349,9 @@ class PairEngine:
                 bx, bO = initial.boltzmann(c, int(p0), n)
                 x.copy_to_device(bx)
                 Omega.copy_to_device(bO)
+            # The additive OU noise's xi_a (a run with it), shared by the members as xi is.
+            self.extra = ((cuda.to_device(initial.additive_state(c, int(p0), n)),)
+                          if "additive_ou" in spec.terms else ())
             xf.copy_to_device(x)
             Omegaf.copy_to_device(Omega)
         self._zero_flag = np.zeros(1, dtype=np.int32)
@@ -358,8 +361,8 @@ class PairEngine:
         with _quiet():
             self.flag.copy_to_device(self._zero_flag)
             self.advance_k[_blocks(self.n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
-                (*self.d, self.d_k, self.d_status), t_target, max_steps, self.key0, self.key1,
-                self.p0, self.record, self.run, self.flag)
+                (*self.d, self.d_k, self.d_status, *self.extra), t_target, max_steps, self.key0,
+                self.key1, self.p0, self.record, self.run, self.flag)
             return int(self.flag.copy_to_host()[0]) == 0
 
     def members(self) -> tuple[np.ndarray, ...]:
@@ -543,6 +546,7 @@ class Engine:
     d_t_comp: Any
     d_k: Any
     d_status: Any
+    d_xi_a: Any  # a run with the additive OU noise only
 
     def __init__(self, config: SimulationConfig, spec: Spec, capacity: int,
                  n_chunk_batches: int) -> None:
@@ -557,6 +561,7 @@ class Engine:
         if self.accs:
             self.advance_k = tracked_kernel(spec, self.accs)
         self.capacity = capacity
+        self.additive_ou = "additive_ou" in spec.terms
         self.n_times = len(config.times)
         from stochpend import params
 
@@ -570,6 +575,8 @@ class Engine:
                                                         dtype=np.int64)
         with _quiet():
             for name, dtype in path_dtypes("cuda", spec.precision).items():
+                if name == "xi_a" and not self.additive_ou:  # only a run with the additive OU noise
+                    continue
                 setattr(self, "d_" + name, cuda.device_array(capacity, dtype=dtype))
             self.flag = cuda.device_array(1, dtype=np.int32)
             self.d_tracks = cuda.device_array((max(len(self.accs), 1), capacity), dtype=np.float64)
@@ -604,9 +611,12 @@ class Engine:
                 self.d_t_comp[:n], self.d_k[:n], self.d_status[:n])
 
     def _state(self) -> tuple:
-        """The views as the advance kernel takes them: with the accumulators' slots last."""
+        """The views as the advance kernel takes them: then the accumulators' slots (a run with
+        accumulators) and the additive OU noise's xi_a (a run with it)."""
         views = self._views()
-        return (*views, self.d_tracks[:, : self.n]) if self.accs else views
+        if self.accs:
+            views = (*views, self.d_tracks[:, : self.n])
+        return (*views, self.d_xi_a[: self.n]) if self.additive_ou else views
 
     def start(self, p0: int, n: int, nb: int) -> None:
         """Initial conditions of global paths p0 .. p0 + n - 1."""
@@ -624,6 +634,8 @@ class Engine:
                 x, Omega = initial.boltzmann(c, p0, n)
                 self.d_x[:n].copy_to_device(x.astype(self.d_x.dtype))
                 self.d_Omega[:n].copy_to_device(Omega.astype(self.d_Omega.dtype))
+            if self.additive_ou:  # xi_a(0), its stationary law, drawn on the host (stochpend.initial)
+                self.d_xi_a[:n].copy_to_device(initial.additive_state(c, p0, n))
 
     def _put_tracks(self, tracks: np.ndarray) -> None:
         full = np.zeros(self.d_tracks.shape)
@@ -645,6 +657,8 @@ class Engine:
             self.d_hist.copy_to_device(np.ascontiguousarray(arrays["chunk_hist"], dtype=np.int64))
             if self.accs:
                 self._put_tracks(np.asarray(arrays["tracks"], dtype=np.float64))
+            if self.additive_ou:
+                self.d_xi_a[: self.n].copy_to_device(np.ascontiguousarray(arrays["xi_a"], dtype=np.float64))
 
     def max_steps(self) -> int:
         return max(_MIN_STEPS_PER_LAUNCH, _WORK_PER_LAUNCH // max(self.n, 1))
@@ -685,6 +699,7 @@ class Engine:
         out = {name: view.copy_to_host() for name, view in zip(names, self._views(), strict=True)}
         out["chunk_sums"], out["chunk_hist"] = self.results()
         out["tracks"] = self.d_tracks.copy_to_host()[: len(self.accs), : self.n]
+        out["xi_a"] = self.d_xi_a[: self.n].copy_to_host() if self.additive_ou else np.empty(0)
         return out
 
     def results(self) -> tuple[np.ndarray, np.ndarray]:
@@ -719,6 +734,8 @@ def path_states(
             pass
     state = engine.arrays()
     del state["chunk_sums"], state["chunk_hist"], state["tracks"]
+    if not engine.additive_ou:
+        del state["xi_a"]
     return state
 
 
@@ -740,8 +757,8 @@ def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: froze
                for e in oscillator.parameters] or [nbtypes.float64]
     q = nbtypes.Tuple(tuple(q_types))
     run_fields = [nbtypes.float64, q, nbtypes.float64, nbtypes.float64]
-    if terms:  # the family's record d (stochpend.dynamics.record): nine float64
-        run_fields.append(nbtypes.UniTuple(nbtypes.float64, 9))
+    if terms:  # the family's record d (stochpend.dynamics.record): ten float64
+        run_fields.append(nbtypes.UniTuple(nbtypes.float64, 10))
     run = nbtypes.Tuple(tuple(run_fields))
     return (state, nbtypes.float64, nbtypes.int64, nbtypes.uint64, nbtypes.uint64, nbtypes.int64,
             record, run, nbtypes.Array(nbtypes.int32, 1, "C"))
