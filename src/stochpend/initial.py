@@ -8,11 +8,16 @@ run's oscillator at temperature T, E = Omega^2/2 + omega^2 U(x), instead of ``th
 * for a periodic oscillator (the pendulum), by rejection from the uniform law on [-pi, pi):
   accept x with probability exp(-omega^2 (U(x) - min U)/T) (the acceptance rate is about
   sqrt(T/(2 pi omega^2)) at low T; exact whatever T);
-* for the harmonic oscillator, x ~ N(0, T/omega^2) exactly.
+* for the harmonic oscillator, x ~ N(0, T/omega^2) exactly;
+* for the x**(2n) oscillators (``potential="power"``), exactly by inversion: with m = 2n,
+  y = omega^2 |x|^m/(m T) has the Gamma(1/m, 1) law, so |x| = (m T y/omega^2)^(1/m) with
+  y = P^-1(1/m, u) (the inverse regularized incomplete gamma function of a uniform u) and the
+  sign from a second uniform.
 
-Other oscillators are refused in one line (their x has no bounded proposal here). The numbers are
-Philox draws of their own (``rng.N_BOLTZMANN``: Omega from draw N_BOLTZMANN, x from draws
-N_BOLTZMANN + 1 + j for attempt j), a function of (seed, path) alone, computed on the host in
+Other oscillators (users' own) are refused in one line (their x has no bounded proposal here).
+The numbers are Philox draws of their own (``rng.N_BOLTZMANN``: Omega from draw N_BOLTZMANN, x
+from draws N_BOLTZMANN + 1 + j for attempt j; the power oscillators use draw N_BOLTZMANN + 1's
+two uniforms), a function of (seed, path) alone, computed on the host in
 float64 for every backend and for the bias estimate's pairs, so a run's paths start at the same
 numbers wherever they run. With the damping and the additive noise on, T = D_a/(2 gamma) starts
 the ensemble in its own stationary law (docs/family.md).
@@ -48,9 +53,10 @@ def check(oscillator: Any, omega: float, T: float) -> None:
     rejection would take more than about 1e4 attempts a path."""
     if T <= 0.0:
         return
-    if not (oscillator.periodic or oscillator.name == "harmonic"):
+    if not (oscillator.periodic or oscillator.name in ("harmonic", "power")):
         raise ValueError(f"initial_temperature={T!r} is not accepted for potential={oscillator.name!r}: the "
-                         "Boltzmann law is drawn for the periodic oscillators and the harmonic one")
+                         "Boltzmann law is drawn for the periodic oscillators, the harmonic one and the "
+                         "x^(2n) ones")
     if omega <= 0.0:
         raise ValueError(f"initial_temperature={T!r} is not accepted with omega={omega!r}: at omega = 0 there "
                          "is no Boltzmann law in x (give omega > 0)")
@@ -63,6 +69,7 @@ def check(oscillator: Any, omega: float, T: float) -> None:
 def _kernel(oscillator: Any):
     potential = oscillator.kernel(np.float64, LIBM).potential
     PERIODIC = oscillator.periodic
+    POWER = oscillator.name == "power"
     two_pi = 2.0 * math.pi
     first = np.uint64(rng.N_BOLTZMANN)
     max_attempts = MAX_ATTEMPTS
@@ -74,6 +81,10 @@ def _kernel(oscillator: Any):
             path = np.uint64(path0 + np.uint64(i))
             z, z2 = rng.draw_normals(key0, key1, path, first)
             Omega[i] = sigma * z
+            if POWER:  # two uniforms, turned into x on the host (boltzmann): exact
+                u, v = rng.draw_uniforms(key0, key1, path, first + np.uint64(1))
+                x[i] = u if v < 0.5 else -u
+                continue
             if not PERIODIC:  # the harmonic oscillator: exact
                 x[i] = math.sqrt(T / omega2) * z2
                 continue
@@ -100,8 +111,14 @@ def boltzmann(config: Any, path0: int, n: int) -> tuple[np.ndarray, np.ndarray]:
     x = np.empty(n)
     Omega = np.empty(n)
     key0, key1 = rng.seed_to_key(config.seed)
-    _kernel(oscillator)(x, Omega, key0, key1, np.uint64(path0), T, float(config.omega) ** 2, q,
-                        float(oscillator.energy_floor(q)))
+    omega2 = float(config.omega) ** 2
+    _kernel(oscillator)(x, Omega, key0, key1, np.uint64(path0), T, omega2, q, float(oscillator.energy_floor(q)))
+    if oscillator.name == "power":  # x holds +-u: |x| = (m T y/omega^2)^(1/m), y = P^-1(1/m, u)
+        from scipy.special import gammaincinv
+
+        m = 2 * int(q[0])
+        y = gammaincinv(1.0 / m, np.abs(x))
+        x = np.copysign((m * T * y / omega2) ** (1.0 / m), x)
     return x, Omega
 
 

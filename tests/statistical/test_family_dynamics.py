@@ -340,29 +340,58 @@ def test_the_pendulum_hops_at_the_kramers_rate():
     assert abs(k / k_K - 1) < accuracy + 4 * k_se / k_K, (k, k_K)
 
 
-@pytest.mark.parametrize("potential", ["pendulum", "harmonic"])
+@pytest.mark.parametrize("potential", ["pendulum", "harmonic", "power"])
 def test_an_ensemble_started_from_the_boltzmann_law_is_there_and_stays(potential):
     """initial_temperature = T = D_a/(2 gamma): the first output time (t = 0.01) already shows
-    the Boltzmann law, and so does every later one (the run starts in its stationary law)."""
+    the Boltzmann law, and so does every later one (the run starts in its stationary law). The
+    x^4 oscillator (power_n = 2) is drawn by inverting its Gamma(1/4) law: ⟨E⟩ = T/2 + T/4."""
     gamma, D_a, omega = 0.5, 0.6, 1.0
     T = D_a / (2 * gamma)
     ds = stochpend.simulate(potential=potential, noise="white", D=0.0, omega=omega, paths=40_000, t_max=10.0,
                             times=(0.01, 2.0, 10.0), seed=17, gamma=gamma, additive_D=D_a, initial_temperature=T,
                             bias_paths=64)
-    E = (family.boltzmann_pendulum_mean_E if potential == "pendulum" else family.boltzmann_harmonic_mean_E)(
-        D_a=D_a, gamma=gamma, omega=omega)
+    if potential == "power":
+        E = family.boltzmann_power_mean_E(D_a=D_a, gamma=gamma, omega=omega, power_n=2)
+    else:
+        E = (family.boltzmann_pendulum_mean_E if potential == "pendulum" else family.boltzmann_harmonic_mean_E)(
+            D_a=D_a, gamma=gamma, omega=omega)
     for name, want in (("mean_Omega2", T), ("mean_E", E)):
         z = (ds[name].values - want) / ds[f"{name}_stderr"].values
         assert np.all(np.abs(z) < Z), (name, ds[name].values, want, z)
     assert ds.attrs["initial_temperature"] == T and int(ds.nonfinite_paths[-1]) == 0
 
 
+@pytest.mark.parametrize("power_n", [1, 2, 3])
+def test_the_power_oscillators_boltzmann_start_has_the_exact_law_of_x(power_n):
+    """The start alone (stochpend.initial.boltzmann, what every backend and the bias pairs use):
+    <x^2> of U = x^(2n)/(2n) at temperature T against (2nT/omega^2)^(1/n) Gamma(3/2n)/Gamma(1/2n),
+    <omega^2 U> against the virial T/(2n), x symmetric, and n = 1 the harmonic law."""
+    from stochpend import initial
+    from stochpend.params import SimulationConfig
+
+    T, omega, n = 0.7, 1.3, 50_000
+    config = SimulationConfig.build(potential="power", power_n=power_n, noise="white", D=0.0, omega=omega,
+                                    paths=n, t_max=1.0, n_times=2, seed=5,
+                                    noise_params={"gamma": 1.0, "additive_D": 2 * T, "initial_temperature": T})
+    x, Omega = initial.boltzmann(config, 0, n)
+    checks = [(x**2, family.boltzmann_power_mean_x2(D_a=2 * T, gamma=1.0, omega=omega, power_n=power_n)),
+              (omega**2 * x ** (2 * power_n) / (2 * power_n), T / (2 * power_n)), (x, 0.0), (Omega**2, T)]
+    for values, want in checks:
+        z = (values.mean() - want) / (values.std() / math.sqrt(n))
+        assert abs(z) < Z, (power_n, values.mean(), want, z)
+    again, _ = initial.boltzmann(config, 7, 10)
+    assert np.array_equal(again, x[7:17])  # a function of (seed, path) alone
+
+
 @pytest.mark.parametrize("kwargs, message", [
-    (dict(potential="power", initial_temperature=0.5), "is not accepted for potential='power'"),
+    (dict(potential="double-well", initial_temperature=0.5), "is not accepted for potential='double-well'"),
     (dict(omega=0.0, initial_temperature=0.5), "with omega=0.0"),
     (dict(initial_temperature=-1.0), "initial_temperature=-1.0 is not accepted"),
 ])
 def test_a_boltzmann_start_that_cannot_be_drawn_is_refused_in_one_line(kwargs, message):
+    from tests.unit._user_models import register_all
+
+    register_all()  # a user's oscillator: no bounded proposal for its x
     with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")) as info:
         stochpend.simulate(noise="white", D=0.5, paths=100, t_max=1.0, n_times=2, **kwargs)
     assert "\n" not in str(info.value)
