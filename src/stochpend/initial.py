@@ -33,6 +33,7 @@ import numba
 import numpy as np
 
 from stochpend import dynamics, rng
+from stochpend._jitcache import own_index
 from stochpend.mathlib import LIBM
 
 __all__ = ["MAX_ATTEMPTS", "additive_state", "boltzmann", "check", "temperature"]
@@ -123,6 +124,7 @@ def boltzmann(config: Any, path0: int, n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 @numba.njit(nogil=True, cache=True)
+@own_index("additive-start")  # the code digest in its cache index, as every cached kernel
 def _additive_draw(out, key0, key1, path0, scale):  # pragma: no cover - compiled
     first = np.uint64(rng.N_INIT_ADDITIVE)
     for i in range(out.shape[0]):
