@@ -748,8 +748,10 @@ def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: froze
     real = nbtypes.float32 if precision == "float32" else nbtypes.float64
     f64 = nbtypes.Array(nbtypes.float64, 1, "C")
     r = nbtypes.Array(real, 1, "C")
-    state = nbtypes.Tuple((r, r, r, f64, f64, f64, nbtypes.Array(nbtypes.uint64, 1, "C"),
-                           nbtypes.Array(nbtypes.uint8, 1, "C")))
+    arrays = [r, r, r, f64, f64, f64, nbtypes.Array(nbtypes.uint64, 1, "C"), nbtypes.Array(nbtypes.uint8, 1, "C")]
+    if "additive_ou" in terms:  # the additive OU noise's xi_a, last (float64)
+        arrays.append(f64)
+    state = nbtypes.Tuple(tuple(arrays))
     record = nbtypes.UniTuple(nbtypes.float64, len(noise.parameters))
     # The oscillator's record as Oscillator.record builds it: an integer setting (power_n) stays
     # an integer, everything else is a float.
@@ -795,10 +797,11 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
                             out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
                                         _pair_advance_signature(noise, osc)))
     # The family's terms (stochpend.dynamics) on the paper's pendulum: damping with the additive
-    # noise, and every term on.
+    # white noise, every term on, and damping with the additive OU noise.
     pendulum = oscillators.BUILTIN["pendulum"]
     for terms in (frozenset({"damping", "additive"}),
-                  frozenset({"damping", "additive", "torque", "drive", "parametric"})):
+                  frozenset({"damping", "additive", "torque", "drive", "parametric"}),
+                  frozenset({"damping", "additive_ou"})):
         for precision in precisions:
             for noise in noises.BUILTIN:
                 if noise.name not in ("ou", "white"):
