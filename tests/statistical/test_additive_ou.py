@@ -32,6 +32,7 @@ import stochpend
 from stochpend import dynamics, initial, integrator
 from stochpend.noises.ou import step_coefficients
 from stochpend.theory import family
+from tests._checkpoints import StopAfter
 
 Z = 4.0
 
@@ -221,16 +222,10 @@ def test_a_checkpointed_run_resumes_to_the_same_numbers(tmp_path):
                                     noise_params={"gamma": 0.3, "additive_D": 0.2, "additive_tau": 0.7})
     ref = run(config, chunk_paths=90, bias_paths=64)
 
-    class StopAfter(ck.FileCheckpointer):
-        def maybe_save(self, state):
-            self.save(state)
-            if self.saves >= 5:
-                raise KeyboardInterrupt
-
     path = tmp_path / "run.ckpt"
     with pytest.raises(KeyboardInterrupt):
         ck.run_checkpointed(config, checkpoint_path=path, every_s=None, chunk_paths=90, bias_paths=64,
-                            checkpointer=StopAfter(path, None, config=config, chunk_paths=90))
+                            checkpointer=StopAfter(path, None, config=config, n=5, chunk_paths=90))
     saved = ck.read(path)
     assert saved.state.xi_a is not None and saved.state.xi_a.shape == saved.state.x.shape
     assert np.any(saved.state.xi_a != 0.0)

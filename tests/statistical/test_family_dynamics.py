@@ -34,6 +34,7 @@ import stochpend
 from stochpend import dynamics, integrator
 from stochpend.observables import TimeAverage, register, unregister
 from stochpend.theory import family
+from tests._checkpoints import StopAfter
 
 Z = 4.0
 
@@ -213,16 +214,10 @@ def test_a_checkpointed_damped_run_resumes_to_the_same_numbers(tmp_path):
                                     noise_params={"gamma": 0.3, "additive_D": 0.2, "torque": 0.1})
     ref = run(config, chunk_paths=90, bias_paths=64)
 
-    class StopAfter(ck.FileCheckpointer):
-        def maybe_save(self, state):
-            self.save(state)
-            if self.saves >= 5:
-                raise KeyboardInterrupt
-
     path = tmp_path / "run.ckpt"
     with pytest.raises(KeyboardInterrupt):
         ck.run_checkpointed(config, checkpoint_path=path, every_s=None, chunk_paths=90, bias_paths=64,
-                            checkpointer=StopAfter(path, None, config=config, chunk_paths=90))
+                            checkpointer=StopAfter(path, None, config=config, n=5, chunk_paths=90))
     done = ck.resume(path)
     assert done.attrs["dynamics_parameters"] == "additive_D=0.2, gamma=0.3, torque=0.1"
     for name in ref.data_vars:

@@ -21,6 +21,7 @@ from stochpend._cli_scale import parse_duration, resume_command, simulate_with_c
 from stochpend.params import SimulationConfig
 from stochpend.progress import NoProgress
 from stochpend.simulate import run, simulate
+from tests._checkpoints import StopAfter
 
 SMALL = {"noise": "ou", "D": 1.0, "tau": 1.0, "omega": 1.0, "paths": 300, "t_max": 20.0, "n_times": 6, "seed": 5}
 CHUNK = 90  # paths per chunk: 30 batches of 3, so the run has 4 chunks
@@ -36,19 +37,6 @@ def _assert_identical(a, b):
 def small():
     config = SimulationConfig.build(**SMALL)
     return config, run(config, chunk_paths=CHUNK)
-
-
-class StopAfter(ck.FileCheckpointer):
-    """Saves at every kernel boundary and raises KeyboardInterrupt after ``n`` saves."""
-
-    def __init__(self, *args, n, **kwargs):
-        super().__init__(*args, **kwargs)
-        self.n = n
-
-    def maybe_save(self, state):
-        self.save(state)
-        if self.saves >= self.n:
-            raise KeyboardInterrupt
 
 
 def _interrupted(tmp_path, config, n, name="run.ckpt", out=None, chunk=CHUNK, **settings):

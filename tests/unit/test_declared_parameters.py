@@ -30,6 +30,7 @@ from stochpend import io, plugins
 from stochpend.observables import Observable, register, unregister
 from stochpend.params import SimulationConfig
 from stochpend.simulate import run
+from tests._checkpoints import StopAfter
 from tests.unit import _two_ou
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -102,16 +103,10 @@ def test_a_checkpointed_run_resumes_exactly_and_only_with_the_plugin(tmp_path):
                                     noise_params=OWN)
     ref = run(config, chunk_paths=90, bias_paths=0)
 
-    class StopAfter(ck.FileCheckpointer):
-        def maybe_save(self, state):
-            self.save(state)
-            if self.saves >= 4:
-                raise KeyboardInterrupt
-
     path = tmp_path / "run.ckpt"
     with pytest.raises(KeyboardInterrupt):
         ck.run_checkpointed(config, checkpoint_path=path, every_s=None, chunk_paths=90, bias_paths=0,
-                            checkpointer=StopAfter(path, None, config=config, chunk_paths=90, out=tmp_path / "r.nc"),
+                            checkpointer=StopAfter(path, None, config=config, n=4, chunk_paths=90, out=tmp_path / "r.nc"),
                             out=tmp_path / "r.nc")
     refused = _cli("resume", str(path), cwd=tmp_path)
     assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1, refused.stderr

@@ -20,6 +20,7 @@ from stochpend import cli, io, params, runner
 from stochpend._backends import cpu
 from stochpend.params import SimulationConfig
 from stochpend.simulate import run
+from tests._checkpoints import StopAfter
 
 #: The damped pendulum with additive white noise (no parametric noise): it relaxes to
 #: Boltzmann at T = D_a / (2 gamma) = 0.4 (tests/statistical/test_family_dynamics.py).
@@ -116,23 +117,12 @@ def test_without_it_the_run_is_the_run_it_was(damped):
     assert params.hist_columns(plain_config) == plain_config.hist_bins + 2
 
 
-class _StopAfter(ck.FileCheckpointer):
-    def __init__(self, *args, n, **kwargs):
-        super().__init__(*args, **kwargs)
-        self.n = n
-
-    def maybe_save(self, state):
-        self.save(state)
-        if self.saves >= self.n:
-            raise KeyboardInterrupt
-
-
 @pytest.mark.parametrize("n", [2, 5])
 def test_a_checkpoint_resumed_gives_the_straight_run(tmp_path, n):
     config = _config(PAPER)
     ref = run(config, bias_paths=0, chunk_paths=90)
     path = tmp_path / "run.ckpt"
-    cp = _StopAfter(path, None, config=config, n=n, chunk_paths=90)
+    cp = StopAfter(path, None, config=config, n=n, chunk_paths=90)
     with pytest.raises(KeyboardInterrupt):
         ck.run_checkpointed(config, checkpoint_path=path, every_s=None, checkpointer=cp, chunk_paths=90,
                             bias_paths=0)

@@ -31,6 +31,7 @@ from stochpend.models import Model
 from stochpend.parameters import Parameter, split
 from stochpend.params import SimulationConfig
 from stochpend.simulate import run
+from tests._checkpoints import StopAfter
 from tests.unit import _tilted_well
 from tests.unit._user_models import DOUBLE_WELL, register_all
 
@@ -151,16 +152,10 @@ def test_a_checkpointed_run_resumes_exactly(tmp_path):
                                     n_times=3, seed=5, noise_params={"a": -0.3})
     ref = run(config, chunk_paths=90, bias_paths=0)
 
-    class StopAfter(ck.FileCheckpointer):
-        def maybe_save(self, state):
-            self.save(state)
-            if self.saves >= 4:
-                raise KeyboardInterrupt
-
     path = tmp_path / "run.ckpt"
     with pytest.raises(KeyboardInterrupt):
         ck.run_checkpointed(config, checkpoint_path=path, every_s=None, chunk_paths=90, bias_paths=0,
-                            checkpointer=StopAfter(path, None, config=config, chunk_paths=90, out=tmp_path / "r.nc"),
+                            checkpointer=StopAfter(path, None, config=config, n=4, chunk_paths=90, out=tmp_path / "r.nc"),
                             out=tmp_path / "r.nc")
     done = _cli("resume", "--plugin", PLUGIN, str(path), "-q", cwd=tmp_path)
     assert done.returncode == 0, done.stderr

@@ -27,6 +27,7 @@ from stochpend import checkpoint as ck
 from stochpend.observables import FirstPassage, Observable, RunningSum, TimeAverage, register, unregister
 from stochpend.params import SimulationConfig
 from stochpend.simulate import run
+from tests._checkpoints import StopAfter
 
 RUN = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=2000, t_max=10.0, n_times=4, seed=11)
 NAMES = ("Om2_avg", "t_avg", "t_late", "xi_int", "escape", "at_t", "x_now", "minus_x", "x2_avg")
@@ -138,16 +139,10 @@ def test_a_checkpointed_run_with_accumulators_resumes_to_the_same_numbers(tmp_pa
     config = SimulationConfig.build(**{**RUN, "paths": 300}, observables=("Om2_avg", "escape", "displacement"))
     ref = run(config, chunk_paths=90, bias_paths=0)
 
-    class StopAfter(ck.FileCheckpointer):
-        def maybe_save(self, state):
-            self.save(state)
-            if self.saves >= 5:
-                raise KeyboardInterrupt
-
     path = tmp_path / "run.ckpt"
     with pytest.raises(KeyboardInterrupt):
         ck.run_checkpointed(config, checkpoint_path=path, every_s=None, chunk_paths=90,
-                            checkpointer=StopAfter(path, None, config=config, chunk_paths=90))
+                            checkpointer=StopAfter(path, None, config=config, n=5, chunk_paths=90))
     done = ck.resume(path)
     for name in ref.data_vars:
         assert np.array_equal(done[name].values, ref[name].values, equal_nan=True), name

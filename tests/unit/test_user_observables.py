@@ -26,6 +26,7 @@ from stochpend import checkpoint as ck
 from stochpend.observables import Observable, register, unregister
 from stochpend.params import SimulationConfig
 from stochpend.simulate import run
+from tests._checkpoints import StopAfter
 
 RUN = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=2000, t_max=10.0, n_times=4, seed=11)
 
@@ -84,16 +85,10 @@ def test_checkpointed_auto_run_with_an_observable_resumes_its_bias(tmp_path):
     ref = run(config, chunk_paths=300, accuracy="auto", bias_paths=256)
     assert ref.attrs["accuracy_level"] >= 1 and "mean_xi2_bias" in ref
 
-    class StopAfter(ck.FileCheckpointer):
-        def maybe_save(self, state):
-            self.save(state)
-            if self.saves >= 3:
-                raise KeyboardInterrupt
-
     path = tmp_path / "run.ckpt"
     with pytest.raises(KeyboardInterrupt):
         ck.run_checkpointed(config, checkpoint_path=path, every_s=None, chunk_paths=300, accuracy="auto",
-                            bias_paths=256, checkpointer=StopAfter(path, None, config=config, chunk_paths=300))
+                            bias_paths=256, checkpointer=StopAfter(path, None, config=config, n=3, chunk_paths=300))
     done = ck.resume(path)
     assert set(done.data_vars) == set(ref.data_vars)
     for name in ref.data_vars:
@@ -104,16 +99,10 @@ def test_checkpointed_run_with_an_observable_resumes_exactly(tmp_path):
     config = SimulationConfig.build(**{**RUN, "paths": 300}, observables=("xi2",))
     ref = run(config, chunk_paths=90, bias_paths=0)
 
-    class StopAfter(ck.FileCheckpointer):
-        def maybe_save(self, state):
-            self.save(state)
-            if self.saves >= 5:
-                raise KeyboardInterrupt
-
     path = tmp_path / "run.ckpt"
     with pytest.raises(KeyboardInterrupt):
         ck.run_checkpointed(config, checkpoint_path=path, every_s=None, chunk_paths=90,
-                            checkpointer=StopAfter(path, None, config=config, chunk_paths=90))
+                            checkpointer=StopAfter(path, None, config=config, n=5, chunk_paths=90))
     # A process that has not registered the observable refuses in one line, naming it.
     unregister("xi2")
     with pytest.raises(ValueError, match="'xi2' is not a registered observable"):
