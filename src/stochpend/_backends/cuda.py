@@ -66,10 +66,24 @@ __all__ = ["PRECISIONS", "Engine", "availability", "kernel_variants", "path_stat
 
 PRECISIONS = integrator.PRECISIONS
 
+
+def _simulator_enabled() -> bool:
+    from numba.core import config as numba_config
+
+    return bool(numba_config.ENABLE_CUDASIM)
+
+
+#: Under Numba's CUDA simulator (NUMBA_ENABLE_CUDASIM=1: the test suite's GPU checks without a
+#: GPU) every CUDA thread of a launch is a Python thread, started and joined per block: a launch
+#: of 128-thread blocks over the tests' 8 to 48 paths started 49 000 threads in one toy
+#: ``reproduce`` (70 s, most of it waiting for thread starts). The simulator runs one warp per
+#: block instead. No number depends on the block size: a thread advances its own path (keyed
+#: by its global index), and the statistics kernel's thread 0 adds the values in path order.
+_BLOCK = 32 if _simulator_enabled() else 128
 #: Threads per block of the init and advance kernels (one thread per path).
-THREADS_PER_BLOCK = 128
+THREADS_PER_BLOCK = _BLOCK
 #: Threads per block of the statistics kernel, and paths per shared-memory tile.
-STATS_THREADS = 128
+STATS_THREADS = _BLOCK
 #: Histograms with at most this many columns (bins + 2) are counted in shared memory per block.
 SHARED_HIST_MAX = 1024
 #: Default paths per chunk (57 bytes a path in float64, 45 in float32); capped at half the
@@ -124,12 +138,6 @@ def _device_count() -> int:
     from numba.cuda.cudadrv.driver import driver
 
     return int(driver.get_device_count())
-
-
-def _simulator_enabled() -> bool:
-    from numba.core import config as numba_config
-
-    return bool(numba_config.ENABLE_CUDASIM)
 
 
 def _require(precision: str) -> None:
