@@ -481,6 +481,8 @@ def summary_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Tabl
         title += f", {markup(str(attrs['potential_parameters']))}"
     if attrs.get("dynamics_parameters"):  # the family's terms that are on (damping, drives, ...)
         title += f", {markup(str(attrs['dynamics_parameters']))}"
+    if attrs.get("additive_noise"):  # the additive channel's noise, when the run named one
+        title += f", additive {markup(str(attrs['additive_noise']))} noise"
     title += f", omega={float(attrs.get('omega', 0.0)):g}, {int(attrs.get('paths', 0))} paths, seed {markup(attrs.get('seed'))}"
     scaled: Any = _scaled_column(ds)  # (header, variable, norm) or None
     has_bias = "mean_E_bias" in ds

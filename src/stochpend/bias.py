@@ -302,16 +302,15 @@ class _CpuPairs:
                               0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
         if initial.temperature(c) > 0.0:  # as the run's paths (stochpend.initial)
             self.x[:], self.Omega[:] = initial.boltzmann(c, int(self.path0), n)
-        # The additive OU noise's value, shared by the pair's members as xi is (a run with it).
-        self.xi_a = initial.additive_state(c, int(self.path0), n) if "additive_ou" in spec.terms else None
+        # The additive channel's state, shared by the pair's members as xi is (a run with it).
+        self.additive = initial.additive_states(c, int(self.path0), n)
         self.xf[:] = self.x
         self.Omegaf[:] = self.Omega
 
     def advance(self, t_target: float, max_steps: int) -> bool:
         state: tuple[np.ndarray, ...] = (self.x, self.Omega, self.xf, self.Omegaf, self.xi, self.xi_aux,
                                          self.t, self.t_comp, self.k, self.status)
-        if self.xi_a is not None:
-            state = (*state, self.xi_a)
+        state = (*state, *self.additive)
         _, unfinished = self.advance_k(state, t_target, max_steps, self.key0, self.key1, self.path0,
                                        self.record, self.run)
         return unfinished == 0

@@ -57,7 +57,7 @@ from stochpend import _files, bias, io, observables
 from stochpend._backends.layout import path_dtypes
 from stochpend._sources import BUILD
 from stochpend._version import __version__
-from stochpend.dynamics import additive_ou
+from stochpend.dynamics import additive_arrays
 from stochpend.lifecycle import Checkpointing, Run, execute
 from stochpend.observables import n_sums
 from stochpend.params import SimulationConfig, hist_columns
@@ -92,14 +92,15 @@ _CHUNK_ARRAYS = {"chunk_sums": "<f8", "chunk_hist": "<i8"}
 _ACC_ARRAYS = {"acc_sums": "<f8", "acc_hist": "<i8", "acc_filled": "|b1"}
 _PATH_ARRAYS = tuple(f.name for f in fields(RunState)
                      if f.name not in (*_RUN_FIELDS, *_CHUNK_ARRAYS, "acc", "backend", "precision", "_sync",
-                                       "tracks", "xi_a"))
+                                       "tracks", "xi_a", "aux_a"))
 #: The per-path accumulators' slots (stochpend.observables), (n_slots, n), written when the run
 #: has accumulators; the finished chunks' final passage times (stochpend.passage), (n_passages,
 #: paths), when it has first passages.
 _TRACK_ARRAYS = {"tracks": "<f8", "acc_passage": "<f8"}
 #: The additive Ornstein-Uhlenbeck noise's per-path value (stochpend.dynamics, additive_tau > 0),
 #: (n,), written for a run with it only (so every other run's checkpoint is what it was).
-_ADDITIVE_ARRAYS = {"xi_a": "<f8"}
+#: The generic additive channel (``additive_noise``) adds its noise's second variable ``aux_a``.
+_ADDITIVE_ARRAYS = {"xi_a": "<f8", "aux_a": "<f8"}
 #: Dtype kinds a per-path array may have (never object: nothing here can hold a pickle).
 _NUMERIC_KINDS = "biuf"
 #: An ``accuracy="auto"`` run's pilot (:class:`stochpend.bias.BiasEstimate`): (value, stderr)
@@ -131,7 +132,8 @@ def config_to_json(config: SimulationConfig) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for f in fields(config):
         if f.name == "extra" or (f.name in ("observables", "noise_params", "osc_params", "dyn_params",
-                                            "joint_bins", "joint_x_range", "joint_Omega_max")
+                                            "joint_bins", "joint_x_range", "joint_Omega_max",
+                                            "additive_noise")
                                  and not getattr(config, f.name)):
             continue  # written only when used: checkpoints from before keep their hash
         v = getattr(config, f.name)
@@ -243,8 +245,10 @@ def _state_arrays(state: RunState) -> dict[str, np.ndarray]:
     arrays["acc_filled"] = np.ascontiguousarray(state.acc.filled, dtype=_ACC_ARRAYS["acc_filled"])
     if state.tracks is not None and state.tracks.shape[0] > 0:
         arrays["tracks"] = np.ascontiguousarray(state.tracks, dtype=_TRACK_ARRAYS["tracks"])
-    if state.xi_a is not None and state.xi_a.shape[0] > 0:
-        arrays["xi_a"] = np.ascontiguousarray(state.xi_a, dtype=_ADDITIVE_ARRAYS["xi_a"])
+    for name in _ADDITIVE_ARRAYS:
+        value = getattr(state, name)
+        if value is not None and value.shape[0] > 0:
+            arrays[name] = np.ascontiguousarray(value, dtype=_ADDITIVE_ARRAYS[name])
     if state.acc.passage is not None:
         arrays["acc_passage"] = np.ascontiguousarray(state.acc.passage, dtype=_TRACK_ARRAYS["acc_passage"])
     for name in _PATH_ARRAYS:
@@ -453,8 +457,8 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     n_passages = len(passage_slots(config.observables))
     if n_passages:
         shapes["acc_passage"] = (n_passages, config.paths)
-    if additive_ou(config):
-        shapes["xi_a"] = (n,)
+    for name in additive_arrays(config):
+        shapes[name] = (n,)
     record = header.get("accuracy")
     if record is not None:
         n_stats = len(_statistic_names(config))
@@ -498,7 +502,7 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     state = RunState(**fields_read,
                      chunk_sums=arrays["chunk_sums"], chunk_hist=arrays["chunk_hist"], acc=acc,
                      backend=backend, precision=precision, tracks=arrays.get("tracks"),
-                     xi_a=arrays.get("xi_a"))
+                     xi_a=arrays.get("xi_a"), aux_a=arrays.get("aux_a"))
     out = header.get("out")
     return Checkpoint(
         config=config, state=state, out=None if out is None else Path(out),

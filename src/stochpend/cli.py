@@ -167,7 +167,7 @@ def _root(
 CONFIG_KEYS = ("noise", "D", "tau", "omega_noise", "omega", "potential", "n", "coupling", "paths", "t_max",
                "n_times", "times", "seed", "theta0", "Omega0", "h_max", "step_c", "hist_bins", "bias_paths",
                "accuracy", "rtol", "max_path_steps", "backend", "precision", "threads", "joint_bins",
-               "joint_x_range", "joint_Omega_max")
+               "joint_x_range", "joint_Omega_max", "additive_noise")
 _CONFIG_REFUSED = {"out": "the output file is named on the command line (--out)",
                    "overwrite": "only the command line that runs may allow overwriting (--overwrite)",
                    "checkpoint": "the checkpoint file is named on the command line (--checkpoint)",
@@ -286,6 +286,7 @@ def simulate(
     joint_bins: Annotated[str | None, typer.Option("--joint-bins", metavar="NX,NO", help="Also histogram (x, Omega) jointly at every output time on NX x NO uniform bins (each 1..500): counts, density and its error in the result.", show_default="none")] = None,
     joint_x_range: Annotated[str | None, typer.Option("--joint-x-range", metavar="LO,HI", help="With --joint-bins, a non-periodic oscillator: the x range (a periodic one's angle is binned over [-pi, pi)).", show_default="+-joint Omega max/omega")] = None,
     joint_Omega_max: Annotated[float | None, typer.Option("--joint-Omega-max", help="With --joint-bins: the Omega range [-W, W).", show_default="every Omega the energy histogram covers")] = None,
+    additive_noise: Annotated[str | None, typer.Option("--additive-noise", metavar="NAME", help="The additive noise xi_a's noise (with --param additive_D=...): a registered noise, e.g. harmonic or dichotomous; its parameters are --param additive_tau=, additive_omega_noise=, additive_<its own>=.", show_default="white, or ou when additive_tau > 0")] = None,
     observable: Annotated[list[str] | None, typer.Option("--observable", metavar="NAME", help="Also report a registered observable or per-path accumulator ('displacement', or one a --plugin registers; repeat it; 'stochpend list' shows them).", show_default="none")] = None,
     config_file: Annotated[Path | None, typer.Option("--config", parser=file_name, is_eager=True, callback=_load_config,
                                                 help="A TOML file of physics and numerics options, by their names here "
@@ -320,6 +321,8 @@ def simulate(
     kwargs.update(_joint_options(joint_bins, joint_x_range, joint_Omega_max))
     # Validate everything before any work (and before the JIT compiles).
     kwargs.update(potential=potential, power_n=n, coupling=coupling, omega_noise=omega_noise)
+    if additive_noise is not None:
+        kwargs["additive_noise"] = additive_noise
     noise_params = parse_params(param)
     config = params.SimulationConfig.build(
         noise_params=noise_params,

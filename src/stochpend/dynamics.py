@@ -26,17 +26,32 @@ array ``xi_a``), started in its stationary law N(0, D_a/(2 tau_a)) from Philox d
 ``rng.N_INIT_ADDITIVE`` and advanced with the OU noise's exact joint update of (xi_a, its
 integral over the step) from both normals of draw ``rng.N_ADDITIVE + k``; the integral enters
 the kick (the term "additive_ou"; "additive" is the white channel's).
+
+``additive_noise`` (a setting of :class:`stochpend.params.SimulationConfig`) makes xi_a ANY
+registered noise (:mod:`stochpend.noises`: ``"harmonic"``, ``"dichotomous"``, a user's): the
+term "additive_noise" (the generic channel). Unset, ``"white"`` or ``"ou"`` select the two terms
+above, so those runs are what they were, bit for bit. The channel's parameter record is the
+noise's own :meth:`~stochpend.noises.Noise.record`, with its names mapped onto the channel
+(:func:`channel_record`): D -> ``additive_D``, tau -> ``additive_tau``, omega_noise ->
+``additive_omega_noise`` (0: the noise's ``default_omega_noise(tau_a)``), and each parameter p the
+noise declares for itself -> ``additive_<p>``. Its random numbers are the noise's own draws
+(init, draw, at_event) under the channel's Philox key (:func:`stochpend.rng.additive_key`), so
+they are independent of xi's and of the white/OU channel's, and keyed by (seed, path, step)
+alone. Its state (xi_a, aux_a) is per path (the chunk arrays ``xi_a``, ``aux_a``); the noise's
+exact step gives the integral of xi_a over the step, which enters the kick as the OU channel's.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 from stochpend.parameters import Parameter
 
-__all__ = ["FAMILY", "TERMS", "additive_ou", "names", "record", "terms_of"]
+__all__ = ["FAMILY", "TERMS", "additive_arrays", "additive_ou", "channel", "channel_parameters",
+           "channel_record", "names", "record", "terms_of", "terms_of_config"]
 
 
 @dataclass(frozen=True)
@@ -61,6 +76,8 @@ FAMILY = Dynamics("family", (
               "Omega0 as given; stochpend.initial)", low=0.0),
     Parameter("additive_tau", 0.0, "correlation time tau_a of the additive noise: 0 white, > 0 "
               "Ornstein-Uhlenbeck, <xi_a xi_a'> = D_a/(2 tau_a) exp(-|t - t'|/tau_a)", low=0.0),
+    Parameter("additive_omega_noise", 0.0, "the additive noise's frequency W_a, a noise that takes "
+              "omega_noise (additive_noise='harmonic'); 0: its default (2/tau_a)", low=0.0),
 ))
 
 #: The record's order (what the kernels read, by index).
@@ -68,10 +85,16 @@ _ORDER = tuple(p.name for p in FAMILY.parameters)
 _DEFAULTS = {p.name: p.default for p in FAMILY.parameters}
 
 #: The terms a kernel can be specialised for, and the parameter that switches each on. The
-#: additive noise is one of two terms: "additive" (white, additive_tau = 0) or "additive_ou"
-#: (additive_tau > 0), by :func:`terms_of`.
+#: additive noise is one of three terms: "additive" (white, additive_tau = 0) or "additive_ou"
+#: (additive_tau > 0) when ``additive_noise`` is unset, "white" or "ou"; "additive_noise" (the
+#: generic channel) for any other registered noise, by :func:`terms_of`.
 TERMS = {"damping": "gamma", "torque": "torque", "drive": "drive_amplitude",
-         "parametric": "parametric_amplitude", "additive": "additive_D", "additive_ou": "additive_D"}
+         "parametric": "parametric_amplitude", "additive": "additive_D", "additive_ou": "additive_D",
+         "additive_noise": "additive_D"}
+
+#: ``additive_noise`` names that select today's two terms (white, OU) rather than the generic
+#: channel: their numbers stay those of a run without the setting.
+CLASSIC = (None, "white", "ou")
 
 
 def names() -> tuple[str, ...]:
@@ -79,26 +102,54 @@ def names() -> tuple[str, ...]:
     return _ORDER
 
 
-def resolve(values: dict[str, Any]) -> tuple[tuple[str, float], ...]:
+def resolve(values: dict[str, Any], noise: Any = None) -> tuple[tuple[str, float], ...]:
     """Validate the family's parameters among ``values`` and return those that differ from
     their defaults as sorted (name, float) pairs: what a configuration stores (empty for a run
-    of the paper's model, so its configuration, hash and file are what they were)."""
+    of the paper's model, so its configuration, hash and file are what they were). ``noise``:
+    the generic channel's noise, whose own parameters ``additive_<p>`` are accepted too."""
     declared = {p.name: p for p in FAMILY.parameters}
-    out = {name: declared[name].check(value) for name, value in values.items()}
-    return tuple(sorted((name, v) for name, v in out.items() if v != _DEFAULTS[name]))
+    own = channel_parameters(noise)
+    defaults = {**_DEFAULTS, **{name: p.default for name, p in own.items()}}
+    out = {}
+    for name, value in values.items():
+        if name in own:
+            try:
+                out[name] = own[name].check(value)
+            except ValueError as exc:  # the message names the channel's parameter
+                raise ValueError(f"{name}{str(exc)[len(own[name].name):]}") from None
+        else:
+            out[name] = declared[name].check(value)
+    return tuple(sorted((name, v) for name, v in out.items() if v != defaults[name]))
+
+
+def channel_parameters(noise: Any) -> dict[str, Any]:
+    """The parameters the generic channel's ``noise`` declares for itself, by their channel
+    names ``additive_<p>`` (:class:`stochpend.parameters.Parameter` values); empty for none."""
+    from stochpend.parameters import own
+
+    return {f"additive_{p.name}": p for p in own(noise)} if noise is not None else {}
 
 
 def value(pairs: tuple[tuple[str, float], ...], name: str) -> float:
     return dict(pairs).get(name, _DEFAULTS[name])
 
 
-def terms_of(pairs: tuple[tuple[str, float], ...]) -> frozenset[str]:
+def terms_of(pairs: tuple[tuple[str, float], ...], additive_noise: str | None = None) -> frozenset[str]:
     """The terms that are on (their parameter nonzero): what a kernel is specialised for. The
-    additive noise is "additive" (white) when ``additive_tau`` is 0, else "additive_ou"."""
-    ou = value(pairs, "additive_tau") > 0.0
+    additive noise is "additive" (white) when ``additive_tau`` is 0, else "additive_ou", when
+    ``additive_noise`` is unset, "white" or "ou"; "additive_noise" (the generic channel) for
+    any other noise name."""
+    generic = additive_noise not in CLASSIC
+    ou = value(pairs, "additive_tau") > 0.0 and not generic
+    white = not ou and not generic
     return frozenset(term for term, name in TERMS.items()
-                     if value(pairs, name) != 0.0 and (term != "additive" or not ou)
-                     and (term != "additive_ou" or ou))
+                     if value(pairs, name) != 0.0 and (term != "additive" or white)
+                     and (term != "additive_ou" or ou) and (term != "additive_noise" or generic))
+
+
+def terms_of_config(config: Any) -> frozenset[str]:
+    """:func:`terms_of` of a configuration (its ``dyn_params`` and ``additive_noise``)."""
+    return terms_of(getattr(config, "dyn_params", ()), getattr(config, "additive_noise", None))
 
 
 #: The parameters the kernels read (the initial temperature is used on the host, stochpend.initial).
@@ -119,4 +170,54 @@ def record(config: Any) -> tuple[float, ...]:
 
 def additive_ou(config: Any) -> bool:
     """Whether the run's additive noise is the Ornstein-Uhlenbeck one (a per-path state xi_a)."""
-    return "additive_ou" in terms_of(getattr(config, "dyn_params", ()))
+    return "additive_ou" in terms_of_config(config)
+
+
+def channel(config: Any) -> Any:
+    """The generic additive channel's noise (:class:`stochpend.noises.Noise`) of a run with it
+    on (``additive_noise`` neither unset, "white" nor "ou", and ``additive_D`` > 0), else None."""
+    if "additive_noise" not in terms_of_config(config):
+        return None
+    from stochpend import noises
+
+    return noises.get(config.additive_noise)
+
+
+def additive_arrays(config: Any) -> tuple[str, ...]:
+    """The per-path arrays of the run's additive channel, placed after the others in the
+    kernels' state and written to its checkpoints: ``("xi_a",)`` for the OU channel,
+    ``("xi_a", "aux_a")`` for the generic one, none for any other run."""
+    terms = terms_of_config(config)
+    if "additive_noise" in terms:
+        return ("xi_a", "aux_a")
+    return ("xi_a",) if "additive_ou" in terms else ()
+
+
+def channel_omega_noise(noise: Any, pairs: tuple[tuple[str, float], ...]) -> float:
+    """The channel's W_a: ``additive_omega_noise``, or the noise's default at tau_a when 0."""
+    W = float(value(pairs, "additive_omega_noise"))
+    if W == 0.0 and noise.uses_omega_noise and noise.default_omega_noise is not None:
+        W = float(noise.default_omega_noise(value(pairs, "additive_tau")))
+    return W
+
+
+def channel_view(config: Any, noise: Any) -> SimpleNamespace:
+    """The configuration as the channel's ``noise`` reads it (its shared D, tau, omega_noise and
+    its own parameters, from the channel's names): what :meth:`Noise.record` takes."""
+    pairs = getattr(config, "dyn_params", ())
+    given = dict(pairs)
+    own = tuple(sorted((name[len("additive_"):], float(given.get(name, p.default)))
+                       for name, p in channel_parameters(noise).items()))
+    tau = float(value(pairs, "additive_tau"))
+    return SimpleNamespace(D=float(value(pairs, "additive_D")), tau=tau if noise.colored else 0.0,
+                           omega_noise=channel_omega_noise(noise, pairs), noise_params=own)
+
+
+def channel_record(config: Any) -> tuple[float, ...]:
+    """The generic channel's noise record (``Noise.record`` of the noise, with D -> additive_D,
+    tau -> additive_tau, omega_noise -> additive_omega_noise, p -> additive_<p>): a tuple of
+    float64 in the order of the noise's ``parameters``. Empty for a run without the channel."""
+    noise = channel(config)
+    if noise is None:
+        return ()
+    return noise.record(channel_view(config, noise))

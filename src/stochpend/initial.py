@@ -36,7 +36,7 @@ from stochpend import dynamics, rng
 from stochpend._jitcache import own_index
 from stochpend.mathlib import LIBM
 
-__all__ = ["MAX_ATTEMPTS", "additive_state", "boltzmann", "check", "temperature"]
+__all__ = ["MAX_ATTEMPTS", "additive_state", "additive_states", "boltzmann", "check", "temperature"]
 
 #: Rejection attempts per path before the path is given up as non-finite (NaN): at the lowest
 #: acceptance rate a run can ask for (check), the chance of reaching it is below 1e-300.
@@ -145,3 +145,37 @@ def additive_state(config: Any, path0: int, n: int) -> np.ndarray:
     key0, key1 = rng.seed_to_key(config.seed)
     _additive_draw(out, key0, key1, np.uint64(path0), scale)
     return out
+
+
+@functools.cache
+def _channel_init(noise: Any):
+    """The generic additive channel's start for ``noise``: its own ``init`` (float64, the C
+    library's math) over a range of paths, stationary, under the channel's key."""
+    noise_init = noise.kernel(np.float64, LIBM).init
+
+    @numba.njit(nogil=True)
+    def draw(xa, aux, key0, key1, path0, p):  # pragma: no cover - compiled
+        for i in range(xa.shape[0]):
+            xa[i], aux[i] = noise_init(key0, key1, np.uint64(path0 + np.uint64(i)), p, 0.0, True)
+
+    return draw
+
+
+def additive_states(config: Any, path0: int, n: int) -> tuple[np.ndarray, ...]:
+    """The additive channel's per-path arrays at t = 0 for global paths path0 .. path0 + n - 1,
+    in the order of :func:`stochpend.dynamics.additive_arrays`: ``(xi_a,)`` for the OU channel
+    (:func:`additive_state`), ``(xi_a, aux_a)`` for the generic channel (``additive_noise``):
+    its noise's stationary start (``init``), drawn under the channel's Philox key
+    (:func:`stochpend.rng.additive_key`), on the host in float64 for every backend and for the
+    bias pairs; ``()`` for any other run. Each array (n,) float64."""
+    names = dynamics.additive_arrays(config)
+    if names == ("xi_a",):
+        return (additive_state(config, path0, n),)
+    if not names:
+        return ()
+    noise = dynamics.channel(config)
+    xa = np.zeros(n)
+    aux = np.zeros(n)
+    key0, key1 = rng.additive_key(config.seed)
+    _channel_init(noise)(xa, aux, key0, key1, np.uint64(path0), dynamics.channel_record(config))
+    return xa, aux

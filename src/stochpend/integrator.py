@@ -122,7 +122,9 @@ def advance_clock(t, t_comp, h, last, t_target):
 
 def run_record(config: Any) -> tuple[Any, ...]:
     """The run's scalars as the kernels take them, one record ``(omega2, q, h_max, step_c)``
-    (and, for a run with the family's terms on, their record ``d`` fifth):
+    (and, for a run with the family's terms on, their record ``d`` fifth; with the generic
+    additive channel, its noise's record ``pa`` (:func:`stochpend.dynamics.channel_record`) and
+    its Philox key ``(ka0, ka1)`` (:func:`stochpend.rng.additive_key`, uint64) sixth and seventh):
     omega**2, the oscillator's parameter record q (:meth:`stochpend.oscillators.Oscillator.record`:
     ``(power_n,)`` for the power family, a model's own parameters in declared order, ``(0.0,)``
     for none), the largest step and the step control's constant (0: fixed steps) of a
@@ -131,7 +133,11 @@ def run_record(config: Any) -> tuple[Any, ...]:
     oscillator = _oscillators.get(config.potential)
     assert oscillator is not None, config.potential  # validated when the config was built
     run = (float(config.omega**2), oscillator.record(config), float(config.h_max), float(config.step_c))
-    if _dynamics.terms_of(getattr(config, "dyn_params", ())):  # terms on: their record d
+    terms = _dynamics.terms_of_config(config)
+    if "additive_noise" in terms:  # the generic additive channel: its noise's record, its key
+        return (*run, _dynamics.record(config), _dynamics.channel_record(config),
+                rng.additive_key(config.seed))
+    if terms:  # terms on: their record d
         return (*run, _dynamics.record(config))
     return run
 
@@ -153,8 +159,12 @@ class Spec:
     adaptive: bool = True
     fast_math: bool = False
     #: The family's terms that are on (:mod:`stochpend.dynamics`: "damping", "torque", "drive",
-    #: "parametric", "additive"); empty: the paper's model, today's kernels.
+    #: "parametric", "additive", "additive_ou", "additive_noise"); empty: the paper's model,
+    #: today's kernels.
     terms: frozenset = frozenset()
+    #: The generic additive channel's noise (term "additive_noise"; :mod:`stochpend.dynamics`):
+    #: the kernel calls its device functions, so each channel noise compiles its own kernel.
+    additive: Noise | None = None
 
     def __post_init__(self) -> None:
         if self.coupling not in _oscillators.COUPLINGS:
@@ -163,6 +173,9 @@ class Spec:
         if self.precision not in PRECISIONS:
             raise ValueError(f"precision={self.precision!r} is not accepted: one of "
                              f"{', '.join(PRECISIONS)}")
+        if ("additive_noise" in self.terms) != (self.additive is not None):
+            raise ValueError(f"additive={self.additive!r} is not accepted with terms={sorted(self.terms)}: the "
+                             "term 'additive_noise' and its noise go together")
 
     @classmethod
     def of(cls, config: Any, *, precision: str = "float64", fast_math: bool = False) -> Spec:
@@ -173,18 +186,19 @@ class Spec:
             raise ValueError(f"potential={config.potential!r}, noise={config.noise!r}: not registered "
                              "in this process")
         return cls(oscillator, config.coupling, noise, precision, config.step_c > 0.0, fast_math,
-                   _dynamics.terms_of(getattr(config, "dyn_params", ())))
+                   _dynamics.terms_of_config(config), _dynamics.channel(config))
 
     @property
     def cacheable(self) -> bool:
         """Built-in pieces only: a user's functions live in memory, so their kernels too."""
-        return self.oscillator.builtin and self.noise.builtin
+        return self.oscillator.builtin and self.noise.builtin and (self.additive is None or self.additive.builtin)
 
     @property
     def label(self) -> str:
         step = "adaptive" if self.adaptive else "fixed"
         math_name = "fast" if self.fast_math else "libm"
-        terms = "".join(f"+{t}" for t in sorted(self.terms))
+        terms = "".join(f"+{t}" + (f"={self.additive.name}" if t == "additive_noise" and self.additive else "")
+                        for t in sorted(self.terms))
         return (f"{self.oscillator.name}/{self.coupling}/{self.noise.name}/{self.precision}/"
                 f"{step}/{math_name}{terms}")
 
@@ -230,6 +244,17 @@ def _ou_record(d):
 @register_jitable
 def _no_ou_record(d):
     return (0.0, 1.0)
+
+
+@register_jitable
+def _channel_of(run):
+    """The generic additive channel's noise record and Philox key from the run record."""
+    return run[5], run[6]
+
+
+@register_jitable
+def _no_channel(run):
+    return (0.0,), (_U64(0), _U64(0))
 
 
 @register_jitable
@@ -338,6 +363,31 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         return zeros5
 
     ou_coefficients = ou_kernel.coefficients if ADDITIVE_OU else no_ou_coefficients
+    # The generic additive channel (additive_noise): its noise's device functions, in the Spec's
+    # precision and math, called with the channel's own Philox key (run record, _channel_of);
+    # without it, stubs that are never called (every use is under a compile-time ``if ADN``).
+    ADN = "additive_noise" in spec.terms
+    channel_of = _channel_of if ADN else _no_channel
+    if ADN:
+        assert spec.additive is not None
+        nza = spec.additive.kernel(real, mathlib)
+        A_EVENTS = spec.additive.has_events
+        a_load_aux = nza.load_aux
+        a_coefficients = nza.coefficients
+        a_scratch0 = nza.scratch0
+        a_draw = nza.draw
+        a_update = nza.update
+        a_next_event = nza.next_event
+        a_at_event = nza.at_event
+    else:
+        A_EVENTS = False
+        a_load_aux = load_aux
+        a_coefficients = no_ou_coefficients
+        a_scratch0 = scratch0
+        a_draw = draw
+        a_update = update
+        a_next_event = next_event
+        a_at_event = at_event
 
     @register_jitable
     def family_bounds(h, c, d):
@@ -377,7 +427,7 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
             s_half, _ = mathlib_sincos(0.5 * nu * h_clock)
             _, c_mid = mathlib_sincos(nu * (t0 + 0.5 * h_clock) + d[4])
             kick -= real(2.0 * d[2] / nu * c_mid * s_half)
-        if ADDITIVE_OU:  # za: the exact integral of xi_a over the step (additive_ou_step)
+        if ADDITIVE_OU or ADN:  # za: the exact integral of xi_a over the step (its noise's update)
             kick -= za
         if O_STEP:
             Omega_mid = Omega - half * kick
@@ -449,7 +499,9 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         DRAWS = 2 if PAIR else 1
         # The additive OU noise's xi_a: the state's array after the others (the slots too); a
         # constant index (as every array here, see below), x's in a Spec without it (unused).
-        I_ADD = 8 + J + (1 if TRACKED else 0) if ADDITIVE_OU else 0
+        I_ADD = 8 + J + (1 if TRACKED else 0) if (ADDITIVE_OU or ADN) else 0
+        # The generic channel's aux_a: right after its xi_a.
+        I_AUXA = I_ADD + 1 if ADN else 0
 
         def advance(i, state, t_target, max_steps, key0, key1, path0, p, run):
             # The arrays of a tuple are taken by index, never unpacked (``x, Omega, ... =
@@ -491,12 +543,25 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
             xa_arr = state[I_ADD]
             xad = real(xa_arr[i]) if ADDITIVE_OU else real(0.0)
             pa = ou_record(d)
+            # The generic channel: (xi_a, aux_a), its record and key; t_ev, t_ev_a the two
+            # channels' next events (a noise with events).
+            aux_arr = state[I_AUXA]
+            pan, kan = channel_of(run)
+            ka0 = kan[0]
+            ka1 = kan[1]
+            if ADN:
+                xan = real(xa_arr[i])
+                xaa = a_load_aux(aux_arr[i])
+            Sa = a_scratch0()
+            t_ev = math.inf
+            t_ev_a = math.inf
             # Everything of the noise's step that depends on h only (for a pair, on its half
             # steps h/2), cached while h is unchanged (h = h_max most of the time).
             h_cached = h_max_r
             hh = half * h_max_r
             C = coefficients(hh if PAIR else h_max_r, p)
             Ca = ou_coefficients(hh if PAIR else h_max_r, pa)
+            Can = a_coefficients(hh if PAIR else h_max_r, pan)
             S = scratch0()
             steps = 0
             bad = False
@@ -511,7 +576,12 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                 else:
                     h = h_max_r
                 h_clock = h_max if h == h_max_r else np.float64(h)
-                if HAS_EVENTS:
+                if A_EVENTS:  # cut at the earlier of the two channels' next events
+                    t_ev = next_event(xn, xa)
+                    t_ev_a = a_next_event(xan, xaa)
+                    h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
+                                                                     min(t_ev, t_ev_a))
+                elif HAS_EVENTS:
                     h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
                                                                      next_event(xn, xa))
                 else:
@@ -524,6 +594,8 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                         hh = half * h
                         C = coefficients(hh, p)
                         Ca = ou_coefficients(hh, pa)
+                        if ADN:
+                            Can = a_coefficients(hh, pan)
                         h_cached = h
                     # The half steps draw the noise (draws 2m and 2m + 1 for coarse step m);
                     # the coarse kick uses the sum of their integrals, the exact integral over
@@ -541,6 +613,12 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                             z1, xad = additive_ou_step(key0, key1, path, kk, xad, Ca)
                             z2, xad = additive_ou_step(key0, key1, path, kk + _U64(1), xad, Ca)
                             zc = z1 + z2
+                        elif ADN:  # likewise, the channel's noise under its own key
+                            za_z, Sa = a_draw(ka0, ka1, path, kk, Sa)
+                            z1, xan, xaa = a_update(xan, xaa, Can, za_z)
+                            za_z, Sa = a_draw(ka0, ka1, path, kk + _U64(1), Sa)
+                            z2, xan, xaa = a_update(xan, xaa, Can, za_z)
+                            zc = z1 + z2
                         else:
                             z1, z2, zc = pair_normals(key0, key1, path, kk, hc, d)
                         xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I1, q, tt, hc, z1, d)
@@ -554,6 +632,8 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                     if h != h_cached:
                         C = coefficients(h, p)
                         Ca = ou_coefficients(h, pa)
+                        if ADN:
+                            Can = a_coefficients(h, pan)
                         h_cached = h
                     if TRACKED:
                         x_before = xs
@@ -565,12 +645,20 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
                     if FAMILY:
                         if ADDITIVE_OU:
                             za, xad = additive_ou_step(key0, key1, path, kk, xad, Ca)
+                        elif ADN:  # the channel's exact step: the integral of xi_a over it
+                            za_z, Sa = a_draw(ka0, ka1, path, kk, Sa)
+                            za, xan, xaa = a_update(xan, xaa, Can, za_z)
                         else:
                             za = additive_normal(key0, key1, path, kk)
                         xs, Om = family_step(xs, Om, h, omega2_r, noise_integral, q, tt, h_clock, za, d)
                     else:
                         xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, q)
-                if HAS_EVENTS and event:
+                if A_EVENTS:  # the event of the channel(s) whose time the step landed on
+                    if HAS_EVENTS and event and t_land == t_ev:
+                        xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
+                    if event and t_land == t_ev_a:
+                        xan, xaa = a_at_event(xan, xaa, ka0, ka1, path, kk, pan)
+                elif HAS_EVENTS and event:
                     xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
                 kk += _U64(DRAWS)
                 steps += 1
@@ -599,6 +687,9 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
             xi_aux[i] = xa
             if ADDITIVE_OU:
                 xa_arr[i] = xad
+            if ADN:
+                xa_arr[i] = xan
+                aux_arr[i] = xaa
             t[i] = tt
             t_comp[i] = tc
             k[i] = kk
@@ -784,16 +875,20 @@ def statistics(oscillator: Oscillator, coupling: str):
 
 def spec(noise: str = "ou", potential: str = "pendulum", coupling: str = "force", *,
          precision: str = "float64", adaptive: bool = True, fast_math: bool = False,
-         terms: frozenset = frozenset()) -> Spec:
+         terms: frozenset = frozenset(), additive: str | None = None) -> Spec:
     """A Spec from names (for tests and benchmarks): ``spec("white", "harmonic", adaptive=False)``;
-    ``terms``: the family's terms that are on (``frozenset({"damping", "additive"})``)."""
+    ``terms``: the family's terms that are on (``frozenset({"damping", "additive"})``);
+    ``additive``: the generic additive channel's noise (with the term "additive_noise")."""
     oscillator = _oscillators.get(potential)
     noise_piece = _noises.get(noise)
     if oscillator is None:
         raise ValueError(f"potential={potential!r} is not accepted: not registered")
     if noise_piece is None:
         raise ValueError(f"noise={noise!r} is not accepted: not registered")
-    return Spec(oscillator, coupling, noise_piece, precision, adaptive, fast_math, frozenset(terms))
+    channel = None if additive is None else _noises.get(additive)
+    if additive is not None and channel is None:
+        raise ValueError(f"additive={additive!r} is not accepted: not registered")
+    return Spec(oscillator, coupling, noise_piece, precision, adaptive, fast_math, frozenset(terms), channel)
 
 
 # -- the SIMD lane machine (CPU) -----------------------------------------------------------------
@@ -802,18 +897,23 @@ def spec(noise: str = "ou", potential: str = "pendulum", coupling: str = "force"
 LANE_COUNT = 16
 
 #: Rows of the lane machine's scratch arrays (per thread, preallocated by the driver):
-#: ``fs`` float64 (x, Omega, xi, aux, t, t_comp, the additive OU noise's xi_a), ``us`` uint64
-#: (k, the path's two counter words), ``js`` int64 (path index or -1, steps in this call,
+#: ``fs`` float64 (x, Omega, xi, aux, t, t_comp, the additive channel's xi_a and aux_a), ``us``
+#: uint64 (k, the path's two counter words), ``js`` int64 (path index or -1, steps in this call,
 #: active, escaped/non-finite).
-LANE_F_ROWS = 7
+LANE_F_ROWS = 8
 LANE_U_ROWS = 3
 LANE_I_ROWS = 4
 
 
 def lanes_supported(spec: Spec) -> bool:
     """Whether :func:`build_lanes` runs ``spec``: float64, a noise without events whose fast-math
-    kernel has ``draw_keyed``, the fast math library."""
+    kernel has ``draw_keyed``, the fast math library; with the generic additive channel, its
+    noise likewise (else the run goes one path at a time: ``cpu.spec_for`` then picks the C
+    library's Spec and ``advance_path``)."""
     if not spec.fast_math or spec.precision != "float64" or spec.noise.has_events:
+        return False
+    if spec.additive is not None and (spec.additive.has_events
+                                      or spec.additive.kernel(np.float64, FAST).draw_keyed is None):
         return False
     return spec.noise.kernel(np.float64, FAST).draw_keyed is not None
 
@@ -841,7 +941,7 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
     return _lane_machine(spec, False)
 
 
-#: Rows of the pair lane machine's float64 scratch: the lane machine's seven, then the fine
+#: Rows of the pair lane machine's float64 scratch: the lane machine's, then the fine
 #: member's x and Omega.
 PAIR_LANE_F_ROWS = LANE_F_ROWS + 2
 
@@ -908,6 +1008,26 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
     ou_record = steps.ou_record
     I_ADD = 8 + J if ADDITIVE_OU else 0  # xi_a's array in the state (x's when there is none: unused)
     zero_r = real(0.0)
+    # The generic additive channel (a noise with draw_keyed and no events: lanes_supported): its
+    # fast-math functions, keyed by the channel's round keys; xi_a, aux_a after the others.
+    ADN = "additive_noise" in spec.terms
+    channel_of = _channel_of if ADN else _no_channel
+    if ADN:
+        assert spec.additive is not None
+        nza = spec.additive.kernel(real, FAST)
+        a_coefficients = nza.coefficients
+        a_draw_keyed = nza.draw_keyed
+        a_update = nza.update
+        a_load_aux = nza.load_aux
+        I_ADD = 8 + J
+    else:
+        a_coefficients = ou_coefficients
+        a_draw_keyed = draw_keyed
+        a_update = update
+        a_load_aux = load_aux
+    I_AUXA = I_ADD + 1 if ADN else 0
+    F_XF = LANE_F_ROWS  # the pair's fine member's x, Omega: the rows after the lane machine's
+    F_OF = LANE_F_ROWS + 1
 
     @register_jitable(inline="always")  # as family_step: a call would stop the lane loop's vectorization
     def additive_keyed(rk0, rk1, c2, c3, n):
@@ -938,11 +1058,16 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
         if PAIR:
             xf = state[2]
             Omegaf = state[3]
-            fs[7, lane] = xf[i]
-            fs[8, lane] = Omegaf[i]
+            fs[F_XF, lane] = xf[i]
+            fs[F_OF, lane] = Omegaf[i]
         if ADDITIVE_OU:
             xa_arr = state[I_ADD]
             fs[6, lane] = xa_arr[i]
+        if ADN:
+            xa_arr = state[I_ADD]
+            aux_arr = state[I_AUXA]
+            fs[6, lane] = xa_arr[i]
+            fs[7, lane] = a_load_aux(aux_arr[i])
         path = _U64(path0 + i)
         us[0, lane] = k[i]
         us[1, lane] = path & rng._MASK32
@@ -987,13 +1112,17 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
         ba = js[2]
         bbad = js[3]
         bxad = fs[6]
+        bxaa = fs[7]
         xa_arr = state[I_ADD]
+        aux_arr = state[I_AUXA]
         pa = ou_record(d)
+        pan, kan = channel_of(run)
+        rka0, rka1 = rng.round_keys(kan[0], kan[1])  # the channel's, the same for every path
         if PAIR:
             xf = state[2]
             Omegaf = state[3]
-            bxf = fs[7]
-            bOf = fs[8]
+            bxf = fs[F_XF]
+            bOf = fs[F_OF]
         # Idle lanes compute on harmless numbers and are never written back.
         for lane in range(lanes):
             bx[lane] = 0.0
@@ -1004,6 +1133,7 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
             bxi[lane] = 0.0
             bxa[lane] = 0.0
             bxad[lane] = 0.0
+            bxaa[lane] = 0.0
             bt[lane] = t_target
             btc[lane] = 0.0
             bk[lane] = 0
@@ -1041,6 +1171,7 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                 xn = bxi[lane]
                 xa = bxa[lane]
                 xad = bxad[lane]
+                xaa = bxaa[lane]
                 tt = bt[lane]
                 tc = btc[lane]
                 kk = bk[lane]
@@ -1075,6 +1206,13 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                         w1, w2 = normals_keyed(rk0, rk1, c2, c3, _U64(rng.N_ADDITIVE) + kk + _U64(1))
                         z2, xad_new, _ = ou_update(xad1, zero_r, Ca, (real(w1), real(w2)))
                         zc = z1 + z2
+                    elif FAMILY and ADN:  # as advance_pair's: the channel's half steps
+                        Can = a_coefficients(hh, pan)
+                        hc = 0.5 * h_clock
+                        z1, xad1, xaa1 = a_update(xad, xaa, Can, a_draw_keyed(rka0, rka1, c2, c3, kk))
+                        z2, xad_new, xaa_new = a_update(xad1, xaa1, Can,
+                                                        a_draw_keyed(rka0, rka1, c2, c3, kk + _U64(1)))
+                        zc = z1 + z2
                     elif FAMILY:  # as advance_pair's pair_normals, operation for operation
                         hc = 0.5 * h_clock
                         z1 = additive_keyed(rk0, rk1, c2, c3, kk)
@@ -1097,6 +1235,9 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                         Ca = ou_coefficients(h, pa)
                         w1, w2 = normals_keyed(rk0, rk1, c2, c3, _U64(rng.N_ADDITIVE) + kk)
                         za, xad_new, _ = ou_update(xad, zero_r, Ca, (real(w1), real(w2)))
+                    elif FAMILY and ADN:  # as advance_path's: the channel's exact step
+                        Can = a_coefficients(h, pan)
+                        za, xad_new, xaa_new = a_update(xad, xaa, Can, a_draw_keyed(rka0, rka1, c2, c3, kk))
                     elif FAMILY:
                         za = additive_keyed(rk0, rk1, c2, c3, kk)
                     if FAMILY:
@@ -1127,8 +1268,10 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                     bOf[lane] = Of_new if go else Om2
                 bxi[lane] = xn_new if go else xn
                 bxa[lane] = xa_new if go else xa
-                if ADDITIVE_OU:
+                if ADDITIVE_OU or ADN:
                     bxad[lane] = xad_new if go else xad
+                if ADN:
+                    bxaa[lane] = xaa_new if go else xaa
                 bt[lane] = t_new if go else tt
                 btc[lane] = tc_new if go else tc
                 bk[lane] = kk + _U64(DRAWS) if go else kk
@@ -1150,8 +1293,10 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                     Omegaf[i] = bOf[lane]
                 xi[i] = bxi[lane]
                 xi_aux[i] = bxa[lane]
-                if ADDITIVE_OU:
+                if ADDITIVE_OU or ADN:
                     xa_arr[i] = bxad[lane]
+                if ADN:
+                    aux_arr[i] = bxaa[lane]
                 t[i] = bt[lane]
                 t_comp[i] = btc[lane]
                 k[i] = bk[lane]

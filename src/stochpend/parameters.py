@@ -42,6 +42,7 @@ RESERVED = frozenset({
     "xi0", "h_max", "step_c", "hist_bins", "hist_E_max", "n_batches", "potential", "power_n", "n",
     "coupling", "omega_noise", "observables", "noise_params", "extra", "backend", "threads",
     "chunk_paths", "progress", "precision", "max_path_steps", "bias_paths", "accuracy", "rtol",
+    "additive_noise",
 })
 
 

@@ -135,6 +135,9 @@ class SimulationConfig:
     joint_x_range: tuple[float, ...] = ()
     #: Its Omega range [-max, max], one per output time; empty when there is no histogram.
     joint_Omega_max: tuple[float, ...] = ()
+    #: The additive noise xi_a's noise, a registered noise's name (stochpend.dynamics); None:
+    #: white when additive_tau = 0, Ornstein-Uhlenbeck when > 0 (as before the setting).
+    additive_noise: str | None = None
     extra: dict = field(default_factory=dict)
 
     # -- derived, cheap -------------------------------------------------------------------
@@ -180,6 +183,8 @@ class SimulationConfig:
         if self.dyn_params:  # the family's terms that are on (stochpend.dynamics)
             d["dynamics_parameters"] = _parameters.describe(self.dyn_params)
             d.update(dict(self.dyn_params))
+        if self.additive_noise is None:  # unset: the attributes are what they were
+            d.pop("additive_noise")
         return d
 
     @classmethod
@@ -214,6 +219,7 @@ class SimulationConfig:
         joint_bins: Any = None,
         joint_x_range: Any = None,
         joint_Omega_max: Any = None,
+        additive_noise: str | None = None,
     ) -> SimulationConfig:
         """Validate every argument and return the frozen configuration. ``noise_params``: the
         values of the parameters the noise declares for itself (:mod:`stochpend.parameters`),
@@ -222,8 +228,11 @@ class SimulationConfig:
         and sweep keys give them; :func:`stochpend.parameters.split` routes each name to the
         piece that declares it, refusing a name both declare). ``osc_params``: the oscillator's,
         given apart (a checkpoint's JSON); stored in ``osc_params``, the oscillator's defaults
-        filling the others."""
+        filling the others. ``additive_noise``: the additive noise's noise, a registered noise's
+        name (:mod:`stochpend.dynamics`; None: white or OU by ``additive_tau``); its own
+        parameters come as ``additive_<name>`` among the family's."""
         observables = _observables.resolve(observables)
+        channel = _additive_noise(additive_noise)
         noise_piece = _noises.get(noise)
         if noise_piece is None:
             _fail("noise", noise, f"one of {', '.join(_noises.names())}")
@@ -330,8 +339,10 @@ class SimulationConfig:
             if clash:  # the family's terms own these names (stochpend.dynamics)
                 _fail(kind, getattr(piece, "name", piece), f"it declares {clash[0]!r}, a name of the family's "
                       "terms (stochpend.dynamics): rename its parameter")
-        dyn_given.update({k: given.pop(k) for k in list(given) if k in _dynamics.names()})
-        dyn_params_v = _dynamics.resolve(dyn_given)
+        channel_names = set(_dynamics.channel_parameters(channel))
+        dyn_given.update({k: given.pop(k) for k in list(given) if k in _dynamics.names() or k in channel_names})
+        dyn_params_v = _dynamics.resolve(dyn_given, channel)
+        _check_channel(additive_noise, channel, dyn_params_v)
         noise_given, osc_given = _parameters.split(noise_piece, oscillator, given)
         if osc_params:
             try:
@@ -347,7 +358,8 @@ class SimulationConfig:
                       "only multiply the force (coupling='force')")
             _fail("coupling", coupling, f"model {potential!r} is periodic, so its noise can only "
                   "multiply a periodic function (coupling='force')")
-        leaves = _dynamics.terms_of(dyn_params_v) & {"additive", "additive_ou", "torque", "drive"}
+        leaves = (_dynamics.terms_of(dyn_params_v, additive_noise)
+                  & {"additive", "additive_ou", "additive_noise", "torque", "drive"})
         boltzmann_T = _dynamics.value(dyn_params_v, "initial_temperature")
         if boltzmann_T > 0.0:
             from stochpend import initial as _initial
@@ -427,7 +439,44 @@ class SimulationConfig:
             joint_bins=joint[0],
             joint_x_range=joint[1],
             joint_Omega_max=joint[2],
+            additive_noise=additive_noise,
         )
+
+
+def _additive_noise(name: Any) -> Any:
+    """The generic additive channel's noise for ``additive_noise=name`` (None for unset,
+    "white", "ou": today's two terms), or a one-line refusal listing the registered noises."""
+    if name is None:
+        return None
+    noise = _noises.get(name)
+    if noise is None:
+        _fail("additive_noise", name, f"one of {', '.join(_noises.names())} (a registered noise's name)")
+    return None if name in _dynamics.CLASSIC else noise
+
+
+def _check_channel(name: str | None, noise: Any, pairs: tuple) -> None:
+    """One-line refusals of the additive channel's parameters for ``additive_noise=name``."""
+    tau_a = _dynamics.value(pairs, "additive_tau")
+    W_a = _dynamics.value(pairs, "additive_omega_noise")
+    if name == "white" and tau_a > 0.0:
+        _fail("additive_tau", tau_a, "additive_noise='white' has no correlation time: give additive_tau=0 "
+              "(or additive_noise='ou')")
+    if name == "ou" and tau_a <= 0.0:
+        _fail("additive_tau", tau_a, "additive_noise='ou' needs additive_tau > 0 (its correlation time)")
+    if W_a != 0.0 and (noise is None or not noise.uses_omega_noise):
+        users = [n for n in _noises.names() if getattr(_noises.get(n), "uses_omega_noise", False)]
+        _fail("additive_omega_noise", W_a, "additive_omega_noise applies to additive_noise="
+              f"{' or '.join(repr(n) for n in users)} only")
+    if noise is None:
+        return
+    if noise.colored and tau_a <= 0.0:
+        _fail("additive_tau", tau_a, f"additive_noise={name!r} is colored: it needs additive_tau > 0 "
+              "(its correlation time)")
+    if noise.uses_omega_noise:
+        W = _dynamics.channel_omega_noise(noise, pairs)
+        if not (math.isfinite(W) and W > 0.0):
+            _fail("additive_omega_noise", W_a, "additive_tau too small for the default (it overflows): give "
+                  "additive_omega_noise > 0")
 
 
 #: The most bins of the joint histogram along x or Omega (its per-batch counts and sums of

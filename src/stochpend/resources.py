@@ -77,7 +77,8 @@ COMPILE_S = {"init": 1.0, "advance": 4.0, "accumulate": 1.0, "pairs": 3.0,
 CPU_CHUNK_PATHS = 1 << 20
 CUDA_CHUNK_PATHS = 1 << 26
 #: Per-path state: x, Omega, xi in the working precision; xi_aux, t, t_comp (float64), k
-#: (uint64), status (uint8); 8 bytes more for the additive OU noise's xi_a (``_additive_bytes``).
+#: (uint64), status (uint8); 8 or 16 bytes more for the additive channel's xi_a, aux_a
+#: (``_additive_bytes``).
 STATE_BYTES_PER_PATH = {"float64": 4 * 8 + 8 + 8 + 8 + 1, "float32": 3 * 4 + 8 + 8 + 8 + 8 + 1}
 _DEFAULT_PATHS = 10_000
 _DEFAULT_T_MAX = 1000.0
@@ -394,10 +395,11 @@ def estimate(
 
 
 def _additive_bytes(config: Any) -> int:
-    """The additive Ornstein-Uhlenbeck noise's per-path value xi_a (float64), for a run with it."""
+    """The additive channel's per-path state (float64 each): xi_a for the Ornstein-Uhlenbeck
+    channel, xi_a and aux_a for the generic one (``additive_noise``), for a run with it."""
     from stochpend import dynamics
 
-    return 8 if dynamics.additive_ou(config) else 0
+    return 8 * len(dynamics.additive_arrays(config))
 
 
 def _min_path_steps(config: Any) -> tuple[float, str]:

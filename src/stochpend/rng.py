@@ -246,6 +246,27 @@ def seed_to_key(seed: int) -> tuple[np.uint64, np.uint64]:
     return np.uint64(seed & 0xFFFFFFFF), np.uint64((seed >> 32) & 0xFFFFFFFF)
 
 
+#: What :func:`additive_key` mixes into the seed's key words: SHA-256's initial words H2, H3 (the
+#: first 32 bits of the fractional parts of sqrt(5) and sqrt(7)), "nothing up my sleeve"
+#: constants; any nonzero pair would do.
+ADDITIVE_KEY_MIX = (0x3C6EF372, 0xA54FF53A)
+
+
+def additive_key(seed: int) -> tuple[np.uint64, np.uint64]:
+    """The Philox key of the generic additive noise channel (``additive_noise``,
+    stochpend.dynamics): the seed's key words XOR :data:`ADDITIVE_KEY_MIX`.
+
+    The channel calls its noise's own device functions (init from draw ``N_INIT_XI``, step k
+    from ``N_FIRST_STEP + k``, ...) with this key instead of the seed's: a different key is a
+    different Philox permutation, so within a run the channel's numbers are independent of
+    every draw under the seed's key (the multiplicative noise xi, the initial conditions, the
+    white/OU additive channel), and they are still a function of (seed, path, draw) alone.
+    (The key differs from the seed's for every seed; it equals the key of the seed
+    ``seed ^ mix``, a different run, which does not matter: runs are never mixed.)"""
+    k0, k1 = seed_to_key(seed)
+    return np.uint64(int(k0) ^ ADDITIVE_KEY_MIX[0]), np.uint64(int(k1) ^ ADDITIVE_KEY_MIX[1])
+
+
 _BITS_2_POW_52 = np.uint64(0x4330000000000000)
 
 

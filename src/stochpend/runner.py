@@ -74,6 +74,9 @@ class RunState:
     #: The additive Ornstein-Uhlenbeck noise's value per path, (n,) float64 (``additive_tau`` > 0,
     #: stochpend.dynamics); None or empty for any other run.
     xi_a: Any = None
+    #: The generic additive channel's second variable per path, (n,) float64 (``additive_noise``,
+    #: stochpend.dynamics; its ``xi_a`` is the field above); None or empty for any other run.
+    aux_a: Any = None
     #: Set by run_batches: copies a GPU chunk's arrays here (see pull); not saved.
     _sync: Any = field(default=None, init=False, repr=False, compare=False)
 

@@ -52,6 +52,7 @@ def simulate(
     joint_bins: Any = None,
     joint_x_range: Any = None,
     joint_Omega_max: Any = None,
+    additive_noise: str | None = None,
     backend: str = "cpu",
     threads: int | None = None,
     chunk_paths: int | None = None,
@@ -131,6 +132,12 @@ def simulate(
     joint_Omega_max : float or array_like, optional
         Its Omega range [-joint_Omega_max, joint_Omega_max), one number or one per time;
         default sqrt(2 (hist_E_max - E_min)), every velocity the energy histogram covers.
+    additive_noise : str, optional
+        The additive noise xi_a's noise (the family's ``additive_D`` > 0: docs/family.md), any
+        registered noise's name ("harmonic", "dichotomous", a user's). Its intensity is
+        ``additive_D``, its correlation time ``additive_tau``, its W ``additive_omega_noise``,
+        its own parameters ``additive_<name>``; its random numbers are its own (independent of
+        xi). Default: white when ``additive_tau`` = 0, Ornstein-Uhlenbeck when > 0.
     potential, power_n, coupling
         Model beyond the pendulum: "pendulum" (default), "harmonic", or "power" (U = x^2n/2n);
         noise multiplying the force ("force") or the position ("position").
@@ -184,7 +191,7 @@ def simulate(
         step_c=step_c, hist_bins=hist_bins, hist_E_max=hist_E_max, n_batches=n_batches,
         potential=potential, power_n=power_n, coupling=coupling, omega_noise=omega_noise,
         observables=observables, noise_params=noise_params, joint_bins=joint_bins,
-        joint_x_range=joint_x_range, joint_Omega_max=joint_Omega_max,
+        joint_x_range=joint_x_range, joint_Omega_max=joint_Omega_max, additive_noise=additive_noise,
     )
     # Refused here, before any work (run validates again what it is handed: a few checks).
     settings = Run.build(config, backend=backend, precision=precision, threads=threads,

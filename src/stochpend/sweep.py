@@ -74,7 +74,8 @@ def _declared() -> tuple[str, ...]:
     from stochpend.parameters import own
 
     pieces = [noises.get(name) for name in noises.names()] + [models.get(name) for name in models.names()]
-    return tuple(dict.fromkeys([*dynamics.names(), *(p.name for piece in pieces for p in own(piece))]))
+    channel = [name for n in noises.names() for name in dynamics.channel_parameters(noises.get(n))]
+    return tuple(dict.fromkeys([*dynamics.names(), *(p.name for piece in pieces for p in own(piece)), *channel]))
 
 
 #: Parameters whose value is a list: settable in [base] and [[case]], not a grid axis.

@@ -58,7 +58,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from stochpend import initial, integrator, params, rng
+from stochpend import dynamics, initial, integrator, params, rng
 from stochpend import observables as observables_
 from stochpend._backends.layout import CHUNK_ARRAYS, path_dtypes
 from stochpend._jitcache import own_index
@@ -658,7 +658,9 @@ class Engine:
         self.key0, self.key1 = rng.seed_to_key(config.seed)
         self.record = spec.noise.record(config)
         self.run = integrator.run_record(config)
-        self.additive_ou = "additive_ou" in spec.terms
+        # The additive channel's per-path arrays (xi_a for the OU channel, xi_a and aux_a for
+        # the generic one), after the others in the state: only for a run with them.
+        self.additive = dynamics.additive_arrays(config)
         self.n_times = len(config.times)
         self.n_e = config.hist_bins + 2  # the energy histogram's columns
         self.n_cols = params.hist_columns(config)
@@ -678,8 +680,9 @@ class Engine:
     def _allocate(self, n: int, nb: int) -> None:
         for name, dtype in path_dtypes("cpu", "float64").items():
             setattr(self, name, np.empty(n, dtype=dtype))
-        if not self.additive_ou:  # xi_a: only for a run with the additive OU noise
-            self.xi_a = np.empty(0)
+        for name in ("xi_a", "aux_a"):  # only for a run with the additive channel's state
+            if name not in self.additive:
+                setattr(self, name, np.empty(0))
         self.tracks = np.empty((len(self.accs), n))
         self.chunk_sums = np.zeros((nb, self.n_times, observables_.n_sums(self.config)))
         self.chunk_hist = np.zeros((self.n_times, self.n_cols), dtype=np.int64)
@@ -697,8 +700,9 @@ class Engine:
         self.tracks[:] = observables_.track_initial(self.accs)
         if initial.temperature(c) > 0.0:  # the Boltzmann law (stochpend.initial), on the host
             self.x[:], self.Omega[:] = initial.boltzmann(c, p0, n)
-        if self.additive_ou:  # xi_a(0), its stationary law (stochpend.initial)
-            self.xi_a[:] = initial.additive_state(c, p0, n)
+        # The additive channel's start, its stationary law (stochpend.initial).
+        for name, value in zip(self.additive, initial.additive_states(c, p0, n), strict=True):
+            getattr(self, name)[:] = value
 
     def load(self, p0: int, arrays: dict[str, np.ndarray]) -> None:
         """Continue a chunk from host arrays (a checkpoint's RunState fields)."""
@@ -709,8 +713,9 @@ class Engine:
             setattr(self, name, value)
         if arrays.get("tracks") is None:
             self.tracks = np.empty((0, self.n))
-        if arrays.get("xi_a") is None:
-            self.xi_a = np.empty(0)
+        for name in ("xi_a", "aux_a"):
+            if arrays.get(name) is None:
+                setattr(self, name, np.empty(0))
 
     def max_steps(self) -> int:
         return max(MIN_STEPS_PER_CALL, WORK_PER_CALL // max(self.n, 1))
@@ -718,12 +723,12 @@ class Engine:
     def state(self) -> tuple[np.ndarray, ...]:
         """The chunk's arrays as the kernels take them: (x, Omega, xi, xi_aux, t, t_comp, k,
         status), then the accumulators' slots ``tracks`` (a run with accumulators) and the
-        additive OU noise's ``xi_a`` (a run with it)."""
+        additive channel's arrays (``xi_a``; ``aux_a`` for the generic channel: a run with it)."""
         state: tuple[np.ndarray, ...] = (self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp,
                                          self.k, self.status)
         if self.accs:
             state = (*state, self.tracks)
-        return (*state, self.xi_a) if self.additive_ou else state
+        return (*state, *(getattr(self, name) for name in self.additive))
 
     def advance(self, t_target: float, max_steps: int) -> bool:
         _, unfinished = self.kernels.advance(self.state(), t_target, max_steps, self.key0,

@@ -44,7 +44,7 @@ from numba import types as nbtypes
 from numba.core.errors import NumbaPerformanceWarning
 from numba.extending import register_jitable
 
-from stochpend import initial, integrator, observables, rng
+from stochpend import dynamics, initial, integrator, observables, rng
 from stochpend._backends.layout import path_dtypes
 from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
@@ -357,9 +357,8 @@ class PairEngine:
                 bx, bO = initial.boltzmann(c, int(p0), n)
                 x.copy_to_device(bx)
                 Omega.copy_to_device(bO)
-            # The additive OU noise's xi_a (a run with it), shared by the members as xi is.
-            self.extra = ((cuda.to_device(initial.additive_state(c, int(p0), n)),)
-                          if "additive_ou" in spec.terms else ())
+            # The additive channel's state (a run with it), shared by the members as xi is.
+            self.extra = tuple(cuda.to_device(a) for a in initial.additive_states(c, int(p0), n))
             xf.copy_to_device(x)
             Omegaf.copy_to_device(Omega)
         self._zero_flag = np.zeros(1, dtype=np.int32)
@@ -554,7 +553,8 @@ class Engine:
     d_t_comp: Any
     d_k: Any
     d_status: Any
-    d_xi_a: Any  # a run with the additive OU noise only
+    d_xi_a: Any  # a run with the additive OU channel or the generic one only
+    d_aux_a: Any  # a run with the generic additive channel only
 
     def __init__(self, config: SimulationConfig, spec: Spec, capacity: int,
                  n_chunk_batches: int) -> None:
@@ -569,7 +569,8 @@ class Engine:
         if self.accs:
             self.advance_k = tracked_kernel(spec, self.accs)
         self.capacity = capacity
-        self.additive_ou = "additive_ou" in spec.terms
+        # The additive channel's per-path arrays (xi_a; aux_a for the generic channel).
+        self.additive = dynamics.additive_arrays(config)
         self.n_times = len(config.times)
         from stochpend import params
 
@@ -583,7 +584,7 @@ class Engine:
                                                         dtype=np.int64)
         with _quiet():
             for name, dtype in path_dtypes("cuda", spec.precision).items():
-                if name == "xi_a" and not self.additive_ou:  # only a run with the additive OU noise
+                if name in ("xi_a", "aux_a") and name not in self.additive:  # only a run with them
                     continue
                 setattr(self, "d_" + name, cuda.device_array(capacity, dtype=dtype))
             self.flag = cuda.device_array(1, dtype=np.int32)
@@ -620,11 +621,11 @@ class Engine:
 
     def _state(self) -> tuple:
         """The views as the advance kernel takes them: then the accumulators' slots (a run with
-        accumulators) and the additive OU noise's xi_a (a run with it)."""
+        accumulators) and the additive channel's arrays (a run with them)."""
         views = self._views()
         if self.accs:
             views = (*views, self.d_tracks[:, : self.n])
-        return (*views, self.d_xi_a[: self.n]) if self.additive_ou else views
+        return (*views, *(getattr(self, "d_" + name)[: self.n] for name in self.additive))
 
     def start(self, p0: int, n: int, nb: int) -> None:
         """Initial conditions of global paths p0 .. p0 + n - 1."""
@@ -642,8 +643,9 @@ class Engine:
                 x, Omega = initial.boltzmann(c, p0, n)
                 self.d_x[:n].copy_to_device(x.astype(self.d_x.dtype))
                 self.d_Omega[:n].copy_to_device(Omega.astype(self.d_Omega.dtype))
-            if self.additive_ou:  # xi_a(0), its stationary law, drawn on the host (stochpend.initial)
-                self.d_xi_a[:n].copy_to_device(initial.additive_state(c, p0, n))
+            # The additive channel's start, its stationary law, drawn on the host (stochpend.initial).
+            for name, value in zip(self.additive, initial.additive_states(c, p0, n), strict=True):
+                getattr(self, "d_" + name)[:n].copy_to_device(value)
 
     def _put_tracks(self, tracks: np.ndarray) -> None:
         full = np.zeros(self.d_tracks.shape)
@@ -665,8 +667,9 @@ class Engine:
             self.d_hist.copy_to_device(np.ascontiguousarray(arrays["chunk_hist"], dtype=np.int64))
             if self.accs:
                 self._put_tracks(np.asarray(arrays["tracks"], dtype=np.float64))
-            if self.additive_ou:
-                self.d_xi_a[: self.n].copy_to_device(np.ascontiguousarray(arrays["xi_a"], dtype=np.float64))
+            for name in self.additive:
+                getattr(self, "d_" + name)[: self.n].copy_to_device(
+                    np.ascontiguousarray(arrays[name], dtype=np.float64))
 
     def max_steps(self) -> int:
         return max(_MIN_STEPS_PER_LAUNCH, _WORK_PER_LAUNCH // max(self.n, 1))
@@ -707,7 +710,8 @@ class Engine:
         out = {name: view.copy_to_host() for name, view in zip(names, self._views(), strict=True)}
         out["chunk_sums"], out["chunk_hist"] = self.results()
         out["tracks"] = self.d_tracks.copy_to_host()[: len(self.accs), : self.n]
-        out["xi_a"] = self.d_xi_a[: self.n].copy_to_host() if self.additive_ou else np.empty(0)
+        for name in ("xi_a", "aux_a"):
+            out[name] = getattr(self, "d_" + name)[: self.n].copy_to_host() if name in self.additive else np.empty(0)
         return out
 
     def results(self) -> tuple[np.ndarray, np.ndarray]:
@@ -742,23 +746,28 @@ def path_states(
             pass
     state = engine.arrays()
     del state["chunk_sums"], state["chunk_hist"], state["tracks"]
-    if not engine.additive_ou:
-        del state["xi_a"]
+    for name in ("xi_a", "aux_a"):
+        if name not in engine.additive:
+            del state[name]
     return state
 
 
 # -- offline compilation (benchmarks/cuda_registers.py) ----------------------------------------
-def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: frozenset = frozenset()):
+def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: frozenset = frozenset(),
+                       additive: Any = None):
     """(state, t_target, max_steps, key0, key1, path0, p, run, unfinished) as the host launches
     the advance kernel of ``noise`` and ``oscillator``: the noise's record, one float64 per
     ``noise.parameters``; the run record (omega2, q, h_max, step_c) with the oscillator's record
-    q, one float64 per ``oscillator.parameters`` (at least one: ``Oscillator.record``)."""
+    q, one float64 per ``oscillator.parameters`` (at least one: ``Oscillator.record``); with the
+    generic additive channel (``additive``, its noise), its record and its Philox key."""
     real = nbtypes.float32 if precision == "float32" else nbtypes.float64
     f64 = nbtypes.Array(nbtypes.float64, 1, "C")
     r = nbtypes.Array(real, 1, "C")
     arrays = [r, r, r, f64, f64, f64, nbtypes.Array(nbtypes.uint64, 1, "C"), nbtypes.Array(nbtypes.uint8, 1, "C")]
     if "additive_ou" in terms:  # the additive OU noise's xi_a, last (float64)
         arrays.append(f64)
+    if "additive_noise" in terms:  # the generic channel's xi_a, aux_a, last (float64)
+        arrays.extend((f64, f64))
     state = nbtypes.Tuple(tuple(arrays))
     record = nbtypes.UniTuple(nbtypes.float64, len(noise.parameters))
     # The oscillator's record as Oscillator.record builds it: an integer setting (power_n) stays
@@ -769,6 +778,9 @@ def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: froze
     run_fields = [nbtypes.float64, q, nbtypes.float64, nbtypes.float64]
     if terms:  # the family's record d (stochpend.dynamics.record): ten float64
         run_fields.append(nbtypes.UniTuple(nbtypes.float64, 10))
+    if additive is not None:  # the channel's record pa and key (ka0, ka1)
+        run_fields.append(nbtypes.UniTuple(nbtypes.float64, len(additive.parameters)))
+        run_fields.append(nbtypes.UniTuple(nbtypes.uint64, 2))
     run = nbtypes.Tuple(tuple(run_fields))
     return (state, nbtypes.float64, nbtypes.int64, nbtypes.uint64, nbtypes.uint64, nbtypes.int64,
             record, run, nbtypes.Array(nbtypes.int32, 1, "C"))

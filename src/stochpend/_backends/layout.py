@@ -15,18 +15,20 @@ __all__ = ["CHUNK_ARRAYS", "path_dtypes"]
 #: The per-chunk arrays of a RunState (what an engine holds). ``tracks``: the per-path
 #: accumulators' slots, (n_slots, n_paths) float64 (``stochpend.observables``; none: empty).
 #: ``xi_a``: the additive Ornstein-Uhlenbeck noise's value per path (``additive_tau`` > 0,
-#: ``stochpend.dynamics``; any other run: empty).
+#: ``stochpend.dynamics``; any other run: empty); with the generic channel (``additive_noise``),
+#: its noise's value ``xi_a`` and second variable ``aux_a`` (any other run: empty).
 CHUNK_ARRAYS = ("x", "Omega", "xi", "t", "k", "status", "t_comp", "xi_aux", "chunk_sums",
-                "chunk_hist", "tracks", "xi_a")
+                "chunk_hist", "tracks", "xi_a", "aux_a")
 
 
 def path_dtypes(backend: str, precision: str) -> dict[str, np.dtype]:
     """The dtype of each per-path array of a chunk, as the ``backend``'s engine holds it (and a
     checkpoint must store it): the state (x, Omega, xi) in the run's precision (float32 exists
     on the CUDA backend only); times and the noise's second variable in float64; the step
-    counter ``k`` uint64; ``status`` uint8; the additive OU noise's ``xi_a`` (held by the CPU
-    engine only, and only for a run with it: see :data:`CHUNK_ARRAYS`) in float64."""
+    counter ``k`` uint64; ``status`` uint8; the additive channel's ``xi_a`` and ``aux_a`` (only
+    for a run with it: see :data:`CHUNK_ARRAYS`) in float64."""
     real = np.dtype(np.float32 if backend == "cuda" and precision == "float32" else np.float64)
     f64 = np.dtype(np.float64)
     return {"x": real, "Omega": real, "xi": real, "xi_aux": f64, "t": f64, "t_comp": f64,
-            "k": np.dtype(np.uint64), "status": np.dtype(np.uint8), "xi_a": f64}
+            "k": np.dtype(np.uint64), "status": np.dtype(np.uint8), "xi_a": f64,
+            "aux_a": f64}

@@ -65,6 +65,7 @@ __all__ = [
     "KRAMERS_MIN_BARRIER",
     "REGIME_ENERGY_BELOW",
     "REGIME_SPATIAL_ABOVE",
+    "HarmonicAdditiveVariances",
     "OUAdditiveVariances",
     "boltzmann_harmonic_mean_E",
     "boltzmann_harmonic_mean_x2",
@@ -78,6 +79,7 @@ __all__ = [
     "family_predictions",
     "free_particle_diffusion",
     "free_particle_drift",
+    "harmonic_harmonic_additive_variances",
     "harmonic_ou_additive_mean_E",
     "harmonic_ou_additive_variances",
     "kramers_rate_energy_diffusion",
@@ -330,6 +332,61 @@ def harmonic_ou_additive_mean_E(*, D_a: float, tau: float, gamma: float, omega: 
     """
     v = harmonic_ou_additive_variances(D_a=D_a, tau=tau, gamma=gamma, omega=omega)
     return 0.5 * (v.mean_Omega2 + omega * omega * v.mean_x2)
+
+
+class HarmonicAdditiveVariances(NamedTuple):
+    """Stationary second moments of (x, Omega, xi_a, eta_a = dxi_a/dt), see
+    :func:`harmonic_harmonic_additive_variances`."""
+
+    mean_x2: float
+    mean_xOmega: float
+    mean_Omega2: float
+    mean_x_xi: float
+    mean_Omega_xi: float
+    mean_xi2: float
+    mean_eta2: float
+
+
+def harmonic_harmonic_additive_variances(*, D_a: float, tau: float, gamma: float, omega: float,
+                                         omega_noise: float | None = None) -> HarmonicAdditiveVariances:
+    """Stationary covariances of the damped harmonic oscillator driven by additive HARMONIC noise
+    (``additive_noise="harmonic"``, :mod:`stochpend.noises.harmonic`).
+
+    Model: dx = Omega dt, dOmega = (-gamma Omega - omega**2 x + xi_a) dt, and
+    xi_a'' + Gamma xi_a' + W**2 xi_a = W**2 sqrt(D_a) zeta(t) (zeta unit white noise, Gamma =
+    W**2 tau, W = ``omega_noise``, default 2/tau: critical damping), so S(0) = D_a and
+    <xi_a**2> = D_a/(2 tau). No multiplicative noise, F = A = eps = 0.
+
+    The vector z = (x, Omega, xi_a, eta_a) is linear, dz = M z dt + b dW with
+    M = [[0, 1, 0, 0], [-omega**2, -gamma, 1, 0], [0, 0, 0, 1], [0, 0, -W**2, -Gamma]],
+    b = (0, 0, 0, W**2 sqrt(D_a)), so its stationary covariance Sigma solves the Lyapunov equation
+    M Sigma + Sigma M^T + b b^T = 0 exactly; it is solved numerically here
+    (``scipy.linalg.solve_continuous_lyapunov``, round-off accurate for these 4 x 4 systems).
+    Closed form for a check: <Omega**2> = (1/2pi) int S(nu) nu**2 / |omega**2 - nu**2 + i gamma nu|**2 dnu.
+
+    Parameters: D_a > 0 (1/time**3), tau > 0, gamma > 0, omega > 0, omega_noise > 0 (1/time).
+    """
+    import numpy as np
+    from scipy.linalg import solve_continuous_lyapunov
+
+    D_a = _positive("D_a", D_a, "the additive harmonic noise intensity, S(0) = D_a")
+    tau = _positive("tau", tau, _TAU)
+    gamma = _positive("gamma", gamma, _GAMMA + "; gamma = 0 has no stationary state")
+    omega = _positive("omega", omega, _OMEGA + "; omega = 0 has no stationary <x^2>")
+    W = _positive("omega_noise", 2.0 / tau if omega_noise is None else omega_noise,
+                  "the harmonic noise's frequency W (default 2/tau)")
+    G = W * W * tau
+    M = np.array([[0.0, 1.0, 0.0, 0.0], [-omega * omega, -gamma, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0],
+                  [0.0, 0.0, -W * W, -G]])
+    Q = np.zeros((4, 4))
+    Q[3, 3] = W**4 * D_a
+    S = solve_continuous_lyapunov(M, -Q)
+    S = 0.5 * (S + S.T)
+    return HarmonicAdditiveVariances(
+        mean_x2=float(S[0, 0]), mean_xOmega=float(S[0, 1]), mean_Omega2=float(S[1, 1]),
+        mean_x_xi=float(S[0, 2]), mean_Omega_xi=float(S[1, 2]), mean_xi2=float(S[2, 2]),
+        mean_eta2=float(S[3, 3]),
+    )
 
 
 # ---------------------------------------------------------------------------------------------
