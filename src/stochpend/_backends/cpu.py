@@ -171,6 +171,15 @@ def advance_kernel(spec: Spec):
     return path_kernel(spec)
 
 
+# The one-at-a-time drivers (path_kernel, tracked_kernel, the pairs' _pair_path_kernel) test
+# each path's status and clock themselves and call the integrator only for a path still running.
+# advance_path tests them too, but reaching that test is a call with the whole state tuple (about
+# a hundred words on the stack) and a counted reference per array taken from it, and the engine
+# calls the driver until its slowest path lands, so most calls are for paths that have landed
+# (466 calls over 10**4 paths in benchmarks/revisions.py one-path): that made the one-path kernel
+# about 4 % slower than 5319e81's prange kernel, whose loop had the integrator inlined.
+
+
 @functools.cache
 def path_kernel(spec: Spec):
     """``advance`` (the signature of :func:`advance_kernel`) one path at a time: ranges of
@@ -184,7 +193,11 @@ def path_kernel(spec: Spec):
                 run):  # pragma: no cover - compiled
         steps_taken = 0
         unfinished = 0
+        t = state[4]  # (x, Omega, xi, xi_aux, t, t_comp, k, status): see above
+        status = state[7]
         for i in range(lo, hi):
+            if status[i] != 0 or t[i] >= t_target:
+                continue
             s, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)
             steps_taken += s
             unfinished += u
@@ -210,7 +223,11 @@ def tracked_kernel(spec: Spec, accs: tuple):
                 run):  # pragma: no cover - compiled
         steps_taken = 0
         unfinished = 0
+        t = state[4]  # as path_kernel's
+        status = state[7]
         for i in range(lo, hi):
+            if status[i] != 0 or t[i] >= t_target:
+                continue
             s, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)
             steps_taken += s
             unfinished += u
@@ -377,7 +394,11 @@ def _pair_path_kernel(spec: Spec):
                 run):  # pragma: no cover
         draws = 0
         unfinished = 0
+        t = state[6]  # (x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status), as path_kernel's
+        status = state[9]
         for i in range(lo, hi):
+            if status[i] != 0 or t[i] >= t_target:
+                continue
             s, u = advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, run)
             draws += s
             unfinished += u
