@@ -786,8 +786,9 @@ def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: froze
             record, run, nbtypes.Array(nbtypes.int32, 1, "C"))
 
 
-def _pair_advance_signature(noise: Any, oscillator: Any, terms: frozenset = frozenset()):
-    sig = _advance_signature("float64", noise, oscillator, terms)
+def _pair_advance_signature(noise: Any, oscillator: Any, terms: frozenset = frozenset(),
+                            additive: Any = None):
+    sig = _advance_signature("float64", noise, oscillator, terms, additive)
     f64 = nbtypes.Array(nbtypes.float64, 1, "C")
     x, Omega, *rest = sig[0].types
     # x, Omega, then the fine member's xf, Omegaf; path0 is a uint64 (2**63 + pair index)
@@ -817,7 +818,7 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
                             out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
                                         _pair_advance_signature(noise, osc)))
     # The family's terms (stochpend.dynamics) on the paper's pendulum: damping with the additive
-    # white noise, every term on, and damping with the additive OU noise.
+    # white noise, every term on, and damping with the additive OU noise; then the generic channel.
     pendulum = oscillators.BUILTIN["pendulum"]
     for terms in (frozenset({"damping", "additive"}),
                   frozenset({"damping", "additive", "torque", "drive", "parametric"}),
@@ -832,4 +833,19 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
                 if precision == "float64":
                     out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
                                 _pair_advance_signature(noise, pendulum, terms)))
+    # The generic additive channel (additive_noise): damping with the harmonic and the
+    # dichotomous noise on the channel (its own state, draws and events), the paper's white noise
+    # multiplying the force.
+    builtin = {noise.name: noise for noise in noises.BUILTIN}
+    white = builtin["white"]
+    for channel_name in ("harmonic", "dichotomous"):
+        channel = builtin[channel_name]
+        terms = frozenset({"damping", "additive_noise"})
+        for precision in precisions:
+            spec = Spec(pendulum, "force", white, precision, True, False, terms, channel)
+            out.append((f"advance {spec.label}", advance_kernel(spec).py_func,
+                        _advance_signature(precision, white, pendulum, terms, channel)))
+            if precision == "float64":
+                out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
+                            _pair_advance_signature(white, pendulum, terms, channel)))
     return out
