@@ -171,13 +171,40 @@ def advance_kernel(spec: Spec):
     return path_kernel(spec)
 
 
-# The one-at-a-time drivers (path_kernel, tracked_kernel, the pairs' _pair_path_kernel) test
-# each path's status and clock themselves and call the integrator only for a path still running.
-# advance_path tests them too, but reaching that test is a call with the whole state tuple (about
-# a hundred words on the stack) and a counted reference per array taken from it, and the engine
-# calls the driver until its slowest path lands, so most calls are for paths that have landed
-# (466 calls over 10**4 paths in benchmarks/revisions.py one-path): that made the one-path kernel
-# about 4 % slower than 5319e81's prange kernel, whose loop had the integrator inlined.
+def _one_at_a_time(advance_one, index: str | None, cache: bool, I_T: int, I_ST: int):
+    """The driver of the one-at-a-time kernels: ``advance(lo, hi, state, t_target, max_steps,
+    key0, key1, path0, p, run) -> (steps, unfinished)`` over paths (or pairs) ``lo .. hi - 1``,
+    each the integrator's ``advance_one`` (``advance_path`` or ``advance_pair``), on ranges of
+    paths (:func:`_ranges`). ``index``: the kernel's name (:func:`own_index`; None: none, a
+    kernel compiled in memory only); ``cache``: whether it is cached on disk (built-in pieces).
+    ``I_T``, ``I_ST``: where the clock and the status are in ``state``.
+
+    The driver tests each path's status and clock itself and calls the integrator only for a
+    path still running. ``advance_one`` tests them too, but reaching that test is a call with
+    the whole state tuple (about a hundred words on the stack) and a counted reference per array
+    taken from it, and the engine calls the driver until its slowest path lands, so most calls
+    are for paths that have landed (466 calls over 10**4 paths in benchmarks/revisions.py
+    one-path): that made the one-path kernel about 4 % slower than 5319e81's ``prange`` kernel,
+    whose loop had the integrator inlined."""
+
+    def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
+                run):  # pragma: no cover - compiled
+        steps_taken = 0
+        unfinished = 0
+        t = state[I_T]
+        status = state[I_ST]
+        for i in range(lo, hi):
+            if status[i] != 0 or t[i] >= t_target:
+                continue
+            s, u = advance_one(i, state, t_target, max_steps, key0, key1, path0, p, run)
+            steps_taken += s
+            unfinished += u
+        return steps_taken, unfinished
+
+    if index is not None:
+        advance = own_index(index)(advance)
+    kernel = numba.njit(nogil=True, cache=cache, error_model="numpy")(advance)
+    return _ranges(kernel, summed=True)
 
 
 @functools.cache
@@ -185,25 +212,8 @@ def path_kernel(spec: Spec):
     """``advance`` (the signature of :func:`advance_kernel`) one path at a time: ranges of
     paths, each the integrator's ``advance_path``. The driver of every Spec without a SIMD one;
     for a fast-math Spec, the reference the SIMD drivers agree with bit for bit (tests)."""
-    advance_path = integrator.build(spec).advance_path
-
-    @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
-    @own_index(spec.label)
-    def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
-                run):  # pragma: no cover - compiled
-        steps_taken = 0
-        unfinished = 0
-        t = state[4]  # (x, Omega, xi, xi_aux, t, t_comp, k, status): see above
-        status = state[7]
-        for i in range(lo, hi):
-            if status[i] != 0 or t[i] >= t_target:
-                continue
-            s, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)
-            steps_taken += s
-            unfinished += u
-        return steps_taken, unfinished
-
-    return _ranges(advance, summed=True)
+    # state: (x, Omega, xi, xi_aux, t, t_comp, k, status)
+    return _one_at_a_time(integrator.build(spec).advance_path, spec.label, spec.cacheable, 4, 7)
 
 
 @functools.cache
@@ -216,24 +226,8 @@ def tracked_kernel(spec: Spec, accs: tuple):
     user's functions)."""
     from stochpend import observables
 
-    advance_path = integrator.build(spec, observables.track_step(accs)).advance_path
-
-    @numba.njit(nogil=True, error_model="numpy")
-    def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
-                run):  # pragma: no cover - compiled
-        steps_taken = 0
-        unfinished = 0
-        t = state[4]  # as path_kernel's
-        status = state[7]
-        for i in range(lo, hi):
-            if status[i] != 0 or t[i] >= t_target:
-                continue
-            s, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)
-            steps_taken += s
-            unfinished += u
-        return steps_taken, unfinished
-
-    return _ranges(advance, summed=True)
+    return _one_at_a_time(integrator.build(spec, observables.track_step(accs)).advance_path,
+                          None, False, 4, 7)
 
 
 #: Pieces of work per worker: the workers take them one after the other, so that a worker that
@@ -386,25 +380,9 @@ def pair_advance_kernel(spec: Spec):
 
 
 def _pair_path_kernel(spec: Spec):
-    advance_pair = integrator.build(spec).advance_pair
-
-    @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
-    @own_index(spec.label + "/pairs")
-    def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
-                run):  # pragma: no cover
-        draws = 0
-        unfinished = 0
-        t = state[6]  # (x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status), as path_kernel's
-        status = state[9]
-        for i in range(lo, hi):
-            if status[i] != 0 or t[i] >= t_target:
-                continue
-            s, u = advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, run)
-            draws += s
-            unfinished += u
-        return draws, unfinished
-
-    return _ranges(advance, summed=True)
+    # state: (x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status)
+    return _one_at_a_time(integrator.build(spec).advance_pair, spec.label + "/pairs",
+                          spec.cacheable, 6, 9)
 
 
 def _pair_lanes_kernel(spec: Spec):
