@@ -463,6 +463,8 @@ def _lockstep_kernel(spec: Spec):
                     lockstep = False
             if not lockstep or t0 >= t_target:
                 for lane in range(m):
+                    if status[i0 + lane] != 0 or t[i0 + lane] >= t_target:
+                        continue  # landed or stopped: no call (as in _one_at_a_time)
                     s, u = advance_path(i0 + lane, state, t_target, max_steps, key0, key1,
                                         path0, p, run)
                     steps_taken += s
