@@ -32,6 +32,8 @@ ROOT = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).resolve().parent
 D = TAU = OMEGA = 1.0
 H = 0.01
+#: The damped row's gamma (issue 23: the default path with gamma > 0 within 15 % of the undamped).
+GAMMA = 0.5
 SEED = 1
 
 
@@ -89,6 +91,8 @@ def _worker_stochpend(spec):
     kw = dict(noise="ou", D=D, tau=TAU, omega=OMEGA, seed=SEED, threads=threads, bias_paths=0)
     if mode == "fixed":
         kw.update(step_c=0.0, h_max=H)
+    if mode == "adaptive_damped":  # issue 23: the default path with the family's damping on
+        kw.update(gamma=GAMMA)
     if mode == "adaptive_libm":
         from stochpend._backends import cpu
         from stochpend.integrator import Spec
@@ -486,6 +490,8 @@ MAIN_ROWS = {
                  {"kind": "stochpend", "mode": "adaptive"}),
     "adaptive_libm": ("stochpend adaptive step, C library's math one path at a time (the old default)",
                       {"kind": "stochpend", "mode": "adaptive_libm"}),
+    "adaptive_damped": (f"stochpend default with damping gamma = {GAMMA:g} (SIMD lanes)",
+                        {"kind": "stochpend", "mode": "adaptive_damped"}),
     "c_simd": ("C reference, fixed step, SIMD blocks", {"kind": "c", "variant": "simd"}),
     "c_adaptive": ("C reference, adaptive step, SIMD lanes", {"kind": "c", "variant": "adaptive_simd"}),
     "c_scalar": ("C reference, fixed step, one path at a time", {"kind": "c", "variant": "scalar"}),
@@ -494,7 +500,7 @@ MAIN_ROWS = {
     "numpy": ("NumPy reference, fixed step (default_rng, 1 thread)", {"kind": "numpy"}),
 }
 #: Fixed-step rows (10**8 path-steps) and adaptive ones (2.3e7): the workload's two step modes.
-ADAPTIVE_ROWS = ("adaptive", "adaptive_libm", "c_adaptive", "c_adaptive_scalar")
+ADAPTIVE_ROWS = ("adaptive", "adaptive_libm", "adaptive_damped", "c_adaptive", "c_adaptive_scalar")
 USER_RUN = ["simulate", "--noise", "ou", "--D", "1", "--tau", "1", "--omega", "1", "--paths", "10000",
             "--t-max", "1000"]
 
@@ -524,7 +530,7 @@ def run_all(args) -> dict:
         R.worker({"kind": "jit", "mode": mode}, label=f"stochpend {mode}, second process (cache on disk)",
                  group="jit", cache_dir=jit_dir)
     # Populate the run's cache so that the timed workers only load.
-    for mode in ("fixed", "adaptive", "adaptive_libm"):
+    for mode in ("fixed", "adaptive", "adaptive_libm", "adaptive_damped"):
         R.worker({"kind": "stochpend", "mode": mode, "paths": 64, "t_max": 0.1}, label="(cache warm-up)",
                  group="warmup")
 
@@ -709,6 +715,8 @@ def report(res: dict) -> str:
         ("fixed step ≥ 0.7× C reference fixed step (SIMD)", "fixed", "c_simd", 0.7),
         ("default (adaptive) against the old default (one path at a time, C library)", "adaptive",
          "adaptive_libm", None),
+        (f"damped default (gamma = {GAMMA:g}) ≥ 0.85× the undamped default (issue 23)", "adaptive_damped",
+         "adaptive", 0.85),
         ("C reference: adaptive SIMD against fixed SIMD", "c_adaptive", "c_simd", None),
         ("fixed step against NumPy (1 thread)", "fixed", "numpy", None),
     ]
