@@ -371,6 +371,7 @@ import pytest
 import stochpend
 from stochpend import checkpoint as ck
 from stochpend.params import SimulationConfig
+from tests._checkpoints import StopAfter
 
 kw = dict(noise="ou", D=0.5, tau=0.8, omega=1.0, paths=48, t_max=1.0, times=[0.5, 1.0], seed=3, n_batches=4)
 out = {}
@@ -387,17 +388,10 @@ config = SimulationConfig.build(**kw, noise_params=terms, additive_noise="harmon
 ref = stochpend.simulate(**kw, **terms, additive_noise="harmonic", backend="cuda", chunk_paths=20, bias_paths=0)
 
 
-class StopAfter(ck.FileCheckpointer):
-    def maybe_save(self, state):
-        self.save(state)
-        if self.saves >= 3:
-            raise KeyboardInterrupt
-
-
 path = Path(tempfile.mkdtemp()) / "run.ckpt"
 with pytest.raises(KeyboardInterrupt):
     ck.run_checkpointed(config, checkpoint_path=path, every_s=None, chunk_paths=20, bias_paths=0, backend="cuda",
-                        checkpointer=StopAfter(path, None, config=config, chunk_paths=20))
+                        checkpointer=StopAfter(path, None, config=config, chunk_paths=20, n=3))
 saved = ck.read(path).state
 assert saved.aux_a.shape == saved.xi_a.shape == saved.x.shape
 done = ck.resume(path)

@@ -243,6 +243,7 @@ import pytest
 import stochpend
 from stochpend import checkpoint as ck
 from stochpend.params import SimulationConfig
+from tests._checkpoints import StopAfter
 
 kw = dict(noise="ou", D=0.5, tau=0.8, omega=1.0, paths=48, t_max=1.0, times=[0.5, 1.0], seed=3, n_batches=4)
 terms = dict(gamma=0.7, additive_D=0.3, additive_tau=0.4, torque=0.2, drive_amplitude=0.5, drive_frequency=1.5,
@@ -258,17 +259,10 @@ config = SimulationConfig.build(**kw, noise_params=terms)
 ref = stochpend.simulate(**kw, **terms, backend="cuda", chunk_paths=20, bias_paths=0)
 
 
-class StopAfter(ck.FileCheckpointer):
-    def maybe_save(self, state):
-        self.save(state)
-        if self.saves >= 3:
-            raise KeyboardInterrupt
-
-
 path = Path(tempfile.mkdtemp()) / "run.ckpt"
 with pytest.raises(KeyboardInterrupt):
     ck.run_checkpointed(config, checkpoint_path=path, every_s=None, chunk_paths=20, bias_paths=0, backend="cuda",
-                        checkpointer=StopAfter(path, None, config=config, chunk_paths=20))
+                        checkpointer=StopAfter(path, None, config=config, chunk_paths=20, n=3))
 assert ck.read(path).state.xi_a.shape == ck.read(path).state.x.shape
 done = ck.resume(path)
 out["resumed_equal"] = all(np.array_equal(done[v].values, ref[v].values, equal_nan=True) for v in ref.data_vars)
@@ -286,6 +280,7 @@ def test_the_cuda_simulator_gives_the_cpu_numbers_and_resumes_exactly():
 
     env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1",
            "PYTHONPATH": os.pathsep.join([str(Path(stochpend.__file__).resolve().parents[1]),
+                                          str(Path(__file__).resolve().parents[2]),  # tests._checkpoints
                                           os.environ.get("PYTHONPATH", "")])}
     done = subprocess.run([sys.executable, "-c", _CUDASIM], env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
