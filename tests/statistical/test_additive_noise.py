@@ -46,6 +46,7 @@ from stochpend.noises.base import Noise, NoiseKernel
 from stochpend.parameters import Parameter
 from stochpend.theory import family
 from tests._checkpoints import StopAfter
+from tests._lanes import assert_lanes_equal_one_path
 
 Z = 4.0
 ROOT = Path(__file__).resolve().parents[2]
@@ -222,24 +223,13 @@ def test_the_lanes_give_the_one_path_numbers(step, gain_ou, monkeypatch):
     """A channel noise with draw_keyed and no events (the user's gain-ou) runs in the SIMD lanes
     (the runs' and the pairs'), which agree with the one-path loops of the same fast-math Spec
     (a run with an accumulator goes one path at a time)."""
-    from stochpend import bias
     from stochpend._backends import cpu
 
     run = {**PENDULUM, "additive_noise": "gain-ou", "additive_gain": 0.8}
-    lanes = stochpend.simulate(**run, **step, bias_paths=64)
-    one_path = stochpend.simulate(**run, **step, bias_paths=64, observables=("displacement",))
-    assert lanes.attrs["path_steps"] == one_path.attrs["path_steps"]
-    for name in lanes.data_vars:
-        assert np.array_equal(lanes[name].values, one_path[name].values, equal_nan=True), name
     config = _config(run, **step)
     spec = cpu.spec_for(config)
     assert "additive_noise" in spec.terms and spec.additive is GAIN_OU and integrator.lanes_supported(spec)
-    a = bias.estimate(config, 64)
-    monkeypatch.setattr(cpu, "pair_advance_kernel", cpu._pair_path_kernel)
-    b = bias.estimate(config, 64)
-    for name in a.bias:
-        assert np.array_equal(a.bias[name][0], b.bias[name][0], equal_nan=True), name
-        assert np.all(np.isfinite(a.bias[name][0])), name
+    assert_lanes_equal_one_path({**run, **step}, config, monkeypatch)
 
 
 @pytest.mark.parametrize("name", ["harmonic", "dichotomous"])

@@ -33,6 +33,7 @@ from stochpend import dynamics, initial, integrator
 from stochpend.noises.ou import step_coefficients
 from stochpend.theory import family
 from tests._checkpoints import StopAfter
+from tests._lanes import assert_lanes_equal_one_path
 
 Z = 4.0
 
@@ -177,25 +178,14 @@ FAMILY_RUN = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=600, t_max=6.0, n
 def test_the_lanes_give_the_one_path_numbers(step, monkeypatch):
     """The SIMD lane machines (the runs' and the pairs') against the one-path loops of the same
     fast-math Spec (a run with an accumulator goes one path at a time)."""
-    from stochpend import bias
     from stochpend._backends import cpu
     from stochpend.params import SimulationConfig
 
-    lanes = stochpend.simulate(**FAMILY_RUN, **step, bias_paths=64)
-    one_path = stochpend.simulate(**FAMILY_RUN, **step, bias_paths=64, observables=("displacement",))
-    assert lanes.attrs["path_steps"] == one_path.attrs["path_steps"]
-    for name in lanes.data_vars:
-        assert np.array_equal(lanes[name].values, one_path[name].values, equal_nan=True), name
     config = SimulationConfig.build(**{k: v for k, v in FAMILY_RUN.items() if k not in dynamics.names()}, **step,
                                     noise_params={k: v for k, v in FAMILY_RUN.items() if k in dynamics.names()})
     spec = cpu.spec_for(config)
     assert "additive_ou" in spec.terms and integrator.lanes_supported(spec)
-    a = bias.estimate(config, 64)
-    monkeypatch.setattr(cpu, "pair_advance_kernel", cpu._pair_path_kernel)
-    b = bias.estimate(config, 64)
-    for name in a.bias:
-        assert np.array_equal(a.bias[name][0], b.bias[name][0], equal_nan=True), name
-        assert np.all(np.isfinite(a.bias[name][0])), name
+    assert_lanes_equal_one_path({**FAMILY_RUN, **step}, config, monkeypatch)
 
 
 def test_the_pairs_bias_is_small_and_the_coarse_member_is_a_run_path():

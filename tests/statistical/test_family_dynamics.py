@@ -35,6 +35,7 @@ from stochpend import dynamics, integrator
 from stochpend.observables import TimeAverage, register, unregister
 from stochpend.theory import family
 from tests._checkpoints import StopAfter
+from tests._lanes import assert_lanes_equal_one_path
 
 Z = 4.0
 
@@ -271,24 +272,14 @@ def test_the_lanes_run_the_family_with_the_one_path_numbers(step, monkeypatch):
     """The SIMD lane machines (the runs' and the pairs') against the one-path loops of the same
     fast-math Spec: a run with an accumulator goes one path at a time, and must change no other
     number; the pairs' one-path kernel must give the lanes' bias estimate bit for bit."""
-    from stochpend import bias
     from stochpend._backends import cpu
     from stochpend.params import SimulationConfig
 
-    lanes = stochpend.simulate(**FAMILY_RUN, **step, bias_paths=64)
-    one_path = stochpend.simulate(**FAMILY_RUN, **step, bias_paths=64, observables=("displacement",))
-    assert lanes.attrs["path_steps"] == one_path.attrs["path_steps"]
-    for name in lanes.data_vars:
-        assert np.array_equal(lanes[name].values, one_path[name].values, equal_nan=True), name
     config = SimulationConfig.build(**{k: v for k, v in FAMILY_RUN.items()
                                        if k not in dynamics.names()}, **step,
                                     noise_params={k: v for k, v in FAMILY_RUN.items() if k in dynamics.names()})
     assert integrator.lanes_supported(cpu.spec_for(config))
-    a = bias.estimate(config, 64)
-    monkeypatch.setattr(cpu, "pair_advance_kernel", cpu._pair_path_kernel)
-    b = bias.estimate(config, 64)
-    for name in a.bias:
-        assert np.array_equal(a.bias[name][0], b.bias[name][0], equal_nan=True), name
+    assert_lanes_equal_one_path({**FAMILY_RUN, **step}, config, monkeypatch, finite_bias=False)
 
 
 def test_the_typical_growth_of_the_damped_random_frequency_oscillator_is_its_lyapunov_exponent():

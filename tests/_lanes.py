@@ -1,0 +1,29 @@
+"""The SIMD lanes against the one-path loops, for the tests of the family's terms."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import stochpend
+from stochpend import bias
+from stochpend._backends import cpu
+
+
+def assert_lanes_equal_one_path(run: dict, config, monkeypatch, *, finite_bias: bool = True) -> None:
+    """``simulate(**run)`` in the SIMD lanes equals the one-path loop of the same fast-math Spec,
+    bit for bit (a run with an accumulator goes one path at a time), and so do the bias pairs'
+    lanes against the one-pair loop (``bias.estimate`` of ``config``, the same run's
+    configuration, with ``cpu.pair_advance_kernel`` replaced through ``monkeypatch``).
+    ``finite_bias``: every pair estimate is finite too."""
+    lanes = stochpend.simulate(**run, bias_paths=64)
+    one_path = stochpend.simulate(**run, bias_paths=64, observables=("displacement",))
+    assert lanes.attrs["path_steps"] == one_path.attrs["path_steps"]
+    for name in lanes.data_vars:
+        assert np.array_equal(lanes[name].values, one_path[name].values, equal_nan=True), name
+    a = bias.estimate(config, 64)
+    monkeypatch.setattr(cpu, "pair_advance_kernel", cpu._pair_path_kernel)
+    b = bias.estimate(config, 64)
+    for name in a.bias:
+        assert np.array_equal(a.bias[name][0], b.bias[name][0], equal_nan=True), name
+        if finite_bias:
+            assert np.all(np.isfinite(a.bias[name][0])), name
