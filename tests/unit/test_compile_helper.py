@@ -31,3 +31,28 @@ def test_the_helper_is_wanted_only_for_a_cold_cpu_run_with_pairs(monkeypatch):
     assert _compile_helper.wanted(config, backend="cpu", pairs=True)  # a cold cache: wanted
     monkeypatch.setattr(jitcache, "in_cache", lambda k: True)
     assert not _compile_helper.wanted(config, backend="cpu", pairs=True)  # all cached: nothing to gain
+
+
+def test_a_started_helper_gets_the_configuration_and_is_waited_for_or_stopped(monkeypatch, tmp_path):
+    """The launch itself (the suite runs with the helper off: tests/conftest.py): the helper gets
+    the pickled configuration on stdin, :meth:`Helper.wait` returns the seconds it waited,
+    :meth:`Helper.stop` ends one still running, and a helper that cannot start is None."""
+    import pickle
+    import sys
+
+    config = SimulationConfig.build(noise="ou", paths=64, t_max=1.0, n_times=2, seed=1)
+    monkeypatch.setattr(_compile_helper, "wanted", lambda *a, **k: True)
+    got = tmp_path / "config.pkl"
+    monkeypatch.setattr(_compile_helper, "COMMAND", (sys.executable, "-c", "import sys, pathlib; "
+                        f"pathlib.Path({str(got)!r}).write_bytes(sys.stdin.buffer.read())"))
+    helper = _compile_helper.start(config, backend="cpu", bias_paths=64)
+    assert helper is not None
+    assert helper.wait() >= 0.0
+    assert pickle.loads(got.read_bytes()) == config  # no user observables here: the same object
+    monkeypatch.setattr(_compile_helper, "COMMAND", (sys.executable, "-c", "import time; time.sleep(60)"))
+    slow = _compile_helper.start(config, backend="cpu", bias_paths=64)
+    assert slow is not None
+    slow.stop()
+    assert slow._process.poll() is not None
+    monkeypatch.setattr(_compile_helper, "COMMAND", (str(tmp_path / "no-such-program"),))
+    assert _compile_helper.start(config, backend="cpu", bias_paths=64) is None
