@@ -135,11 +135,11 @@ def to_netcdf(ds: xr.Dataset, path: str | os.PathLike, *, overwrite: bool = Fals
         v.attrs = _clean_attrs(v.attrs)
     # Written once, with a stand-in checksum (the checksum leaves its own attribute out).
     ds.attrs[CHECKSUM_ATTR] = _STAND_IN
-    image = ds.to_netcdf(engine="h5netcdf")
+    first = ds.to_netcdf(engine="h5netcdf")
     # The checksum is taken over the file as a reader decodes it (encodings, fill values and
     # string types as xarray reads them back), so that what open_results recomputes is the same.
-    with xr.open_dataset(_io.BytesIO(image), engine="h5netcdf") as back:
-        image = _put_checksum(image, checksum(back.load()))
+    with xr.open_dataset(_io.BytesIO(first), engine="h5netcdf") as back:
+        image = _put_checksum(first, checksum(back.load()))
     return write_atomic(p, image, overwrite=overwrite)
 
 
@@ -147,7 +147,7 @@ def to_netcdf(ds: xr.Dataset, path: str | os.PathLike, *, overwrite: bool = Fals
 _STAND_IN = "sha256:" + "0" * 64
 
 
-def _put_checksum(image: bytes, value: str) -> bytes:
+def _put_checksum(image: bytes | memoryview, value: str) -> bytes:
     """``image`` (a NetCDF file in memory, :data:`_STAND_IN` in its checksum attribute) with
     ``value`` written into that attribute, nothing else changed.
 
