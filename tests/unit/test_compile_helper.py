@@ -56,3 +56,24 @@ def test_a_started_helper_gets_the_configuration_and_is_waited_for_or_stopped(mo
     assert slow._process.poll() is not None
     monkeypatch.setattr(_compile_helper, "COMMAND", (str(tmp_path / "no-such-program"),))
     assert _compile_helper.start(config, backend="cpu", bias_paths=64) is None
+
+
+def test_a_run_waits_for_its_helper_counts_the_wait_as_compiling_and_keeps_its_numbers(monkeypatch):
+    """A run with a helper (here one that only sleeps) waits for it before its bias estimate,
+    counts the wait in ``compile_time_s``, and has the numbers of a run without one."""
+    import sys
+
+    import numpy as np
+
+    import stochpend
+
+    kw = dict(noise="ou", paths=64, t_max=1.0, n_times=2, seed=1, bias_paths=16)
+    plain = stochpend.simulate(**kw)
+    monkeypatch.setattr(_compile_helper, "wanted", lambda *a, **k: True)
+    monkeypatch.setattr(_compile_helper, "COMMAND", (sys.executable, "-c",
+                                                     "import sys, time; sys.stdin.buffer.read(); time.sleep(0.5)"))
+    helped = stochpend.simulate(**kw)
+    assert helped.attrs["compile_time_s"] >= 0.3
+    assert set(helped.data_vars) == set(plain.data_vars)
+    for name in plain.data_vars:
+        assert np.array_equal(helped[name].values, plain[name].values, equal_nan=True), name
