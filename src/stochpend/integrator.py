@@ -80,6 +80,13 @@ LANES = 64
 _U64 = np.uint64
 
 
+def state_positions(pair: bool) -> tuple[int, int, int, int, int, int]:
+    """Where a path's state tuple keeps ``(xi, xi_aux, t, t_comp, k, status)``: after ``x,
+    Omega`` for one path, after ``x, Omega, xf, Omegaf`` for a coupled pair (``pair``)."""
+    J = 2 if pair else 0
+    return 2 + J, 3 + J, 4 + J, 5 + J, 6 + J, 7 + J
+
+
 # -- time bookkeeping (float64 in every precision) --------------------------------------------
 @register_jitable
 def landing_step(t, h, t_target):
@@ -492,14 +499,13 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         bookkeeping are shared; what differs is what a step advances (one member with one draw,
         or two members with two draws) and the arrays it reads and writes. ``PAIR`` is a
         compile-time constant: each variant compiles to its own straight-line code."""
-        J = 2 if PAIR else 0  # the pair's state has the fine member's xf, Omegaf at 2, 3
-        I_XI, I_XA, I_T, I_TC, I_K, I_ST = 2 + J, 3 + J, 4 + J, 5 + J, 6 + J, 7 + J
+        I_XI, I_XA, I_T, I_TC, I_K, I_ST = state_positions(PAIR)
         TRACKED = TRACK and not PAIR
         tracks_in = tracks_of if TRACKED else _no_tracks
         DRAWS = 2 if PAIR else 1
         # The additive OU noise's xi_a: the state's array after the others (the slots too); a
         # constant index (as every array here, see below), x's in a Spec without it (unused).
-        I_ADD = 8 + J + (1 if TRACKED else 0) if (ADDITIVE_OU or ADN) else 0
+        I_ADD = I_ST + 1 + (1 if TRACKED else 0) if (ADDITIVE_OU or ADN) else 0
         # The generic channel's aux_a: right after its xi_a.
         I_AUXA = I_ADD + 1 if ADN else 0
 
@@ -991,8 +997,7 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
     half = real(0.5)
     escape = real(ESCAPE_STEP_FRACTION)
     slack = 1.0 + LANDING_SLACK
-    J = 2 if PAIR else 0  # the pair's state has the fine member's xf, Omegaf at 2, 3
-    I_XI, I_XA, I_T, I_TC, I_K, I_ST = 2 + J, 3 + J, 4 + J, 5 + J, 6 + J, 7 + J
+    I_XI, I_XA, I_T, I_TC, I_K, I_ST = state_positions(PAIR)
     DRAWS = 2 if PAIR else 1
     FAMILY = bool(spec.terms)
     DAMPED = "damping" in spec.terms
@@ -1006,7 +1011,7 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
     ou_coefficients = steps.ou_coefficients
     ou_update = steps.ou_update
     ou_record = steps.ou_record
-    I_ADD = 8 + J if ADDITIVE_OU else 0  # xi_a's array in the state (x's when there is none: unused)
+    I_ADD = I_ST + 1 if ADDITIVE_OU else 0  # xi_a's array in the state (x's when there is none: unused)
     zero_r = real(0.0)
     # The generic additive channel (a noise with draw_keyed and no events: lanes_supported): its
     # fast-math functions, keyed by the channel's round keys; xi_a, aux_a after the others.
@@ -1019,7 +1024,7 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
         a_draw_keyed = nza.draw_keyed
         a_update = nza.update
         a_load_aux = nza.load_aux
-        I_ADD = 8 + J
+        I_ADD = I_ST + 1
     else:
         a_coefficients = ou_coefficients
         a_draw_keyed = draw_keyed

@@ -171,13 +171,13 @@ def advance_kernel(spec: Spec):
     return path_kernel(spec)
 
 
-def _one_at_a_time(advance_one, index: str | None, cache: bool, I_T: int, I_ST: int):
+def _one_at_a_time(advance_one, index: str | None, cache: bool, pair: bool):
     """The driver of the one-at-a-time kernels: ``advance(lo, hi, state, t_target, max_steps,
     key0, key1, path0, p, run) -> (steps, unfinished)`` over paths (or pairs) ``lo .. hi - 1``,
     each the integrator's ``advance_one`` (``advance_path`` or ``advance_pair``), on ranges of
     paths (:func:`_ranges`). ``index``: the kernel's name (:func:`own_index`; None: none, a
     kernel compiled in memory only); ``cache``: whether it is cached on disk (built-in pieces).
-    ``I_T``, ``I_ST``: where the clock and the status are in ``state``.
+    ``pair``: ``state`` is a coupled pair's (:func:`integrator.state_positions`).
 
     The driver tests each path's status and clock itself and calls the integrator only for a
     path still running. ``advance_one`` tests them too, but reaching that test is a call with
@@ -186,6 +186,7 @@ def _one_at_a_time(advance_one, index: str | None, cache: bool, I_T: int, I_ST: 
     are for paths that have landed (466 calls over 10**4 paths in benchmarks/revisions.py
     one-path): that made the one-path kernel about 4 % slower than 5319e81's ``prange`` kernel,
     whose loop had the integrator inlined."""
+    I_T, I_ST = integrator.state_positions(pair)[2::3]
 
     def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
                 run):  # pragma: no cover - compiled
@@ -212,8 +213,7 @@ def path_kernel(spec: Spec):
     """``advance`` (the signature of :func:`advance_kernel`) one path at a time: ranges of
     paths, each the integrator's ``advance_path``. The driver of every Spec without a SIMD one;
     for a fast-math Spec, the reference the SIMD drivers agree with bit for bit (tests)."""
-    # state: (x, Omega, xi, xi_aux, t, t_comp, k, status)
-    return _one_at_a_time(integrator.build(spec).advance_path, spec.label, spec.cacheable, 4, 7)
+    return _one_at_a_time(integrator.build(spec).advance_path, spec.label, spec.cacheable, False)
 
 
 @functools.cache
@@ -227,7 +227,7 @@ def tracked_kernel(spec: Spec, accs: tuple):
     from stochpend import observables
 
     return _one_at_a_time(integrator.build(spec, observables.track_step(accs)).advance_path,
-                          None, False, 4, 7)
+                          None, False, False)
 
 
 #: Pieces of work per worker: the workers take them one after the other, so that a worker that
@@ -380,9 +380,8 @@ def pair_advance_kernel(spec: Spec):
 
 
 def _pair_path_kernel(spec: Spec):
-    # state: (x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status)
     return _one_at_a_time(integrator.build(spec).advance_pair, spec.label + "/pairs",
-                          spec.cacheable, 6, 9)
+                          spec.cacheable, True)
 
 
 def _pair_lanes_kernel(spec: Spec):
