@@ -33,6 +33,7 @@ compiles to its own straight-line code: no branch on a noise or model code insid
 from __future__ import annotations
 
 import functools
+import inspect
 import math
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -269,6 +270,316 @@ def _track_nothing(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):
     return None
 
 
+def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, A_EVENTS,
+               ADDITIVE_OU, ADN, TRACK, tracks_of, track_step, dyn_of, load_aux, scratch0,
+               coefficients, draw, update, next_event, at_event, step_size, family_bounds, verlet,
+               family_step, ou_record, ou_coefficients, additive_normal, pair_normals,
+               additive_ou_step, channel_of, a_load_aux, a_scratch0, a_coefficients, a_draw,
+               a_update, a_next_event, a_at_event) -> Any:
+    """The step loop of one path (``PAIR`` False: :func:`advance_path`) or of a coupled
+    coarse/fine pair (True: :func:`advance_pair`), written once: the step control, the
+    escape rule, the landing, the noise's events, the clock, the finiteness check and the
+    bookkeeping are shared; what differs is what a step advances (one member with one draw,
+    or two members with two draws) and the arrays it reads and writes. ``PAIR`` is a
+    compile-time constant: each variant compiles to its own straight-line code.
+
+    The keyword arguments are the pieces :func:`build` made for the Spec (its noise's, its
+    oscillator's and the family's device functions, the stubs of what the Spec leaves out) and
+    its compile-time constants, under the names :func:`build` gives them: the step loop's
+    closure captures them as it captured them when it was written inside :func:`build`, so
+    the compiled code is the same."""
+    I_XI, I_XA, I_T, I_TC, I_K, I_ST = state_positions(PAIR)
+    TRACKED = TRACK and not PAIR
+    tracks_in = tracks_of if TRACKED else _no_tracks
+    DRAWS = 2 if PAIR else 1
+    # The additive OU noise's xi_a: the state's array after the others (the slots too); a
+    # constant index (as every array here, see below), x's in a Spec without it (unused).
+    I_ADD = I_ST + 1 + (1 if TRACKED else 0) if (ADDITIVE_OU or ADN) else 0
+    # The generic channel's aux_a: right after its xi_a.
+    I_AUXA = I_ADD + 1 if ADN else 0
+
+    def advance(i, state, t_target, max_steps, key0, key1, path0, p, run):
+        # The arrays of a tuple are taken by index, never unpacked (``x, Omega, ... =
+        # state``): with an unpacked tuple, Numba (0.68) dropped the stores into the arrays
+        # once it had inlined an ``inline="always"`` function (the fast-math OU
+        # coefficients) into this function's IR. The same in every function here that
+        # takes a tuple of arrays.
+        x = state[0]
+        Omega = state[1]
+        xf = state[2]  # the pair's fine member (a path: unused)
+        Omegaf = state[3]
+        xi = state[I_XI]
+        xi_aux = state[I_XA]
+        t = state[I_T]
+        t_comp = state[I_TC]
+        k = state[I_K]
+        status = state[I_ST]
+        if status[i] != 0 or t[i] >= t_target:
+            return 0, 0
+        omega2 = run[0]
+        q = run[1]
+        h_max = run[2]
+        step_c = run[3]
+        d = dyn_of(run)
+        omega2_r = real(omega2)
+        h_max_r = real(h_max)
+        c_r = real(step_c)
+        path = _U64(path0 + i)
+        xs = x[i]
+        Om = Omega[i]
+        xs2 = xf[i]
+        Om2 = Omegaf[i]
+        xn = xi[i]
+        xa = load_aux(xi_aux[i])
+        tt = t[i]
+        tc = t_comp[i]
+        kk = k[i]
+        tracks = tracks_in(state)
+        xa_arr = state[I_ADD]
+        xad = real(xa_arr[i]) if ADDITIVE_OU else real(0.0)
+        pa = ou_record(d)
+        # The generic channel: (xi_a, aux_a), its record and key; t_ev, t_ev_a the two
+        # channels' next events (a noise with events).
+        aux_arr = state[I_AUXA]
+        pan, kan = channel_of(run)
+        ka0 = kan[0]
+        ka1 = kan[1]
+        if ADN:
+            xan = real(xa_arr[i])
+            xaa = a_load_aux(aux_arr[i])
+        Sa = a_scratch0()
+        t_ev = math.inf
+        t_ev_a = math.inf
+        # Everything of the noise's step that depends on h only (for a pair, on its half
+        # steps h/2), cached while h is unchanged (h = h_max most of the time).
+        h_cached = h_max_r
+        hh = half * h_max_r
+        C = coefficients(hh if PAIR else h_max_r, p)
+        Ca = ou_coefficients(hh if PAIR else h_max_r, pa)
+        Can = a_coefficients(hh if PAIR else h_max_r, pan)
+        S = scratch0()
+        steps = 0
+        bad = False
+        while steps < max_steps:
+            if ADAPTIVE:
+                h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
+                if FAMILY:
+                    h = family_bounds(h, c_r, d)
+                if h < escape * h_max_r:
+                    bad = True  # running away (see ESCAPE_STEP_FRACTION)
+                    break
+            else:
+                h = h_max_r
+            h_clock = h_max if h == h_max_r else np.float64(h)
+            if A_EVENTS:  # cut at the earlier of the two channels' next events
+                t_ev = next_event(xn, xa)
+                t_ev_a = a_next_event(xan, xaa)
+                h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
+                                                                 min(t_ev, t_ev_a))
+            elif HAS_EVENTS:
+                h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
+                                                                 next_event(xn, xa))
+            else:
+                h_clock, last = landing_step(tt, h_clock, t_target)
+                event = False
+                t_land = t_target
+            h = real(h_clock)
+            if PAIR:
+                if h != h_cached:
+                    hh = half * h
+                    C = coefficients(hh, p)
+                    Ca = ou_coefficients(hh, pa)
+                    if ADN:
+                        Can = a_coefficients(hh, pan)
+                    h_cached = h
+                # The half steps draw the noise (draws 2m and 2m + 1 for coarse step m);
+                # the coarse kick uses the sum of their integrals, the exact integral over
+                # the whole step.
+                z, S = draw(key0, key1, path, kk, S)
+                I1, xn, xa = update(xn, xa, C, z)
+                z, S = draw(key0, key1, path, kk + _U64(1), S)
+                I2, xn, xa = update(xn, xa, C, z)
+                if FAMILY:
+                    # The additive noise likewise: the fine member's half steps draw it, the
+                    # coarse member's one step uses the normal of their sum over the step
+                    # (the exact composition of the two O flows).
+                    hc = 0.5 * h_clock
+                    if ADDITIVE_OU:  # as the multiplicative noise: the half steps' integrals
+                        z1, xad = additive_ou_step(key0, key1, path, kk, xad, Ca)
+                        z2, xad = additive_ou_step(key0, key1, path, kk + _U64(1), xad, Ca)
+                        zc = z1 + z2
+                    elif ADN:  # likewise, the channel's noise under its own key
+                        za_z, Sa = a_draw(ka0, ka1, path, kk, Sa)
+                        z1, xan, xaa = a_update(xan, xaa, Can, za_z)
+                        za_z, Sa = a_draw(ka0, ka1, path, kk + _U64(1), Sa)
+                        z2, xan, xaa = a_update(xan, xaa, Can, za_z)
+                        zc = z1 + z2
+                    else:
+                        z1, z2, zc = pair_normals(key0, key1, path, kk, hc, d)
+                    xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I1, q, tt, hc, z1, d)
+                    xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I2, q, tt + hc, hc, z2, d)
+                    xs, Om = family_step(xs, Om, h, omega2_r, I1 + I2, q, tt, h_clock, zc, d)
+                else:
+                    xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I1, q)
+                    xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I2, q)
+                    xs, Om = verlet(xs, Om, h, omega2_r, I1 + I2, q)
+            else:
+                if h != h_cached:
+                    C = coefficients(h, p)
+                    Ca = ou_coefficients(h, pa)
+                    if ADN:
+                        Can = a_coefficients(h, pan)
+                    h_cached = h
+                if TRACKED:
+                    x_before = xs
+                    Om_before = Om
+                    xn_before = xn
+                    t_before = tt
+                z, S = draw(key0, key1, path, kk, S)
+                noise_integral, xn, xa = update(xn, xa, C, z)
+                if FAMILY:
+                    if ADDITIVE_OU:
+                        za, xad = additive_ou_step(key0, key1, path, kk, xad, Ca)
+                    elif ADN:  # the channel's exact step: the integral of xi_a over it
+                        za_z, Sa = a_draw(ka0, ka1, path, kk, Sa)
+                        za, xan, xaa = a_update(xan, xaa, Can, za_z)
+                    else:
+                        za = additive_normal(key0, key1, path, kk)
+                    xs, Om = family_step(xs, Om, h, omega2_r, noise_integral, q, tt, h_clock, za, d)
+                else:
+                    xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, q)
+            if A_EVENTS:  # the event of the channel(s) whose time the step landed on
+                if HAS_EVENTS and event and t_land == t_ev:
+                    xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
+                if event and t_land == t_ev_a:
+                    xan, xaa = a_at_event(xan, xaa, ka0, ka1, path, kk, pan)
+            elif HAS_EVENTS and event:
+                xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
+            kk += _U64(DRAWS)
+            steps += 1
+            tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
+            if PAIR:
+                finite = (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xs2)
+                          and math.isfinite(Om2) and math.isfinite(xn) and math.isfinite(xa))
+            else:
+                finite = (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)
+                          and math.isfinite(xa))
+            if not finite:
+                bad = True
+                break
+            if TRACKED:
+                track_step(tracks, i, np.float64(x_before), np.float64(Om_before),
+                           np.float64(xn_before), np.float64(xs), np.float64(Om),
+                           np.float64(xn), t_before, tt)
+            if last:
+                break
+        x[i] = xs
+        Omega[i] = Om
+        if PAIR:
+            xf[i] = xs2
+            Omegaf[i] = Om2
+        xi[i] = xn
+        xi_aux[i] = xa
+        if ADDITIVE_OU:
+            xa_arr[i] = xad
+        if ADN:
+            xa_arr[i] = xan
+            aux_arr[i] = xaa
+        t[i] = tt
+        t_comp[i] = tc
+        k[i] = kk
+        if bad:
+            status[i] = 1
+        return DRAWS * steps, (1 if (not bad and tt < t_target) else 0)
+
+    name = "advance_pair" if PAIR else "advance_path"
+    advance.__name__ = name
+    advance.__qualname__ = advance.__qualname__.replace("advance", name)
+    return register_jitable(advance)
+
+
+
+def _lockstep_lanes(*, real, coefficients, update, verlet, mathlib_log, mathlib_sincos) -> Any:
+    """``advance_lanes`` of a Spec from :func:`build`'s pieces of the same names (see
+    :func:`_step_loop`)."""
+
+    @register_jitable
+    def advance_lanes(block, t0, tc0, k0, t_target, max_steps, rk0, rk1, p, run):
+        """The steps of :func:`advance_path` for ``LANES`` lanes in lock step (fixed step, a noise
+        with ``pair_draws``): every lane has the time ``t0``, compensation ``tc0`` and step
+        count ``k0``, so the landing, the clock and the noise coefficients are computed once,
+        and each step is two loops over the lanes with no branch, which LLVM vectorizes:
+
+        1. Philox of draw ``N_FIRST_STEP + k`` for each lane (the round keys ``rk0``, ``rk1``
+           of :func:`stochpend.rng.round_keys`; ``bc2``/``bc3`` the lanes' path words), the
+           Box-Muller radius and phase into ``br``, ``bph``;
+        2. the normals, the noise's update and the drift-kick-drift step.
+
+        The arithmetic is advance_path's, operation for operation. ``block``: the lanes' arrays
+        ``(bx, bO, bxi, bxa, bc2, bc3, br, bph)``; the state arrays (``bx``, ``bO``, ``bxi``,
+        ``bxa``) are updated in place. ``p``, ``run`` as for :func:`advance_path` (``step_c``
+        unused). Returns ``(steps, t, t_comp, k, finite)``; on a non-finite lane the block stops
+        after that step (``finite`` False) and the caller finishes its paths one by one.
+        """
+        lanes = LANES
+        bx = block[0]
+        bO = block[1]
+        bxi = block[2]
+        bxa = block[3]
+        bc2 = block[4]
+        bc3 = block[5]
+        br = block[6]
+        bph = block[7]
+        omega2 = run[0]
+        q = run[1]
+        h_max = run[2]
+        omega2_r = real(omega2)
+        h_max_r = real(h_max)
+        tt = t0
+        tc = tc0
+        kk = k0
+        h_cached = h_max_r
+        C = coefficients(h_max_r, p)
+        steps = 0
+        finite = True
+        while steps < max_steps:
+            h_clock, last = landing_step(tt, h_max, t_target)
+            h = real(h_clock)
+            if h != h_cached:
+                C = coefficients(h, p)
+                h_cached = h
+            d = _U64(rng.N_FIRST_STEP) + kk
+            d0 = d & rng._MASK32
+            d1 = d >> rng._SHIFT32
+            for lane in range(lanes):
+                c0, c1, c2, c3 = rng.philox4x32_10_keyed(d0, d1, bc2[lane], bc3[lane], rk0, rk1)
+                br[lane] = math.sqrt(-2.0 * mathlib_log(rng.uniform_open(c0, c1)))
+                bph[lane] = rng._TWO_PI * rng.uniform_open(c2, c3)
+            for lane in range(lanes):
+                sn, cs = mathlib_sincos(bph[lane])
+                z = (real(br[lane] * cs), real(br[lane] * sn))
+                noise_integral, xn, xa = update(bxi[lane], bxa[lane], C, z)
+                bxi[lane] = xn
+                bxa[lane] = xa
+                bx[lane], bO[lane] = verlet(bx[lane], bO[lane], h, omega2_r, noise_integral, q)
+            kk += _U64(1)
+            steps += 1
+            tt, tc = advance_clock(tt, tc, h_clock, last, t_target)
+            for lane in range(lanes):
+                if not math.isfinite(bx[lane] + bO[lane] + bxi[lane]):
+                    finite = False
+            if not finite or last:
+                break
+        return steps, tt, tc, kk, finite
+
+    return advance_lanes
+
+
+#: The names of the pieces :func:`_step_loop` takes from :func:`build`'s scope (its keyword
+#: arguments, declared once by its signature).
+_STEP_PIECES = tuple(inspect.signature(_step_loop).parameters)[1:]
+
+
 @functools.cache
 def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     """The device functions of ``spec`` (see the module docstring); cached per Spec.
@@ -492,221 +803,9 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         Ia, xa_new, _ = ou_update(xa, real(0.0), Ca, (z1, z2))
         return Ia, xa_new
 
-    def step_loop(PAIR):
-        """The step loop of one path (``PAIR`` False: :func:`advance_path`) or of a coupled
-        coarse/fine pair (True: :func:`advance_pair`), written once: the step control, the
-        escape rule, the landing, the noise's events, the clock, the finiteness check and the
-        bookkeeping are shared; what differs is what a step advances (one member with one draw,
-        or two members with two draws) and the arrays it reads and writes. ``PAIR`` is a
-        compile-time constant: each variant compiles to its own straight-line code."""
-        I_XI, I_XA, I_T, I_TC, I_K, I_ST = state_positions(PAIR)
-        TRACKED = TRACK and not PAIR
-        tracks_in = tracks_of if TRACKED else _no_tracks
-        DRAWS = 2 if PAIR else 1
-        # The additive OU noise's xi_a: the state's array after the others (the slots too); a
-        # constant index (as every array here, see below), x's in a Spec without it (unused).
-        I_ADD = I_ST + 1 + (1 if TRACKED else 0) if (ADDITIVE_OU or ADN) else 0
-        # The generic channel's aux_a: right after its xi_a.
-        I_AUXA = I_ADD + 1 if ADN else 0
-
-        def advance(i, state, t_target, max_steps, key0, key1, path0, p, run):
-            # The arrays of a tuple are taken by index, never unpacked (``x, Omega, ... =
-            # state``): with an unpacked tuple, Numba (0.68) dropped the stores into the arrays
-            # once it had inlined an ``inline="always"`` function (the fast-math OU
-            # coefficients) into this function's IR. The same in every function here that
-            # takes a tuple of arrays.
-            x = state[0]
-            Omega = state[1]
-            xf = state[2]  # the pair's fine member (a path: unused)
-            Omegaf = state[3]
-            xi = state[I_XI]
-            xi_aux = state[I_XA]
-            t = state[I_T]
-            t_comp = state[I_TC]
-            k = state[I_K]
-            status = state[I_ST]
-            if status[i] != 0 or t[i] >= t_target:
-                return 0, 0
-            omega2 = run[0]
-            q = run[1]
-            h_max = run[2]
-            step_c = run[3]
-            d = dyn_of(run)
-            omega2_r = real(omega2)
-            h_max_r = real(h_max)
-            c_r = real(step_c)
-            path = _U64(path0 + i)
-            xs = x[i]
-            Om = Omega[i]
-            xs2 = xf[i]
-            Om2 = Omegaf[i]
-            xn = xi[i]
-            xa = load_aux(xi_aux[i])
-            tt = t[i]
-            tc = t_comp[i]
-            kk = k[i]
-            tracks = tracks_in(state)
-            xa_arr = state[I_ADD]
-            xad = real(xa_arr[i]) if ADDITIVE_OU else real(0.0)
-            pa = ou_record(d)
-            # The generic channel: (xi_a, aux_a), its record and key; t_ev, t_ev_a the two
-            # channels' next events (a noise with events).
-            aux_arr = state[I_AUXA]
-            pan, kan = channel_of(run)
-            ka0 = kan[0]
-            ka1 = kan[1]
-            if ADN:
-                xan = real(xa_arr[i])
-                xaa = a_load_aux(aux_arr[i])
-            Sa = a_scratch0()
-            t_ev = math.inf
-            t_ev_a = math.inf
-            # Everything of the noise's step that depends on h only (for a pair, on its half
-            # steps h/2), cached while h is unchanged (h = h_max most of the time).
-            h_cached = h_max_r
-            hh = half * h_max_r
-            C = coefficients(hh if PAIR else h_max_r, p)
-            Ca = ou_coefficients(hh if PAIR else h_max_r, pa)
-            Can = a_coefficients(hh if PAIR else h_max_r, pan)
-            S = scratch0()
-            steps = 0
-            bad = False
-            while steps < max_steps:
-                if ADAPTIVE:
-                    h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
-                    if FAMILY:
-                        h = family_bounds(h, c_r, d)
-                    if h < escape * h_max_r:
-                        bad = True  # running away (see ESCAPE_STEP_FRACTION)
-                        break
-                else:
-                    h = h_max_r
-                h_clock = h_max if h == h_max_r else np.float64(h)
-                if A_EVENTS:  # cut at the earlier of the two channels' next events
-                    t_ev = next_event(xn, xa)
-                    t_ev_a = a_next_event(xan, xaa)
-                    h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
-                                                                     min(t_ev, t_ev_a))
-                elif HAS_EVENTS:
-                    h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
-                                                                     next_event(xn, xa))
-                else:
-                    h_clock, last = landing_step(tt, h_clock, t_target)
-                    event = False
-                    t_land = t_target
-                h = real(h_clock)
-                if PAIR:
-                    if h != h_cached:
-                        hh = half * h
-                        C = coefficients(hh, p)
-                        Ca = ou_coefficients(hh, pa)
-                        if ADN:
-                            Can = a_coefficients(hh, pan)
-                        h_cached = h
-                    # The half steps draw the noise (draws 2m and 2m + 1 for coarse step m);
-                    # the coarse kick uses the sum of their integrals, the exact integral over
-                    # the whole step.
-                    z, S = draw(key0, key1, path, kk, S)
-                    I1, xn, xa = update(xn, xa, C, z)
-                    z, S = draw(key0, key1, path, kk + _U64(1), S)
-                    I2, xn, xa = update(xn, xa, C, z)
-                    if FAMILY:
-                        # The additive noise likewise: the fine member's half steps draw it, the
-                        # coarse member's one step uses the normal of their sum over the step
-                        # (the exact composition of the two O flows).
-                        hc = 0.5 * h_clock
-                        if ADDITIVE_OU:  # as the multiplicative noise: the half steps' integrals
-                            z1, xad = additive_ou_step(key0, key1, path, kk, xad, Ca)
-                            z2, xad = additive_ou_step(key0, key1, path, kk + _U64(1), xad, Ca)
-                            zc = z1 + z2
-                        elif ADN:  # likewise, the channel's noise under its own key
-                            za_z, Sa = a_draw(ka0, ka1, path, kk, Sa)
-                            z1, xan, xaa = a_update(xan, xaa, Can, za_z)
-                            za_z, Sa = a_draw(ka0, ka1, path, kk + _U64(1), Sa)
-                            z2, xan, xaa = a_update(xan, xaa, Can, za_z)
-                            zc = z1 + z2
-                        else:
-                            z1, z2, zc = pair_normals(key0, key1, path, kk, hc, d)
-                        xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I1, q, tt, hc, z1, d)
-                        xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I2, q, tt + hc, hc, z2, d)
-                        xs, Om = family_step(xs, Om, h, omega2_r, I1 + I2, q, tt, h_clock, zc, d)
-                    else:
-                        xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I1, q)
-                        xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I2, q)
-                        xs, Om = verlet(xs, Om, h, omega2_r, I1 + I2, q)
-                else:
-                    if h != h_cached:
-                        C = coefficients(h, p)
-                        Ca = ou_coefficients(h, pa)
-                        if ADN:
-                            Can = a_coefficients(h, pan)
-                        h_cached = h
-                    if TRACKED:
-                        x_before = xs
-                        Om_before = Om
-                        xn_before = xn
-                        t_before = tt
-                    z, S = draw(key0, key1, path, kk, S)
-                    noise_integral, xn, xa = update(xn, xa, C, z)
-                    if FAMILY:
-                        if ADDITIVE_OU:
-                            za, xad = additive_ou_step(key0, key1, path, kk, xad, Ca)
-                        elif ADN:  # the channel's exact step: the integral of xi_a over it
-                            za_z, Sa = a_draw(ka0, ka1, path, kk, Sa)
-                            za, xan, xaa = a_update(xan, xaa, Can, za_z)
-                        else:
-                            za = additive_normal(key0, key1, path, kk)
-                        xs, Om = family_step(xs, Om, h, omega2_r, noise_integral, q, tt, h_clock, za, d)
-                    else:
-                        xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, q)
-                if A_EVENTS:  # the event of the channel(s) whose time the step landed on
-                    if HAS_EVENTS and event and t_land == t_ev:
-                        xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
-                    if event and t_land == t_ev_a:
-                        xan, xaa = a_at_event(xan, xaa, ka0, ka1, path, kk, pan)
-                elif HAS_EVENTS and event:
-                    xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
-                kk += _U64(DRAWS)
-                steps += 1
-                tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
-                if PAIR:
-                    finite = (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xs2)
-                              and math.isfinite(Om2) and math.isfinite(xn) and math.isfinite(xa))
-                else:
-                    finite = (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)
-                              and math.isfinite(xa))
-                if not finite:
-                    bad = True
-                    break
-                if TRACKED:
-                    track_step(tracks, i, np.float64(x_before), np.float64(Om_before),
-                               np.float64(xn_before), np.float64(xs), np.float64(Om),
-                               np.float64(xn), t_before, tt)
-                if last:
-                    break
-            x[i] = xs
-            Omega[i] = Om
-            if PAIR:
-                xf[i] = xs2
-                Omegaf[i] = Om2
-            xi[i] = xn
-            xi_aux[i] = xa
-            if ADDITIVE_OU:
-                xa_arr[i] = xad
-            if ADN:
-                xa_arr[i] = xan
-                aux_arr[i] = xaa
-            t[i] = tt
-            t_comp[i] = tc
-            k[i] = kk
-            if bad:
-                status[i] = 1
-            return DRAWS * steps, (1 if (not bad and tt < t_target) else 0)
-
-        name = "advance_pair" if PAIR else "advance_path"
-        advance.__name__ = name
-        advance.__qualname__ = advance.__qualname__.replace("advance", name)
-        return register_jitable(advance)
+    # The step loop's pieces, by the names its signature declares (_STEP_PIECES).
+    scope = locals()
+    step_pieces = {name: scope[name] for name in _STEP_PIECES}
 
     #: ``advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)``: advance path
     #: i of the arrays towards ``t_target``, at most ``max_steps`` steps.
@@ -723,7 +822,7 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     #: whenever the step is the largest one, so float32 takes the same steps and draws as
     #: float64. Returns ``(steps_taken, unfinished)`` (1 if the path stopped short of
     #: ``t_target``).
-    advance_path = step_loop(False)
+    advance_path = _step_loop(False, **step_pieces)
 
     #: ``advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, run)``: advance a
     #: *coupled pair* of path i towards ``t_target`` (the bias estimate, :mod:`stochpend.bias`).
@@ -742,76 +841,10 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     #: ``p``, ``run`` as for ``advance_path``. ``k`` counts draws (two per coarse step). Returns
     #: ``(draws_taken, unfinished)``; a pair with either member non-finite or escaped gets
     #: status 1.
-    advance_pair = step_loop(True)
+    advance_pair = _step_loop(True, **step_pieces)
 
-    @register_jitable
-    def advance_lanes(block, t0, tc0, k0, t_target, max_steps, rk0, rk1, p, run):
-        """The steps of :func:`advance_path` for ``LANES`` lanes in lock step (fixed step, a noise
-        with ``pair_draws``): every lane has the time ``t0``, compensation ``tc0`` and step
-        count ``k0``, so the landing, the clock and the noise coefficients are computed once,
-        and each step is two loops over the lanes with no branch, which LLVM vectorizes:
-
-        1. Philox of draw ``N_FIRST_STEP + k`` for each lane (the round keys ``rk0``, ``rk1``
-           of :func:`stochpend.rng.round_keys`; ``bc2``/``bc3`` the lanes' path words), the
-           Box-Muller radius and phase into ``br``, ``bph``;
-        2. the normals, the noise's update and the drift-kick-drift step.
-
-        The arithmetic is advance_path's, operation for operation. ``block``: the lanes' arrays
-        ``(bx, bO, bxi, bxa, bc2, bc3, br, bph)``; the state arrays (``bx``, ``bO``, ``bxi``,
-        ``bxa``) are updated in place. ``p``, ``run`` as for :func:`advance_path` (``step_c``
-        unused). Returns ``(steps, t, t_comp, k, finite)``; on a non-finite lane the block stops
-        after that step (``finite`` False) and the caller finishes its paths one by one.
-        """
-        lanes = LANES
-        bx = block[0]
-        bO = block[1]
-        bxi = block[2]
-        bxa = block[3]
-        bc2 = block[4]
-        bc3 = block[5]
-        br = block[6]
-        bph = block[7]
-        omega2 = run[0]
-        q = run[1]
-        h_max = run[2]
-        omega2_r = real(omega2)
-        h_max_r = real(h_max)
-        tt = t0
-        tc = tc0
-        kk = k0
-        h_cached = h_max_r
-        C = coefficients(h_max_r, p)
-        steps = 0
-        finite = True
-        while steps < max_steps:
-            h_clock, last = landing_step(tt, h_max, t_target)
-            h = real(h_clock)
-            if h != h_cached:
-                C = coefficients(h, p)
-                h_cached = h
-            d = _U64(rng.N_FIRST_STEP) + kk
-            d0 = d & rng._MASK32
-            d1 = d >> rng._SHIFT32
-            for lane in range(lanes):
-                c0, c1, c2, c3 = rng.philox4x32_10_keyed(d0, d1, bc2[lane], bc3[lane], rk0, rk1)
-                br[lane] = math.sqrt(-2.0 * mathlib_log(rng.uniform_open(c0, c1)))
-                bph[lane] = rng._TWO_PI * rng.uniform_open(c2, c3)
-            for lane in range(lanes):
-                sn, cs = mathlib_sincos(bph[lane])
-                z = (real(br[lane] * cs), real(br[lane] * sn))
-                noise_integral, xn, xa = update(bxi[lane], bxa[lane], C, z)
-                bxi[lane] = xn
-                bxa[lane] = xa
-                bx[lane], bO[lane] = verlet(bx[lane], bO[lane], h, omega2_r, noise_integral, q)
-            kk += _U64(1)
-            steps += 1
-            tt, tc = advance_clock(tt, tc, h_clock, last, t_target)
-            for lane in range(lanes):
-                if not math.isfinite(bx[lane] + bO[lane] + bxi[lane]):
-                    finite = False
-            if not finite or last:
-                break
-        return steps, tt, tc, kk, finite
+    advance_lanes = _lockstep_lanes(real=real, coefficients=coefficients, update=update, verlet=verlet,
+                                    mathlib_log=mathlib_log, mathlib_sincos=mathlib_sincos)
 
     # family_step_inline too: only the lane machines call it, and whichever of them was built
     # first in a process would otherwise name it, so the pair kernel compiled by the compile
