@@ -103,6 +103,7 @@ def init_kernel(spec: Spec):
     (``Noise.record``); depends on the noise only. The paths are shared among the threads in
     ranges (:func:`_ranges`)."""
     init_path = integrator.initial_state(spec.noise)
+    I_XI, I_XA, I_T, I_TC, I_K, I_ST = integrator.state_positions(False)
 
     @numba.njit(nogil=True, cache=spec.noise.builtin, error_model="numpy")
     @own_index(spec.noise.name)
@@ -110,12 +111,12 @@ def init_kernel(spec: Spec):
              stationary_xi0, p):  # pragma: no cover
         x = state[0]
         Omega = state[1]
-        xi = state[2]
-        xi_aux = state[3]
-        t = state[4]
-        t_comp = state[5]
-        k = state[6]
-        status = state[7]
+        xi = state[I_XI]
+        xi_aux = state[I_XA]
+        t = state[I_T]
+        t_comp = state[I_TC]
+        k = state[I_K]
+        status = state[I_ST]
         for i in range(lo, hi):
             x[i], Omega[i], xi[i], xi_aux[i] = init_path(
                 key0, key1, _U64(path0 + i), theta0, uniform_theta0, Omega0, xi0,
@@ -186,7 +187,7 @@ def _one_at_a_time(advance_one, index: str | None, cache: bool, pair: bool):
     are for paths that have landed (466 calls over 10**4 paths in benchmarks/revisions.py
     one-path): that made the one-path kernel about 4 % slower than 5319e81's ``prange`` kernel,
     whose loop had the integrator inlined."""
-    I_T, I_ST = integrator.state_positions(pair)[2::3]
+    _, _, I_T, _, _, I_ST = integrator.state_positions(pair)
 
     def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
                 run):  # pragma: no cover - compiled
@@ -413,6 +414,7 @@ def _lockstep_kernel(spec: Spec):
     steps = integrator.build(spec)
     advance_path = steps.advance_path
     advance_lanes = steps.advance_lanes
+    I_XI, I_XA, I_T, I_TC, I_K, I_ST = integrator.state_positions(False)
 
     @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label)
@@ -420,12 +422,12 @@ def _lockstep_kernel(spec: Spec):
                 nw):  # pragma: no cover - compiled
         x = state[0]
         Omega = state[1]
-        xi = state[2]
-        xi_aux = state[3]
-        t = state[4]
-        t_comp = state[5]
-        k = state[6]
-        status = state[7]
+        xi = state[I_XI]
+        xi_aux = state[I_XA]
+        t = state[I_T]
+        t_comp = state[I_TC]
+        k = state[I_K]
+        status = state[I_ST]
         fw = scratch[0]
         uw = scratch[1]
         n_paths = x.shape[0]

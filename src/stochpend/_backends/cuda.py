@@ -233,6 +233,7 @@ def init_kernel(spec: Spec):
     k, status)``, the initial values computed in float64 (they depend on the noise only); ``p``
     the noise's record (``Noise.record``)."""
     init_path = integrator.initial_state(spec.noise)
+    I_XI, I_XA, I_T, I_TC, I_K, I_ST = integrator.state_positions(False)
 
     @cuda.jit(cache=spec.noise.builtin)
     @own_index(spec.noise.name)
@@ -240,12 +241,12 @@ def init_kernel(spec: Spec):
              p):  # pragma: no cover
         x = state[0]
         Omega = state[1]
-        xi = state[2]
-        xi_aux = state[3]
-        t = state[4]
-        t_comp = state[5]
-        k = state[6]
-        status = state[7]
+        xi = state[I_XI]
+        xi_aux = state[I_XA]
+        t = state[I_T]
+        t_comp = state[I_TC]
+        k = state[I_K]
+        status = state[I_ST]
         i = cuda.grid(1)
         if i >= x.shape[0]:
             return
