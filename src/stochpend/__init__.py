@@ -22,7 +22,13 @@ import sys
 import types
 from typing import TYPE_CHECKING, Any
 
+from stochpend import _cputarget
 from stochpend._version import __version__
+
+try:  # STOCHPEND_CPU_TARGET=baseline: before anything compiles (Numba is not imported here)
+    _cputarget.apply_environment()
+except ValueError:  # a word it does not know, or a CPU that cannot: said when a run starts (Run.build)
+    pass
 
 #: Submodules reachable as attributes of the package, imported on first use.
 SUBMODULES = ("bias", "exponents", "io", "models", "noises", "paper", "plotting", "sweep",

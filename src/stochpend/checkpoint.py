@@ -53,7 +53,7 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import _files, bias, io, observables
+from stochpend import _cputarget, _files, bias, io, observables
 from stochpend._backends.layout import path_dtypes
 from stochpend._sources import BUILD
 from stochpend._version import __version__
@@ -277,6 +277,7 @@ def write(path: str | os.PathLike, ckpt: Checkpoint) -> Path:
         "stochpend_build": BUILD,
         "numpy_version": np.__version__,
         "numba_version": numba.__version__,
+        "cpu_target": _cputarget.describe(),
         "created": _time.strftime("%Y-%m-%dT%H:%M:%SZ", _time.gmtime()),
         "config": config_to_json(ckpt.config),
         "config_sha256": config_hash(ckpt.config),

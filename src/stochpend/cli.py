@@ -156,9 +156,21 @@ def _version(value: bool) -> None:
 def _root(
     version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
                                           help="Print the version and exit.")] = False,
+    cpu_target: Annotated[str | None, typer.Option(
+        "--cpu-target", metavar="host|baseline",
+        help="Instruction set the CPU kernels are compiled for: host (this machine's, the default) or "
+             "baseline (x86-64-v3: AVX2 and FMA, the same on every machine). Same as "
+             "STOCHPEND_CPU_TARGET; the result's cpu_target attribute names it.")] = None,
 ) -> None:
     """Ensembles of the stochastic pendulum with parametric white or Ornstein-Uhlenbeck noise
     (Mallick & Marcq 2004): simulate, compare with theory, reproduce the paper."""
+    if cpu_target is not None:
+        from stochpend import _cputarget
+
+        try:
+            _cputarget.select(cpu_target.strip().lower())
+        except ValueError as exc:
+            fail(str(exc).replace("cpu_target=", "--cpu-target ", 1))
 
 
 #: What a `simulate --config` file may set: physics and numerics (and where they run), by the
@@ -718,6 +730,9 @@ def info() -> None:
     table.add_row("numpy / numba / xarray", f"{numpy.__version__} / {numba.__version__} / {xarray.__version__}")
     table.add_row("numba threads", f"{numba.config.NUMBA_NUM_THREADS} (layer: {numba.config.THREADING_LAYER})")
     table.add_row("machine", f"{platform.machine()} {platform.processor()}")
+    from stochpend import _cputarget
+
+    table.add_row("cpu target", _cputarget.describe())  # what the CPU kernels compile for (--cpu-target)
     from stochpend.simulate import cuda_status
 
     # The driver and the device, then a tiny kernel compiled and launched (a CUDA stack that

@@ -30,7 +30,7 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import _compile_helper, bias, integrator, models, observables, resources, runner
+from stochpend import _compile_helper, _cputarget, bias, integrator, models, observables, resources, runner
 from stochpend._jitcache import CompileClock
 from stochpend._version import __version__
 from stochpend.params import SimulationConfig, hist_edges, joint_grid
@@ -103,6 +103,7 @@ class Run:
         backend = resolve_backend(backend)
         check_precision(precision, backend)
         check_threads(threads)
+        _cputarget.apply_environment()  # STOCHPEND_CPU_TARGET: refused here if it cannot hold
         if chunk_paths is not None and (isinstance(chunk_paths, bool) or not isinstance(chunk_paths, int)
                                         or chunk_paths < 1):
             raise ValueError(f"chunk_paths={chunk_paths!r} is not accepted: an integer >= 1")
@@ -311,6 +312,7 @@ def provenance(config: SimulationConfig, *, backend: str, threads: int, wall_tim
             "path_steps_per_s": path_steps / wall_time_s if wall_time_s > 0 else float("nan"),
             "stochpend_version": __version__,
             "numba_version": numba.__version__,
+            "cpu_target": _cputarget.describe(),
             "numpy_version": np.__version__,
             "python_version": platform.python_version(),
             "machine": f"{platform.machine()} {platform.processor() or platform.system()}",

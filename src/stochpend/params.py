@@ -14,6 +14,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from stochpend import _hostmath
 from stochpend import dynamics as _dynamics
 from stochpend import noises as _noises
 from stochpend import observables as _observables
@@ -286,7 +287,7 @@ class SimulationConfig:
         if times is None:
             n_times = _integer("n_times", n_times, f"n_times must be an integer in [1, {MAX_N_TIMES}]", 1,
                                MAX_N_TIMES)
-            grid = np.geomspace(t_max * 1e-3, t_max, n_times) if n_times > 1 else np.array([t_max])
+            grid = _hostmath.geomspace(t_max * 1e-3, t_max, n_times) if n_times > 1 else np.array([t_max])
             grid[-1] = t_max
         else:
             try:

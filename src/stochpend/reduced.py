@@ -91,7 +91,7 @@ import xarray as xr
 from numba import prange
 from numba.extending import register_jitable
 
-from stochpend import rng
+from stochpend import _cputarget, rng
 from stochpend._jitcache import own_index
 from stochpend._version import __version__
 from stochpend.noises import ou as _ou
@@ -593,7 +593,8 @@ def default_hist_E_max(times: np.ndarray, *, D: float, tau: float, omega: float,
     """Upper histogram edge: far in the tail of the reduced laws (scale (D t/tau**2)**(1/2),
     plus the early omega**2 xi contribution of the second order, (omega**4 D t/tau**2)**(1/4))."""
     t = np.asarray(times, dtype=np.float64)
-    scale = np.sqrt(D * t) / tau + omega * (D * t) ** 0.25 / math.sqrt(tau)
+    # (D t)^(1/4) as two square roots: the same bits on every machine (stochpend._hostmath)
+    scale = np.sqrt(D * t) / tau + omega * np.sqrt(np.sqrt(D * t)) / math.sqrt(tau)
     return E0 + 1.0 + 12.0 * scale
 
 
@@ -869,6 +870,7 @@ def _provenance(config: ReducedConfig, *, threads: int, wall_time_s: float, path
             "path_steps": path_steps,
             "stochpend_version": __version__,
             "numba_version": numba.__version__,
+            "cpu_target": _cputarget.describe(),
             "numpy_version": np.__version__,
             "python_version": platform.python_version(),
             "created": _time.strftime("%Y-%m-%dT%H:%M:%SZ", _time.gmtime()),

@@ -546,11 +546,14 @@ def versions() -> dict[str, str]:
     import numba
     import scipy
 
+    from stochpend import _cputarget
+
     return {
         "stochpend": __version__,
         "python": platform.python_version(),
         "numpy": np.__version__,
         "numba": numba.__version__,
+        "cpu target": _cputarget.describe(),
         "scipy": scipy.__version__,
         "xarray": xr.__version__,
         "matplotlib": matplotlib.__version__,

@@ -603,6 +603,7 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
         "sweep_engine": info.get("engine", ""),
         "sweep_scheduler": str(info.get("scheduler", "")),
         "sweep_workers": int(info.get("workers", 0)),
+        **({"sweep_worker_cpu_targets": info["worker_cpu_targets"]} if "worker_cpu_targets" in info else {}),
         "backend": info.get("backend", "cpu"),
         "precision": info.get("precision", "float64"),
         "stochpend_build": BUILD,

@@ -2,13 +2,13 @@
 
 Usage: ``NUMBA_ENABLE_CUDASIM=1 python tests/golden/make_golden_cuda.py OUT.npz``
 
-tests/golden/cudasim_5319e81.npz was made by this script at commit 5319e81 (a worktree of it,
-``git worktree add /tmp/w5319 5319e81``), with the current venv's Python and
-``PYTHONPATH=/tmp/w5319/src`` (``stochpend.__file__`` checked to lie there; numba 0.68.1):
+tests/golden/cudasim.npz was made by this script at the commit that added it (issue 37: the
+output times and the skewness no longer use numpy's CPU-dispatched power loop), on a 2-core AMD
+EPYC (Zen 4, AVX-512), numba 0.68.1, numpy 2.4.6; the same file came out with numpy held to AVX2
+(``NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR"``). It replaced
+cudasim_5319e81.npz (made at 5319e81), from which only the skewness and its error differ:
 
-    cd /tmp && NUMBA_ENABLE_CUDASIM=1 PYTHONPATH=/tmp/w5319/src \\
-        /work/wt-golden/.venv/bin/python /work/wt-golden/tests/golden/make_golden_cuda.py \\
-        /work/wt-golden/tests/golden/cudasim_5319e81.npz
+    NUMBA_ENABLE_CUDASIM=1 .venv/bin/python tests/golden/make_golden_cuda.py tests/golden/cudasim.npz
 
 tests/statistical/test_golden_cuda.py runs it at the current commit and compares every array
 bit for bit. The simulator runs each GPU thread as Python (about 1e4 path-steps a second), so

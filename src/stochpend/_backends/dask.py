@@ -108,9 +108,10 @@ def _check_threadsafe_numba() -> None:
 
 
 def _worker_facts() -> dict[str, Any]:
+    from stochpend import _cputarget
     from stochpend._sources import BUILD
 
-    return {"cpus": _cpu_count(), "build": BUILD}
+    return {"cpus": _cpu_count(), "build": BUILD, "cpu_target": _cputarget.describe()}
 
 
 def _remote_block(config: Any, set_index: int, b0: int, b1: int, threads_by_host: dict[str, int],
@@ -156,9 +157,13 @@ class DistributedEngine:
             if addr in facts:
                 cpus[host] = min(cpus.get(host, facts[addr]["cpus"]), facts[addr]["cpus"])
         self.threads_by_host = {h: max(1, cpus.get(h, 1) // n) for h, n in dask_threads.items()}
+        # What each worker's kernels are compiled for: bits agree across targets by design, and
+        # STOCHPEND_CPU_TARGET=baseline on every worker makes the targets one (docs/scale-out.md).
+        self.cpu_targets = sorted({f.get("cpu_target", "?") for f in facts.values()})
 
     def info(self) -> dict[str, Any]:
-        return {"engine": "dask-distributed", "scheduler": self.address, "workers": self.n_workers}
+        return {"engine": "dask-distributed", "scheduler": self.address, "workers": self.n_workers,
+                "worker_cpu_targets": "; ".join(self.cpu_targets)}
 
     def run(self, spec: SweepSpec, tasks: list[Task], tracker: Any,
             on_result: Callable[[BlockResult], None], *, backend: str = "cpu",
