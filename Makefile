@@ -6,7 +6,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test coverage lint typecheck test-slow test-minimal bench reproduce clean
+.PHONY: demo test coverage lint typecheck test-slow test-minimal test-baseline bench reproduce clean
 
 $(STAMP): pyproject.toml constraints.txt
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (set PYTHON=...)"; exit 2; }
@@ -52,6 +52,14 @@ test-minimal: $(MIN_STAMP)
 	! $(MIN_VENV)/bin/python -c "import matplotlib" 2>/dev/null
 	! $(MIN_VENV)/bin/python -c "import dask" 2>/dev/null
 	$(MIN_VENV)/bin/python -m pytest -q -m "not slow" -p no:cacheprovider $(MIN_TESTS)
+
+# The golden and lanes tests again as an AVX2-only x86-64 machine computes them: the kernels
+# compiled for the x86-64-v3 baseline, numpy's CPU dispatch held to AVX2 (tests/golden/run_baseline.py;
+# docs/development.md, "What is bit-identical, and where"). CI runs it after make test.
+BASELINE_TESTS := tests/statistical/test_golden.py tests/statistical/test_golden_cuda.py tests/unit/test_lanes.py
+
+test-baseline: $(STAMP)
+	$(PY) tests/golden/run_baseline.py -q -p no:cacheprovider -n auto --maxprocesses 4 --dist loadfile $(BASELINE_TESTS)
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
