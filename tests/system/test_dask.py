@@ -149,8 +149,7 @@ def test_given_client_is_left_open(reference, monkeypatch):
 def test_unreachable_scheduler_is_one_line():
     import dask
 
-    start = time.monotonic()
     refused = r"scheduler='tcp://127.0.0.1:9' is not accepted: cannot connect"
+    # A connect timeout of 2 s: the refusal comes after it (no wall time is asserted: issue 37).
     with dask.config.set({"distributed.comm.timeouts.connect": "2s"}), pytest.raises(ValueError, match=refused):
         sweep(SPEC, scheduler="tcp://127.0.0.1:9")
-    assert time.monotonic() - start < 30

@@ -494,11 +494,13 @@ def test_simulator_reports_itself(simulated):
 
 
 def test_simulated_cases_are_small(simulated):
-    """Keep this file fast: each simulated case should take a few seconds at most (the bound
-    leaves room for a machine shared with other jobs: it guards against a case grown by orders
-    of magnitude, it is not a benchmark)."""
-    seconds = {name: float(simulated[f"{name}/seconds"]) for name in CASE_NAMES}
-    assert math.fsum(seconds.values()) < 400, seconds
+    """Keep this file fast: a bound on the work the simulated cases do, not on their time (no
+    test asserts a wall time: issue 37). The simulator runs about 1e4 path-steps a second of
+    CPU, so 4e6 path-steps is the 400 s this bound once stood for; it guards against a case
+    grown by orders of magnitude."""
+    work = {name: int(simulated[f"{name}/work"]) for name in CASE_NAMES}
+    assert all(w > 0 for w in work.values()), work
+    assert sum(work.values()) < 4_000_000, work
 
 
 # -- on-disk cache of the kernels ---------------------------------------------------------------

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -19,12 +18,17 @@ from tests.conftest import TINY_REPRODUCE
 
 #: Tiny runs for the default test suite (the real --quick size is checked in the slow test).
 TINY = TINY_REPRODUCE
+#: Work bounds (path-steps of every run, bias pairs included), where these tests had wall-time
+#: limits a busy machine broke (issue 37): the tiny reproduce does 4.3e6 (2026-11-27), the
+#: quick one 1.0e8; each bound leaves room for a case to grow, not by orders of magnitude.
+TINY_WORK = 10_000_000
+QUICK_WORK = 300_000_000
 
 
 @pytest.fixture(scope="module")
 def tiny(tiny_reproduce):
     """``reproduce("all", **TINY)``, run once per session (tests/conftest.py; the browser test
-    renders its report too): the result and its wall time."""
+    renders its report too): the result and its wall time (kept for the record; no test asserts it)."""
     result, wall, _ = tiny_reproduce
     return result, wall
 
@@ -77,7 +81,8 @@ def test_tiny_reproduce_all_produces_every_file_and_fills_every_table(tiny) -> N
             assert ds["batch_sum_E"].shape[0] == int(ds.attrs["n_batches"])
         finally:
             ds.close()
-    assert wall < 90
+    # A work bound, not a time limit (issue 37): the tiny reproduce stays tiny.
+    assert 0 < sum(r.path_steps for r in result.runs.values()) < TINY_WORK
 
 
 def test_second_call_reuses_the_stored_runs(tiny) -> None:
@@ -321,12 +326,9 @@ def test_row_cells_and_deviations() -> None:
 
 
 @pytest.mark.slow
-def test_quick_mode_of_all_figures_runs_in_under_two_minutes(tmp_path) -> None:
-    started = time.perf_counter()
+def test_quick_mode_of_all_figures_stays_quick(tmp_path) -> None:
     res = CliRunner().invoke(_app(), ["reproduce", "all", "--quick", "--out", str(tmp_path)])
-    wall = time.perf_counter() - started
     assert res.exit_code == 0, res.output
-    assert wall < 120, wall
     from stochpend.io import open_results
 
     for name in FIGURES:
@@ -338,6 +340,8 @@ def test_quick_mode_of_all_figures_runs_in_under_two_minutes(tmp_path) -> None:
     assert len(runs) == 14 + 10
     paper = [p for p in runs if not p.name.startswith("exponent_")]
     assert len(paper) == 14 and all(int(open_results(p).attrs["paths"]) == 500 for p in paper)
+    # A work bound in place of the wall-time limit it had (issue 37): QUICK_WORK path-steps.
+    assert 0 < sum(int(open_results(p).attrs["path_steps"]) for p in runs) < QUICK_WORK
     assert (tmp_path / "report.html").stat().st_size > 100_000
 
 
