@@ -1,14 +1,15 @@
 """The harmonic oscillator: U(x) = x**2/2, G = x.
 
-The step control uses the speed and curvature at the extremes of the current orbit (constant
-along a deterministic orbit), so the step changes only as the noise changes the energy: a step
-that follows the instantaneous speed, which vanishes twice a period, breaks the symplecticity
-of Stormer-Verlet and heats the oscillator secularly (docs/scaling.md, section 12).
+The step control resolves the local frequency sqrt(|omega**2 + xi|) alone (U'' = 1), with no
+bound from the speed: the equations are linear, so (x, Omega) -> s (x, Omega) maps solutions
+onto solutions and nothing in them has a length scale for a step to resolve. A speed bound
+c/|Omega| would shrink the step as the amplitude grows like e^(lambda t) (issue 35: white noise,
+D = omega = 1, 20 000 paths to t = 200 stood at 5 % after 9 minutes, its ETA growing). The step
+is then constant along a deterministic orbit, as Stormer-Verlet's symplecticity asks (a step
+that follows the instantaneous speed heats the oscillator secularly, docs/scaling.md, section 12).
 """
 
 from __future__ import annotations
-
-import math
 
 from numba.extending import register_jitable
 
@@ -19,7 +20,6 @@ def build(real, mathlib) -> OscillatorKernel:
     zero = real(0.0)
     half = real(0.5)
     one = real(1.0)
-    two = real(2.0)
 
     @register_jitable
     def potential(x, q):
@@ -35,10 +35,7 @@ def build(real, mathlib) -> OscillatorKernel:
 
     @register_jitable
     def step_scales(x, Omega, omega2, q):
-        if omega2 > zero:
-            u_max = potential(x, q) + half * Omega * Omega / omega2
-            return math.sqrt(two * omega2 * u_max), one
-        return abs(Omega), one
+        return zero, one  # no speed to resolve (scale invariance), U'' = 1
 
     @register_jitable
     def wrap(x):
