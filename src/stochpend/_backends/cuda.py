@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import importlib
 import math
 import warnings
 from typing import Any
@@ -63,7 +64,8 @@ else:
 # The kernels of built-in pieces are cached on disk (``cuda.jit(cache=True)``, next to this file
 # like the CPU's), under names that carry the code digest (see _jitcache).
 
-__all__ = ["PRECISIONS", "Engine", "availability", "kernel_variants", "path_states"]
+__all__ = ["PERFORMANCE_WARNINGS", "PRECISIONS", "Engine", "availability", "fill_note", "kernel_variants",
+           "path_states"]
 
 PRECISIONS = integrator.PRECISIONS
 
@@ -525,12 +527,54 @@ def joint_kernel(periodic: bool):
 
 
 # -- host side --------------------------------------------------------------------------------
+def _performance_warnings() -> tuple[type[Warning], ...]:
+    """Numba's performance-warning classes that can be imported here: numba's own
+    (``numba.core.errors``, raised by its built-in CUDA target and the simulator) and NVIDIA
+    numba-cuda's (``numba.cuda.core.errors``: a separate class, not a subclass, raised for a
+    grid under 128 blocks and for copies of non-pinned host memory)."""
+    classes: list[type[Warning]] = [NumbaPerformanceWarning]
+    with contextlib.suppress(Exception):  # numba-cuda not installed: numba's class only
+        classes.append(importlib.import_module("numba.cuda.core.errors").NumbaPerformanceWarning)
+    return tuple(dict.fromkeys(classes))
+
+
+#: What :func:`_quiet` silences (see :func:`_performance_warnings`).
+PERFORMANCE_WARNINGS = _performance_warnings()
+
+
 @contextlib.contextmanager
 def _quiet():
-    """Silence Numba's low-occupancy warnings: a small ensemble or few batches is legitimate."""
+    """Silence Numba's performance warnings around our launches and copies: a small ensemble or
+    few batches (one block per batch) is legitimate, and a run too small to fill the GPU is
+    said once in stochpend's words instead (:func:`fill_note`, :meth:`Engine.start`)."""
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", NumbaPerformanceWarning)
+        for category in PERFORMANCE_WARNINGS:
+            warnings.simplefilter("ignore", category)
         yield
+
+
+def fill_note(n_paths: int, multiprocessors: int, threads_per_block: int = THREADS_PER_BLOCK) -> str | None:
+    """The note for a chunk of ``n_paths`` paths too small to fill a GPU of ``multiprocessors``
+    SMs (one thread per path, ``threads_per_block``): fewer than two blocks per SM leaves most
+    of the GPU idle. ``None`` when the chunk fills it. The results do not depend on it."""
+    blocks = _blocks(n_paths, threads_per_block)
+    wanted = 2 * multiprocessors
+    if multiprocessors < 1 or blocks >= wanted:
+        return None
+    return (f"backend='cuda': {n_paths} paths run as {blocks} blocks of {threads_per_block} threads on "
+            f"a GPU with {multiprocessors} multiprocessors, too few to fill it (it takes at least "
+            f"{wanted * threads_per_block} paths); the results are right, but most of the GPU is "
+            "idle and the CPU backend may be as fast")
+
+
+def _multiprocessors() -> int:
+    """The current GPU's SM count (0 if it cannot be read, or under the simulator)."""
+    if _simulator_enabled():
+        return 0
+    try:
+        return int(cuda.get_current_device().MULTIPROCESSOR_COUNT)
+    except Exception:
+        return 0
 
 
 def _blocks(n: int, per_block: int) -> int:
@@ -598,6 +642,7 @@ class Engine:
 
             self.d_edges = cuda.to_device(np.ascontiguousarray(hist_edges(config), dtype=np.float64))
         self._zero_flag = np.zeros(1, dtype=np.int32)
+        self._fill_checked = False
         self.key0, self.key1 = rng.seed_to_key(config.seed)
         self.record = spec.noise.record(config)
         self.run = integrator.run_record(config)
@@ -633,6 +678,13 @@ class Engine:
         """Initial conditions of global paths p0 .. p0 + n - 1."""
         c = self.config
         self.p0, self.n, self.nb = p0, n, nb
+        if not self._fill_checked:  # once per engine: its first chunk is its largest
+            self._fill_checked = True
+            note = fill_note(n, _multiprocessors())
+            if note is not None:
+                from stochpend._warnings import StochpendWarning
+
+                warnings.warn(note, StochpendWarning, stacklevel=2)
         with _quiet():
             self.init[_blocks(n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
                 self._views(), self.key0, self.key1, p0,
