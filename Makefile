@@ -72,7 +72,7 @@ CUDA_PY := $(CUDA_VENV)/bin/python
 CUDA_STAMP := $(CUDA_VENV)/.installed
 CUDA_ARGS ?=
 
-.PHONY: cuda-registers cuda-compile-check
+.PHONY: cuda-registers cuda-compile-check gpu-check
 
 $(CUDA_STAMP): benchmarks/cuda-tools.txt pyproject.toml constraints.txt
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (set PYTHON=...)"; exit 2; }
@@ -94,3 +94,12 @@ CUDA_CHECK ?= all
 cuda-compile-check: $(CUDA_STAMP)
 	PYTHONPATH=src $(CUDA_PY) benchmarks/cuda_registers.py --lto --subset $(CUDA_CHECK) \
 		--out out/cuda-compile-check.md > /dev/null
+
+# On a machine with an NVIDIA GPU: device tests, gpu_bench --record, the closed-moment oracle, the
+# family with accumulators, a short reproduce, in one report (benchmarks/gpu_check.py; docs/gpu.md).
+# Without a GPU it says so in one line (exit 2). make gpu-check GPU_CHECK_ARGS="--quick"
+GPU_CHECK_ARGS ?=
+
+gpu-check: $(CUDA_STAMP)
+	$(CUDA_PY) -m pip install -q -c constraints.txt -e ".[test,cuda]"
+	$(CUDA_PY) benchmarks/gpu_check.py $(GPU_CHECK_ARGS)
