@@ -66,3 +66,42 @@ def test_the_suite_ignores_numba_cudas_own_class_only_where_it_is_installed(monk
     monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
     conftest.pytest_configure(config)  # type: ignore[arg-type]
     assert added == []
+
+
+_SIMULATED_RUN = r"""
+import json, sys, warnings
+import stochpend
+from stochpend._backends import cuda as gpu
+gpu._multiprocessors = lambda: int(sys.argv[1])  # the simulator has no SM count: a GPU's
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    for category in gpu.PERFORMANCE_WARNINGS:
+        warnings.simplefilter("error", category)  # Numba's own advice must not reach the user
+    stochpend.simulate(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=64, n_batches=2, t_max=0.05,
+                       n_times=2, seed=1, bias_paths=0, backend="cuda")
+print(json.dumps([str(w.message) for w in caught if w.category.__name__ == "StochpendWarning"]))
+"""
+
+
+@pytest.mark.parametrize("sms", [132, 0])
+def test_a_run_on_too_few_blocks_says_so_once(sms):
+    """In the CUDA simulator, with the SM count of a 132-SM GPU: 64 paths are one block, one
+    note (and none without an SM count)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1",
+           "PYTHONPATH": os.pathsep.join((str(root / "src"), str(root / "tests" / "_simulator_site")))}
+    res = subprocess.run([sys.executable, "-c", _SIMULATED_RUN, str(sms)], env=env, capture_output=True,
+                         text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    notes = json.loads(res.stdout.strip().splitlines()[-1])
+    if sms == 0:
+        assert notes == []
+    else:
+        tpb = 32  # the simulator's block (cuda.THREADS_PER_BLOCK under NUMBA_ENABLE_CUDASIM)
+        assert notes == [gpu.fill_note(64, sms, tpb)], notes
