@@ -6,7 +6,7 @@ pinned versions of ``benchmarks/cuda-tools.txt`` and runs this script)::
     make cuda-registers
     make cuda-registers CUDA_ARGS="--filter float64 --out out/registers.md"
     PYTHONPATH=src .venv-cuda/bin/python benchmarks/cuda_registers.py [--filter S] [--out FILE]
-        [--lto] [--ref GIT_REF] [--ptx-dir DIR]
+        [--lto] [--ref GIT_REF] [--ptx-dir DIR] [--subset all|ci]
 
 What it does, per kernel variant:
 
@@ -49,6 +49,10 @@ argument types the host code launches it with.
 ``--ref GIT_REF`` measures ``src/`` as committed at that revision (exported with ``git
 archive`` into a temporary directory; the working tree is not touched), for a baseline while
 ``src/`` is being changed.
+
+``--subset ci`` keeps a representative subset (:func:`in_ci_subset`: every kernel kind, 74 of
+192 kernels); ``make cuda-compile-check [CUDA_CHECK=ci]`` is ``--lto --subset ...`` with the table
+in ``out/cuda-compile-check.md``, a compile check for CI.
 
 Exit status: 0 on success; 2 when numba-cuda or ptxas is missing (``make cuda-registers``
 installs them) or no kernel matches ``--filter``; 1 when a kernel fails to compile.
