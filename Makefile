@@ -80,7 +80,7 @@ CUDA_PY := $(CUDA_VENV)/bin/python
 CUDA_STAMP := $(CUDA_VENV)/.installed
 CUDA_ARGS ?=
 
-.PHONY: cuda-registers
+.PHONY: cuda-registers cuda-compile-check gpu-check
 
 $(CUDA_STAMP): benchmarks/cuda-tools.txt pyproject.toml constraints.txt
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (set PYTHON=...)"; exit 2; }
@@ -91,3 +91,23 @@ $(CUDA_STAMP): benchmarks/cuda-tools.txt pyproject.toml constraints.txt
 
 cuda-registers: $(CUDA_STAMP)
 	PYTHONPATH=src $(CUDA_PY) benchmarks/cuda_registers.py $(CUDA_ARGS)
+
+# Every kernel kind the CUDA backend launches (advance, pairs, init, tracked advance, accumulate,
+# joint: stochpend._backends.cuda.kernel_variants()) compiled for sm_90 offline, the path a launch
+# takes (nvJitLink LTO, then ptxas): no GPU needed; fails on any compile failure. The table of
+# registers and spills goes to out/cuda-compile-check.md. CUDA_CHECK=ci: the representative subset
+# (every kind, 74 of the 192 kernels) that .ci/run uses; docs/gpu.md, "Developer notes": timings.
+CUDA_CHECK ?= all
+
+cuda-compile-check: $(CUDA_STAMP)
+	PYTHONPATH=src $(CUDA_PY) benchmarks/cuda_registers.py --lto --subset $(CUDA_CHECK) \
+		--out out/cuda-compile-check.md > /dev/null
+
+# On a machine with an NVIDIA GPU: device tests, gpu_bench --record, the closed-moment oracle, the
+# family with accumulators, a short reproduce, in one report (benchmarks/gpu_check.py; docs/gpu.md).
+# Without a GPU it says so in one line (exit 2). make gpu-check GPU_CHECK_ARGS="--quick"
+GPU_CHECK_ARGS ?=
+
+gpu-check: $(CUDA_STAMP)
+	$(CUDA_PY) -m pip install -q -c constraints.txt -e ".[test,cuda]"
+	$(CUDA_PY) benchmarks/gpu_check.py $(GPU_CHECK_ARGS)

@@ -6,7 +6,7 @@ pinned versions of ``benchmarks/cuda-tools.txt`` and runs this script)::
     make cuda-registers
     make cuda-registers CUDA_ARGS="--filter float64 --out out/registers.md"
     PYTHONPATH=src .venv-cuda/bin/python benchmarks/cuda_registers.py [--filter S] [--out FILE]
-        [--lto] [--ref GIT_REF] [--ptx-dir DIR]
+        [--lto] [--ref GIT_REF] [--ptx-dir DIR] [--subset all|ci]
 
 What it does, per kernel variant:
 
@@ -49,6 +49,10 @@ argument types the host code launches it with.
 ``--ref GIT_REF`` measures ``src/`` as committed at that revision (exported with ``git
 archive`` into a temporary directory; the working tree is not touched), for a baseline while
 ``src/`` is being changed.
+
+``--subset ci`` keeps a representative subset (:func:`in_ci_subset`: every kernel kind, 74 of
+192 kernels); ``make cuda-compile-check [CUDA_CHECK=ci]`` is ``--lto --subset ...`` with the table
+in ``out/cuda-compile-check.md``, a compile check for CI.
 
 Exit status: 0 on success; 2 when numba-cuda or ptxas is missing (``make cuda-registers``
 installs them) or no kernel matches ``--filter``; 1 when a kernel fails to compile.
@@ -256,6 +260,28 @@ def current_advance_variants(backend, nt) -> list[Variant]:
     return variants
 
 
+def in_ci_subset(label: str) -> bool:
+    """The representative subset of ``--subset ci`` (``make cuda-compile-check CUDA_CHECK=ci``):
+    every kernel kind of ``kernel_variants()`` (the label's first word), and within each kind
+    every noise, oscillator, coupling, precision, step mode, family term set, additive channel
+    and accumulator kind at least once, about a third of the kernels. A label it does not know
+    (a kind added later) is kept, so a new kind is never left out."""
+    kind, _, rest = label.partition(" ")
+    parts = rest.split("/")
+    if kind == "advance":
+        # every noise x precision x step on the pendulum; each other oscillator and coupling
+        # once (OU, float64, adaptive); every family term set and additive channel
+        return parts[:2] == ["pendulum", "force"] or "+" in rest or (
+            parts[2:5] == ["ou", "float64", "adaptive"])
+    if kind == "pairs":
+        return "+" in rest or parts[:3] == ["pendulum", "force", "ou"]
+    if kind == "tracked":
+        return rest.endswith("[all]") or "/float64/adaptive/" in rest
+    if kind == "accumulate":
+        return rest.endswith("[all]") or (rest.endswith("float64") and "[" not in rest)
+    return True  # init, joint (a few fast kernels), and any kind added later
+
+
 def kernel_variants(backend, nt) -> list[Variant]:
     if hasattr(backend, "kernel_variants"):
         return [as_variant(str(label), kernel, signature)
@@ -373,6 +399,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="measure src/ as committed at GIT_REF instead of the working tree")
     parser.add_argument("--ptx-dir", type=Path, default=None,
                         help="also keep each kernel's PTX in this directory")
+    parser.add_argument("--subset", choices=("all", "ci"), default="all",
+                        help="all kernels (default), or ci: every kernel kind, about a third of them")
     args = parser.parse_args(argv)
 
     try:
@@ -399,6 +427,8 @@ def main(argv: list[str] | None = None) -> int:
         variants = kernel_variants(backend, nt)
         if args.filter is not None:
             variants = [v for v in variants if args.filter in v.label]
+        if args.subset == "ci":
+            variants = [v for v in variants if in_ci_subset(v.label)]
         if not variants:
             print(f"error: no kernel label contains {args.filter!r}", file=sys.stderr)
             return 2
@@ -417,6 +447,7 @@ def main(argv: list[str] | None = None) -> int:
         ]
         notes = []
         failed = False
+        started_all = time.perf_counter()
         for variant in variants:
             start = time.perf_counter()
             try:
@@ -447,6 +478,10 @@ def main(argv: list[str] | None = None) -> int:
                 notes.append(f"{variant.label}: compiled with {shown} (from its @cuda.jit).")
         if notes:
             lines += [""] + notes
+    n_failed = sum(1 for line in lines if "| compile failed |" in line)
+    print(f"{len(variants)} kernels ({'every kernel kind, the CI subset' if args.subset == 'ci' else 'all'}): "
+          f"{len(variants) - n_failed} compiled for {ARCH}, {n_failed} failed, in "
+          f"{time.perf_counter() - started_all:.0f} s", file=sys.stderr)
     text = "\n".join(lines) + "\n"
     print(text, end="")
     if args.out is not None:

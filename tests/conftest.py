@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import signal
 import time
@@ -28,6 +29,16 @@ os.environ.setdefault("STOCHPEND_COMPILE_HELPER", "0")
 # Ctrl-C tests need it delivered, in this process and in the runs it starts.
 if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """pyproject's filterwarnings ignores numba's NumbaPerformanceWarning; NVIDIA's numba-cuda
+    raises its own class (numba.cuda.core.errors.NumbaPerformanceWarning, not a subclass), which
+    pyproject cannot name: pytest refuses a filter whose class it cannot import, and numba-cuda is
+    an optional extra. So it is added here where numba-cuda is installed (a GPU machine: the
+    device tests launch small test kernels directly, which numba-cuda warns about)."""
+    if importlib.util.find_spec("numba_cuda") is not None:
+        config.addinivalue_line("filterwarnings", "ignore::numba.cuda.core.errors.NumbaPerformanceWarning")
 
 
 def _xdist_worker(config: pytest.Config) -> str | None:

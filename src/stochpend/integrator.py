@@ -234,16 +234,6 @@ def _dyn_of(run):
 
 
 @register_jitable
-def _no_tracks(state):
-    return 0
-
-
-@register_jitable
-def _tracks_of(state):
-    return state[8]
-
-
-@register_jitable
 def _ou_record(d):
     """The additive OU noise's record (D_a, tau_a) from the family's record d."""
     return (d[7], d[9])
@@ -271,7 +261,7 @@ def _track_nothing(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):
 
 
 def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, A_EVENTS,
-               ADDITIVE_OU, ADN, TRACK, tracks_of, track_step, dyn_of, load_aux, scratch0,
+               ADDITIVE_OU, ADN, TRACK, track_step, dyn_of, load_aux, scratch0,
                coefficients, draw, update, next_event, at_event, step_size, family_bounds, verlet,
                family_step, ou_record, ou_coefficients, additive_normal, pair_normals,
                additive_ou_step, channel_of, a_load_aux, a_scratch0, a_coefficients, a_draw,
@@ -290,7 +280,13 @@ def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, 
     the compiled code is the same."""
     I_XI, I_XA, I_T, I_TC, I_K, I_ST = state_positions(PAIR)
     TRACKED = TRACK and not PAIR
-    tracks_in = tracks_of if TRACKED else _no_tracks
+    # The accumulators' slots (n_slots, n_paths): the state's array after status, taken by a
+    # constant index like every array here. Not through a function returning ``state[8]``:
+    # numba-cuda refuses a device function that returns an array it was not passed ("Only
+    # accept returning of array passed into the function as argument"), so the tracked
+    # kernels did not compile for a real GPU (the CPU and the simulator accept it). x's in a
+    # Spec without accumulators (unused: _track_nothing ignores it).
+    I_TRK = I_ST + 1 if TRACKED else 0
     DRAWS = 2 if PAIR else 1
     # The additive OU noise's xi_a: the state's array after the others (the slots too); a
     # constant index (as every array here, see below), x's in a Spec without it (unused).
@@ -334,7 +330,7 @@ def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, 
         tt = t[i]
         tc = t_comp[i]
         kk = k[i]
-        tracks = tracks_in(state)
+        tracks = state[I_TRK]
         xa_arr = state[I_ADD]
         xad = real(xa_arr[i]) if ADDITIVE_OU else real(0.0)
         pa = ou_record(d)
@@ -598,7 +594,6 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     POSITION = spec.coupling == "position"
     ADAPTIVE = spec.adaptive
     TRACK = track is not None
-    tracks_of = _tracks_of if TRACK else _no_tracks
     track_step = track if TRACK else _track_nothing
     HAS_EVENTS = spec.noise.has_events
     half = real(0.5)

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import importlib
 import math
 import warnings
 from typing import Any
@@ -43,6 +44,7 @@ import numpy as np
 from numba import types as nbtypes
 from numba.core.errors import NumbaPerformanceWarning
 from numba.extending import register_jitable
+from numba.np import numpy_support
 
 from stochpend import dynamics, initial, integrator, observables, rng
 from stochpend._backends.layout import path_dtypes
@@ -62,7 +64,8 @@ else:
 # The kernels of built-in pieces are cached on disk (``cuda.jit(cache=True)``, next to this file
 # like the CPU's), under names that carry the code digest (see _jitcache).
 
-__all__ = ["PRECISIONS", "Engine", "availability", "kernel_variants", "path_states"]
+__all__ = ["PERFORMANCE_WARNINGS", "PRECISIONS", "Engine", "availability", "fill_note", "kernel_variants",
+           "path_states"]
 
 PRECISIONS = integrator.PRECISIONS
 
@@ -524,12 +527,54 @@ def joint_kernel(periodic: bool):
 
 
 # -- host side --------------------------------------------------------------------------------
+def _performance_warnings() -> tuple[type[Warning], ...]:
+    """Numba's performance-warning classes that can be imported here: numba's own
+    (``numba.core.errors``, raised by its built-in CUDA target and the simulator) and NVIDIA
+    numba-cuda's (``numba.cuda.core.errors``: a separate class, not a subclass, raised for a
+    grid under 128 blocks and for copies of non-pinned host memory)."""
+    classes: list[type[Warning]] = [NumbaPerformanceWarning]
+    with contextlib.suppress(Exception):  # numba-cuda not installed: numba's class only
+        classes.append(importlib.import_module("numba.cuda.core.errors").NumbaPerformanceWarning)
+    return tuple(dict.fromkeys(classes))
+
+
+#: What :func:`_quiet` silences (see :func:`_performance_warnings`).
+PERFORMANCE_WARNINGS = _performance_warnings()
+
+
 @contextlib.contextmanager
 def _quiet():
-    """Silence Numba's low-occupancy warnings: a small ensemble or few batches is legitimate."""
+    """Silence Numba's performance warnings around our launches and copies: a small ensemble or
+    few batches (one block per batch) is legitimate, and a run too small to fill the GPU is
+    said once in stochpend's words instead (:func:`fill_note`, :meth:`Engine.start`)."""
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", NumbaPerformanceWarning)
+        for category in PERFORMANCE_WARNINGS:
+            warnings.simplefilter("ignore", category)
         yield
+
+
+def fill_note(n_paths: int, multiprocessors: int, threads_per_block: int = THREADS_PER_BLOCK) -> str | None:
+    """The note for a chunk of ``n_paths`` paths too small to fill a GPU of ``multiprocessors``
+    SMs (one thread per path, ``threads_per_block``): fewer than two blocks per SM leaves most
+    of the GPU idle. ``None`` when the chunk fills it. The results do not depend on it."""
+    blocks = _blocks(n_paths, threads_per_block)
+    wanted = 2 * multiprocessors
+    if multiprocessors < 1 or blocks >= wanted:
+        return None
+    return (f"backend='cuda': {n_paths} paths run as {blocks} blocks of {threads_per_block} threads on "
+            f"a GPU with {multiprocessors} multiprocessors, too few to fill it (it takes at least "
+            f"{wanted * threads_per_block} paths); the results are right, but most of the GPU is "
+            "idle and the CPU backend may be as fast")
+
+
+def _multiprocessors() -> int:
+    """The current GPU's SM count (0 if it cannot be read, or under the simulator)."""
+    if _simulator_enabled():
+        return 0
+    try:
+        return int(cuda.get_current_device().MULTIPROCESSOR_COUNT)
+    except Exception:
+        return 0
 
 
 def _blocks(n: int, per_block: int) -> int:
@@ -597,6 +642,7 @@ class Engine:
 
             self.d_edges = cuda.to_device(np.ascontiguousarray(hist_edges(config), dtype=np.float64))
         self._zero_flag = np.zeros(1, dtype=np.int32)
+        self._fill_checked = False
         self.key0, self.key1 = rng.seed_to_key(config.seed)
         self.record = spec.noise.record(config)
         self.run = integrator.run_record(config)
@@ -632,6 +678,13 @@ class Engine:
         """Initial conditions of global paths p0 .. p0 + n - 1."""
         c = self.config
         self.p0, self.n, self.nb = p0, n, nb
+        if not self._fill_checked:  # once per engine: its first chunk is its largest
+            self._fill_checked = True
+            note = fill_note(n, _multiprocessors())
+            if note is not None:
+                from stochpend._warnings import StochpendWarning
+
+                warnings.warn(note, StochpendWarning, stacklevel=2)
         with _quiet():
             self.init[_blocks(n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
                 self._views(), self.key0, self.key1, p0,
@@ -754,17 +807,133 @@ def path_states(
 
 
 # -- offline compilation (benchmarks/cuda_registers.py) ----------------------------------------
+#: The accumulators' slots as the host passes them (``Engine._state``: ``d_tracks[:, :n]``, a
+#: 2-d view that is not contiguous when the chunk is shorter than the capacity; a full chunk's
+#: view types as "C" and compiles the same code once more).
+_TRACKS = nbtypes.Array(nbtypes.float64, 2, "A")
+
+
+def _path_arrays(precision: str) -> tuple:
+    """The types of ``Engine._views()``: (x, Omega, xi, xi_aux, t, t_comp, k, status), 1-d
+    C-contiguous device arrays in the dtypes of :func:`layout.path_dtypes`."""
+    dtypes = path_dtypes("cuda", precision)
+    return tuple(nbtypes.Array(numpy_support.from_dtype(dtypes[name]), 1, "C")
+                 for name in ("x", "Omega", "xi", "xi_aux", "t", "t_comp", "k", "status"))
+
+
+def _init_signature(precision: str, noise: Any) -> tuple:
+    """(state, key0, key1, path0, theta0, uniform_theta0, Omega0, xi0, stationary_xi0, p) as
+    :meth:`Engine.start` launches :func:`init_kernel` (Python ints int64, floats float64, bools
+    boolean, the noise's record one float64 per parameter)."""
+    f64, b = nbtypes.float64, nbtypes.boolean
+    return (nbtypes.Tuple(_path_arrays(precision)), nbtypes.uint64, nbtypes.uint64, nbtypes.int64,
+            f64, b, f64, f64, b, nbtypes.UniTuple(f64, len(noise.parameters)))
+
+
+def _q_type(oscillator: Any):
+    # Oscillator.record: an integer setting (power_n) stays an integer, the rest are floats.
+    return nbtypes.Tuple(tuple(nbtypes.int64 if getattr(e, "name", e) == "power_n" else nbtypes.float64
+                               for e in oscillator.parameters) or (nbtypes.float64,))
+
+
+def _accumulate_signature(precision: str, oscillator: Any) -> tuple:
+    """(x, Omega, xi, t, status, tracks, omega2, q, batch_size, edges, j, sums, hist) as
+    :meth:`Engine.accumulate` launches the accumulate kernel."""
+    x, Omega, xi, _, t, _, _, status = _path_arrays(precision)
+    f64 = nbtypes.float64
+    return (x, Omega, xi, t, status, _TRACKS, f64, _q_type(oscillator), nbtypes.int64,
+            nbtypes.Array(f64, 2, "C"), nbtypes.int64, nbtypes.Array(f64, 3, "C"),
+            nbtypes.Array(nbtypes.int64, 2, "C"))
+
+
+def _joint_signature(precision: str) -> tuple:
+    """(x, Omega, status, batch_size, x_lo, x_hi, nx, O_lo, O_hi, nO, j, sums, counts, hist,
+    offset) as :meth:`Engine.accumulate` launches :func:`joint_kernel`."""
+    x, Omega, _, _, _, _, _, status = _path_arrays(precision)
+    f64, i64 = nbtypes.float64, nbtypes.int64
+    counts = nbtypes.Array(i64, 2, "C")
+    return (x, Omega, status, i64, f64, f64, i64, f64, f64, i64, i64, nbtypes.Array(f64, 3, "C"),
+            counts, counts, i64)
+
+
+def _user_objects() -> dict[str, tuple]:
+    """User observables of each kind for the compile check (not registered: the kernels are
+    specialised on the objects). Their functions are ordinary user code: Python floats, math."""
+    time_average = observables.TimeAverage("cc_Om2_avg", lambda x, Omega, xi, t: Omega * Omega,
+                                            window=(0.0, 1.0))
+    running_sum = observables.RunningSum(
+        "cc_xi_int", lambda x0, O0, xi0, x1, O1, xi1, t0, t1: 0.5 * (t1 - t0) * (xi0 + xi1), rates=True)
+    first_passage = observables.FirstPassage(
+        "cc_escape", lambda x, Omega, xi, t: 0.5 * Omega * Omega - math.cos(x), threshold=1.5)
+    value = observables.Observable("cc_x_now", lambda x, Omega, xi, t: x * x + math.sin(Omega))
+    return {
+        "time-average": (time_average,),
+        "running-sum": (running_sum, observables.DISPLACEMENT),
+        "first-passage": (first_passage,),
+        "all": (value, observables.LOG_ENERGY, time_average, running_sum, first_passage),
+    }
+
+
+def _other_kernels(precisions: tuple[str, ...]) -> list[tuple[str, object, tuple]]:
+    """init, tracked advance, accumulate and joint kernels (see :func:`kernel_variants`)."""
+    from stochpend import noises, oscillators
+
+    out: list[tuple[str, object, tuple]] = []
+    builtin = {noise.name: noise for noise in noises.BUILTIN}
+    pendulum = oscillators.BUILTIN["pendulum"]
+    user = _user_objects()
+    for precision in precisions:
+        for noise in noises.BUILTIN:
+            out.append((f"init {noise.name}/{precision}", init_kernel(Spec(pendulum, "force", noise, precision, True)).py_func,
+                        _init_signature(precision, noise)))
+    # Tracked advance: each accumulator kind, then all of them, on the paper's OU pendulum; and
+    # all of them with the family's damping and the generic additive channel (the state's
+    # arrays: the slots, then the channel's).
+    for precision in precisions:
+        for adaptive in (True, False):
+            spec = Spec(pendulum, "force", builtin["ou"], precision, adaptive)
+            for kind, objs in user.items():
+                accs = observables.accumulators(objs)
+                out.append((f"tracked {spec.label} [{kind}]", tracked_kernel(spec, accs).py_func,
+                            _advance_signature(precision, spec.noise, pendulum, tracks=True)))
+        terms = frozenset({"damping", "additive_noise"})
+        spec = Spec(pendulum, "force", builtin["white"], precision, True, False, terms, builtin["dichotomous"])
+        accs = observables.accumulators(user["all"])
+        out.append((f"tracked {spec.label} [all]", tracked_kernel(spec, accs).py_func,
+                    _advance_signature(precision, spec.noise, pendulum, terms, spec.additive, tracks=True)))
+    # accumulate: the statistics of each oscillator and coupling (no user observables), then
+    # every kind of user observable (the histogram's shared or global counting is chosen at run
+    # time, in the same kernel).
+    for precision in precisions:
+        for osc in oscillators.BUILTIN.values():
+            for coupling in oscillators.COUPLINGS:
+                if osc.periodic and coupling == "position":
+                    continue
+                spec = Spec(osc, coupling, builtin["ou"], precision, True)
+                out.append((f"accumulate {osc.name}/{coupling}/{precision}",
+                            _accumulate_kernel(spec, ()).py_func, _accumulate_signature(precision, osc)))
+        spec = Spec(pendulum, "force", builtin["ou"], precision, True)
+        for kind, objs in user.items():
+            out.append((f"accumulate pendulum/force/{precision} [{kind}]",
+                        _accumulate_kernel(spec, objs).py_func, _accumulate_signature(precision, pendulum)))
+        for periodic in (True, False):
+            out.append((f"joint {'periodic' if periodic else 'open'}/{precision}",
+                        joint_kernel(periodic).py_func, _joint_signature(precision)))
+    return out
+
+
 def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: frozenset = frozenset(),
-                       additive: Any = None):
+                       additive: Any = None, tracks: bool = False):
     """(state, t_target, max_steps, key0, key1, path0, p, run, unfinished) as the host launches
     the advance kernel of ``noise`` and ``oscillator``: the noise's record, one float64 per
     ``noise.parameters``; the run record (omega2, q, h_max, step_c) with the oscillator's record
     q, one float64 per ``oscillator.parameters`` (at least one: ``Oscillator.record``); with the
-    generic additive channel (``additive``, its noise), its record and its Philox key."""
-    real = nbtypes.float32 if precision == "float32" else nbtypes.float64
+    generic additive channel (``additive``, its noise), its record and its Philox key; with
+    per-path accumulators (``tracks``, :func:`tracked_kernel`), their slots after ``status``."""
     f64 = nbtypes.Array(nbtypes.float64, 1, "C")
-    r = nbtypes.Array(real, 1, "C")
-    arrays = [r, r, r, f64, f64, f64, nbtypes.Array(nbtypes.uint64, 1, "C"), nbtypes.Array(nbtypes.uint8, 1, "C")]
+    arrays = list(_path_arrays(precision))
+    if tracks:
+        arrays.append(_TRACKS)
     if "additive_ou" in terms:  # the additive OU noise's xi_a, last (float64)
         arrays.append(f64)
     if "additive_noise" in terms:  # the generic channel's xi_a, aux_a, last (float64)
@@ -773,9 +942,7 @@ def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: froze
     record = nbtypes.UniTuple(nbtypes.float64, len(noise.parameters))
     # The oscillator's record as Oscillator.record builds it: an integer setting (power_n) stays
     # an integer, everything else is a float.
-    q_types = [nbtypes.int64 if getattr(e, "name", e) == "power_n" else nbtypes.float64
-               for e in oscillator.parameters] or [nbtypes.float64]
-    q = nbtypes.Tuple(tuple(q_types))
+    q = _q_type(oscillator)
     run_fields = [nbtypes.float64, q, nbtypes.float64, nbtypes.float64]
     if terms:  # the family's record d (stochpend.dynamics.record): ten float64
         run_fields.append(nbtypes.UniTuple(nbtypes.float64, 10))
@@ -797,10 +964,21 @@ def _pair_advance_signature(noise: Any, oscillator: Any, terms: frozenset = froz
 
 
 def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str, object, tuple]]:
-    """Every built-in advance kernel: ``(label, python function, signature)`` for offline
-    compilation (``benchmarks/cuda_registers.py``): each oscillator and coupling it takes, each
-    noise, adaptive and fixed steps, each precision; and the bias estimate's pair kernels
-    (float64 only: the pairs always run in float64)."""
+    """Every kind of kernel the backend launches: ``(label, python function, signature)`` for
+    offline compilation (``benchmarks/cuda_registers.py``, ``make cuda-compile-check``), the
+    label's first word the kind:
+
+    * ``advance``: each oscillator and coupling it takes, each noise, adaptive and fixed steps,
+      each precision; the family's term sets and the generic additive channel;
+    * ``pairs``: the bias estimate's pair kernels of the same Specs (float64 only: the pairs
+      always run in float64);
+    * ``init``: each noise, each precision;
+    * ``tracked``: the advance kernel with per-path accumulators (a time average, running
+      sums, a first passage, all of them; with the family and the additive channel too);
+    * ``accumulate``: each oscillator and coupling, then each kind of user observable;
+    * ``joint``: the joint (x, Omega) histogram, periodic and open coordinates.
+
+    The signatures are the argument types the host launches each kernel with."""
     from stochpend import noises, oscillators
 
     out = []
@@ -849,4 +1027,4 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
             if precision == "float64":
                 out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
                             _pair_advance_signature(white, pendulum, terms, channel)))
-    return out
+    return out + _other_kernels(precisions)

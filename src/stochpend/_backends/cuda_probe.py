@@ -42,9 +42,14 @@ def _compile_and_launch() -> np.ndarray:
         if i < out.shape[0]:
             out[i] = 2.0 * i + 1.0
 
-    out = cuda.device_array(_EXPECTED.size, dtype=np.float64)
-    kernel[1, _EXPECTED.size](out)
-    return out.copy_to_host()
+    from stochpend._backends.cuda import _quiet
+
+    # One block of four threads: numba-cuda warns of a grid under 128 blocks (its own
+    # NumbaPerformanceWarning class), which every `--backend cuda|auto` and `info` would show.
+    with _quiet():
+        out = cuda.device_array(_EXPECTED.size, dtype=np.float64)
+        kernel[1, _EXPECTED.size](out)
+        return out.copy_to_host()
 
 
 @functools.lru_cache(maxsize=1)
