@@ -395,8 +395,11 @@ def _check_settings(p: Path, header: dict[str, Any]) -> None:
         "every_s": number(header.get("every_s"), none=True) and header.get("every_s") != 0,
         "elapsed_s": number(header.get("elapsed_s", 0.0), none=False),
         "resumed": positive_int(header.get("resumed", 0) or None),
-        "out": header.get("out") is None or isinstance(header.get("out"), str),
-        "command_line": header.get("command_line") is None or isinstance(header.get("command_line"), str),
+        # Text that reaches the result's attributes or a path: a NUL (valid JSON) is refused here,
+        # before the work; NetCDF cannot store it, and the run could never have been written.
+        "out": header.get("out") is None or (isinstance(header.get("out"), str) and "\x00" not in header["out"]),
+        "command_line": header.get("command_line") is None
+        or (isinstance(header.get("command_line"), str) and "\x00" not in header["command_line"]),
         "done_work": number(header["run"].get("done_work"), none=False),
         # None: a checkpoint from before bias_paths was recorded (the default pairs)
         "bias_paths": header.get("bias_paths") is None or integer(header.get("bias_paths"), 0, 0)

@@ -806,3 +806,53 @@ def test_a_long_reduced_run_says_its_estimate_before_it_starts():
         proc.kill()
         proc.communicate(timeout=60)
     assert first.startswith("estimate: at least 4e+10 path-steps (paths x output times), roughly "), first
+
+
+# -- issue 36: checked before the work, printed commands that work, the hostile residue -----------
+def test_an_unwritable_pseudo_filesystem_out_is_refused_before_any_work(tmp_path):
+    """G4: --out /sys/x.nc (root may "write" there by its permission bits) ran the whole
+    simulation, then lost it: 'cannot write ... Permission denied'."""
+    if not Path("/sys").is_dir():
+        pytest.skip("no /sys here")
+    for command in (["simulate", *TINY, "--bias-paths", "0", "--quiet"], ["bfpe", "--t-max", "10"],
+                    ["reduced", "--paths", "100", "--t-max", "1"]):
+        result = _invoke([*command, "--out", "/sys/x.nc"])
+        assert result.exit_code == 2, result.output
+        line = _one_line(result.output)
+        assert "a file cannot be created in the directory '/sys'" in line, line
+    result = _invoke(["reproduce", "fig1", "--quick", "--out", "/sys/repro"])
+    assert result.exit_code == 2, result.output
+    assert "--out '/sys/repro' is not accepted" in _one_line(result.output)
+
+
+def test_a_name_whose_temporary_name_is_too_long_is_refused_before_any_work(tmp_path):
+    """NEW27, NEW30c: a valid 242-byte --out (or 244-byte --checkpoint) name was refused only
+    when written: the temporary '.NAME.XXXXXXXX.tmp' is 14 bytes longer than NAME_MAX allows."""
+    long_out, long_ckpt = "e" * 239 + ".nc", "k" * 239 + ".ckpt"
+    for args, name in ((["--out", long_out], "--out"), (["--checkpoint", long_ckpt], "--checkpoint")):
+        result = _invoke(["simulate", *TINY, "--bias-paths", "0", "--quiet", *args])
+        assert result.exit_code == 2, result.output
+        line = _one_line(result.output)
+        assert line.startswith(f"error: {name} ") and "temporary name 14 bytes longer" in line, line
+        assert "choose a name of at most 241 bytes" in line, line
+    assert not list(Path.cwd().glob(".eee*")) and not list(Path.cwd().glob(".kkk*"))
+    ok = tmp_path / ("e" * 238 + ".nc")  # 241 bytes: written
+    result = _invoke(["simulate", *TINY, "--bias-paths", "0", "--quiet", "--out", str(ok)])
+    assert result.exit_code == 0, result.output and ok.is_file()
+
+
+def test_a_nul_in_text_a_result_would_store_is_refused_before_any_work(tmp_path, handed_over):
+    """NEW31a: a sweep description "fig\\u0000draft" ran the sweep, then 'VLEN strings do not
+    support embedded NULLs'; NEW35: a checkpoint's command_line with a NUL did the whole work
+    and advised a resume that failed the same way for ever."""
+    toml = tmp_path / "nul.toml"
+    toml.write_text('description = "fig\\u0000draft"\n[base]\npaths = 100\nt_max = 1.0\nn_times = 2\n'
+                    '[grid]\nD = [1.0]\n')
+    result = _invoke(["sweep", str(toml), "--quiet", "--out", str(tmp_path / "nul.nc")])
+    assert result.exit_code == 2, result.output
+    assert "nul.toml: description is not accepted: it holds a NUL character" in _one_line(result.output)
+    crafted = _crafted(handed_over, tmp_path / "nul.ckpt", command_line="stochpend\u0000simulate", out=None)
+    result = _invoke(["resume", str(crafted), "--out", str(tmp_path / "nul.nc"), "--quiet"])
+    assert result.exit_code == 2, result.output
+    assert "malformed header: command_line='stochpend\\x00simulate'" in _one_line(result.output)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["nul.ckpt", "nul.toml"]

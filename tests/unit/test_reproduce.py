@@ -387,3 +387,24 @@ def test_a_damaged_stored_run_is_simulated_again_not_reused(tiny, tmp_path) -> N
     assert [s for k, s in statuses.items() if k != run.key] == ["cached"] * (len(statuses) - 1)
     assert any("is damaged" in line and "simulating it again" in line for line in lines), lines
     assert [r.cells() for r in again.figures["fig1"].rows] == [r.cells() for r in result.figures["fig1"].rows]
+
+
+def test_a_partial_reproduce_into_a_folder_with_a_report_says_it_replaces_it(tmp_path) -> None:
+    """M19: reproduce fig3 --out DIR after reproduce all replaced DIR/report.html silently."""
+    (tmp_path / "report.html").write_text("<html>all five sections</html>")
+    logs: list[str] = []
+
+    class Recorder:
+        def start(self, total: float, description: str) -> None: ...
+        def update(self, done: float) -> None: ...
+        def finish(self) -> None: ...
+        def simulation(self, description: str):
+            return self
+
+        def log(self, message: str) -> None:
+            logs.append(message)
+
+    reproduce("fig1", out=tmp_path, quick=True, paths=8, t_max=1.0, progress=Recorder())
+    notes = [line for line in logs if line.startswith("note:")]
+    assert notes == [f"note: {str(tmp_path / 'report.html')!r} is replaced by a report of fig1 only; "
+                     f"`stochpend reproduce all --out {tmp_path}` rebuilds the full one (stored runs are reused)"]
