@@ -459,10 +459,22 @@ def _scaled_column(ds: Any) -> tuple[str, str, Callable[[float], float]] | None:
 _DROP_ORDER = ("non-finite", "F", "scaled", "S", "<E2>")
 
 
-def summary_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Table:
+def rows_hint(out: Any) -> str:
+    """How a command without ``--rows`` (simulate, resume, reduced) shows every output time:
+    the hint names the command that has the option, as it must be typed."""
+    import shlex
+
+    if out is None:
+        return "for all, write them with --out FILE, then: stochpend show FILE --rows {n}"
+    return f"for all: stochpend show {shlex.quote(str(out))} --rows {{n}}"
+
+
+def summary_table(ds: Any, max_rows: int = 12, width: int | None = None,
+                  more: str = "--rows {n} for all") -> Table:
     """A table of the main statistics of a result at up to ``max_rows`` times, fitted to
     ``width`` columns (a terminal's; None: no limit): columns that do not fit are left out, the
-    least needed first, and the caption says which and how many times are shown."""
+    least needed first, and the caption says which and how many times are shown, and ``more``
+    (``{n}``: the number of times) how to see them all (:func:`rows_hint`)."""
     attrs = ds.attrs
     noise = attrs.get("noise", "ou")
     D = float(attrs.get("D", 1.0))
@@ -536,7 +548,7 @@ def summary_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Tabl
     n_times = ds.sizes["time"]
     caption = ""
     if len(idx) < n_times:
-        caption += f"{len(idx)} of {n_times} output times shown (--rows {n_times} for all). "
+        caption += f"{len(idx)} of {n_times} output times shown ({markup(more.format(n=n_times))}). "
     if dropped:
         caption += (f"Not shown at this width: {', '.join(dropped)} (a wider terminal or a pipe "
                     "shows them). ")

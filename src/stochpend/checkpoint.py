@@ -588,8 +588,12 @@ class FileCheckpointer:
             write(self.path, ckpt)
         except OSError as exc:
             if self.path.exists():
-                kept = (f"the previous checkpoint is kept: continue with `stochpend resume {self.path}` "
+                kept = (f"the previous checkpoint is kept: continue with `{resume_advice(self.path, self.out)}` "
                         "once the cause is fixed")
+            elif self.saves > 0 or self.resumed:  # written before, and gone now: say so
+                where = self.path.parent
+                gone = "" if where.is_dir() else f" (its directory {str(where)!r} is gone)"
+                kept = f"the checkpoint written before is gone too{gone}: the run is lost"
             else:
                 kept = "no checkpoint was written before"
             raise io.WriteError(f"cannot write the checkpoint {str(self.path)!r}: {io.reason(exc)}; {kept}",
@@ -646,7 +650,7 @@ def check_checkpoint_path(path: str | os.PathLike, *, out: Path | None = None) -
     if os.path.lexists(p) and p.is_file() and not p.is_symlink():
         raise ValueError(
             f"checkpoint={str(p)!r} is not accepted: the file exists; continue that run with "
-            f"`stochpend resume {p}`, or delete the file"
+            f"`{resume_advice(p, out)}`, or delete the file"
         )
     _files.check_output(p, name="checkpoint")
     if out is not None and Path(out).absolute().resolve() == p.absolute().resolve():
@@ -770,6 +774,21 @@ def check_not_checkpoint(out: str | os.PathLike, checkpoint_path: str | os.PathL
                          "holds the run until its result is written; choose another file")
 
 
+def resume_advice(path: str | os.PathLike, out: str | os.PathLike | None = None) -> str:
+    """The command that continues the run of checkpoint ``path`` whose result goes to ``out``,
+    as it must be typed: ``resume`` trusts a recorded output only in the checkpoint's own
+    directory (:func:`own_out`), so an ``out`` elsewhere is named with ``--out`` (the advice
+    printed without it was refused); names are quoted for a POSIX shell."""
+    import shlex
+
+    command = f"stochpend resume {shlex.quote(str(path))}"
+    if out is not None:
+        ck_dir = Path(path).absolute().parent
+        if Path(out).absolute().parent.resolve() != ck_dir.resolve():
+            command += f" --out {shlex.quote(str(out))}"
+    return command
+
+
 def own_out(path: str | os.PathLike, recorded: Path) -> Path:
     """The output a checkpoint names for itself, trusted only as a name in the checkpoint's own
     directory: a checkpoint someone hands you must not choose where its result goes."""
@@ -852,8 +871,9 @@ def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, 
             io.to_netcdf(ds, out_p, overwrite=overwrite)
         except (OSError, ValueError) as exc:  # a full disk, a directory gone; a file that appeared
             if checkpointer.path.is_file():  # claim only what is true now
-                keep = (f"; the finished run is kept in {str(checkpointer.path)!r}: `stochpend resume "
-                        f"{checkpointer.path}` writes it (add --out FILE to write it elsewhere)")
+                keep = (f"; the finished run is kept in {str(checkpointer.path)!r}: "
+                        f"`{resume_advice(checkpointer.path, out_p)}` writes it (add --out FILE to write "
+                        "it elsewhere)")
             else:
                 keep = f"; the checkpoint {str(checkpointer.path)!r} is gone too: the run is lost"
             if isinstance(exc, ValueError):

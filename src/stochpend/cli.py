@@ -382,7 +382,7 @@ def simulate(
         if out is not None:
             io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
-        results.print(summary_table(ds, width=results.width))
+        results.print(summary_table(ds, width=results.width, more=_cli_common.rows_hint(out)))
         extra = observables_table(ds, width=results.width)
         if extra is not None:
             results.print(extra)

@@ -856,3 +856,52 @@ def test_a_nul_in_text_a_result_would_store_is_refused_before_any_work(tmp_path,
     assert result.exit_code == 2, result.output
     assert "malformed header: command_line='stochpend\\x00simulate'" in _one_line(result.output)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["nul.ckpt", "nul.toml"]
+
+
+def test_resume_advice_names_out_when_it_is_in_another_directory(tmp_path):
+    """NEW41, NEW65: after Ctrl-C of a run whose --checkpoint and --out are in different
+    directories, 'continue with: stochpend resume ckdir/i.ckpt' was refused (exit 2). The
+    advice printed is run as printed."""
+    import shlex
+
+    (tmp_path / "ck dir").mkdir()
+    (tmp_path / "outdir").mkdir()
+    lock = ck.lock_path(tmp_path / "ck dir" / "i.ckpt")
+    a = _start(["simulate", *LONG, "--checkpoint", "ck dir/i.ckpt", "--checkpoint-every", "1h",
+                "--out", "outdir/i.nc", "--quiet"], tmp_path)
+    _wait_for(lock, a)
+    a.send_signal(signal.SIGINT)
+    _, err = a.communicate(timeout=120)
+    assert a.returncode == 130, err
+    advice = err.splitlines()[-1].split("continue with: ", 1)[1]
+    assert advice == "stochpend resume 'ck dir/i.ckpt' --out outdir/i.nc", advice
+    args = shlex.split(advice)
+    assert args[0] == "stochpend"
+    r = _run(*args[1:], "--quiet", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "outdir" / "i.nc").is_file() and not (tmp_path / "ck dir" / "i.ckpt").exists()
+    assert ck.resume_advice("a/b.ckpt", "a/c.nc") == "stochpend resume a/b.ckpt"  # same directory: no --out
+
+
+def test_a_checkpoint_directory_removed_after_saves_says_the_checkpoint_is_gone(tmp_path):
+    """F09b: the directory of the checkpoint removed after checkpoints were written: 'no
+    checkpoint was written before', which was false."""
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    config = SimulationConfig.build(**SMALL)
+    cp = ck.FileCheckpointer(gone / "x.ckpt", None, config=config, chunk_paths=90)
+    saved = []
+
+    def maybe_save(state):
+        if not saved:
+            saved.append(cp.save(state))
+            shutil.rmtree(gone)
+            cp.save(state)
+
+    cp.maybe_save = maybe_save  # type: ignore[method-assign]
+    with pytest.raises(io.WriteError) as info:
+        ck.run_checkpointed(config, checkpoint_path=gone / "x.ckpt", every_s=None, checkpointer=cp,
+                            chunk_paths=90, break_lock=True)
+    text = str(info.value)
+    assert "the checkpoint written before is gone too (its directory" in text, text
+    assert "no checkpoint was written before" not in text
