@@ -29,7 +29,24 @@ from stochpend._terminal import markup
 console = Console(stderr=True, width=None if sys.stderr is not None and sys.stderr.isatty() else 140)
 #: Results (tables): standard output, so that ``stochpend show run.nc > table.txt`` and pipes
 #: get them; not wrapped when it is not a terminal.
-results = Console(width=None if sys.stdout is not None and sys.stdout.isatty() else 200)
+class _ResultsConsole(Console):
+    """Rich's console on standard output whose failed write names what failed: stdout on a
+    full device gave "[Errno 28] No space left on device" after the result file was written,
+    which read as if the result had failed."""
+
+    def print(self, *args: Any, **kwargs: Any) -> None:
+        from stochpend._files import WriteError, reason
+
+        try:
+            super().print(*args, **kwargs)
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise WriteError(f"cannot write the results to standard output: {reason(exc)} (files the "
+                             "command wrote before this are complete)", getattr(exc, "errno", None)) from None
+
+
+results = _ResultsConsole(width=None if sys.stdout is not None and sys.stdout.isatty() else 200)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -150,6 +167,26 @@ def _check_numba_threads() -> None:
              "(the environment variable; or unset it to use every CPU)")
 
 
+#: The commands that compile kernels (their functions' names).
+_COMPILING = ("simulate", "resume_command", "sweep_command", "bfpe_command", "reduced_command",
+              "reproduce_command")
+
+
+def _check_jit(command: str) -> None:
+    """NUMBA_DISABLE_JIT=1 runs the kernels as Python, where their intrinsics cannot run: a
+    71-line traceback after the checks. Refused in one line before the work."""
+    import os
+
+    text = os.environ.get("NUMBA_DISABLE_JIT", "").strip()
+    try:
+        disabled = bool(int(text)) if text else False
+    except ValueError:
+        return  # Numba ignores it with its own warning
+    if disabled and command in _COMPILING:
+        fail(f"NUMBA_DISABLE_JIT={text!r} is not accepted: stochpend's kernels run only compiled "
+             "(the environment variable; unset it or set it to 0)")
+
+
 def handles_errors(fn: F) -> F:
     """Turn the API's ValueError into one line and exit code 2, and a file that cannot be
     written or read (``OSError``: a full disk, an I/O error) into one line and exit code 1
@@ -159,6 +196,7 @@ def handles_errors(fn: F) -> F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         import warnings
 
+        _check_jit(fn.__name__)
         try:
             # NumPy's and other libraries' warnings (an overflow while checking extreme input)
             # are caught: a refusal is one line, not a warning's two lines and then the error

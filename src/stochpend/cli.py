@@ -205,6 +205,10 @@ def _load_config(ctx: typer.Context, value: Path | None) -> Path | None:
                 raise ValueError(f"{source}: {raw_key} is not accepted in a configuration file: {_CONFIG_REFUSED[key]}")
             if key not in CONFIG_KEYS:
                 raise ValueError(f"{source}: {raw_key} is not accepted: unknown key; accepted: {', '.join(CONFIG_KEYS)}")
+            if key in defaults:  # t_max and t-max both: one would silently win
+                other = next(k for k in data if k != raw_key and k.replace("-", "_") == key)
+                raise ValueError(f"{source}: {raw_key} is not accepted: the file also sets {other}, the same "
+                                 "option; keep one of them")
             defaults[key] = _config_value(raw_key, item, source)
     except ValueError as exc:
         fail(str(exc))

@@ -634,7 +634,7 @@ def test_a_checkpoint_larger_than_memory_is_refused_before_reading(tmp_path):
     result = _invoke(["resume", str(path)])
     assert result.exit_code == 2, result.output
     line = _one_line(result.output)
-    assert "is not accepted: it is 1.0 TiB, and reading it needs twice that" in line, line
+    assert "is not accepted: it is 1.0 TiB, and reading it needs 3 times that" in line, line
 
 
 @pytest.mark.parametrize("value", ["1000000", "0"])
@@ -883,6 +883,77 @@ def test_resume_advice_names_out_when_it_is_in_another_directory(tmp_path):
     assert ck.resume_advice("a/b.ckpt", "a/c.nc") == "stochpend resume a/b.ckpt"  # same directory: no --out
 
 
+@pytest.mark.parametrize("kind", ["hardlink", "fifo", "other-owner"])
+def test_a_planted_lock_file_is_refused_without_touching_it(tmp_path, kind):
+    """NEW06: a hard link to a user's file planted at .NAME-lock had the file's content replaced
+    by 'pid N on host ...'; NEW07, NEW08: a FIFO or a device there gave 'error: [Errno 22]
+    Invalid argument'. The lock is created exclusively, and an existing one is used only when it
+    is a regular file with one link, owned by this user."""
+    ckpt = tmp_path / "k.ckpt"
+    lock = ck.lock_path(ckpt)
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my precious notes\n")
+    if kind == "hardlink":
+        os.link(notes, lock)
+        why = "is a file with 2 links"
+    elif kind == "fifo":
+        os.mkfifo(lock)
+        why = "is a FIFO (named pipe)"
+    else:
+        if os.geteuid() != 0:
+            pytest.skip("giving a file to another user needs root")
+        lock.write_text("")
+        os.chown(lock, 12345, 12345)
+        why = "is owned by another user (uid 12345)"
+    with pytest.raises(ValueError) as info:
+        with ck.owned(ckpt):
+            pass
+    assert f"its lock file {str(lock)!r} {why}" in str(info.value), info.value
+    assert "it was not touched" in str(info.value)
+    assert notes.read_text() == "my precious notes\n"
+    assert os.path.lexists(lock)
+    result = _invoke(["simulate", *TINY, "--bias-paths", "0", "--quiet", "--checkpoint", str(ckpt)])
+    assert result.exit_code == 2, result.output
+    assert why in _one_line(result.output)
+    assert notes.read_text() == "my precious notes\n"
+
+
+def test_a_lock_left_by_a_killed_run_is_still_taken(tmp_path):
+    """A lock file a killed run left (regular, one link, ours) is the ordinary case: taken."""
+    ckpt = tmp_path / "k.ckpt"
+    ck.lock_path(ckpt).write_text("pid 1 on host gone")
+    with ck.owned(ckpt):
+        assert "pid " in ck.lock_path(ckpt).read_text()
+    assert not ck.lock_path(ckpt).exists()
+
+
+def test_a_sparse_results_file_is_refused_before_it_is_allocated(tmp_path):
+    """NEW24, NEW25: a 2 GiB sparse NetCDF (94 KB on disk) passed the declared-size check, which
+    compared with st_size: 27.6 s and 4.9 GB to read it; 8 GiB gave a MemoryError traceback.
+    The check alone is called here (on the old code it let the file through to the read)."""
+    import h5py
+
+    ds = __import__("stochpend").simulate(noise="ou", paths=64, t_max=1.0, n_times=2, seed=1, bias_paths=0)
+    path = tmp_path / "sparse.nc"
+    ds.to_netcdf(path, engine="h5netcdf")
+    with h5py.File(path, "a") as f:
+        f.create_dataset("junk", shape=(2**28,), dtype="f8")[-1] = 1.0
+    assert path.stat().st_size > 2**31 and path.stat().st_blocks * 512 < 2**24  # sparse
+    with pytest.raises(ValueError, match="it declares 2.15e\\+09 bytes of data in a file of"):
+        io._check_hdf5(path)
+
+
+def test_text_from_a_file_is_shortened_for_the_terminal(tmp_path):
+    """NC09, NEW32, NEW60: a 20 MB attribute printed 256 426 lines; it is cut, its length said."""
+    ds = __import__("stochpend").simulate(noise="ou", paths=64, t_max=1.0, n_times=2, seed=1, bias_paths=0)
+    ds.attrs["seed"] = "x" * 200_000
+    path = io.to_netcdf(ds, tmp_path / "long.nc")
+    result = _invoke(["show", str(path)])
+    assert result.exit_code == 0, result.output
+    assert "(200000 characters in all, shortened)" in " ".join(result.output.split())
+    assert len(result.output) < 20_000
+
+
 def test_a_checkpoint_directory_removed_after_saves_says_the_checkpoint_is_gone(tmp_path):
     """F09b: the directory of the checkpoint removed after checkpoints were written: 'no
     checkpoint was written before', which was false."""
@@ -905,3 +976,59 @@ def test_a_checkpoint_directory_removed_after_saves_says_the_checkpoint_is_gone(
     text = str(info.value)
     assert "the checkpoint written before is gone too (its directory" in text, text
     assert "no checkpoint was written before" not in text
+
+
+def test_stdout_on_a_full_device_names_standard_output(tmp_path, handed_over):
+    """NEW20: '>/dev/full' gave 'error: [Errno 28] No space left on device', naming nothing."""
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full here")
+    ds = __import__("stochpend").simulate(noise="ou", paths=64, t_max=1.0, n_times=2, seed=1, bias_paths=0)
+    path = io.to_netcdf(ds, tmp_path / "r.nc")
+    with open("/dev/full", "w") as full:
+        r = subprocess.run(_cmd("show", str(path)), stdout=full, stderr=subprocess.PIPE, text=True,
+                           cwd=tmp_path, env=_env(), timeout=300)
+    assert r.returncode == 1, r.stderr
+    assert _one_line(r.stderr) == ("error: cannot write the results to standard output: No space left on "
+                                   "device (files the command wrote before this are complete)")
+
+
+def test_numba_disable_jit_is_one_line(monkeypatch):
+    """NEW23: NUMBA_DISABLE_JIT=1 gave a 71-line traceback ('<intrinsic _take> is not usable in
+    pure-python'); commands that compile nothing still run."""
+    monkeypatch.setenv("NUMBA_DISABLE_JIT", "1")
+    result = _invoke(["simulate", "--paths", "2", "--t-max", "0.1", "--n-times", "1", "--bias-paths", "0"])
+    assert result.exit_code == 2, result.output
+    assert _one_line(result.output) == ("error: NUMBA_DISABLE_JIT='1' is not accepted: stochpend's kernels "
+                                        "run only compiled (the environment variable; unset it or set it to 0)")
+    assert _invoke(["scaling"]).exit_code == 0
+
+
+def test_a_config_file_setting_one_option_twice_is_refused(tmp_path):
+    """CFG5: t_max = 1.0 and t-max = 2.0 in one --config file were accepted; 2.0 silently won."""
+    config = tmp_path / "c.toml"
+    config.write_text("t_max = 1.0\nt-max = 2.0\n")
+    result = _invoke(["simulate", "--config", str(config), "--paths", "10", "--bias-paths", "0"])
+    assert result.exit_code == 2, result.output
+    assert _one_line(result.output) == ("error: c.toml: t-max is not accepted: the file also sets t_max, "
+                                        "the same option; keep one of them")
+
+
+def test_the_checkpoint_read_guard_covers_its_measured_peak(tmp_path, handed_over, monkeypatch):
+    """S28: reading a checkpoint peaked at 2.59 times the file (tracemalloc), the guard assumed 2."""
+    import tracemalloc
+
+    from stochpend import resources
+
+    path = tmp_path / "run.ckpt"
+    path.write_bytes(handed_over)
+    size = path.stat().st_size
+    tracemalloc.start()
+    try:
+        ck.read(path)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak <= ck.READ_PEAK * size, (peak, size)
+    monkeypatch.setattr(resources, "available_memory", lambda: int(2.5 * size))
+    with pytest.raises(ValueError, match="reading it needs 3 times that"):
+        ck.read(path)
