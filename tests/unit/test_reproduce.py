@@ -389,6 +389,33 @@ def test_a_damaged_stored_run_is_simulated_again_not_reused(tiny, tmp_path) -> N
     assert [r.cells() for r in again.figures["fig1"].rows] == [r.cells() for r in result.figures["fig1"].rows]
 
 
+def test_the_runs_table_labels_each_run_with_its_own_noise_and_model() -> None:
+    """M18: the report's "Runs" table labelled the dichotomous and harmonic-noise exponent runs
+    "OU noise, D = 1, τ = 1, ω = 1", and the quartic runs only "white noise ..."; the paper's
+    pendulum runs keep their labels."""
+    from stochpend.figures import exponents
+    from stochpend.figures._common import RunSpec
+
+    def spec(**kw) -> RunSpec:
+        base = {"key": "k", "label": "l", "noise": "ou", "D": 1.0, "tau": 1.0, "omega": 1.0,
+                "t_max": 10.0, "seed": 1, "paths": 10}
+        return RunSpec(**{**base, **kw})
+
+    assert spec().describe() == "OU noise, D = 1, τ = 1, ω = 1"
+    assert spec(noise="white", tau=None).describe() == "white noise, D = 1, ω = 1"
+    assert spec(noise="dichotomous").describe() == "dichotomous noise, D = 1, τ = 1, ω = 1"
+    assert spec(noise="harmonic", omega_noise=2.0, potential="power", coupling="position").describe() == \
+        "quartic oscillator (x⁴/4), position coupling, harmonic noise, D = 1, τ = 1, W = 2, ω = 1"
+    assert spec(noise="white", tau=None, potential="harmonic").describe() == \
+        "harmonic oscillator, white noise, D = 1, ω = 1"
+    names = {"ou": "OU", "white": "white", "dichotomous": "dichotomous", "harmonic": "harmonic"}
+    for s in exponents.runs(10, 1.0, True):
+        label = s.describe()
+        assert f"{names[s.noise]} noise, D = 1" in label, (s.key, label)
+        if s.potential == "power":
+            assert label.startswith("quartic oscillator"), (s.key, label)
+
+
 def test_a_partial_reproduce_into_a_folder_with_a_report_says_it_replaces_it(tmp_path) -> None:
     """M19: reproduce fig3 --out DIR after reproduce all replaced DIR/report.html silently."""
     (tmp_path / "report.html").write_text("<html>all five sections</html>")
