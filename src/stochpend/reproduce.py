@@ -238,6 +238,12 @@ def reproduce(
     """
     started = time.perf_counter()
     names = _figure_names(figures)
+    # The settings as given: the advice to rebuild the full report repeats them, so that it
+    # reuses the runs stored now (a run is reused only for the same paths, t_max and backend).
+    same = "".join([" --quick" if quick else "", "" if paths is None else f" --paths {paths}",
+                    "" if t_max is None else f" --t-max {t_max!r}",
+                    "" if backend == "cpu" else f" --backend {shlex.quote(str(backend))}",
+                    "" if precision == "float64" else f" --precision {shlex.quote(str(precision))}"])
     if paths is None:
         paths = QUICK_PATHS if quick else DEFAULT_PATHS
     if isinstance(paths, bool) or not isinstance(paths, (int, np.integer)) or paths < 2:
@@ -283,7 +289,8 @@ def reproduce(
     if (out / "report.html").exists() and set(names) != set(_figure_names("all")):
         # A partial run's report holds its own figures only: say so before replacing a fuller one.
         log(f"note: {str(out / 'report.html')!r} is replaced by a report of {' '.join(names)} only; "
-            f"`stochpend reproduce all --out {shlex.quote(str(out))}` rebuilds the full one (stored runs are reused)")
+            f"`stochpend reproduce all{same} --out {shlex.quote(str(out))}` rebuilds the full one "
+            "(the runs stored with these settings are reused)")
 
     # Which runs need simulating (for the overall bar).
     unique: dict[Path, RunSpec] = {}

@@ -434,4 +434,9 @@ def test_a_partial_reproduce_into_a_folder_with_a_report_says_it_replaces_it(tmp
     reproduce("fig1", out=tmp_path, quick=True, paths=8, t_max=1.0, progress=Recorder())
     notes = [line for line in logs if line.startswith("note:")]
     assert notes == [f"note: {str(tmp_path / 'report.html')!r} is replaced by a report of fig1 only; "
-                     f"`stochpend reproduce all --out {tmp_path}` rebuilds the full one (stored runs are reused)"]
+                     f"`stochpend reproduce all --quick --paths 8 --t-max 1.0 --out {tmp_path}` rebuilds the "
+                     "full one (the runs stored with these settings are reused)"]
+    # The advice, as printed, reuses fig1's stored runs (only the other figures' are simulated).
+    logs.clear()
+    again = reproduce(["fig1", "fig2"], out=tmp_path, quick=True, paths=8, t_max=1.0, progress=Recorder())
+    assert {r.status for r in again.figures["fig1"].runs} <= {"cached", "shared"}
