@@ -594,8 +594,12 @@ class FileCheckpointer:
         )
         try:
             write(self.path, ckpt)
-        except OSError as exc:
-            if self.path.exists():
+        except (OSError, ValueError) as exc:
+            # ValueError: something not a regular file appeared at the path while the run worked
+            # (NEW12, a symlink); it is not replaced, and mid-run that is a failure (exit 1), not
+            # input refused before the work (exit 2).
+            why = io.reason(exc) if isinstance(exc, OSError) else str(exc).split(" is not accepted: ", 1)[-1]
+            if self.path.is_file() and not self.path.is_symlink():
                 kept = (f"the previous checkpoint is kept: continue with `{resume_advice(self.path, self.out)}` "
                         "once the cause is fixed")
             elif self.saves > 0 or self.resumed:  # written before, and gone now: say so
@@ -604,7 +608,7 @@ class FileCheckpointer:
                 kept = f"the checkpoint written before is gone too{gone}: the run is lost"
             else:
                 kept = "no checkpoint was written before"
-            raise io.WriteError(f"cannot write the checkpoint {str(self.path)!r}: {io.reason(exc)}; {kept}",
+            raise io.WriteError(f"cannot write the checkpoint {str(self.path)!r}: {why}; {kept}",
                                 getattr(exc, "errno", None)) from None
         self.saves += 1
         self.last_save = _time.monotonic()

@@ -1032,3 +1032,31 @@ def test_the_checkpoint_read_guard_covers_its_measured_peak(tmp_path, handed_ove
     monkeypatch.setattr(resources, "available_memory", lambda: int(2.5 * size))
     with pytest.raises(ValueError, match="reading it needs 3 times that"):
         ck.read(path)
+
+
+def test_a_checkpoint_swapped_for_a_symlink_mid_run_is_a_failure_not_bad_input(tmp_path):
+    """NEW12: the checkpoint replaced by a symlink to a victim mid-run: the victim was kept, but
+    the run stopped with exit 2 ('is not accepted'), the code of input refused before any work.
+    Now a WriteError (exit 1) that says what appeared and that the earlier checkpoint is gone."""
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me\n")
+    path = tmp_path / "x.ckpt"
+    config = SimulationConfig.build(**SMALL)
+    cp = ck.FileCheckpointer(path, None, config=config, chunk_paths=90)
+    saved = []
+
+    def maybe_save(state):
+        if not saved:
+            saved.append(cp.save(state))
+            path.unlink()
+            path.symlink_to(victim)
+            cp.save(state)
+
+    cp.maybe_save = maybe_save  # type: ignore[method-assign]
+    with pytest.raises(io.WriteError) as info:
+        ck.run_checkpointed(config, checkpoint_path=path, every_s=None, checkpointer=cp, chunk_paths=90)
+    text = str(info.value)
+    assert text.startswith(f"cannot write the checkpoint {str(path)!r}: it is a symbolic link (it appeared "
+                           "while this run worked); it was not replaced; the checkpoint written before is gone "
+                           "too: the run is lost"), text
+    assert victim.read_text() == "keep me\n" and path.is_symlink()
