@@ -66,7 +66,11 @@ def fail(message: str, code: int = 2) -> None:
     """Print one red line and exit; a refusal the Python API words with its argument names
     (``h_max=0.0 is not accepted: h_max must be ...``) names the running command's options
     instead (``--h-max 0.0 is not accepted: ...``), see :func:`cli_message`."""
-    message = cli_message(message, _option_names())
+    from stochpend._terminal import short
+
+    # An error may quote text from a file (a crafted variable name, a header value): shortened
+    # well above any path's length (PATH_MAX 4096), so that it stays one readable line.
+    message = short(cli_message(message, _option_names()), 8192)
     console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
     raise typer.Exit(code)
 

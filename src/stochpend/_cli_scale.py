@@ -108,6 +108,7 @@ def simulate_with_checkpoint(
 
 
 def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) -> Any:
+    from stochpend._files import placed
     from stochpend.checkpoint import CheckpointInterrupt, resume_advice
     progress = kwargs.get("progress")
     try:
@@ -127,6 +128,12 @@ def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) ->
         last = (f"; the last checkpoint is kept: continue with: {markup(resume_advice(checkpoint_path, kwargs.get('out')))}"
                 if Path(checkpoint_path).exists() else "")
         signum = getattr(exc, "signum", 2)
+        out = kwargs.get("out")
+        if out is not None and placed(out) and not Path(checkpoint_path).exists():
+            common.console.print(f"[yellow]interrupted[/] by signal {signum} after the result was written: "
+                                 f"{markup(out)} is complete (its checkpoint is removed)",
+                                 highlight=False, soft_wrap=True)
+            raise typer.Exit(128 + signum) from None
         common.console.print(f"[yellow]interrupted[/] by signal {signum} (no new checkpoint){last}",
                           highlight=False, soft_wrap=True)
         raise typer.Exit(128 + signum) from None

@@ -33,6 +33,14 @@ __all__ = ["Signalled", "WriteError", "check_output", "reason", "remove_temporar
 
 # Temporary files being written now, removed by a signal handler before the process ends.
 _TEMPORARIES: set[str] = set()
+# Files this process put in place (absolute paths): a signal that lands just after a result was
+# written must not be reported as if the result were still to be written (M17).
+_PLACED: set[str] = set()
+
+
+def placed(path: str | os.PathLike) -> bool:
+    """Whether this process has put ``path`` in place with :func:`write_atomic`."""
+    return os.path.abspath(path) in _PLACED
 
 
 class WriteError(OSError):
@@ -188,6 +196,7 @@ def write_atomic(path: str | os.PathLike, data: bytes | memoryview | Callable[[i
             finally:
                 os.close(fd)
             _put_in_place(tmp, p, overwrite, name)
+            _PLACED.add(os.path.abspath(p))
         except OSError as exc:
             raise _write_error(p, name, exc, kept) from None
     finally:

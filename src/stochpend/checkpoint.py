@@ -929,6 +929,13 @@ def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, 
     if out_p is not None:
         try:
             io.to_netcdf(ds, out_p, overwrite=overwrite)
+        except KeyboardInterrupt:
+            # A signal that lands once the result is in place: the run is done, so its checkpoint
+            # goes as on success (kept, it advised a resume that then found the file written).
+            if _files.placed(out_p):
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(checkpointer.path)
+            raise
         except (OSError, ValueError) as exc:  # a full disk, a directory gone; a file that appeared
             if checkpointer.path.is_file():  # claim only what is true now
                 keep = (f"; the finished run is kept in {str(checkpointer.path)!r}: "

@@ -1060,3 +1060,24 @@ def test_a_checkpoint_swapped_for_a_symlink_mid_run_is_a_failure_not_bad_input(t
                            "while this run worked); it was not replaced; the checkpoint written before is gone "
                            "too: the run is lost"), text
     assert victim.read_text() == "keep me\n" and path.is_symlink()
+
+
+def test_a_signal_just_after_the_result_was_written_says_so(tmp_path, monkeypatch):
+    """M17: SIGTERM once x.nc was in place: exit 143 with 'continue with: stochpend resume
+    x.ckpt', which then refused ('the file exists'). The run is done: its checkpoint is removed
+    as on success, and the line says the result is complete."""
+    real = io.write_atomic
+
+    def write_then_sigterm(path, data, **kwargs):
+        written = real(path, data, **kwargs)
+        os.kill(os.getpid(), signal.SIGTERM)
+        return written
+
+    monkeypatch.setattr(io, "write_atomic", write_then_sigterm)
+    out = tmp_path / "x.nc"
+    result = _invoke(["simulate", *TINY, "--quiet", "--checkpoint", str(tmp_path / "x.ckpt"), "--out", str(out)])
+    assert result.exit_code == 128 + signal.SIGTERM, result.output
+    assert _one_line(result.output) == (f"interrupted by signal 15 after the result was written: {out} is "
+                                        "complete (its checkpoint is removed)")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.nc"]
+    io.open_results(out)
