@@ -29,7 +29,24 @@ from stochpend._terminal import markup
 console = Console(stderr=True, width=None if sys.stderr is not None and sys.stderr.isatty() else 140)
 #: Results (tables): standard output, so that ``stochpend show run.nc > table.txt`` and pipes
 #: get them; not wrapped when it is not a terminal.
-results = Console(width=None if sys.stdout is not None and sys.stdout.isatty() else 200)
+class _ResultsConsole(Console):
+    """Rich's console on standard output whose failed write names what failed: stdout on a
+    full device gave "[Errno 28] No space left on device" after the result file was written,
+    which read as if the result had failed."""
+
+    def print(self, *args: Any, **kwargs: Any) -> None:
+        from stochpend._files import WriteError, reason
+
+        try:
+            super().print(*args, **kwargs)
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise WriteError(f"cannot write the results to standard output: {reason(exc)} (files the "
+                             "command wrote before this are complete)", getattr(exc, "errno", None)) from None
+
+
+results = _ResultsConsole(width=None if sys.stdout is not None and sys.stdout.isatty() else 200)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -49,7 +66,11 @@ def fail(message: str, code: int = 2) -> None:
     """Print one red line and exit; a refusal the Python API words with its argument names
     (``h_max=0.0 is not accepted: h_max must be ...``) names the running command's options
     instead (``--h-max 0.0 is not accepted: ...``), see :func:`cli_message`."""
-    message = cli_message(message, _option_names())
+    from stochpend._terminal import short
+
+    # An error may quote text from a file (a crafted variable name, a header value): shortened
+    # well above any path's length (PATH_MAX 4096), so that it stays one readable line.
+    message = short(cli_message(message, _option_names()), 8192)
     console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
     raise typer.Exit(code)
 
@@ -150,6 +171,26 @@ def _check_numba_threads() -> None:
              "(the environment variable; or unset it to use every CPU)")
 
 
+#: The commands that compile kernels (their functions' names).
+_COMPILING = ("simulate", "resume_command", "sweep_command", "bfpe_command", "reduced_command",
+              "reproduce_command")
+
+
+def _check_jit(command: str) -> None:
+    """NUMBA_DISABLE_JIT=1 runs the kernels as Python, where their intrinsics cannot run: a
+    71-line traceback after the checks. Refused in one line before the work."""
+    import os
+
+    text = os.environ.get("NUMBA_DISABLE_JIT", "").strip()
+    try:
+        disabled = bool(int(text)) if text else False
+    except ValueError:
+        return  # Numba ignores it with its own warning
+    if disabled and command in _COMPILING:
+        fail(f"NUMBA_DISABLE_JIT={text!r} is not accepted: stochpend's kernels run only compiled "
+             "(the environment variable; unset it or set it to 0)")
+
+
 def handles_errors(fn: F) -> F:
     """Turn the API's ValueError into one line and exit code 2, and a file that cannot be
     written or read (``OSError``: a full disk, an I/O error) into one line and exit code 1
@@ -159,6 +200,7 @@ def handles_errors(fn: F) -> F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         import warnings
 
+        _check_jit(fn.__name__)
         try:
             # NumPy's and other libraries' warnings (an overflow while checking extreme input)
             # are caught: a refusal is one line, not a warning's two lines and then the error
@@ -459,10 +501,22 @@ def _scaled_column(ds: Any) -> tuple[str, str, Callable[[float], float]] | None:
 _DROP_ORDER = ("non-finite", "F", "scaled", "S", "<E2>")
 
 
-def summary_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Table:
+def rows_hint(out: Any) -> str:
+    """How a command without ``--rows`` (simulate, resume, reduced) shows every output time:
+    the hint names the command that has the option, as it must be typed."""
+    import shlex
+
+    if out is None:
+        return "for all, write them with --out FILE, then: stochpend show FILE --rows {n}"
+    return f"for all: stochpend show {shlex.quote(str(out))} --rows {{n}}"
+
+
+def summary_table(ds: Any, max_rows: int = 12, width: int | None = None,
+                  more: str = "--rows {n} for all") -> Table:
     """A table of the main statistics of a result at up to ``max_rows`` times, fitted to
     ``width`` columns (a terminal's; None: no limit): columns that do not fit are left out, the
-    least needed first, and the caption says which and how many times are shown."""
+    least needed first, and the caption says which and how many times are shown, and ``more``
+    (``{n}``: the number of times) how to see them all (:func:`rows_hint`)."""
     attrs = ds.attrs
     noise = attrs.get("noise", "ou")
     D = float(attrs.get("D", 1.0))
@@ -536,7 +590,7 @@ def summary_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Tabl
     n_times = ds.sizes["time"]
     caption = ""
     if len(idx) < n_times:
-        caption += f"{len(idx)} of {n_times} output times shown (--rows {n_times} for all). "
+        caption += f"{len(idx)} of {n_times} output times shown ({markup(more.format(n=n_times))}). "
     if dropped:
         caption += (f"Not shown at this width: {', '.join(dropped)} (a wider terminal or a pipe "
                     "shows them). ")

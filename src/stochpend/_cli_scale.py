@@ -108,7 +108,8 @@ def simulate_with_checkpoint(
 
 
 def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) -> Any:
-    from stochpend.checkpoint import CheckpointInterrupt
+    from stochpend._files import placed
+    from stochpend.checkpoint import CheckpointInterrupt, resume_advice
     progress = kwargs.get("progress")
     try:
         return fn(*args, checkpoint_path=checkpoint_path, **kwargs)
@@ -116,16 +117,23 @@ def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) ->
         common._stop_listening()  # saved: a second Ctrl-C now only repeats the exit (I3)
         if progress is not None:
             progress.finish()
+        advice = resume_advice(exc.path, kwargs.get("out"))
         common.console.print(f"[yellow]interrupted:[/] state saved to {markup(exc.path)}; continue with: "
-                          f"stochpend resume {markup(exc.path)}", highlight=False, soft_wrap=True)
+                          f"{markup(advice)}", highlight=False, soft_wrap=True)
         raise typer.Exit(exc.exit_code) from None
     except KeyboardInterrupt as exc:
         common._stop_listening()
         if progress is not None:
             progress.finish()
-        last = (f"; the last checkpoint is kept: continue with: stochpend resume {markup(checkpoint_path)}"
+        last = (f"; the last checkpoint is kept: continue with: {markup(resume_advice(checkpoint_path, kwargs.get('out')))}"
                 if Path(checkpoint_path).exists() else "")
         signum = getattr(exc, "signum", 2)
+        out = kwargs.get("out")
+        if out is not None and placed(out) and not Path(checkpoint_path).exists():
+            common.console.print(f"[yellow]interrupted[/] by signal {signum} after the result was written: "
+                                 f"{markup(out)} is complete (its checkpoint is removed)",
+                                 highlight=False, soft_wrap=True)
+            raise typer.Exit(128 + signum) from None
         common.console.print(f"[yellow]interrupted[/] by signal {signum} (no new checkpoint){last}",
                           highlight=False, soft_wrap=True)
         raise typer.Exit(128 + signum) from None
@@ -179,7 +187,7 @@ def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: 
     progress = common.RichProgress(enabled=not quiet and common.console.is_terminal, long_run=True)
     ds = _interruptible(_resume, checkpoint_path=checkpoint, progress=progress, **kwargs)
     if not quiet:
-        common.results.print(common.summary_table(ds, width=common.results.width))
+        common.results.print(common.summary_table(ds, width=common.results.width, more=common.rows_hint(target)))
         if target is not None:
             common.console.print(f"wrote {markup(target)}", highlight=False, soft_wrap=True)
 

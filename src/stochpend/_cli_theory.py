@@ -20,7 +20,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from stochpend._cli_common import MAX_POWER_N, _fmt, console, handles_errors, note, parse_times, results, summary_table
+from stochpend._cli_common import MAX_POWER_N, _fmt, console, handles_errors, note, parse_times, results, rows_hint, summary_table
 from stochpend._cli_types import file_name, integer
 from stochpend._terminal import markup
 from stochpend.paper import eq
@@ -256,7 +256,7 @@ def reduced_command(
     if out is not None:
         io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
-        results.print(summary_table(ds, width=results.width))
+        results.print(summary_table(ds, width=results.width, more=rows_hint(out)))
         results.print(reduced_table(ds))
         if int(ds.nonfinite_paths[-1]) > 0:
             console.print(f"[yellow]{int(ds.nonfinite_paths[-1])} paths went non-finite and are excluded.[/]")

@@ -33,6 +33,14 @@ __all__ = ["Signalled", "WriteError", "check_output", "reason", "remove_temporar
 
 # Temporary files being written now, removed by a signal handler before the process ends.
 _TEMPORARIES: set[str] = set()
+# Files this process put in place (absolute paths): a signal that lands just after a result was
+# written must not be reported as if the result were still to be written (M17).
+_PLACED: set[str] = set()
+
+
+def placed(path: str | os.PathLike) -> bool:
+    """Whether this process has put ``path`` in place with :func:`write_atomic`."""
+    return os.path.abspath(path) in _PLACED
 
 
 class WriteError(OSError):
@@ -113,7 +121,39 @@ def check_output(path: str | os.PathLike, *, overwrite: bool = False, name: str 
         raise ValueError(f"{label}: the directory {_show(parent)} does not exist")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise ValueError(f"{label}: the directory {_show(parent)} is not writable")
+    _probe(p, parent, label)
     return p
+
+
+#: The temporary name :func:`write_atomic` writes first, ``.NAME.XXXXXXXX.tmp``, is this many
+#: bytes longer than NAME.
+TEMP_EXTRA = len(".") + len(".") + 8 + len(".tmp")
+
+
+def _probe(p: Path, parent: Path, label: str) -> None:
+    """Create and remove the temporary file the write will create, before any work.
+
+    ``os.access`` answers from permission bits: root is "allowed" to write in ``/sys`` or
+    ``/proc``, where creating a file then fails, and a valid name 242 to 255 bytes long makes
+    the temporary name (:data:`TEMP_EXTRA` bytes longer) exceed the file system's NAME_MAX.
+    Both were found only when the finished result was written, and the result lost."""
+    size = len(os.fsencode(p.name))
+    try:
+        name_max = os.pathconf(parent, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    if size + TEMP_EXTRA > name_max:
+        raise ValueError(f"{label}: the name is {size} bytes long; the file is written first under a "
+                         f"temporary name {TEMP_EXTRA} bytes longer, and this file system allows "
+                         f"{name_max}: choose a name of at most {name_max - TEMP_EXTRA} bytes")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=parent)
+    except OSError as exc:
+        raise ValueError(f"{label}: a file cannot be created in the directory {_show(parent)} "
+                         f"({reason(exc)})") from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(tmp)
 
 
 def write_all(fd: int, data: bytes | memoryview) -> None:
@@ -156,6 +196,7 @@ def write_atomic(path: str | os.PathLike, data: bytes | memoryview | Callable[[i
             finally:
                 os.close(fd)
             _put_in_place(tmp, p, overwrite, name)
+            _PLACED.add(os.path.abspath(p))
         except OSError as exc:
             raise _write_error(p, name, exc, kept) from None
     finally:

@@ -321,6 +321,12 @@ def _refuse(path: Path, why: str) -> ValueError:
     return ValueError(f"checkpoint={str(path)!r} is not accepted: {why}")
 
 
+#: Peak memory of :func:`read` in units of the file's size: the bytes, the arrays copied out of
+#: them and the state built from those; measured 2.59 for a 1.2 MB checkpoint (tracemalloc,
+#: tests/unit/test_checkpoint.py), where the guard assumed 2.
+READ_PEAK = 3
+
+
 def read(path: str | os.PathLike) -> Checkpoint:
     """Read and verify a checkpoint; refuse (``ValueError``, one line) anything doubtful.
 
@@ -330,14 +336,14 @@ def read(path: str | os.PathLike) -> Checkpoint:
     p = Path(path)
     if not p.is_file():
         raise _refuse(p, "no such file")
-    # The file is read whole, and its arrays copied out of it: it must fit twice (a sparse 64 GiB
-    # file with the magic bytes would otherwise end in a MemoryError).
+    # The file is read whole, and its arrays copied out of it (a sparse 64 GiB file with the
+    # magic bytes would otherwise end in a MemoryError): READ_PEAK times its size must fit.
     from stochpend import resources
 
     size, have = p.stat().st_size, resources.available_memory()
-    if have is not None and 2 * size > have:
-        raise _refuse(p, f"it is {resources.format_bytes(size)}, and reading it needs twice that, more than "
-                         f"the {resources.format_bytes(have)} of memory available")
+    if have is not None and READ_PEAK * size > have:
+        raise _refuse(p, f"it is {resources.format_bytes(size)}, and reading it needs {READ_PEAK} times that, "
+                         f"more than the {resources.format_bytes(have)} of memory available")
     data = p.read_bytes()
     if len(data) < len(MAGIC) + _LEN.size + _DIGEST or not data.startswith(MAGIC):
         if MAGIC.startswith(data[: len(MAGIC)]) and len(data) > 0:
@@ -396,8 +402,11 @@ def _check_settings(p: Path, header: dict[str, Any]) -> None:
         "every_s": number(header.get("every_s"), none=True) and header.get("every_s") != 0,
         "elapsed_s": number(header.get("elapsed_s", 0.0), none=False),
         "resumed": positive_int(header.get("resumed", 0) or None),
-        "out": header.get("out") is None or isinstance(header.get("out"), str),
-        "command_line": header.get("command_line") is None or isinstance(header.get("command_line"), str),
+        # Text that reaches the result's attributes or a path: a NUL (valid JSON) is refused here,
+        # before the work; NetCDF cannot store it, and the run could never have been written.
+        "out": header.get("out") is None or (isinstance(header.get("out"), str) and "\x00" not in header["out"]),
+        "command_line": header.get("command_line") is None
+        or (isinstance(header.get("command_line"), str) and "\x00" not in header["command_line"]),
         "done_work": number(header["run"].get("done_work"), none=False),
         # None: a checkpoint from before bias_paths was recorded (the default pairs)
         "bias_paths": header.get("bias_paths") is None or integer(header.get("bias_paths"), 0, 0)
@@ -406,7 +415,9 @@ def _check_settings(p: Path, header: dict[str, Any]) -> None:
     }
     bad = [k for k, ok in checks.items() if not ok]
     if bad:
-        raise _refuse(p, f"malformed header: {bad[0]}={header.get(bad[0], header['run'].get(bad[0]))!r}")
+        from stochpend._terminal import short
+
+        raise _refuse(p, f"malformed header: {bad[0]}={short(repr(header.get(bad[0], header['run'].get(bad[0]))))}")
 
 
 def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkpoint:
@@ -584,13 +595,21 @@ class FileCheckpointer:
         )
         try:
             write(self.path, ckpt)
-        except OSError as exc:
-            if self.path.exists():
-                kept = (f"the previous checkpoint is kept: continue with `stochpend resume {self.path}` "
+        except (OSError, ValueError) as exc:
+            # ValueError: something not a regular file appeared at the path while the run worked
+            # (NEW12, a symlink); it is not replaced, and mid-run that is a failure (exit 1), not
+            # input refused before the work (exit 2).
+            why = io.reason(exc) if isinstance(exc, OSError) else str(exc).split(" is not accepted: ", 1)[-1]
+            if self.path.is_file() and not self.path.is_symlink():
+                kept = (f"the previous checkpoint is kept: continue with `{resume_advice(self.path, self.out)}` "
                         "once the cause is fixed")
+            elif self.saves > 0 or self.resumed:  # written before, and gone now: say so
+                where = self.path.parent
+                gone = "" if where.is_dir() else f" (its directory {str(where)!r} is gone)"
+                kept = f"the checkpoint written before is gone too{gone}: the run is lost"
             else:
                 kept = "no checkpoint was written before"
-            raise io.WriteError(f"cannot write the checkpoint {str(self.path)!r}: {io.reason(exc)}; {kept}",
+            raise io.WriteError(f"cannot write the checkpoint {str(self.path)!r}: {why}; {kept}",
                                 getattr(exc, "errno", None)) from None
         self.saves += 1
         self.last_save = _time.monotonic()
@@ -644,7 +663,7 @@ def check_checkpoint_path(path: str | os.PathLike, *, out: Path | None = None) -
     if os.path.lexists(p) and p.is_file() and not p.is_symlink():
         raise ValueError(
             f"checkpoint={str(p)!r} is not accepted: the file exists; continue that run with "
-            f"`stochpend resume {p}`, or delete the file"
+            f"`{resume_advice(p, out)}`, or delete the file"
         )
     _files.check_output(p, name="checkpoint")
     if out is not None and Path(out).absolute().resolve() == p.absolute().resolve():
@@ -689,10 +708,7 @@ def owned(path: str | os.PathLike, *, break_lock: bool = False) -> Iterator[None
         return
     fd = None
     for _ in range(10):
-        try:
-            fd = os.open(lp, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
-        except OSError as exc:
-            raise _refuse(p, f"its lock file {str(lp)!r} cannot be opened ({io.reason(exc)})") from None
+        fd = _open_lock(p, lp)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -739,6 +755,57 @@ def owned(path: str | os.PathLike, *, break_lock: bool = False) -> Iterator[None
             os.close(fd)
 
 
+def _open_lock(p: Path, lp: Path) -> int:
+    """Open (creating it exclusively if absent) the lock file ``lp`` of checkpoint ``p``.
+
+    The lock file is truncated and written (the holder's pid), so only a file this tool could
+    have made is opened: a regular file with one link, owned by this user. A hard link to a
+    user's file planted at that name would otherwise have its content replaced, and a FIFO or a
+    device be written to; those are refused in one line without being opened."""
+    flags = os.O_RDWR | os.O_NOFOLLOW | os.O_CLOEXEC | os.O_NONBLOCK
+    try:
+        return os.open(lp, flags | os.O_CREAT | os.O_EXCL, 0o644)
+    except FileExistsError:
+        pass  # a lock left by a live holder or by a killed one: checked below before use
+    except OSError as exc:
+        raise _refuse(p, f"its lock file {str(lp)!r} cannot be opened ({io.reason(exc)})") from None
+    try:
+        st = os.lstat(lp)
+    except FileNotFoundError:  # its holder removed it meanwhile: the caller's loop tries again
+        st = None
+    except OSError as exc:
+        raise _refuse(p, f"its lock file {str(lp)!r} cannot be opened ({io.reason(exc)})") from None
+    if st is not None:
+        _check_lock_stat(p, lp, st)
+    try:
+        fd = os.open(lp, flags | (os.O_CREAT | os.O_EXCL if st is None else 0), 0o644)
+    except OSError as exc:
+        raise _refuse(p, f"its lock file {str(lp)!r} cannot be opened ({io.reason(exc)})") from None
+    try:  # what was opened, not what was looked at (it may have been swapped in between)
+        _check_lock_stat(p, lp, os.fstat(fd))
+    except ValueError:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _check_lock_stat(p: Path, lp: Path, st: os.stat_result) -> None:
+    import stat
+
+    if stat.S_ISLNK(st.st_mode):
+        why = "a symbolic link"
+    elif not stat.S_ISREG(st.st_mode):
+        why = _files._kind(st.st_mode)
+    elif st.st_nlink != 1:
+        why = f"a file with {st.st_nlink} links (a hard link to another file)"
+    elif st.st_uid != os.geteuid():
+        why = f"owned by another user (uid {st.st_uid})"
+    else:
+        return
+    raise _refuse(p, f"its lock file {str(lp)!r} is {why}; it was not touched: remove it if "
+                     "it is not yours, or choose another checkpoint name")
+
+
 def _plain_holder(fd: int) -> str:
     from stochpend._terminal import plain
 
@@ -766,6 +833,21 @@ def check_not_checkpoint(out: str | os.PathLike, checkpoint_path: str | os.PathL
     if Path(out).absolute().resolve() == Path(checkpoint_path).absolute().resolve():
         raise ValueError(f"out={str(out)!r} is not accepted: it is the checkpoint itself, which "
                          "holds the run until its result is written; choose another file")
+
+
+def resume_advice(path: str | os.PathLike, out: str | os.PathLike | None = None) -> str:
+    """The command that continues the run of checkpoint ``path`` whose result goes to ``out``,
+    as it must be typed: ``resume`` trusts a recorded output only in the checkpoint's own
+    directory (:func:`own_out`), so an ``out`` elsewhere is named with ``--out`` (the advice
+    printed without it was refused); names are quoted for a POSIX shell."""
+    import shlex
+
+    command = f"stochpend resume {shlex.quote(str(path))}"
+    if out is not None:
+        ck_dir = Path(path).absolute().parent
+        if Path(out).absolute().parent.resolve() != ck_dir.resolve():
+            command += f" --out {shlex.quote(str(out))}"
+    return command
 
 
 def own_out(path: str | os.PathLike, recorded: Path) -> Path:
@@ -848,10 +930,18 @@ def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, 
     if out_p is not None:
         try:
             io.to_netcdf(ds, out_p, overwrite=overwrite)
+        except KeyboardInterrupt:
+            # A signal that lands once the result is in place: the run is done, so its checkpoint
+            # goes as on success (kept, it advised a resume that then found the file written).
+            if _files.placed(out_p):
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(checkpointer.path)
+            raise
         except (OSError, ValueError) as exc:  # a full disk, a directory gone; a file that appeared
             if checkpointer.path.is_file():  # claim only what is true now
-                keep = (f"; the finished run is kept in {str(checkpointer.path)!r}: `stochpend resume "
-                        f"{checkpointer.path}` writes it (add --out FILE to write it elsewhere)")
+                keep = (f"; the finished run is kept in {str(checkpointer.path)!r}: "
+                        f"`{resume_advice(checkpointer.path, out_p)}` writes it (add --out FILE to write "
+                        "it elsewhere)")
             else:
                 keep = f"; the checkpoint {str(checkpointer.path)!r} is gone too: the run is lost"
             if isinstance(exc, ValueError):

@@ -10,9 +10,11 @@ on the command line); a file written before checksums existed opens with a
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io as _io
 import os
+import shlex
 import warnings
 from pathlib import Path
 from typing import Any
@@ -175,6 +177,11 @@ def write_bytes_atomic(data: bytes, path: str | os.PathLike, *, overwrite: bool 
 _MAX_DEPTH, _MAX_OBJECTS = 8, 100_000
 #: Declared data beyond the file's own size by more than this is refused before any allocation.
 _SLACK_BYTES = 1 << 20
+#: A file system that compresses (ZFS, btrfs) holds a file in fewer blocks than its size: data
+#: up to this many times the allocated bytes is still accepted.
+_COMPRESSION = 16
+#: A checkpoint's first bytes (stochpend.checkpoint.MAGIC, not imported: it pulls Numba in).
+_CHECKPOINT_MAGIC = b"STOCHPEND-CKPT"
 
 
 def _check_hdf5(p: Path) -> None:
@@ -186,7 +193,13 @@ def _check_hdf5(p: Path) -> None:
     tool writes none."""
     import h5py
 
-    size = p.stat().st_size
+    st = p.stat()
+    # A sparse file's apparent size (st_size) is not what it holds: 2 GiB apparent on 94 KB of
+    # disk passed this check, and the reader then allocated the 2 GiB. What is allocated
+    # (st_blocks, 512-byte units) bounds it too, with room for a compressing file system;
+    # st_blocks = 0 (some network file systems do not count) falls back to st_size.
+    allocated = getattr(st, "st_blocks", 0) * 512
+    size = st.st_size if allocated <= 0 else min(st.st_size, _COMPRESSION * allocated)
     declared = 0
     objects = 0
 
@@ -236,6 +249,10 @@ def open_results(path: str | os.PathLike, *, verify: bool = True) -> xr.Dataset:
         raise ValueError(f"path={str(p)!r} is not accepted: it is a directory, not a results file")
     if not p.is_file():
         raise ValueError(f"path={str(p)!r} is not accepted: no such file")
+    with contextlib.suppress(OSError), open(p, "rb") as fh:
+        if fh.read(len(_CHECKPOINT_MAGIC)) == _CHECKPOINT_MAGIC:
+            raise ValueError(f"path={str(p)!r} is not accepted: it is a checkpoint, not a result; "
+                             f"`stochpend resume {shlex.quote(str(p))}` continues its run and writes the result")
     try:
         _check_hdf5(p)
         with xr.open_dataset(p, engine="h5netcdf") as ds:

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from stochpend._files import write_atomic
-from stochpend.figures._common import COLUMNS, DASH, describe_attrs, fmt_num, fmt_se
+from stochpend.figures._common import COLUMNS, DASH, fmt_num, fmt_se
 from stochpend.paper import with_numbers
 
 __all__ = ["build_report", "write_report"]
@@ -105,7 +105,7 @@ def _runs_table(records: list[Any]) -> str:
         s = r.spec
         rows.append([
             r.path.name,
-            describe_attrs({"noise": s.noise, "D": s.D, "tau": s.tau, "omega": s.omega}),
+            s.describe(),
             str(s.paths),
             f"{len(s.times())} log-spaced in [{s.t_min:g}, {fmt_num(s.t_max)}]",
             str(s.seed),

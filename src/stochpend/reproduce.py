@@ -21,6 +21,7 @@ import csv
 import json
 import math
 import platform
+import shlex
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -31,7 +32,7 @@ from typing import Any, Protocol
 import numpy as np
 import xarray as xr
 
-from stochpend._files import write_atomic
+from stochpend._files import reason, write_atomic
 from stochpend._version import __version__
 from stochpend.figures import CASES, FIGURES, GALLERY
 from stochpend.figures._common import COLUMNS, SUM_COMPONENTS, Row, RunSpec
@@ -161,6 +162,22 @@ FIT_METHOD = (
 # ---------------------------------------------------------------------------------------------
 
 
+def _prepare_out(out: Path) -> None:
+    """Create ``out`` and ``out/runs`` and check, before any work, that files can be written
+    there (a directory in ``/sys`` or ``/proc`` is "writable" to root by its permission bits,
+    and was found unwritable only after every simulation had run)."""
+    from stochpend._files import check_output
+
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "runs").mkdir(exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"out={str(out)!r} is not accepted: the directory cannot be created "
+                         f"({reason(exc)})") from None
+    for probe in (out / "report.html", out / "runs" / "run.nc"):
+        check_output(probe, overwrite=True, name="out")
+
+
 def reproduce(
     figures: str | Iterable[str] = ("fig1", "fig2", "fig3", "fig4"),
     *,
@@ -221,6 +238,12 @@ def reproduce(
     """
     started = time.perf_counter()
     names = _figure_names(figures)
+    # The settings as given: the advice to rebuild the full report repeats them, so that it
+    # reuses the runs stored now (a run is reused only for the same paths, t_max and backend).
+    same = "".join([" --quick" if quick else "", "" if paths is None else f" --paths {paths}",
+                    "" if t_max is None else f" --t-max {t_max!r}",
+                    "" if backend == "cpu" else f" --backend {shlex.quote(str(backend))}",
+                    "" if precision == "float64" else f" --precision {shlex.quote(str(precision))}"])
     if paths is None:
         paths = QUICK_PATHS if quick else DEFAULT_PATHS
     if isinstance(paths, bool) or not isinstance(paths, (int, np.integer)) or paths < 2:
@@ -260,10 +283,14 @@ def reproduce(
                 SimulationConfig.build(**s.simulate_kwargs()), backend=backend, precision=precision,
                 max_path_steps=max_path_steps, threads=threads)
 
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "runs").mkdir(exist_ok=True)
+    _prepare_out(out)
     progress = progress or NoProgress()
     log = getattr(progress, "log", None) or (lambda message: None)
+    if (out / "report.html").exists() and set(names) != set(_figure_names("all")):
+        # A partial run's report holds its own figures only: say so before replacing a fuller one.
+        log(f"note: {str(out / 'report.html')!r} is replaced by a report of {' '.join(names)} only; "
+            f"`stochpend reproduce all{same} --out {shlex.quote(str(out))}` rebuilds the full one "
+            "(the runs stored with these settings are reused)")
 
     # Which runs need simulating (for the overall bar).
     unique: dict[Path, RunSpec] = {}

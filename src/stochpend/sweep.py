@@ -221,6 +221,9 @@ def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepSpec) -> SweepS
     description = data.get("description", "")
     if not isinstance(description, str):
         raise ValueError(f"{source}: description={description!r} is not accepted: a string")
+    if "\x00" in description:  # found before the sweep runs, not when its result is written
+        raise ValueError(f"{source}: description is not accepted: it holds a NUL character (\\u0000), "
+                         "which a NetCDF attribute cannot store")
     base = _check_params(data.get("base", {}), "base", source)
     has_grid, has_case = "grid" in data, "case" in data
     if has_grid == has_case:

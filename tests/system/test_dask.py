@@ -153,3 +153,37 @@ def test_unreachable_scheduler_is_one_line():
     # A connect timeout of 2 s: the refusal comes after it (no wall time is asserted: issue 37).
     with dask.config.set({"distributed.comm.timeouts.connect": "2s"}), pytest.raises(ValueError, match=refused):
         sweep(SPEC, scheduler="tcp://127.0.0.1:9")
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupted_local_cluster_sweep_ends_in_one_line(tmp_path, signum):
+    """NEW50: Ctrl-C of 'sweep --scheduler local --workers 2' printed 72 lines with 4 tracebacks
+    (cancelled tasks, 'Worker process still alive after 4.0 seconds, killing') before
+    'interrupted'; SIGTERM once a CommClosedError traceback. Now the one line alone."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    src = Path(__file__).resolve().parents[2] / "src"
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
+    env["PYTHONPATH"] = os.pathsep.join([str(src), *filter(None, [env.get("PYTHONPATH")])])
+    spec = tmp_path / "long.toml"
+    spec.write_text("[base]\npaths = 100000\nt_max = 400.0\nn_times = 3\n[grid]\nD = [0.5, 1.0, 1.5, 2.0]\n")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "stochpend", "sweep", str(spec), "--scheduler", "local", "--workers", "2",
+         "--bias-paths", "0", "--out", str(tmp_path / "l.nc")],
+        stderr=subprocess.PIPE, text=True, cwd=tmp_path, env=env,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        first = proc.stderr.readline()  # the dashboard line: the cluster is up, the tasks go out
+        assert first.startswith("Dask dashboard: "), first
+        time.sleep(3)  # the workers are inside their first blocks
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 128 + signum, err
+    assert err == "interrupted\n", err
+    assert not (tmp_path / "l.nc").exists()

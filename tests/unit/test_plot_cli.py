@@ -63,3 +63,47 @@ def test_predicted_laws_follow_the_model():
     harm = stochpend.simulate(potential="harmonic", noise="white", paths=200, times=(1.0, 2.0),
                               t_max=2.0, seed=SEED, bias_paths=0, theta0=1.0)
     assert plotting.predicted_mean_E(harm, np.array([1.0, 2.0])) == []
+
+
+def test_every_kind_of_file_the_tool_writes(tmp_path):
+    """M7: plot of a sweep result (IndexError) and of a B.F.P.E. solution (KeyError
+    'mean_E_stderr') ended in tracebacks. A run of the reduced dynamics is drawn; a sweep and a
+    B.F.P.E. solution are refused in one line that says what the file is and what shows it;
+    show of a checkpoint says it is one (M8)."""
+    toml = tmp_path / "s.toml"
+    toml.write_text("[base]\npaths = 100\nt_max = 2.0\nn_times = 3\n[grid]\nD = [0.5, 1.0]\n")
+    made = {
+        "sweep": ["sweep", str(toml), "--bias-paths", "0", "--quiet", "--out", str(tmp_path / "sweep.nc")],
+        "bfpe": ["bfpe", "--t-max", "10", "--quiet", "--out", str(tmp_path / "bfpe.nc")],
+        "reduced": ["reduced", "--paths", "100", "--t-max", "2", "--quiet", "--out", str(tmp_path / "reduced.nc")],
+    }
+    for kind, args in made.items():
+        result = CliRunner().invoke(app, args)
+        assert result.exit_code == 0, (kind, result.output)
+    drawn = CliRunner().invoke(app, ["plot", str(tmp_path / "reduced.nc")])
+    assert drawn.exit_code == 0, drawn.output
+    assert (tmp_path / "reduced.png").read_bytes().startswith(MAGIC["png"])
+    for kind, what in (("sweep", "a parameter sweep's result"), ("bfpe", "a B.F.P.E. solution")):
+        path = tmp_path / f"{kind}.nc"
+        refused = CliRunner().invoke(app, ["plot", str(path)])
+        assert refused.exit_code == 2, refused.output
+        text = " ".join(refused.output.split())
+        assert "Traceback" not in refused.output and len(refused.output.strip().splitlines()) <= 3
+        assert f"this is {what}; `stochpend show {path}` prints its table" in text, text
+        assert CliRunner().invoke(app, ["show", str(path)]).exit_code == 0
+        assert not path.with_suffix(".png").exists()
+    ckpt = tmp_path / "x.ckpt"
+    ckpt.write_bytes(b"STOCHPEND-CKPT\x00\x01" + b"\x00" * 64)
+    shown = CliRunner().invoke(app, ["show", str(ckpt)])
+    assert shown.exit_code == 2
+    assert "it is a checkpoint, not a result; `stochpend resume" in " ".join(shown.output.split())
+
+
+def test_show_warns_of_escaped_paths_as_simulate_does(tmp_path):
+    """N17: show of a run with 63 of 100 non-finite paths printed nothing of them."""
+    ds = stochpend.simulate(noise="ou", paths=64, t_max=1.0, n_times=2, seed=SEED, bias_paths=0)
+    ds["nonfinite_paths"].values[-1] = 7
+    path = io.to_netcdf(ds, tmp_path / "esc.nc")
+    result = CliRunner().invoke(app, ["show", str(path)])
+    assert result.exit_code == 0, result.output
+    assert "7 paths went non-finite (or ran away) and are excluded." in " ".join(result.output.split())

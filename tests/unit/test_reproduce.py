@@ -391,3 +391,56 @@ def test_a_damaged_stored_run_is_simulated_again_not_reused(tiny, tmp_path) -> N
     assert [s for k, s in statuses.items() if k != run.key] == ["cached"] * (len(statuses) - 1)
     assert any("is damaged" in line and "simulating it again" in line for line in lines), lines
     assert [r.cells() for r in again.figures["fig1"].rows] == [r.cells() for r in result.figures["fig1"].rows]
+
+
+def test_the_runs_table_labels_each_run_with_its_own_noise_and_model() -> None:
+    """M18: the report's "Runs" table labelled the dichotomous and harmonic-noise exponent runs
+    "OU noise, D = 1, τ = 1, ω = 1", and the quartic runs only "white noise ..."; the paper's
+    pendulum runs keep their labels."""
+    from stochpend.figures import exponents
+    from stochpend.figures._common import RunSpec
+
+    def spec(**kw) -> RunSpec:
+        base = {"key": "k", "label": "l", "noise": "ou", "D": 1.0, "tau": 1.0, "omega": 1.0,
+                "t_max": 10.0, "seed": 1, "paths": 10}
+        return RunSpec(**{**base, **kw})
+
+    assert spec().describe() == "OU noise, D = 1, τ = 1, ω = 1"
+    assert spec(noise="white", tau=None).describe() == "white noise, D = 1, ω = 1"
+    assert spec(noise="dichotomous").describe() == "dichotomous noise, D = 1, τ = 1, ω = 1"
+    assert spec(noise="harmonic", omega_noise=2.0, potential="power", coupling="position").describe() == \
+        "quartic oscillator (x⁴/4), position coupling, harmonic noise, D = 1, τ = 1, W = 2, ω = 1"
+    assert spec(noise="white", tau=None, potential="harmonic").describe() == \
+        "harmonic oscillator, white noise, D = 1, ω = 1"
+    names = {"ou": "OU", "white": "white", "dichotomous": "dichotomous", "harmonic": "harmonic"}
+    for s in exponents.runs(10, 1.0, True):
+        label = s.describe()
+        assert f"{names[s.noise]} noise, D = 1" in label, (s.key, label)
+        if s.potential == "power":
+            assert label.startswith("quartic oscillator"), (s.key, label)
+
+
+def test_a_partial_reproduce_into_a_folder_with_a_report_says_it_replaces_it(tmp_path) -> None:
+    """M19: reproduce fig3 --out DIR after reproduce all replaced DIR/report.html silently."""
+    (tmp_path / "report.html").write_text("<html>all five sections</html>")
+    logs: list[str] = []
+
+    class Recorder:
+        def start(self, total: float, description: str) -> None: ...
+        def update(self, done: float) -> None: ...
+        def finish(self) -> None: ...
+        def simulation(self, description: str):
+            return self
+
+        def log(self, message: str) -> None:
+            logs.append(message)
+
+    reproduce("fig1", out=tmp_path, quick=True, paths=8, t_max=1.0, progress=Recorder())
+    notes = [line for line in logs if line.startswith("note:")]
+    assert notes == [f"note: {str(tmp_path / 'report.html')!r} is replaced by a report of fig1 only; "
+                     f"`stochpend reproduce all --quick --paths 8 --t-max 1.0 --out {tmp_path}` rebuilds the "
+                     "full one (the runs stored with these settings are reused)"]
+    # The advice, as printed, reuses fig1's stored runs (only the other figures' are simulated).
+    logs.clear()
+    again = reproduce(["fig1", "fig2"], out=tmp_path, quick=True, paths=8, t_max=1.0, progress=Recorder())
+    assert {r.status for r in again.figures["fig1"].runs} <= {"cached", "shared"}

@@ -185,3 +185,31 @@ def test_growth_is_judged_against_the_models_predicted_law():
     assert kinds == ["note"]
     relabelled.attrs.update(potential="my-model")
     assert [k for k, _ in growth_lines(relabelled)] == ["warning"]
+
+
+def test_the_table_hint_of_simulate_and_reduced_works_as_printed(tmp_path):
+    """N5: simulate's table said "(--rows 40 for all)", an option simulate does not have. The
+    hint names the command that shows them all, run here as printed."""
+    import shlex
+
+    from typer.testing import CliRunner
+
+    from stochpend.cli import app
+
+    out = tmp_path / "r un.nc"
+    runner = CliRunner()
+    ran = runner.invoke(app, ["simulate", "--paths", "64", "--t-max", "2", "--n-times", "20", "--bias-paths", "0",
+                              "--out", str(out)])
+    assert ran.exit_code == 0, ran.output
+    text = " ".join(ran.output.split())
+    hint = re.search(r"12 of 20 output times shown \(for all: (.*? --rows 20)\)", text)
+    assert hint is not None, text
+    args = shlex.split(hint.group(1))
+    assert args[:2] == ["stochpend", "show"] and args[2] == str(out), args
+    shown = runner.invoke(app, args[1:])
+    assert shown.exit_code == 0, shown.output
+    assert sum(1 for line in shown.output.splitlines() if line.startswith("│")) == 20
+    bare = runner.invoke(app, ["reduced", "--paths", "64", "--t-max", "2", "--n-times", "20"])
+    assert bare.exit_code == 0, bare.output
+    assert ("12 of 20 output times shown (for all, write them with --out FILE, then: stochpend show FILE "
+            "--rows 20)") in " ".join(bare.output.split())

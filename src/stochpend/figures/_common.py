@@ -152,7 +152,9 @@ class RunSpec:
 
     def describe(self) -> str:
         """One line: the physics of the run."""
-        return describe_attrs({"noise": self.noise, "D": self.D, "tau": self.tau, "omega": self.omega})
+        return describe_attrs({"noise": self.noise, "D": self.D, "tau": self.tau, "omega": self.omega,
+                               "omega_noise": self.omega_noise, "potential": self.potential,
+                               "power_n": self.power_n, "coupling": self.coupling})
 
 
 def run_key(noise: str, D: float, tau: float | None, omega: float) -> str:
@@ -162,13 +164,47 @@ def run_key(noise: str, D: float, tau: float | None, omega: float) -> str:
     return f"ou_D{D:g}_tau{tau:g}_omega{omega:g}"
 
 
+#: How a run's noise is named in captions and the report (another, a plugin's, by its name).
+_NOISE_NAMES = {"ou": "OU", "white": "white", "dichotomous": "dichotomous", "harmonic": "harmonic"}
+
+
 def describe_attrs(attrs: dict[str, Any]) -> str:
-    """'white noise, D = 1, omega = 1' or 'OU noise, D = 1, tau = 0.1, omega = 1'."""
+    """'white noise, D = 1, omega = 1' or 'OU noise, D = 1, tau = 0.1, omega = 1' for the
+    paper's pendulum; another noise by its own name (the report labelled dichotomous and
+    harmonic-noise runs "OU noise"), and an oscillator or coupling other than the pendulum's
+    named first ('quartic oscillator x^4/4, position coupling, harmonic noise, ...')."""
     D = float(attrs["D"])
     omega = float(attrs["omega"])
-    if attrs["noise"] == "white":
-        return f"white noise, D = {D:g}, ω = {omega:g}"
-    return f"OU noise, D = {D:g}, τ = {float(attrs['tau']):g}, ω = {omega:g}"
+    noise = str(attrs["noise"])
+    model = _describe_model(attrs)
+    if noise == "white":
+        text = f"white noise, D = {D:g}, ω = {omega:g}"
+    else:
+        text = f"{_NOISE_NAMES.get(noise, noise)} noise, D = {D:g}, τ = {float(attrs['tau']):g}"
+        omega_noise = attrs.get("omega_noise")
+        if noise == "harmonic" and omega_noise not in (None, "none"):
+            text += f", W = {float(omega_noise):g}"
+        text += f", ω = {omega:g}"
+    return f"{model}, {text}" if model else text
+
+
+def _describe_model(attrs: dict[str, Any]) -> str:
+    """The oscillator and coupling, when they are not the paper's pendulum driven through its
+    force ('' then: the paper's captions stay as they were)."""
+    potential = str(attrs.get("potential", "pendulum"))
+    coupling = str(attrs.get("coupling", "force"))
+    if potential == "power":
+        n = int(attrs.get("power_n", 2))
+        name = "quartic oscillator (x⁴/4)" if n == 2 else f"power oscillator (x^{2 * n}/{2 * n})"
+    elif potential == "harmonic":
+        name = "harmonic oscillator"
+    elif potential == "pendulum":
+        name = "" if coupling == "force" else "pendulum"
+    else:
+        name = potential
+    if coupling != "force":
+        name += f", {coupling} coupling"
+    return name
 
 
 def fmt_num(x: float) -> str:
