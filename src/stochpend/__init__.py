@@ -22,7 +22,10 @@ import sys
 import types
 from typing import TYPE_CHECKING, Any
 
+from stochpend import _xarray_nodask
 from stochpend._version import __version__
+
+_xarray_nodask.install()  # xarray's check for Dask arrays imports Dask only once Dask is used
 
 #: Submodules reachable as attributes of the package, imported on first use.
 SUBMODULES = ("bias", "exponents", "io", "models", "noises", "paper", "plotting", "sweep",
