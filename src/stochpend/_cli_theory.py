@@ -163,8 +163,10 @@ def bfpe_command(
 
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
+    # As simulate does: a long solve says what it will cost before it starts.
     ds = solve_bfpe(D=D, tau=tau, t_max=t_max, n_times=n_times, n_cells=n_cells,
-                    steps_per_decade=steps_per_decade, max_cell_steps=max_cell_steps)
+                    steps_per_decade=steps_per_decade, max_cell_steps=max_cell_steps,
+                    log=lambda line: console.print(markup(line), highlight=False, soft_wrap=True))
     ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
     if out is not None:
         io.to_netcdf(ds, out, overwrite=overwrite)

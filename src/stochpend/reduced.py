@@ -765,10 +765,13 @@ def simulate_reduced(
     chunk_batches = _chunk_batches(config, chunk_paths)
     from stochpend import resources
 
-    resources.check_reduced(config, chunk_paths=chunk_paths, max_path_steps=max_path_steps, threads=threads)
+    est = resources.check_reduced(config, chunk_paths=chunk_paths, max_path_steps=max_path_steps, threads=threads)
     previous = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(threads)
+    from stochpend import _calibration
+
+    load = _calibration.current_load()  # the rate is stored as on an idle machine (later estimates)
     started = _time.perf_counter()
     n_times_ = len(config.times)
     edges = hist_edges(config)
@@ -788,6 +791,7 @@ def simulate_reduced(
     finally:
         numba.set_num_threads(previous)
     wall = _time.perf_counter() - started
+    _calibration.record_rate(f"reduced-{config.order}", est.min_path_steps, wall, threads or previous, load=load)
     attrs = _provenance(config, threads=threads or previous, wall_time_s=wall, path_steps=path_steps)
     with warnings.catch_warnings():
         # zeroth order from E0 = 0: S and F are 0/0 = NaN in every batch (not an error)
