@@ -51,18 +51,35 @@ from stochpend._cli_types import file_name, integer, usage_message
 from stochpend._terminal import markup
 from stochpend.paper import eq
 
+#: The help's words for a value's type, instead of Typer's Python types (``<float>``, ``<Path>``).
+METAVARS = {"<float>": "NUMBER", "<int>": "INTEGER", "<str>": "TEXT", "<Path>": "FILE",
+            "<list[str]>": "TEXT", "<list[Path]>": "FILE"}
+
+
+def _usage_name(param: Any) -> str:
+    """An argument in the usage line as a user writes it: PATH, [FIGURE]... (Typer: {path})."""
+    name = (param.metavar or param.name or "").rstrip(".").upper()
+    if param.nargs != 1:
+        name += "..."
+    return name if param.required else f"[{name}]"
+
 
 def _plain_flags(params: list[Any]) -> list[Any]:
-    """Boolean flags show no ``<bool>`` metavar in the help (they take no value), nor an argument
-    with a metavar its Python type; a default
+    """Help in the command line's words: boolean flags show no ``<bool>`` metavar (they take no
+    value); other options show a word for their value (:data:`METAVARS`), never a Python type;
+    an argument shows no type and is written PATH in the usage line, not ``{path}``; a default
     given as text (``show_default="every CPU"``, for an option whose None stands for it) is
     shown as ``[default: every CPU]``, without the parentheses Typer adds."""
     for param in params:
         if getattr(param, "is_flag", False) and param.metavar is None:
             param.metavar = ""
-        if getattr(param, "param_type_name", "") == "argument" and param.metavar:
-            # An argument named in words (FIGURE...) needs no Python type beside it (<list[str]>).
+        elif getattr(param, "param_type_name", "") == "option" and param.metavar is None:
+            shown = param.display_type(None)
+            param.metavar = METAVARS.get(shown, shown.strip("<>").upper() if isinstance(shown, str) else None)
+        if getattr(param, "param_type_name", "") == "argument":
+            # An argument is named in words (PATH, FIGURE...): no Python type beside it (<Path>).
             param.display_type_rich = lambda *args, **kwargs: None
+            param._usage_display_name = lambda _param=param: _usage_name(_param)
         text = getattr(param, "show_default", None)
         if isinstance(text, str):
             param._get_default_string = lambda *args, _text=text, **kwargs: _text
