@@ -33,8 +33,12 @@ __all__ = ["FILE_NAME", "compile_scale", "path", "rate", "read", "record_compile
 FILE_NAME = "stochpend-calibration.json"
 #: Samples kept per kind (the most recent): the median of a few runs follows a machine that changes.
 KEEP = 7
-#: Samples shorter than this (seconds) are noise (start-up, a tiny run) and are not stored.
+#: Compiles shorter than this (seconds) are noise and are not stored.
 MIN_SECONDS = 0.5
+#: Runs shorter than this (seconds) are not stored as rates: their fixed costs (threads, the bias
+#: estimate's set-up) would make a long run look slower than it is; only runs estimated beyond
+#: resources.LONG_RUN_S print an estimate.
+MIN_RATE_SECONDS = 2.0
 _FORMAT = 1
 
 
@@ -157,7 +161,7 @@ def record_rate(kind: str, work: float, wall_s: float, threads: int, *, load: fl
     """Store one run of ``kind`` ("cpu", "reduced", "bfpe"): ``work`` units (the estimate's own
     count: the lower-bound path-steps, cell-steps) in ``wall_s`` seconds on ``threads`` threads,
     with the 1-minute load ``load`` at its start; stored per thread, as on an idle machine."""
-    if not (wall_s >= MIN_SECONDS and work > 0 and math.isfinite(wall_s) and math.isfinite(work)):
+    if not (wall_s >= MIN_RATE_SECONDS and work > 0 and math.isfinite(wall_s) and math.isfinite(work)):
         return
     per_thread = work / wall_s * slowdown(threads, load, n_cores) / max(1, threads)
 

@@ -63,7 +63,7 @@ def test_rates_are_stored_per_thread_as_on_an_idle_machine(file):
 
 def test_short_or_broken_samples_are_not_stored(file):
     cal.record_compile(0.1, 5.0, load=0.0, file=file)  # below MIN_SECONDS: noise
-    cal.record_rate("cpu", 1e6, 0.01, 2, load=0.0, file=file)
+    cal.record_rate("cpu", 1e6, 1.0, 2, load=0.0, file=file)  # below MIN_RATE_SECONDS: fixed costs
     cal.record_rate("cpu", float("inf"), 5.0, 2, load=0.0, file=file)
     cal.record_compile(float("nan"), 5.0, load=0.0, file=file)
     assert not file.exists() or cal.read(file) in ({}, {"compile": [], "rate": {}})
