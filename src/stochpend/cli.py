@@ -19,7 +19,7 @@ from rich.markup import escape
 from rich.table import Table
 from typer.core import TyperCommand, TyperGroup
 
-from stochpend import _cli_common, _compile_helper
+from stochpend import _cli_common
 from stochpend._cli_common import (  # the shared layer; several are also used as cli.NAME
     DEFAULT_H_MAX,
     DEFAULT_HIST_BINS,
@@ -358,9 +358,9 @@ def simulate(
     estimate = resources.check(config, backend=backend, precision=precision, max_path_steps=max_path_steps,
                                threads=threads)
     # The kernels it will compile (a cold Numba cache) count: a first run is mostly compiling.
-    # A pair kernel that the compile helper compiles meanwhile (simulate.run) is not waited for.
-    pairs = bias_paths != 0 and not _compile_helper.wanted(config, backend=backend, pairs=True)
-    estimate = resources.with_compile(estimate, config, pairs=pairs or accuracy == "auto")
+    # The pair kernel counts also where the compile helper compiles it: the run waits for it, and
+    # the compile figures are calibrated against the same sum (stochpend._calibration).
+    estimate = resources.with_compile(estimate, config, pairs=bias_paths != 0 or accuracy == "auto")
     # A long run prints its estimate when it starts (after the remaining checks), even with --quiet.
     announce = (f"estimate: {estimate.describe()}" if estimate.total_seconds > resources.LONG_RUN_S
                 else None)

@@ -347,16 +347,31 @@ def _memory_parts(*, paths: int, chunk: int, chunk_given: bool, batch_size: int,
     return parts
 
 
+def kernel_kind(config: Any, precision: str = "float64") -> str:
+    """The calibration's name for the CPU kernel of ``config`` ("cpu pendulum/force/ou/..."): a
+    quartic oscillator's or the one-path kernel's rate is not the pendulum's SIMD lanes'. Imports
+    the CPU backend (Numba); "cpu" where the kernel cannot be named."""
+    try:
+        from stochpend._backends import cpu
+
+        return f"cpu {cpu.spec_for(config, precision).label}"
+    except Exception:  # a configuration the backend refuses: the caller's own check says why
+        return "cpu"
+
+
 def _rate(cuda: bool, threads: Any, kind: str = "cpu") -> tuple[float, str]:
     """The expected rate of the lower-bound work on the CPU's ``threads`` (or the GPU), and on
-    what: measured on this machine by earlier runs of ``kind`` and scaled to the load of now
-    (:mod:`stochpend._calibration`), else :data:`CPU_PATH_STEPS_PER_S_PER_CORE` a core."""
+    what: measured on this machine by earlier runs of ``kind`` (else of any CPU kernel, "cpu")
+    and scaled to the load of now (:mod:`stochpend._calibration`), else
+    :data:`CPU_PATH_STEPS_PER_S_PER_CORE` a core."""
     if cuda:
         return GPU_PATH_STEPS_PER_S, "the GPU"
     from stochpend import _calibration
 
     cores = _cores(threads)
     rate, measured = _calibration.rate(kind, CPU_PATH_STEPS_PER_S_PER_CORE, cores)
+    if not measured and kind.startswith("cpu "):
+        rate, measured = _calibration.rate("cpu", CPU_PATH_STEPS_PER_S_PER_CORE, cores)
     where = f"{cores} CPU core" + ("s" if cores > 1 else "")
     return rate, where + (" (rate measured here)" if measured else "")
 
@@ -399,7 +414,7 @@ def estimate(
         device = next(b for label, b, _ in parts if label == "path state")
         parts = [p for p in parts if p[0] != "path state"]
     min_steps, formula = _min_path_steps(config)
-    rate, workers = _rate(cuda, threads)
+    rate, workers = _rate(cuda, threads, "cpu" if cuda else kernel_kind(config, precision))
     return Estimate(
         memory_bytes=int(sum(p[1] for p in parts)), min_path_steps=min_steps, seconds=min_steps / rate,
         device_bytes=int(device), chunk_paths=int(chunk), backend="cuda" if cuda else "cpu",

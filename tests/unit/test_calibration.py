@@ -163,3 +163,23 @@ def test_a_long_sweep_has_an_estimate_line(monkeypatch, tmp_path):
     line = sweep_estimate(plan, pairs=False)
     assert line is not None and line.startswith("2 parameter sets, at least 4e+05 path-steps")
     assert "rate measured here" in line
+
+
+def test_a_kernels_own_rate_before_any_cpu_kernels(monkeypatch, tmp_path):
+    """A quartic oscillator's kernel is slower than the pendulum's: its own samples, where there
+    are some, else those of any CPU kernel."""
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(cal, "current_load", lambda: 0.0)
+    monkeypatch.setattr(resources, "_cores", lambda threads: 2)
+    monkeypatch.setattr(cal, "cores", lambda: 2)
+    from stochpend.params import SimulationConfig
+
+    quartic = SimulationConfig.build(paths=100_000, t_max=1000.0, n_times=4, potential="power", power_n=2)
+    kind = resources.kernel_kind(quartic)
+    assert kind.startswith("cpu ") and "power" in kind
+    cal.record_rate("cpu", 1e8, 10.0, 2, load=0.0, n_cores=2)  # any kernel: 5e6 a thread
+    assert resources.estimate(quartic).rate == pytest.approx(1e7)
+    cal.record_rate(kind, 1e8, 50.0, 2, load=0.0, n_cores=2)  # this kernel: 1e6 a thread
+    assert resources.estimate(quartic).rate == pytest.approx(2e6)
+    pendulum = SimulationConfig.build(paths=100_000, t_max=1000.0, n_times=4)
+    assert resources.estimate(pendulum).rate == pytest.approx(1e7)
