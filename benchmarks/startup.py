@@ -21,6 +21,7 @@ import datetime
 import os
 import platform
 import re
+import resource
 import statistics
 import subprocess
 import sys
@@ -54,11 +55,20 @@ TARGETS = {"help": 0.3, "show": 1.0, "info": 1.5}
 BEGIN, END = "<!-- benchmarks/startup.py: begin -->", "<!-- benchmarks/startup.py: end -->"
 
 
+#: CPU seconds (user + system) of each finished child, read by :func:`timed`.
+CPU_TIMES: list[float] = []
+
+
 def timed(cmd: list[str], env: dict[str, str], cwd: str) -> float:
-    """Wall time (s) of one run of ``cmd``; a failed run stops the benchmark."""
+    """Wall time (s) of one run of ``cmd`` (its CPU time is appended to :data:`CPU_TIMES`: on a
+    loaded machine the wall time grows with the load, a one-thread start-up's CPU time hardly);
+    a failed run stops the benchmark."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     done = subprocess.run(cmd, env=env, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     elapsed = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    CPU_TIMES.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
     if done.returncode != 0:
         sys.exit(f"{' '.join(cmd)} failed (exit {done.returncode}):\n{done.stderr}")
     return elapsed
@@ -114,7 +124,7 @@ def main() -> None:
     load_before = _load()
     header = f"{machine()}; load average (1, 5, 15 min) before: {load_before}"
     print(f"# {header}; {args.runs} runs per row", flush=True)
-    out = ["| row | command | median (s) | range (s) | target (s) |", "|---|---|---|---|---|"]
+    out = ["| row | command | median (s) | range (s) | CPU time, median (s) | target (s) |", "|---|---|---|---|---|---|"]
     with tempfile.TemporaryDirectory() as scratch:
         env = dict(os.environ)
         env["NUMBA_CACHE_DIR"] = str(Path(scratch) / "warm")
@@ -124,16 +134,19 @@ def main() -> None:
             cmd = ROWS[name]
             run_env = dict(env)
             times = []
+            del CPU_TIMES[:]
             for run in range(args.runs):
                 if name == "simulate-cold":
                     run_env["NUMBA_CACHE_DIR"] = str(Path(scratch) / f"cold{run}")
                 times.append(timed(cmd, run_env, scratch))
             median = statistics.median(times)
+            cpu = statistics.median(CPU_TIMES)
             target = TARGETS.get(name)
             verdict = "" if target is None else (f"{target:g} (met)" if median <= target else f"{target:g} (NOT met)")
             shown = " ".join(["stochpend", *cmd[len(CLI):]] if cmd[:len(CLI)] == CLI else ["python", *cmd[1:]])
-            print(f"{name:16s} median {median:7.3f} s   range {min(times):.3f}-{max(times):.3f} s   {verdict}", flush=True)
-            out.append(f"| {name} | `{shown}` | {median:.3f} | {min(times):.3f}-{max(times):.3f} | {verdict} |")
+            print(f"{name:16s} median {median:7.3f} s   range {min(times):.3f}-{max(times):.3f} s   "
+                  f"CPU {cpu:.3f} s   {verdict}", flush=True)
+            out.append(f"| {name} | `{shown}` | {median:.3f} | {min(times):.3f}-{max(times):.3f} | {cpu:.3f} | {verdict} |")
     load_after = _load()
     print(f"# load average after: {load_after}")
     if args.record:
@@ -141,7 +154,8 @@ def main() -> None:
         lines = ["## Start-up of the commands (benchmarks/startup.py)", "",
                  f"Written by `python benchmarks/startup.py --record` on {when}: each row {args.runs} fresh "
                  "processes, median and range of the wall time; targets of issue 36 (medians of 5 on an idle "
-                 "2-core machine). On a loaded machine every time is longer: compare the load averages.", "",
+                 "2-core machine). On a loaded machine every wall time is longer: compare the load averages; "
+                 "the CPU time (user + system) of a one-thread start-up hardly grows with the load.", "",
                  f"- machine: {machine()}",
                  f"- load average (1, 5, 15 min) before: {load_before}; after: {load_after}", "", *out]
         record(lines, HERE / "RESULTS.md")
