@@ -204,7 +204,7 @@ def execute(run: Run, *, progress: Progress | None = None) -> tuple[xr.Dataset, 
     pilot = run.accuracy == "auto" and choice is None
     # "auto" reports the pilot's bias scaled to the chosen level: no estimate at the end.
     estimating = run.accuracy != "auto" and run.bias_paths > 0
-    helper = None  # the compile helper's pair kernel is compiled meanwhile, not counted in the note
+    helper = None  # the compile helper, compiling the pair kernel meanwhile (the run waits for it)
     calibrating = _Calibrating(config, run, pairs=estimating or pilot)
     # The pair kernel counts also where the helper compiles it: the run waits for the helper
     # (compile_time_s includes the wait), and the calibration compares with the same sum.
@@ -296,8 +296,7 @@ class _Calibrating:
             _calibration.record_compile(compile_s, self.builtin_compile_s, load=self.load)
         if not resumed:  # a resumed run's wall time spans sessions, under other loads
             work = resources.estimate(config).min_path_steps
-            for kind in ("cpu", resources.kernel_kind(config)):  # any CPU kernel, and this one
-                _calibration.record_rate(kind, work, wall_s, threads, load=self.load)
+            _calibration.record_rate(resources.kernel_kind(config), work, wall_s, threads, load=self.load)
 
 
 def compile_note(config: SimulationConfig, backend: str, precision: str, *,

@@ -361,17 +361,16 @@ def kernel_kind(config: Any, precision: str = "float64") -> str:
 
 def _rate(cuda: bool, threads: Any, kind: str = "cpu") -> tuple[float, str]:
     """The expected rate of the lower-bound work on the CPU's ``threads`` (or the GPU), and on
-    what: measured on this machine by earlier runs of ``kind`` (else of any CPU kernel, "cpu")
-    and scaled to the load of now (:mod:`stochpend._calibration`), else
-    :data:`CPU_PATH_STEPS_PER_S_PER_CORE` a core."""
+    what: measured on this machine by earlier runs of the same kernel ``kind`` and scaled to the
+    load of now (:mod:`stochpend._calibration`), else :data:`CPU_PATH_STEPS_PER_S_PER_CORE` a
+    core. Never another kernel's: a quartic oscillator's runs, whose energy grows and whose steps
+    shrink far below h_max, do a thousand times the lower bound's work, the pendulum's twice."""
     if cuda:
         return GPU_PATH_STEPS_PER_S, "the GPU"
     from stochpend import _calibration
 
     cores = _cores(threads)
     rate, measured = _calibration.rate(kind, CPU_PATH_STEPS_PER_S_PER_CORE, cores)
-    if not measured and kind.startswith("cpu "):
-        rate, measured = _calibration.rate("cpu", CPU_PATH_STEPS_PER_S_PER_CORE, cores)
     where = f"{cores} CPU core" + ("s" if cores > 1 else "")
     return rate, where + (" (rate measured here)" if measured else "")
 
