@@ -238,7 +238,7 @@ class SweepProgressBar:
 
 def sweep_table(ds: Any) -> Table:
     """One row per parameter set: the swept values and the statistics at the last time."""
-    from stochpend.sweep import flat_sets
+    from stochpend._sweep_sets import flat_sets  # not stochpend.sweep: Numba
 
     fmt = common._fmt
     sets = flat_sets(ds)

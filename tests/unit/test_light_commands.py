@@ -38,10 +38,18 @@ def small_result(tmp_path_factory) -> Path:
     ds = stochpend.simulate(paths=200, t_max=5, n_times=3, seed=1)  # with its bias estimate
     path = tmp_path_factory.mktemp("light") / "r.nc"
     io.to_netcdf(ds, path)
+    # the other kinds show reads: a sweep and a B.F.P.E. solution
+    from stochpend.sweep import load_spec, sweep
+    from stochpend.theory import solve_bfpe
+
+    plan = load_spec({"base": {"noise": "ou", "paths": 100, "t_max": 2.0, "n_times": 2}, "grid": {"omega": [0.0, 1.0]}})
+    io.to_netcdf(sweep(plan, bias_paths=0), path.parent / "sweep.nc")
+    io.to_netcdf(solve_bfpe(D=1.0, tau=1.0, t_max=10.0, n_times=3, n_cells=50), path.parent / "bfpe.nc")
     return path
 
 
 @pytest.mark.parametrize("args", [["--help"], ["--version"], ["show", "r.nc"], ["show", "r.nc", "--format", "csv"],
+                                  ["show", "sweep.nc"], ["show", "bfpe.nc"],
                                   ["info"], ["theory"], ["theory", "--noise", "white"], ["simulate", "--help"]])
 def test_light_commands_import_neither_numba_nor_dask(args, small_result):
     top, done = _imported(args, small_result.parent)
