@@ -22,8 +22,10 @@ import sys
 import types
 from typing import TYPE_CHECKING, Any
 
-from stochpend import _cputarget
+from stochpend import _cputarget, _xarray_nodask
 from stochpend._version import __version__
+
+_xarray_nodask.install()  # xarray's check for Dask arrays imports Dask only once Dask is used
 
 try:  # STOCHPEND_CPU_TARGET=baseline: before anything compiles (Numba is not imported here)
     _cputarget.apply_environment()

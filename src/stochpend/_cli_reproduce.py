@@ -137,11 +137,13 @@ def reproduce_command(
     if quiet:
         return
     for f in result.figures.values():
-        table = Table(title=f.title, show_lines=False)
+        from stochpend.paper import with_numbers
+
+        table = Table(title=with_numbers(f.title), show_lines=False)
         for col in COLUMNS:
             table.add_column(col, overflow="fold")
-        for row in f.rows:
-            table.add_row(*row.cells())
+        for row in f.rows:  # the paper's Eq. numbers, as the report shows them (not "eq:scalEcolor")
+            table.add_row(*(with_numbers(c) if isinstance(c, str) else c for c in row.cells()))
         results.print(table)
     console.print(f"wall time {result.wall_time_s:.1f} s; report: {result.report}")
 

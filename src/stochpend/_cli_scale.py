@@ -246,7 +246,7 @@ class SweepProgressBar:
 
 def sweep_table(ds: Any) -> Table:
     """One row per parameter set: the swept values and the statistics at the last time."""
-    from stochpend.sweep import flat_sets
+    from stochpend._sweep_sets import flat_sets  # not stochpend.sweep: Numba
 
     fmt = common._fmt
     sets = flat_sets(ds)
@@ -326,6 +326,10 @@ def sweep_command(
     most = os.cpu_count() or 1
     if workers is not None and (workers < 1 or (local and workers > most)):
         common.fail(f"workers={workers!r} is not accepted: an integer in [1, {most}] (this machine's CPUs)")
+    if local and backend == "cpu":  # a long sweep says what it will cost before it starts (as simulate)
+        line = sweep_estimate(plan, pairs=bias_paths != 0)
+        if line is not None:
+            common.console.print(f"estimate: {markup(line)}", highlight=False, soft_wrap=True)
     progress = SweepProgressBar(enabled=not quiet and common.console.is_terminal, quiet=quiet)
     try:
         ds = sweep(plan, scheduler=scheduler, workers=workers, progress=progress,
@@ -340,6 +344,27 @@ def sweep_command(
         common.results.print(sweep_table(ds))
         if out is not None:
             common.console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
+
+
+def sweep_estimate(plan: Any, *, pairs: bool) -> str | None:
+    """The ``estimate:`` line of a sweep run on this machine's CPUs (None when it is short): the
+    sets' lower-bound work at the rate measured here and the compiling of each distinct kernel
+    not in the cache (:func:`stochpend.resources.estimate`, :func:`~stochpend.resources.with_compile`)."""
+    from stochpend import resources
+
+    work = seconds = compiling = 0.0
+    counted: set = set()
+    est = None
+    for config in plan.configs:
+        est = resources.with_compile(resources.estimate(config), config, pairs=pairs, counted=counted)
+        work += est.min_path_steps
+        seconds += est.seconds
+        compiling += est.compile_seconds
+    if est is None or seconds + compiling <= resources.LONG_RUN_S:
+        return None
+    comp = f", plus ~{resources.format_seconds(compiling)} compiling kernels (first use, cached after)" if compiling else ""
+    return (f"{len(plan.configs)} parameter sets, at least {work:.3g} path-steps (paths x t_max / h_max), roughly "
+            f"{resources.format_seconds(seconds)} on {est.workers} at ~{est.rate:.2g} path-steps/s{comp}")
 
 
 def _check_resources(plan: Any, spec: Path, max_path_steps: float | None) -> None:

@@ -50,8 +50,9 @@ def theory_table(rows: list[Any], *, title: str) -> Table:
     for r in rows:
         if previous is not None and r.regime != previous:
             table.add_section()
-        table.add_row(r.regime if r.regime != previous else "", r.quantity, _num(r.value), with_numbers(r.equation),
-                      r.validity, r.note)
+        # Every text column in Eq. numbers: a regime's name cites the law's label too ("(eq:pdfEcolor)").
+        table.add_row(with_numbers(r.regime) if r.regime != previous else "", r.quantity, _num(r.value),
+                      with_numbers(r.equation), with_numbers(r.validity), with_numbers(r.note))
         previous = r.regime
     return table
 
@@ -163,8 +164,10 @@ def bfpe_command(
 
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
+    # As simulate does: a long solve says what it will cost before it starts.
     ds = solve_bfpe(D=D, tau=tau, t_max=t_max, n_times=n_times, n_cells=n_cells,
-                    steps_per_decade=steps_per_decade, max_cell_steps=max_cell_steps)
+                    steps_per_decade=steps_per_decade, max_cell_steps=max_cell_steps,
+                    log=lambda line: console.print(markup(line), highlight=False, soft_wrap=True))
     ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
     if out is not None:
         io.to_netcdf(ds, out, overwrite=overwrite)
@@ -202,7 +205,9 @@ def reduced_table(ds: Any) -> Table:
     table.add_row("<E2>/(Dt/tau^2)", _fmt(float(r.mean_E2) / x, float(r.mean_E2_stderr) / x), _num(ref[1]))
     table.add_row("S", _fmt(float(r.skewness), float(r.skewness_stderr)), _num(ref[2]))
     table.add_row("F", _fmt(float(r.flatness), float(r.flatness_stderr)), _num(ref[3]))
-    table.caption = f"model: {ds.attrs['equations']}; closed form: {ref[4]}"
+    from stochpend.paper import with_numbers
+
+    table.caption = with_numbers(f"model: {ds.attrs['equations']}; closed form: {ref[4]}")  # Eq. numbers, not labels
     return table
 
 

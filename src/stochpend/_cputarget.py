@@ -141,3 +141,30 @@ def describe() -> str:
     if numba.config.CPU_NAME:
         return f"{name} (NUMBA_CPU_NAME, features {numba.config.CPU_FEATURES or 'host'})"
     return f"{name} (host)"
+
+
+def planned() -> str:
+    """:func:`describe` without importing Numba or LLVM (``stochpend info`` starts fast): what
+    this process's kernels will be compiled for, from the environment; the host by its model
+    name (LLVM's name of it appears in a result's ``cpu_target``)."""
+    try:
+        target = requested()
+    except ValueError as exc:
+        return f"unknown ({exc})"
+    if target == "baseline":
+        return f"{BASELINE_NAME} (baseline)"
+    name = os.environ.get("NUMBA_CPU_NAME")
+    if name:
+        return f"{name} (NUMBA_CPU_NAME, features {os.environ.get('NUMBA_CPU_FEATURES') or 'host'})"
+    return f"this machine's CPU (host: {_model_name()})"
+
+
+def _model_name() -> str:
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()

@@ -33,16 +33,20 @@ import math
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from stochpend import initial, integrator, observables, rng, stats
-from stochpend._jitcache import CompileClock
-from stochpend.integrator import Spec
-from stochpend.params import SimulationConfig
+# The kernels' modules (Numba, seconds to import) load where an estimate runs: reading a
+# result's verdicts (assess_dataset, warnings_for, summary_line; 'stochpend show') needs NumPy only.
+from stochpend import observables, stats
 from stochpend.progress import NoProgress, Progress
 from stochpend.stats import STATISTICS
+
+if TYPE_CHECKING:  # pragma: no cover
+    from stochpend._jitcache import CompileClock
+    from stochpend.integrator import Spec
+    from stochpend.params import SimulationConfig
 
 __all__ = ["BIAS_PATH0", "Assessment", "BiasEstimate", "RICHARDSON", "assess", "assess_dataset",
            "default_bias_paths", "estimate", "summary_line", "warnings_for"]
@@ -228,6 +232,8 @@ def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | Non
         raise ValueError(f"bias_paths={n_paths!r} is not accepted: an integer >= 2 (or 0: no "
                          "bias estimate)")
     progress = progress or NoProgress()
+    from stochpend._jitcache import CompileClock
+
     with CompileClock() as compile_clock:  # bias_wall_time_s leaves compiling out
         return _estimate(config, n_paths, progress, chunk_pairs, backend, compile_clock)
 
@@ -236,6 +242,7 @@ def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_
               backend: str, compile_clock: CompileClock) -> BiasEstimate:
     started = _time.perf_counter()
     spec = pair_spec(config, backend)
+    from stochpend import integrator
     from stochpend._backends import cpu
 
     accumulate = cpu.accumulate_kernel(spec, config.observables)  # the run's own (compiled once for both)
@@ -284,6 +291,7 @@ class _CpuPairs:
     """A chunk of pairs in host arrays, advanced by the CPU's pair driver."""
 
     def __init__(self, config: SimulationConfig, spec: Spec, p0: int, n: int) -> None:
+        from stochpend import initial, integrator, rng
         from stochpend._backends import cpu
 
         c = self.config = config
@@ -452,13 +460,15 @@ class Assessment:
 
 def assess(times: np.ndarray, bias: dict[str, tuple[np.ndarray, np.ndarray]],
            stderr: dict[str, np.ndarray], batches: int,
-           decorrelation: np.ndarray | None = None) -> Assessment:
+           decorrelation: np.ndarray | None = None, known_width: tuple[int, float] | None = None) -> Assessment:
     """The verdicts of an estimate against the run's standard errors (see :class:`Assessment`).
 
     ``bias[name] = (b, sigma_b)`` and ``stderr[name]``, arrays of shape (n_times,). The family
     is every finite entry: with FAMILY_ALPHA = 0.05, a run whose biases are all zero has a
     significant verdict anywhere with probability at most 5 % (Bonferroni is conservative for
     the strongly correlated output times; calibrated in tests/statistical/test_bias_calibration.py).
+    ``known_width``: ``(n_tests, w)`` as :func:`interval_width` gave them for these ``batches``
+    (a result file's ``bias_tests`` and ``bias_interval_width``), used where the count matches.
     """
     times = np.asarray(times, dtype=float)
     finite = {}
@@ -467,7 +477,10 @@ def assess(times: np.ndarray, bias: dict[str, tuple[np.ndarray, np.ndarray]],
         ok = np.isfinite(b) & np.isfinite(b_se) & np.isfinite(stderr[name])
         finite[name] = ok
         n_tests += int(np.sum(ok))
-    w = interval_width(n_tests, batches)
+    if known_width is not None and known_width[0] == n_tests and known_width[1] > 0:
+        w = float(known_width[1])  # the same number, without SciPy (0.4 s of 'stochpend show')
+    else:
+        w = interval_width(n_tests, batches)
     verdict: dict[str, np.ndarray] = {}
     resolved = np.ones(times.shape, dtype=bool)
     for name, (b, b_se) in bias.items():
@@ -510,8 +523,15 @@ def assess_dataset(ds: Any) -> Assessment | None:
         batches = BIAS_BATCHES
     decorrelation = (np.asarray(ds["bias_pair_decorrelation"].values, dtype=float)
                      if "bias_pair_decorrelation" in ds else None)
+    known = None
+    try:  # what the run computed for its own batches (attach() stores both)
+        if (int(ds.attrs["bias_batches"]) == max(batches, 2)
+                and float(ds.attrs["bias_family_alpha"]) == FAMILY_ALPHA):
+            known = (int(ds.attrs["bias_tests"]), float(ds.attrs["bias_interval_width"]))
+    except (KeyError, TypeError, ValueError):
+        pass
     return assess(np.asarray(ds.time.values, dtype=float), bias, stderr, max(batches, 2),
-                  decorrelation)
+                  decorrelation, known_width=known)
 
 
 def independent_paths_to_certify(paths: int, width: float) -> int:

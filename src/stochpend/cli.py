@@ -15,13 +15,12 @@ import sys
 from pathlib import Path
 from typing import Annotated, Any
 
-import numpy as np
 import typer
 from rich.markup import escape
 from rich.table import Table
 from typer.core import TyperCommand, TyperGroup
 
-from stochpend import _cli_common, _compile_helper
+from stochpend import _cli_common
 from stochpend._cli_common import (  # the shared layer; several are also used as cli.NAME
     DEFAULT_H_MAX,
     DEFAULT_HIST_BINS,
@@ -53,18 +52,35 @@ from stochpend._cli_types import file_name, integer, usage_message
 from stochpend._terminal import markup
 from stochpend.paper import eq
 
+#: The help's words for a value's type, instead of Typer's Python types (``<float>``, ``<Path>``).
+METAVARS = {"<float>": "NUMBER", "<int>": "INTEGER", "<str>": "TEXT", "<Path>": "FILE",
+            "<list[str]>": "TEXT", "<list[Path]>": "FILE"}
+
+
+def _usage_name(param: Any) -> str:
+    """An argument in the usage line as a user writes it: PATH, [FIGURE]... (Typer: {path})."""
+    name = (param.metavar or param.name or "").rstrip(".").upper()
+    if param.nargs != 1:
+        name += "..."
+    return name if param.required else f"[{name}]"
+
 
 def _plain_flags(params: list[Any]) -> list[Any]:
-    """Boolean flags show no ``<bool>`` metavar in the help (they take no value), nor an argument
-    with a metavar its Python type; a default
+    """Help in the command line's words: boolean flags show no ``<bool>`` metavar (they take no
+    value); other options show a word for their value (:data:`METAVARS`), never a Python type;
+    an argument shows no type and is written PATH in the usage line, not ``{path}``; a default
     given as text (``show_default="every CPU"``, for an option whose None stands for it) is
     shown as ``[default: every CPU]``, without the parentheses Typer adds."""
     for param in params:
         if getattr(param, "is_flag", False) and param.metavar is None:
             param.metavar = ""
-        if getattr(param, "param_type_name", "") == "argument" and param.metavar:
-            # An argument named in words (FIGURE...) needs no Python type beside it (<list[str]>).
+        elif getattr(param, "param_type_name", "") == "option" and param.metavar is None:
+            shown = param.display_type(None)
+            param.metavar = METAVARS.get(shown, shown.strip("<>").upper() if isinstance(shown, str) else None)
+        if getattr(param, "param_type_name", "") == "argument":
+            # An argument is named in words (PATH, FIGURE...): no Python type beside it (<Path>).
             param.display_type_rich = lambda *args, **kwargs: None
+            param._usage_display_name = lambda _param=param: _usage_name(_param)
         text = getattr(param, "show_default", None)
         if isinstance(text, str):
             param._get_default_string = lambda *args, _text=text, **kwargs: _text
@@ -359,9 +375,9 @@ def simulate(
     estimate = resources.check(config, backend=backend, precision=precision, max_path_steps=max_path_steps,
                                threads=threads)
     # The kernels it will compile (a cold Numba cache) count: a first run is mostly compiling.
-    # A pair kernel that the compile helper compiles meanwhile (simulate.run) is not waited for.
-    pairs = bias_paths != 0 and not _compile_helper.wanted(config, backend=backend, pairs=True)
-    estimate = resources.with_compile(estimate, config, pairs=pairs or accuracy == "auto")
+    # The pair kernel counts also where the compile helper compiles it: the run waits for it, and
+    # the compile figures are calibrated against the same sum (stochpend._calibration).
+    estimate = resources.with_compile(estimate, config, pairs=bias_paths != 0 or accuracy == "auto")
     # A long run prints its estimate when it starts (after the remaining checks), even with --quiet.
     announce = (f"estimate: {estimate.describe()}" if estimate.total_seconds > resources.LONG_RUN_S
                 else None)
@@ -431,6 +447,8 @@ def growth_lines(ds: Any) -> list[tuple[str, str]]:
     predicts t^nu and the late log-log slope is still below nu + 4 standard errors, a note that
     the run is approaching the law (a quartic oscillator's slope climbs towards 1 over decades);
     a warning where the slope is beyond it, or where no law is predicted (a user's model)."""
+    import numpy as np  # here, not at the top: --help and --version need no NumPy (0.1 s)
+
     from stochpend.exponents import diagnose_growth, fit_exponent
     from stochpend.theory.scaling import predicted_exponent
 
@@ -740,41 +758,81 @@ def plot(
     console.print(f"wrote {markup(written)}", highlight=False, soft_wrap=True)
 
 
+def _version_of(package: str) -> str | None:
+    """An installed package's version from its metadata (importing it would take seconds)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version(package)
+    except metadata.PackageNotFoundError:
+        return None
+
+
+def _numba_threads() -> str:
+    """Numba's thread count and layer as Numba reads them (numba.core.config), without importing
+    Numba: NUMBA_NUM_THREADS (checked by _check_numba_threads) or the CPUs this process may use."""
+    import os
+
+    text = os.environ.get("NUMBA_NUM_THREADS", "").strip()
+    try:
+        threads = int(text)
+    except ValueError:
+        threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    layer = os.environ.get("NUMBA_THREADING_LAYER", "").strip() or "default"
+    return f"{threads} (layer: {layer})"
+
+
+def _no_cuda_driver() -> str | None:
+    """Why CUDA cannot be usable here, seen without importing Numba (seconds), or None where it
+    may be (then Numba's own check and a test kernel decide): on Linux, no NVIDIA device node
+    (/dev/nvidiactl, or WSL's /dev/dxg) and no Numba CUDA simulator."""
+    import os
+
+    if not sys.platform.startswith("linux"):
+        return None
+    if os.environ.get("NUMBA_ENABLE_CUDASIM", "0").strip() not in ("", "0"):
+        return None
+    if any(os.path.exists(p) for p in ("/dev/nvidiactl", "/dev/nvidia0", "/dev/dxg", "/proc/driver/nvidia")):
+        return None
+    return "no NVIDIA driver on this machine (no /dev/nvidiactl)"
+
+
 @app.command()
 def info() -> None:
     """Versions, threads, and which backends are usable here."""
     import platform
 
-    import numba
-    import numpy
-    import xarray
-
     from stochpend._version import __version__
+
+    def version(package: str) -> str:
+        return _version_of(package) or "not installed"
 
     table = Table(title="stochpend info")
     table.add_column("item")
     table.add_column("value")
     table.add_row("stochpend", __version__)
     table.add_row("python", platform.python_version())
-    table.add_row("numpy / numba / xarray", f"{numpy.__version__} / {numba.__version__} / {xarray.__version__}")
-    table.add_row("numba threads", f"{numba.config.NUMBA_NUM_THREADS} (layer: {numba.config.THREADING_LAYER})")
+    table.add_row("numpy / numba / xarray", f"{version('numpy')} / {version('numba')} / {version('xarray')}")
+    table.add_row("numba threads", _numba_threads())
     table.add_row("machine", f"{platform.machine()} {platform.processor()}")
     from stochpend import _cputarget
 
-    table.add_row("cpu target", _cputarget.describe())  # what the CPU kernels compile for (--cpu-target)
-    from stochpend.simulate import cuda_status
-
-    # The driver and the device, then a tiny kernel compiled and launched (a CUDA stack that
-    # imports but cannot compile is "unusable").
-    usable, why, broken = cuda_status()
+    table.add_row("cpu target", _cputarget.planned())  # what the CPU kernels compile for (--cpu-target)
     table.add_row("backend cpu", "usable")
-    table.add_row("backend cuda", ("usable: " if usable else "unusable: " if broken else "not usable: ") + why)
-    try:
-        import dask
-        import distributed
+    why_not = _no_cuda_driver()
+    if why_not is not None:  # nothing to probe: Numba (seconds to import) is not needed
+        table.add_row("backend cuda", "not usable: " + why_not)
+    else:
+        from stochpend.simulate import cuda_status
 
-        table.add_row("dask / distributed", f"{dask.__version__} / {distributed.__version__}")
-    except ImportError:
+        # The driver and the device, then a tiny kernel compiled and launched (a CUDA stack that
+        # imports but cannot compile is "unusable").
+        usable, why, broken = cuda_status()
+        table.add_row("backend cuda", ("usable: " if usable else "unusable: " if broken else "not usable: ") + why)
+    dask, distributed = _version_of("dask"), _version_of("distributed")
+    if dask and distributed:
+        table.add_row("dask / distributed", f"{dask} / {distributed}")
+    else:
         table.add_row("dask / distributed", markup("not installed (pip install 'stochpend[dask]')"))
     results.print(table)
 

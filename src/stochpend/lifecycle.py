@@ -205,9 +205,12 @@ def execute(run: Run, *, progress: Progress | None = None) -> tuple[xr.Dataset, 
     pilot = run.accuracy == "auto" and choice is None
     # "auto" reports the pilot's bias scaled to the chosen level: no estimate at the end.
     estimating = run.accuracy != "auto" and run.bias_paths > 0
-    helper = None  # the compile helper's pair kernel is compiled meanwhile, not counted in the note
+    helper = None  # the compile helper, compiling the pair kernel meanwhile (the run waits for it)
+    calibrating = _Calibrating(config, run, pairs=estimating or pilot)
+    # The pair kernel counts also where the helper compiles it: the run waits for the helper
+    # (compile_time_s includes the wait), and the calibration compares with the same sum.
     compile_clock = CompileClock(lambda: compile_note(
-        config, run.backend, run.precision, pairs=(estimating and helper is None) or pilot))
+        config, run.backend, run.precision, pairs=estimating or pilot))
     started = _time.perf_counter()
 
     def elapsed() -> float:
@@ -260,12 +263,41 @@ def execute(run: Run, *, progress: Progress | None = None) -> tuple[xr.Dataset, 
                        wall_time_s=elapsed() - compile_clock.seconds, path_steps=path_steps)
     attrs["simulation_wall_time_s"] = wall_main
     attrs["compile_time_s"] = compile_clock.seconds
+    calibrating.record(config, compile_s=compile_clock.seconds, wall_s=elapsed() - compile_clock.seconds,
+                       threads=run.threads or previous_threads, resumed=saving is not None and saving.resume is not None)
     if saving is not None:
         attrs.update(saving.saver.attrs())
     ds = sums.to_dataset(np.asarray(config.times), hist_edges(config), attrs, joint_grid(config))
     if est is not None:
         bias.attach(ds, est, choice)
     return ds, sums
+
+
+class _Calibrating:
+    """What a run measures for the estimates of later runs (:mod:`stochpend._calibration`): its
+    compile time against the built-in figure of the kernels it compiles, and its rate of
+    lower-bound path-steps (what :func:`stochpend.resources.estimate` divides by the rate)."""
+
+    def __init__(self, config: SimulationConfig, run: Run, *, pairs: bool) -> None:
+        from stochpend import _calibration
+
+        self.backend = run.backend
+        self.load = _calibration.current_load()  # before this run adds its own threads
+        self.builtin_compile_s = resources.compile_seconds(config, backend=run.backend, precision=run.precision,
+                                                           pairs=pairs, calibrated=False)
+
+    def record(self, config: SimulationConfig, *, compile_s: float, wall_s: float, threads: int,
+               resumed: bool) -> None:
+        """``config``: the run's (``accuracy="auto"``: the refined one, the pilot counted in its time)."""
+        if self.backend != "cpu":
+            return
+        from stochpend import _calibration
+
+        if self.builtin_compile_s > 0:
+            _calibration.record_compile(compile_s, self.builtin_compile_s, load=self.load)
+        if not resumed:  # a resumed run's wall time spans sessions, under other loads
+            work = resources.estimate(config).min_path_steps
+            _calibration.record_rate(resources.kernel_kind(config), work, wall_s, threads, load=self.load)
 
 
 def compile_note(config: SimulationConfig, backend: str, precision: str, *,

@@ -766,10 +766,15 @@ def simulate_reduced(
     chunk_batches = _chunk_batches(config, chunk_paths)
     from stochpend import resources
 
-    resources.check_reduced(config, chunk_paths=chunk_paths, max_path_steps=max_path_steps, threads=threads)
+    est = resources.check_reduced(config, chunk_paths=chunk_paths, max_path_steps=max_path_steps, threads=threads)
     previous = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(threads)
+    from stochpend import _calibration
+    from stochpend._jitcache import CompileClock
+
+    load = _calibration.current_load()  # the rate is stored as on an idle machine (later estimates)
+    clock = CompileClock().__enter__()  # a first run's compiling is not its rate
     started = _time.perf_counter()
     n_times_ = len(config.times)
     edges = hist_edges(config)
@@ -788,7 +793,10 @@ def simulate_reduced(
             acc.add_batches(b0, sums, hist)
     finally:
         numba.set_num_threads(previous)
+        clock.__exit__(None, None, None)
     wall = _time.perf_counter() - started
+    _calibration.record_rate(f"reduced-{config.order}", est.min_path_steps, wall - clock.seconds, threads or previous,
+                             load=load)
     attrs = _provenance(config, threads=threads or previous, wall_time_s=wall, path_steps=path_steps)
     with warnings.catch_warnings():
         # zeroth order from E0 = 0: S and F are 0/0 = NaN in every batch (not an error)

@@ -129,9 +129,11 @@ class Estimate:
 
 
 def compile_seconds(config: Any, *, backend: str = "cpu", precision: str = "float64",
-                    pairs: bool = True, counted: set | None = None) -> float:
+                    pairs: bool = True, counted: set | None = None, calibrated: bool = True) -> float:
     """Expected seconds compiling the CPU kernels that a run of ``config`` needs and Numba's
-    cache lacks (:data:`COMPILE_S` each; 0 when all are cached). ``pairs``: the run estimates
+    cache lacks (:data:`COMPILE_S` each; 0 when all are cached), on this machine now: times the
+    compile scale measured here and the load's slowdown (:mod:`stochpend._calibration`;
+    ``calibrated=False``: the built-in figures alone). ``pairs``: the run estimates
     its bias (the coupled pairs' kernel). ``counted``: kernels counted already, for an earlier
     run of the same process (updated). The GPU's kernels are not counted (CUDA compiles them at
     launch). Imports the CPU backend (Numba); compiles nothing."""
@@ -147,6 +149,10 @@ def compile_seconds(config: Any, *, backend: str = "cpu", precision: str = "floa
         seconds += COMPILE_S[kind]
         if counted is not None:
             counted.add(kernel)
+    if calibrated and seconds > 0:
+        from stochpend import _calibration
+
+        seconds *= _calibration.compile_scale() * _calibration.slowdown(1)  # Numba compiles on one thread
     return seconds
 
 
@@ -341,11 +347,32 @@ def _memory_parts(*, paths: int, chunk: int, chunk_given: bool, batch_size: int,
     return parts
 
 
-def _rate(cuda: bool, threads: Any) -> tuple[float, str]:
+def kernel_kind(config: Any, precision: str = "float64") -> str:
+    """The calibration's name for the CPU kernel of ``config`` ("cpu pendulum/force/ou/..."): a
+    quartic oscillator's or the one-path kernel's rate is not the pendulum's SIMD lanes'. Imports
+    the CPU backend (Numba); "cpu" where the kernel cannot be named."""
+    try:
+        from stochpend._backends import cpu
+
+        return f"cpu {cpu.spec_for(config, precision).label}"
+    except Exception:  # a configuration the backend refuses: the caller's own check says why
+        return "cpu"
+
+
+def _rate(cuda: bool, threads: Any, kind: str = "cpu") -> tuple[float, str]:
+    """The expected rate of the lower-bound work on the CPU's ``threads`` (or the GPU), and on
+    what: measured on this machine by earlier runs of the same kernel ``kind`` and scaled to the
+    load of now (:mod:`stochpend._calibration`), else :data:`CPU_PATH_STEPS_PER_S_PER_CORE` a
+    core. Never another kernel's: a quartic oscillator's runs, whose energy grows and whose steps
+    shrink far below h_max, do a thousand times the lower bound's work, the pendulum's twice."""
     if cuda:
         return GPU_PATH_STEPS_PER_S, "the GPU"
+    from stochpend import _calibration
+
     cores = _cores(threads)
-    return CPU_PATH_STEPS_PER_S_PER_CORE * cores, f"{cores} CPU core" + ("s" if cores > 1 else "")
+    rate, measured = _calibration.rate(kind, CPU_PATH_STEPS_PER_S_PER_CORE, cores)
+    where = f"{cores} CPU core" + ("s" if cores > 1 else "")
+    return rate, where + (" (rate measured here)" if measured else "")
 
 
 def _valid_chunk(chunk_paths: Any) -> bool:
@@ -386,7 +413,7 @@ def estimate(
         device = next(b for label, b, _ in parts if label == "path state")
         parts = [p for p in parts if p[0] != "path state"]
     min_steps, formula = _min_path_steps(config)
-    rate, workers = _rate(cuda, threads)
+    rate, workers = _rate(cuda, threads, "cpu" if cuda else kernel_kind(config, precision))
     return Estimate(
         memory_bytes=int(sum(p[1] for p in parts)), min_path_steps=min_steps, seconds=min_steps / rate,
         device_bytes=int(device), chunk_paths=int(chunk), backend="cuda" if cuda else "cpu",
@@ -441,7 +468,7 @@ def estimate_reduced(config: Any, *, chunk_paths: int | None = None, threads: in
         min_steps, formula = _min_path_steps(config)
     else:
         min_steps, formula = float(config.paths) * len(config.times), "paths x output times"
-    rate, workers = _rate(False, threads)
+    rate, workers = _rate(False, threads, f"reduced-{config.order}")
     return Estimate(
         memory_bytes=int(sum(p[1] for p in parts)), min_path_steps=min_steps, seconds=min_steps / rate,
         chunk_paths=int(chunk), workers=workers, rate=rate, parts=tuple(parts), formula=formula,

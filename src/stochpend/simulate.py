@@ -8,6 +8,7 @@ from typing import Any
 import xarray as xr
 
 from stochpend import bias
+from stochpend._docs import documented
 
 # Where a run runs is decided in stochpend.lifecycle; the names stay importable from here.
 from stochpend.lifecycle import Run, execute
@@ -25,6 +26,7 @@ from stochpend.progress import Progress
 from stochpend.progress import resolve as resolve_progress
 
 
+@documented  # help() shows the signature's defaults and the paper's equation numbers
 def simulate(
     noise: str = "ou",
     D: float = 1.0,
@@ -156,8 +158,12 @@ def simulate(
         the work done (see :mod:`stochpend.progress`). Default: nothing.
     bias_paths : int, optional
         Coupled coarse/fine pairs that estimate every statistic's discretisation bias
-        (:mod:`stochpend.bias`); default :func:`stochpend.bias.default_bias_paths` (a 32nd of
-        the run, at least 256: about 10 % more work); 0: no estimate.
+        (:mod:`stochpend.bias`); default :func:`stochpend.bias.default_bias_paths` (paths/48,
+        at least 64, never more than paths); 0: no estimate.
+    max_path_steps : float, optional
+        Refuse, before any work, a run needing more than this many path-steps, paths x t_max /
+        h_max (a lower bound of the work); default
+        :data:`stochpend.resources.DEFAULT_MAX_PATH_STEPS` (1e13); ``math.inf``: no limit.
     accuracy : {"fixed", "auto"}
         "fixed": the step control (h_max, step_c) as given. "auto": divide both by 2**L, L the
         smallest level at which the estimated |bias| plus its error is at most half the

@@ -42,7 +42,7 @@ import json
 import math
 import os
 import time as _time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -53,6 +53,7 @@ import xarray as xr
 from stochpend import bias
 from stochpend._blocks import BlockResult, Task, run_block
 from stochpend._sources import BUILD
+from stochpend._sweep_sets import flat_sets as flat_sets  # where 'show' reads it without Numba
 from stochpend.lifecycle import provenance
 from stochpend.params import SimulationConfig, hist_edges, joint_cells, joint_grid
 from stochpend.progress import NoProgress, Progress
@@ -617,15 +618,3 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
         "created": _time.strftime("%Y-%m-%dT%H:%M:%SZ", _time.gmtime()),
     })
     return xr.Dataset(data_vars, coords=coords, attrs=attrs)
-
-
-def flat_sets(ds: xr.Dataset) -> Sequence[dict[str, Any]]:
-    """The parameter values of each set of a sweep result, in row-major order (for tables)."""
-    dims = [d for d in ds.attrs.get("sweep_dims", "").split(",") if d]
-    swept = [k for k in ds.attrs.get("sweep_swept", "").split(",") if k]
-    out = []
-    for index in itertools.product(*(range(ds.sizes[d]) for d in dims)):
-        sel = dict(zip(dims, index, strict=True))
-        row = {k: ds[k].isel({d: i for d, i in sel.items() if d in ds[k].dims}).item() for k in swept}
-        out.append({"index": sel, "params": row})
-    return out

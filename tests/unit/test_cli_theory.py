@@ -39,7 +39,7 @@ def test_theory_ou_table(app) -> None:
     assert result.exit_code == 0, result.output
     out = result.output
     for needle in ("Predictions at t = 1000", "crossover", "white-like", "first-order", "second-order",
-                   "t >> t_c", "tau << t << t_c", "known-wrong", "10.6882", "250", "2.02793", "eq:pdfEcolor"):
+                   "t >> t_c", "tau << t << t_c", "known-wrong", "10.6882", "250", "2.02793", "second-order averaging (Eq. (53))"):
         assert needle in out, (needle, out)
 
 

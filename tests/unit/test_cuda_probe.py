@@ -39,6 +39,7 @@ def broken_stack(monkeypatch):
 
     monkeypatch.setattr(gpu, "availability", lambda: (True, GPU))
     monkeypatch.setattr(gpu, "_simulator_enabled", lambda: False)
+    monkeypatch.setattr(cli, "_no_cuda_driver", lambda: None)  # info's quick look: a driver is there
     monkeypatch.setattr(cuda_probe, "_compile_and_launch", compile_fails)
     cuda_probe.probe.cache_clear()
     yield calls
@@ -106,6 +107,7 @@ def test_no_gpu_is_not_probed(monkeypatch):
     """Without a driver or a GPU nothing is compiled, and info keeps saying 'not usable'."""
     monkeypatch.setattr(gpu, "availability", lambda: (False, "the CUDA driver reports no GPU"))
     monkeypatch.setattr(cuda_probe, "probe", lambda: pytest.fail("probed without a GPU"))
+    monkeypatch.setattr(cli, "_no_cuda_driver", lambda: None)  # info's quick look: a driver is there
     assert cuda_status() == (False, "the CUDA driver reports no GPU", False)
     assert resolve_backend("auto") == "cpu"  # no note: nothing is broken
     result = CliRunner().invoke(cli.app, ["info"])
@@ -127,3 +129,13 @@ def test_real_probe_in_the_simulator():
     assert status[0] is True and "simulator" in status[1] and status[2] is False
     assert auto[0] is False and auto[2] is False  # auto never picks the simulator, and says nothing
     assert values == [1.0, 3.0, 5.0, 7.0]
+
+
+def test_info_without_a_driver_imports_no_numba(monkeypatch):
+    """Where no NVIDIA device node exists, info says so without Numba's CUDA check (which needs
+    Numba imported, seconds): the check is not called."""
+    monkeypatch.setattr(cli, "_no_cuda_driver", lambda: "no NVIDIA driver on this machine (no /dev/nvidiactl)")
+    monkeypatch.setattr(gpu, "availability", lambda: pytest.fail("Numba's CUDA check was called"))
+    result = CliRunner().invoke(cli.app, ["info"])
+    assert result.exit_code == 0, result.output
+    assert "backend cuda not usable: no NVIDIA driver on this machine (no /dev/nvidiactl)" in _normalised(result.output)

@@ -34,6 +34,8 @@ numerically, started from a narrow Gaussian that matches a simulation started at
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -194,8 +196,17 @@ def _integer(name: str, value: Any, accepted: str, minimum: int, maximum: int | 
     return v
 
 
-def _check_cost(n_cells: int, n_times: int, n_steps: int, max_cell_steps: float | None) -> None:
-    """Refuse, before any work, a solve that cannot fit in memory or would not end."""
+def cell_steps_per_s() -> float:
+    """The solve's expected rate now: measured by earlier solves on this machine and scaled to the
+    load (:mod:`stochpend._calibration`), else :data:`CELL_STEPS_PER_S`. One thread."""
+    from stochpend import _calibration
+
+    return _calibration.rate("bfpe", CELL_STEPS_PER_S, 1)[0]
+
+
+def _check_cost(n_cells: int, n_times: int, n_steps: int, max_cell_steps: float | None) -> tuple[float, float, float]:
+    """Refuse, before any work, a solve that cannot fit in memory or would not end; else return
+    ``(cell-steps, expected seconds, bytes of the stored laws and work arrays)``."""
     from stochpend import resources
 
     accepted = "max_cell_steps must be a number > 0 (inf: no limit)"
@@ -213,12 +224,14 @@ def _check_cost(n_cells: int, n_times: int, n_steps: int, max_cell_steps: float 
                          f"n_times x n_cells = {n_times} x {n_cells} laws, {resources.format_bytes(need)} in all, "
                          f"more than the {resources.format_bytes(have)} available; use fewer cells or output times")
     work = float(n_cells) * n_steps
+    seconds = work / cell_steps_per_s()
     if work > limit:
         raise ValueError(f"n_cells={n_cells} is not accepted: the solve needs about {work:.3g} cell-steps "
                          f"(n_cells x time steps = {n_cells} x {n_steps}), roughly "
-                         f"{resources.format_seconds(work / CELL_STEPS_PER_S)}, above the limit of {limit:.3g}; "
+                         f"{resources.format_seconds(seconds)}, above the limit of {limit:.3g}; "
                          "use fewer cells or steps per decade, or raise the limit with max_cell_steps= "
                          "(--max-cell-steps)")
+    return work, seconds, need
 
 
 def solve_bfpe(
@@ -236,6 +249,7 @@ def solve_bfpe(
     n_Omega: int = 201,
     u_max: float = 5.0,
     max_cell_steps: float | None = None,
+    log: Callable[[str], None] | None = None,
 ) -> xr.Dataset:
     """Solve the averaged B.F.P.E., Eq. `avbfpe`, for a start at ``Omega_0 = 0`` (omega = 0).
 
@@ -276,6 +290,10 @@ def solve_bfpe(
         time steps; default :data:`DEFAULT_MAX_CELL_STEPS`, ``math.inf``: no limit). A solve
         whose laws at the output times (``n_times x n_cells`` floats) do not fit in memory is
         refused too.
+    log : callable, optional
+        Receives one line, ``"estimate: ..."`` (the work, the expected duration at the rate
+        measured on this machine, the memory), before a solve expected to last longer than
+        :data:`stochpend.resources.LONG_RUN_S`.
 
     Returns
     -------
@@ -356,8 +374,16 @@ def solve_bfpe(
     s_out = grid_t / t_c
     s_max = t_max / t_c
     sigma0 = math.sqrt(s0 / 2.0)  # initial std of x
-    _check_cost(n_cells, grid_t.size, math.ceil(steps_per_decade * math.log10(s_max / s0)) + grid_t.size,
-                max_cell_steps)
+    n_steps_expected = math.ceil(steps_per_decade * math.log10(s_max / s0)) + grid_t.size
+    work, seconds, need = _check_cost(n_cells, grid_t.size, n_steps_expected, max_cell_steps)
+    from stochpend import _calibration, resources
+
+    if log is not None and seconds > resources.LONG_RUN_S:
+        log(f"estimate: about {work:.3g} cell-steps (n_cells x time steps = {n_cells} x {n_steps_expected}), "
+            f"roughly {resources.format_seconds(seconds)} on one CPU core at ~{work / seconds:.2g} cell-steps/s; "
+            f"memory {resources.format_bytes(need)}")
+    load = _calibration.current_load()  # the rate is stored as on an idle machine (later estimates)
+    started = time.perf_counter()
     # Far tail (heuristic bound, checked a posteriori by `boundary_flux`): the diffusion
     # coefficient (1 + x^2)^-1 is below both 1 (white law, exp(-x^2/s)) and x^-2 (similarity
     # law, exp(-x^4/(4 s))). Put the wall beyond where the smaller bound is exp(-tail_exponent).
@@ -404,6 +430,7 @@ def solve_bfpe(
         records.append(d)
         laws.append(grid.density(R))
 
+    _calibration.record_rate("bfpe", work, time.perf_counter() - started, 1, load=load)
     mass = np.array([r["mass"] for r in records])
     m2 = np.array([r["m2"] for r in records])
     m4 = np.array([r["m4"] for r in records])

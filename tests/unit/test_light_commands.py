@@ -1,0 +1,88 @@
+"""The commands that compute nothing start without Numba or Dask (issue 36, item 1).
+
+Numba takes about a second to import on a 2-core machine and Dask (pulled by xarray's checks
+for Dask arrays) 0.6 s; ``--help``, ``--version``, ``show``, ``info`` and ``theory`` need
+neither. Each runs in a fresh process under ``python -X importtime``, which lists every module
+the process imported; the test reads that list (no times are compared: the benchmark,
+benchmarks/startup.py, measures them).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import stochpend
+from stochpend import io
+
+SRC = str(Path(stochpend.__file__).resolve().parents[1])
+HEAVY = ("numba", "llvmlite", "dask", "distributed")
+
+
+def _imported(args: list[str], cwd: Path) -> tuple[set[str], subprocess.CompletedProcess]:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [SRC, os.environ.get("PYTHONPATH")]))}
+    env.pop("NUMBA_ENABLE_CUDASIM", None)
+    done = subprocess.run([sys.executable, "-X", "importtime", "-c", "from stochpend.cli import main; main()", *args],
+                          cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+    modules = {m.group(1) for m in re.finditer(r"^import time:\s+\d+ \|\s+\d+ \|\s+(\S+)", done.stderr, re.M)}
+    return {name.split(".")[0] for name in modules}, done
+
+
+@pytest.fixture(scope="module")
+def small_result(tmp_path_factory) -> Path:
+    ds = stochpend.simulate(paths=200, t_max=5, n_times=3, seed=1)  # with its bias estimate
+    path = tmp_path_factory.mktemp("light") / "r.nc"
+    io.to_netcdf(ds, path)
+    # the other kinds show reads: a sweep and a B.F.P.E. solution
+    from stochpend.sweep import load_spec, sweep
+    from stochpend.theory import solve_bfpe
+
+    plan = load_spec({"base": {"noise": "ou", "paths": 100, "t_max": 2.0, "n_times": 2}, "grid": {"omega": [0.0, 1.0]}})
+    io.to_netcdf(sweep(plan, bias_paths=0), path.parent / "sweep.nc")
+    io.to_netcdf(solve_bfpe(D=1.0, tau=1.0, t_max=10.0, n_times=3, n_cells=50), path.parent / "bfpe.nc")
+    return path
+
+
+@pytest.mark.parametrize("args", [["--help"], ["--version"], ["show", "r.nc"], ["show", "r.nc", "--format", "csv"],
+                                  ["show", "sweep.nc"], ["show", "bfpe.nc"],
+                                  ["info"], ["theory"], ["theory", "--noise", "white"], ["simulate", "--help"]])
+def test_light_commands_import_neither_numba_nor_dask(args, small_result):
+    top, done = _imported(args, small_result.parent)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert not top & set(HEAVY), f"stochpend {' '.join(args)} imported {sorted(top & set(HEAVY))}"
+
+
+@pytest.mark.xfail(strict=True, reason="'list' reads the noises' and oscillators' modules, which import "
+                   "Numba at module level (register_jitable); making them lazy touches the kernels' sources")
+def test_list_imports_no_numba(small_result):
+    top, done = _imported(["list"], small_result.parent)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "numba" not in top
+
+
+def test_the_probe_sees_an_import(small_result):
+    """The test can fail: a command that runs a simulation does import Numba."""
+    top, done = _imported(["simulate", "--paths", "20", "--t-max", "1", "--n-times", "1", "-q", "--bias-paths", "0"],
+                          small_result.parent)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "numba" in top
+
+
+def test_xarray_reads_and_builds_without_dask(small_result):
+    """In a fresh process, opening a result and building a Dataset leave Dask unimported; once Dask
+    is imported, xarray still recognises a Dask array (stochpend._xarray_nodask)."""
+    code = ("import sys; import stochpend, xarray as xr, numpy as np; from stochpend import io;"
+            "ds = io.open_results(sys.argv[1]); xr.Dataset({'a': ('t', np.arange(3.0))}, coords={'t': [1, 2, 3]});"
+            "print('dask' in sys.modules);"
+            "import dask.array as da; d = xr.Dataset({'a': ('t', da.arange(3, chunks=2))});"
+            "print(type(d.a.data).__module__.split('.')[0], d.chunks['t'])")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [SRC, os.environ.get("PYTHONPATH")]))}
+    done = subprocess.run([sys.executable, "-c", code, str(small_result)], env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split("\n")[:2] == ["False", "dask (2, 1)"]
