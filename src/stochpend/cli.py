@@ -759,12 +759,16 @@ def plot(
 
 
 def _version_of(package: str) -> str | None:
-    """An installed package's version from its metadata (importing it would take seconds)."""
+    """An installed package's version from its metadata (importing it would take seconds); None
+    where it cannot be imported (no module found, or an import blocked by sys.modules[name] = None)."""
+    import importlib.util
     from importlib import metadata
 
     try:
+        if importlib.util.find_spec(package) is None:  # locates the package, imports nothing
+            return None
         return metadata.version(package)
-    except metadata.PackageNotFoundError:
+    except (metadata.PackageNotFoundError, ImportError, ValueError):
         return None
 
 

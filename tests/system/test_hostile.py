@@ -672,9 +672,11 @@ def test_read_only_install_and_home_fall_back_to_a_temporary_cache(tmp_path):
     env = {k: v for k, v in _env().items() if k != "NUMBA_CACHE_DIR"}
     proc = subprocess.run([*MOUNT, "sh", "-c", script], capture_output=True, text=True, env=env, timeout=300)
     assert proc.returncode == 0, proc.stderr
-    # The fallback's note, then (a cold cache: it is a temporary one) the compiling line.
+    # The fallback's note, then (a cold cache: it is a temporary one) the compiling line, after
+    # the estimate where the calibrated compile time makes the start a long one (issue 36).
     line, *rest = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert line.startswith("note: no writable Numba cache") and "set NUMBA_CACHE_DIR to keep them" in line, line
+    rest = [ln for ln in rest if not ln.startswith("estimate: ")]
     assert all(ln.startswith("compiling kernels for ") for ln in rest) and len(rest) <= 1, proc.stderr
     assert (tmp_path / "ro.nc").is_file()
 
