@@ -153,16 +153,7 @@ def scheme_moments(h: float, n: int, D: float, d: tuple, x0: float = 1.0) -> np.
     kernel's own step function (as tests/statistical/test_family_dynamics.py)."""
     from stochpend import integrator
 
-    step = integrator.build(integrator.spec("white", "harmonic", "force", adaptive=False,
-                                            terms=frozenset({"damping", "additive"}))).family_step
-
-    def apply(z, noise_integral, za):
-        return np.array(step(z[0], z[1], h, 1.0, noise_integral, (0.0,), 0.0, h, za, d))
-
-    e = np.eye(2)
-    B0 = np.column_stack([apply(e[0], 0.0, 0.0), apply(e[1], 0.0, 0.0)])
-    B1 = np.column_stack([apply(e[0], 1.0, 0.0), apply(e[1], 1.0, 0.0)]) - B0
-    a = apply(np.zeros(2), 0.0, 1.0)
+    B0, B1, a = integrator.linear_step_maps(h, d, {"damping", "additive"})
     M = np.array([[x0 * x0, 0.0], [0.0, 0.0]])
     for _ in range(n):
         M = B0 @ M @ B0.T + D * h * (B1 @ M @ B1.T) + np.outer(a, a)

@@ -1350,3 +1350,22 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
 
     name_closures([advance_range, lanes], f"{'pair-lanes' if PAIR else 'lanes'}/{spec.label}")
     return SimpleNamespace(spec=spec, advance_range=advance_range, lanes=lanes)
+
+
+def linear_step_maps(h: float, d: tuple, terms: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(B0, B1, a)`` of one fixed step ``h`` of the harmonic oscillator (omega = 1) with white
+    noise on the force (G = x) and the family terms ``terms`` (record ``d``), read off the
+    kernel's own step function: z' = (B0 + I B1) z + za a for the state z = (x, Omega), the
+    noise integral I and the additive draw za. The scheme is linear in the state, so these
+    give its exact second-moment map (tests/statistical/test_family_dynamics.py, the oracle of
+    benchmarks/gpu_check.py). Shapes (2, 2), (2, 2), (2,)."""
+    step = build(spec("white", "harmonic", "force", adaptive=False, terms=frozenset(terms))).family_step
+
+    def apply(z, noise_integral, za):
+        return np.array(step(z[0], z[1], h, 1.0, noise_integral, (0.0,), 0.0, h, za, d))
+
+    e = np.eye(2)
+    B0 = np.column_stack([apply(e[0], 0.0, 0.0), apply(e[1], 0.0, 0.0)])
+    B1 = np.column_stack([apply(e[0], 1.0, 0.0), apply(e[1], 1.0, 0.0)]) - B0
+    a = apply(np.zeros(2), 0.0, 1.0)
+    return B0, B1, a

@@ -47,17 +47,7 @@ def _record(**values):
 def _maps(h, d, terms):
     """(B0, B1, a) of one step of the damped harmonic oscillator, noise on the force (G = x):
     z' = (B0 + I B1) z + za a, read off the kernel's own step function."""
-    step = integrator.build(integrator.spec("white", "harmonic", "force", adaptive=False,
-                                            terms=frozenset(terms))).family_step
-
-    def apply(z, noise_integral, za):
-        return np.array(step(z[0], z[1], h, 1.0, noise_integral, (0.0,), 0.0, h, za, d))
-
-    e = np.eye(2)
-    B0 = np.column_stack([apply(e[0], 0.0, 0.0), apply(e[1], 0.0, 0.0)])
-    B1 = np.column_stack([apply(e[0], 1.0, 0.0), apply(e[1], 1.0, 0.0)]) - B0
-    a = apply(np.zeros(2), 0.0, 1.0)
-    return B0, B1, a
+    return integrator.linear_step_maps(h, d, terms)
 
 
 def _scheme_moments(h, n, D, d, terms, x0=1.0):
