@@ -285,7 +285,7 @@ def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, 
     # numba-cuda refuses a device function that returns an array it was not passed ("Only
     # accept returning of array passed into the function as argument"), so the tracked
     # kernels did not compile for a real GPU (the CPU and the simulator accept it). x's in a
-    # Spec without accumulators (unused: _track_nothing ignores it).
+    # Spec without accumulators (not read: see ``tracks`` below).
     I_TRK = I_ST + 1 if TRACKED else 0
     DRAWS = 2 if PAIR else 1
     # The additive OU noise's xi_a: the state's array after the others (the slots too); a
@@ -330,7 +330,10 @@ def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, 
         tt = t[i]
         tc = t_comp[i]
         kk = k[i]
-        tracks = state[I_TRK]
+        if TRACKED:  # a compile-time constant: an untracked kernel reads no array for it
+            tracks = state[I_TRK]
+        else:
+            tracks = 0
         xa_arr = state[I_ADD]
         xad = real(xa_arr[i]) if ADDITIVE_OU else real(0.0)
         pa = ou_record(d)
