@@ -71,16 +71,20 @@ def digests() -> dict[str, str]:
                     raise RuntimeError(f"no assembly for {obj.py_func.__qualname__} (loaded from a cache?)")
                 name = _TAG.sub("", f"{obj.py_func.__module__}.{obj.py_func.__qualname__}|{sig}")
                 texts.setdefault(name, []).append(_normalised(asm))
-    return {name: hashlib.sha256("\0".join(sorted(t)).encode()).hexdigest() for name, t in sorted(texts.items())}
+    # One digest per compiled function, sorted: a kernel of one Spec that changed shows as one
+    # differing entry, not as a change of every kernel sharing its name and signature.
+    return {name: ",".join(sorted(hashlib.sha256(x.encode()).hexdigest()[:16] for x in t))
+            for name, t in sorted(texts.items())}
 
 
 def main(argv: list[str]) -> int:
     if argv[:1] == ["--compare"] and len(argv) == 3:
         a, b = (json.load(open(p)) for p in argv[1:])
         differ = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k))
-        print(f"{len(a)} and {len(b)} kernels; {len(differ)} differ")
+        print(f"{len(a)} and {len(b)} kernel names; {len(differ)} differ")
         for k in differ:
-            print(f"  {k}: {a.get(k, '-')[:12]} vs {b.get(k, '-')[:12]}")
+            x, y = set(a.get(k, "").split(",")) - {""}, set(b.get(k, "").split(",")) - {""}
+            print(f"  {len(x - y)} of {len(x)} functions vs {len(y - x)} of {len(y)} differ: {k}")
         return 1 if differ else 0
     if len(argv) != 1:
         print("usage: kernel_asm.py OUT.json | --compare A.json B.json", file=sys.stderr)
