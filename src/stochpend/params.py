@@ -234,43 +234,7 @@ class SimulationConfig:
         parameters come as ``additive_<name>`` among the family's."""
         observables = _observables.resolve(observables)
         channel = _additive_noise(additive_noise)
-        noise_piece = _noises.get(noise)
-        if noise_piece is None:
-            _fail("noise", noise, f"one of {', '.join(_noises.names())}")
-        D = _finite("D", D, "D must be a finite number >= 0 (the noise amplitude)")
-        if D < 0:
-            _fail("D", D, "D must be a finite number >= 0 (the noise amplitude)")
-        if noise_piece.colored:
-            if tau is None:
-                _fail("tau", tau, f"{noise} noise needs tau, a finite number > 0 (its correlation time)")
-            tau = _finite("tau", tau, "tau must be a finite number > 0 (the noise correlation time)")
-            if tau <= 0:
-                _fail(
-                    "tau",
-                    tau,
-                    "tau must be a finite number > 0 (the noise correlation time); "
-                    "use noise='white' for the tau -> 0 limit",
-                )
-        else:
-            tau = None
-        if noise_piece.uses_omega_noise:
-            if omega_noise is None:
-                # a noise that uses W is colored and gives its default (noises.base.Noise)
-                assert noise_piece.default_omega_noise is not None and tau is not None
-                omega_noise = noise_piece.default_omega_noise(tau)
-                if not math.isfinite(omega_noise):
-                    _fail("tau", tau, "tau too small for the default omega_noise (it overflows); "
-                          "give omega_noise")
-            omega_noise = _finite(
-                "omega_noise", omega_noise,
-                "omega_noise must be a finite number > 0 (the harmonic noise's frequency W)")
-            if omega_noise <= 0:
-                _fail("omega_noise", omega_noise,
-                      "omega_noise must be a finite number > 0 (the harmonic noise's frequency W)")
-        elif omega_noise is not None:
-            users = [n for n in _noises.names() if getattr(_noises.get(n), "uses_omega_noise", False)]
-            _fail("omega_noise", omega_noise,
-                  f"omega_noise applies to noise={' or '.join(repr(n) for n in users)} only")
+        noise_piece, D, tau, omega_noise = _checked_noise(noise, D, tau, omega_noise)
         omega_accepted = f"omega must be a finite number in [0, {MAX_OMEGA:g}] (the pendulum frequency)"
         omega = _finite("omega", omega, omega_accepted)
         if omega < 0 or omega > MAX_OMEGA:
@@ -284,81 +248,14 @@ class SimulationConfig:
         if seed >= 2**64:
             _fail("seed", seed, "seed must be an integer in [0, 2**64)")
 
-        if times is None:
-            n_times = _integer("n_times", n_times, f"n_times must be an integer in [1, {MAX_N_TIMES}]", 1,
-                               MAX_N_TIMES)
-            grid = _hostmath.geomspace(t_max * 1e-3, t_max, n_times) if n_times > 1 else np.array([t_max])
-            grid[-1] = t_max
-        else:
-            try:
-                grid = _float_array(times).ravel()
-            except (TypeError, ValueError, OverflowError):
-                _fail("times", times, "times must be a list of numbers in [0, t_max]")
-            if grid.size == 0 or not np.all(np.isfinite(grid)):
-                _fail("times", times, "times must be a non-empty list of finite numbers in [0, t_max]")
-            if np.any(grid < 0) or np.any(grid > t_max):
-                _fail("times", times, f"times must lie in [0, t_max] = [0, {t_max}]")
-            if np.any(np.diff(grid) <= 0):
-                _fail("times", times, "times must be strictly increasing")
+        grid = _output_grid(times, n_times, t_max)
 
-        if isinstance(theta0, str):
-            if theta0 != "uniform":
-                _fail("theta0", theta0, "theta0 must be a finite number or 'uniform'")
-            theta0_v: float | None = None
-        elif theta0 is None:
-            theta0_v = None
-        else:
-            theta0_v = _finite("theta0", theta0, "theta0 must be a finite number or 'uniform'")
-        Omega0 = _finite("Omega0", Omega0, "Omega0 must be a finite number")
-        if isinstance(xi0, str):
-            if xi0 != "stationary":
-                _fail("xi0", xi0, "xi0 must be a finite number or 'stationary'")
-            xi0_v: float | None = None
-        elif xi0 is None:
-            xi0_v = None
-        else:
-            xi0_v = _finite("xi0", xi0, "xi0 must be a finite number or 'stationary'")
-            if noise_piece.check_xi0 is not None:
-                noise_piece.check_xi0(xi0_v)
+        theta0_v, Omega0, xi0_v = _initial_values(theta0, Omega0, xi0, noise_piece)
 
-        oscillator = _oscillators.get(potential)
-        if oscillator is None:
-            _fail("potential", potential, f"one of {', '.join(_oscillators.names())}, or a model "
-                  "registered with stochpend.models.register")
-        if not isinstance(coupling, str) or coupling not in _oscillators.COUPLINGS:
-            _fail("coupling", coupling, f"one of {', '.join(_oscillators.COUPLINGS)}")
-        power_n = _integer("power_n", power_n, f"power_n must be an integer in [1, {MAX_POWER_N}]", 1,
-                           MAX_POWER_N)
-        # The family's terms (stochpend.dynamics) share the keyword space: taken out first.
-        try:
-            given = dict(noise_params or {})
-            dyn_given = dict(dyn_params or {})
-        except (TypeError, ValueError):
-            _fail("noise_params", noise_params, "a mapping of parameter names to numbers")
-        for piece, kind in ((noise_piece, "noise"), (oscillator, "potential")):
-            clash = sorted({q.name for q in _parameters.own(piece)} & set(_dynamics.names()))
-            if clash:  # the family's terms own these names (stochpend.dynamics)
-                _fail(kind, getattr(piece, "name", piece), f"it declares {clash[0]!r}, a name of the family's "
-                      "terms (stochpend.dynamics): rename its parameter")
-        channel_names = set(_dynamics.channel_parameters(channel))
-        dyn_given.update({k: given.pop(k) for k in list(given) if k in _dynamics.names() or k in channel_names})
-        dyn_params_v = _dynamics.resolve(dyn_given, channel)
-        _check_channel(additive_noise, channel, dyn_params_v)
-        noise_given, osc_given = _parameters.split(noise_piece, oscillator, given)
-        if osc_params:
-            try:
-                osc_given.update(dict(osc_params))
-            except (TypeError, ValueError):
-                _fail("osc_params", osc_params, "a mapping of the oscillator's own parameters to numbers")
-        noise_params_v = _parameters.resolve(noise_piece, noise_given)
-        osc_params_v = _parameters.resolve(oscillator, osc_given, kind="potential")
-        q = oscillator.record(SimpleNamespace(power_n=power_n, osc_params=osc_params_v))
-        if oscillator.periodic and coupling == "position":
-            if oscillator.builtin:
-                _fail("coupling", coupling, f"the {potential}'s angle is periodic, so its noise can "
-                      "only multiply the force (coupling='force')")
-            _fail("coupling", coupling, f"model {potential!r} is periodic, so its noise can only "
-                  "multiply a periodic function (coupling='force')")
+        oscillator, power_n, q, noise_params_v, osc_params_v, dyn_params_v = _model(
+            potential, coupling, power_n, noise_piece,
+            SimpleNamespace(noise_params=noise_params, osc_params=osc_params, dyn_params=dyn_params),
+            channel, additive_noise)
         leaves = (_dynamics.terms_of(dyn_params_v, additive_noise)
                   & {"additive", "additive_ou", "additive_noise", "torque", "drive"})
         boltzmann_T = _dynamics.value(dyn_params_v, "initial_temperature")
@@ -370,43 +267,11 @@ class SimulationConfig:
             except ValueError as exc:
                 raise ValueError(str(exc)) from None
         if theta0_v is not None and Omega0 == 0.0 and not leaves and boltzmann_T == 0.0:
-            functions = oscillator.functions
-            try:
-                f = float(functions.force(theta0_v, q))
-                g = theta0_v if coupling == "position" else float(functions.noise_shape(theta0_v, q))
-            except OverflowError:  # |theta0| ** (2n - 1) beyond float: far from rest
-                g = f = math.inf
-            at_rest = abs(g) < 1e-12 and abs(f) < 1e-12
-            if at_rest:
-                _fail(
-                    "theta0",
-                    theta0_v,
-                    "(theta0, Omega0) is a fixed point that the multiplicative noise cannot "
-                    "leave; use theta0='uniform' or a nonzero Omega0",
-                )
+            _check_not_at_rest(oscillator, q, coupling, theta0_v)
 
-        h_max = _finite("h_max", h_max, "h_max must be a finite number > 0 (the largest step)")
-        if h_max <= 0:
-            _fail("h_max", h_max, "h_max must be a finite number > 0 (the largest step)")
-        step_c = _finite("step_c", step_c, "step_c must be a finite number >= 0 (0: fixed step)")
-        if step_c < 0:
-            _fail("step_c", step_c, "step_c must be a finite number >= 0 (0: fixed step)")
-        hist_bins = _integer("hist_bins", hist_bins, "hist_bins must be an integer >= 1", 1)
-        n_batches = _integer("n_batches", n_batches, "n_batches must be an integer >= 2", 2)
-        n_batches = min(n_batches, paths)
-        # Batches of equal size except the last; recompute the count so none is empty.
-        n_batches = -(-paths // (-(-paths // n_batches)))
+        h_max, step_c, hist_bins, n_batches = _step_and_batches(h_max, step_c, hist_bins, n_batches, paths)
 
-        if hist_E_max is None:
-            e_max = default_hist_E_max(grid, noise=noise, D=D, tau=tau, omega=omega)
-        else:
-            accepted = "hist_E_max must be a finite number > -omega**2, or one per output time"
-            try:
-                e_max = np.broadcast_to(_float_array(hist_E_max), grid.shape).copy()
-            except (TypeError, ValueError, OverflowError):
-                _fail("hist_E_max", hist_E_max, accepted)
-            if not np.all(np.isfinite(e_max)) or np.any(e_max <= -(omega**2)):
-                _fail("hist_E_max", hist_E_max, accepted)
+        e_max = _hist_E_max(hist_E_max, grid, noise=noise, D=D, tau=tau, omega=omega)
 
         _observables.check_windows(observables, grid)
         joint = _joint(joint_bins, joint_x_range, joint_Omega_max, oscillator=oscillator, omega=omega,
@@ -442,6 +307,197 @@ class SimulationConfig:
             joint_Omega_max=joint[2],
             additive_noise=additive_noise,
         )
+
+
+def _model(potential: Any, coupling: Any, power_n: Any, noise_piece: Any, given_params: Any,
+           channel: Any, additive_noise: str | None) -> tuple[Any, int, Any, tuple, tuple, tuple]:
+    """The oscillator, its validated power_n and record q, and the resolved parameters of the
+    noise, the oscillator and the family's terms (one keyword space: ``given_params`` holds the
+    caller's ``noise_params``, ``osc_params`` and ``dyn_params``)."""
+    noise_params = given_params.noise_params
+    osc_params = given_params.osc_params
+    dyn_params = given_params.dyn_params
+    oscillator = _oscillators.get(potential)
+    if oscillator is None:
+        _fail("potential", potential, f"one of {', '.join(_oscillators.names())}, or a model "
+              "registered with stochpend.models.register")
+    if not isinstance(coupling, str) or coupling not in _oscillators.COUPLINGS:
+        _fail("coupling", coupling, f"one of {', '.join(_oscillators.COUPLINGS)}")
+    power_n = _integer("power_n", power_n, f"power_n must be an integer in [1, {MAX_POWER_N}]", 1,
+                       MAX_POWER_N)
+    # The family's terms (stochpend.dynamics) share the keyword space: taken out first.
+    try:
+        given = dict(noise_params or {})
+        dyn_given = dict(dyn_params or {})
+    except (TypeError, ValueError):
+        _fail("noise_params", noise_params, "a mapping of parameter names to numbers")
+    for piece, kind in ((noise_piece, "noise"), (oscillator, "potential")):
+        clash = sorted({q.name for q in _parameters.own(piece)} & set(_dynamics.names()))
+        if clash:  # the family's terms own these names (stochpend.dynamics)
+            _fail(kind, getattr(piece, "name", piece), f"it declares {clash[0]!r}, a name of the family's "
+                  "terms (stochpend.dynamics): rename its parameter")
+    channel_names = set(_dynamics.channel_parameters(channel))
+    dyn_given.update({k: given.pop(k) for k in list(given) if k in _dynamics.names() or k in channel_names})
+    dyn_params_v = _dynamics.resolve(dyn_given, channel)
+    _check_channel(additive_noise, channel, dyn_params_v)
+    noise_given, osc_given = _parameters.split(noise_piece, oscillator, given)
+    if osc_params:
+        try:
+            osc_given.update(dict(osc_params))
+        except (TypeError, ValueError):
+            _fail("osc_params", osc_params, "a mapping of the oscillator's own parameters to numbers")
+    noise_params_v = _parameters.resolve(noise_piece, noise_given)
+    osc_params_v = _parameters.resolve(oscillator, osc_given, kind="potential")
+    q = oscillator.record(SimpleNamespace(power_n=power_n, osc_params=osc_params_v))
+    if oscillator.periodic and coupling == "position":
+        if oscillator.builtin:
+            _fail("coupling", coupling, f"the {potential}'s angle is periodic, so its noise can "
+                  "only multiply the force (coupling='force')")
+        _fail("coupling", coupling, f"model {potential!r} is periodic, so its noise can only "
+              "multiply a periodic function (coupling='force')")
+    return oscillator, power_n, q, noise_params_v, osc_params_v, dyn_params_v
+
+
+def _step_and_batches(h_max: Any, step_c: Any, hist_bins: Any, n_batches: Any,
+                      paths: int) -> tuple[float, float, int, int]:
+    """The step control (h_max, step_c), the histograms' bins and the batch count, validated;
+    the count lowered so that no batch is empty."""
+    h_max = _finite("h_max", h_max, "h_max must be a finite number > 0 (the largest step)")
+    if h_max <= 0:
+        _fail("h_max", h_max, "h_max must be a finite number > 0 (the largest step)")
+    step_c = _finite("step_c", step_c, "step_c must be a finite number >= 0 (0: fixed step)")
+    if step_c < 0:
+        _fail("step_c", step_c, "step_c must be a finite number >= 0 (0: fixed step)")
+    hist_bins = _integer("hist_bins", hist_bins, "hist_bins must be an integer >= 1", 1)
+    n_batches = _integer("n_batches", n_batches, "n_batches must be an integer >= 2", 2)
+    n_batches = min(n_batches, paths)
+    # Batches of equal size except the last; recompute the count so none is empty.
+    n_batches = -(-paths // (-(-paths // n_batches)))
+    return h_max, step_c, hist_bins, n_batches
+
+
+def _checked_noise(noise: Any, D: Any, tau: Any, omega_noise: Any) -> tuple[Any, float, float | None, float | None]:
+    """The noise's piece and its validated (D, tau, omega_noise): tau only for a colored noise,
+    omega_noise only for one that uses it (its default from tau where not given)."""
+    noise_piece = _noises.get(noise)
+    if noise_piece is None:
+        _fail("noise", noise, f"one of {', '.join(_noises.names())}")
+    D = _finite("D", D, "D must be a finite number >= 0 (the noise amplitude)")
+    if D < 0:
+        _fail("D", D, "D must be a finite number >= 0 (the noise amplitude)")
+    if noise_piece.colored:
+        if tau is None:
+            _fail("tau", tau, f"{noise} noise needs tau, a finite number > 0 (its correlation time)")
+        tau = _finite("tau", tau, "tau must be a finite number > 0 (the noise correlation time)")
+        if tau <= 0:
+            _fail(
+                "tau",
+                tau,
+                "tau must be a finite number > 0 (the noise correlation time); "
+                "use noise='white' for the tau -> 0 limit",
+            )
+    else:
+        tau = None
+    if noise_piece.uses_omega_noise:
+        if omega_noise is None:
+            # a noise that uses W is colored and gives its default (noises.base.Noise)
+            assert noise_piece.default_omega_noise is not None and tau is not None
+            omega_noise = noise_piece.default_omega_noise(tau)
+            if not math.isfinite(omega_noise):
+                _fail("tau", tau, "tau too small for the default omega_noise (it overflows); "
+                      "give omega_noise")
+        omega_noise = _finite(
+            "omega_noise", omega_noise,
+            "omega_noise must be a finite number > 0 (the harmonic noise's frequency W)")
+        if omega_noise <= 0:
+            _fail("omega_noise", omega_noise,
+                  "omega_noise must be a finite number > 0 (the harmonic noise's frequency W)")
+    elif omega_noise is not None:
+        users = [n for n in _noises.names() if getattr(_noises.get(n), "uses_omega_noise", False)]
+        _fail("omega_noise", omega_noise,
+              f"omega_noise applies to noise={' or '.join(repr(n) for n in users)} only")
+    return noise_piece, D, tau, omega_noise
+
+
+def _output_grid(times: Any, n_times: Any, t_max: float) -> np.ndarray:
+    """The output times: ``times`` validated, or ``n_times`` log-spaced from t_max/1000 to t_max
+    (the C library's log10 and pow, :mod:`stochpend._hostmath`: the same bits on every x86-64)."""
+    if times is None:
+        n_times = _integer("n_times", n_times, f"n_times must be an integer in [1, {MAX_N_TIMES}]", 1,
+                           MAX_N_TIMES)
+        grid = _hostmath.geomspace(t_max * 1e-3, t_max, n_times) if n_times > 1 else np.array([t_max])
+        grid[-1] = t_max
+    else:
+        try:
+            grid = _float_array(times).ravel()
+        except (TypeError, ValueError, OverflowError):
+            _fail("times", times, "times must be a list of numbers in [0, t_max]")
+        if grid.size == 0 or not np.all(np.isfinite(grid)):
+            _fail("times", times, "times must be a non-empty list of finite numbers in [0, t_max]")
+        if np.any(grid < 0) or np.any(grid > t_max):
+            _fail("times", times, f"times must lie in [0, t_max] = [0, {t_max}]")
+        if np.any(np.diff(grid) <= 0):
+            _fail("times", times, "times must be strictly increasing")
+    return grid
+
+
+def _initial_values(theta0: Any, Omega0: Any, xi0: Any, noise_piece: Any) -> tuple[float | None, float, float | None]:
+    """(theta0, Omega0, xi0) validated: None for 'uniform' and 'stationary'."""
+    if isinstance(theta0, str):
+        if theta0 != "uniform":
+            _fail("theta0", theta0, "theta0 must be a finite number or 'uniform'")
+        theta0_v: float | None = None
+    elif theta0 is None:
+        theta0_v = None
+    else:
+        theta0_v = _finite("theta0", theta0, "theta0 must be a finite number or 'uniform'")
+    Omega0 = _finite("Omega0", Omega0, "Omega0 must be a finite number")
+    if isinstance(xi0, str):
+        if xi0 != "stationary":
+            _fail("xi0", xi0, "xi0 must be a finite number or 'stationary'")
+        xi0_v: float | None = None
+    elif xi0 is None:
+        xi0_v = None
+    else:
+        xi0_v = _finite("xi0", xi0, "xi0 must be a finite number or 'stationary'")
+        if noise_piece.check_xi0 is not None:
+            noise_piece.check_xi0(xi0_v)
+    return theta0_v, Omega0, xi0_v
+
+
+def _check_not_at_rest(oscillator: Any, q: Any, coupling: str, theta0_v: float) -> None:
+    """Refuse a start at rest on a fixed point that the multiplicative noise cannot leave."""
+    functions = oscillator.functions
+    try:
+        f = float(functions.force(theta0_v, q))
+        g = theta0_v if coupling == "position" else float(functions.noise_shape(theta0_v, q))
+    except OverflowError:  # |theta0| ** (2n - 1) beyond float: far from rest
+        g = f = math.inf
+    at_rest = abs(g) < 1e-12 and abs(f) < 1e-12
+    if at_rest:
+        _fail(
+            "theta0",
+            theta0_v,
+            "(theta0, Omega0) is a fixed point that the multiplicative noise cannot "
+            "leave; use theta0='uniform' or a nonzero Omega0",
+        )
+
+
+def _hist_E_max(hist_E_max: Any, grid: np.ndarray, *, noise: str, D: float, tau: float | None,
+                omega: float) -> np.ndarray:
+    """The energy histograms' upper edges, one per output time: given (one or one per time) or
+    the default for the noise."""
+    if hist_E_max is None:
+        e_max = default_hist_E_max(grid, noise=noise, D=D, tau=tau, omega=omega)
+    else:
+        accepted = "hist_E_max must be a finite number > -omega**2, or one per output time"
+        try:
+            e_max = np.broadcast_to(_float_array(hist_E_max), grid.shape).copy()
+        except (TypeError, ValueError, OverflowError):
+            _fail("hist_E_max", hist_E_max, accepted)
+        if not np.all(np.isfinite(e_max)) or np.any(e_max <= -(omega**2)):
+            _fail("hist_E_max", hist_E_max, accepted)
+    return e_max
 
 
 def _additive_noise(name: Any) -> Any:
