@@ -238,24 +238,8 @@ def reproduce(
     """
     started = time.perf_counter()
     names = _figure_names(figures)
-    # The settings as given: the advice to rebuild the full report repeats them, so that it
-    # reuses the runs stored now (a run is reused only for the same paths, t_max and backend).
-    same = "".join([" --quick" if quick else "", "" if paths is None else f" --paths {paths}",
-                    "" if t_max is None else f" --t-max {t_max!r}",
-                    "" if backend == "cpu" else f" --backend {shlex.quote(str(backend))}",
-                    "" if precision == "float64" else f" --precision {shlex.quote(str(precision))}"])
-    if paths is None:
-        paths = QUICK_PATHS if quick else DEFAULT_PATHS
-    if isinstance(paths, bool) or not isinstance(paths, (int, np.integer)) or paths < 2:
-        raise ValueError(f"paths={paths!r} is not accepted: an integer >= 2 (the jackknife needs 2 batches)")
-    paths = int(paths)
-    if t_max is not None:
-        try:
-            t_max = float(t_max)
-        except (TypeError, ValueError):
-            raise ValueError(f"t_max={t_max!r} is not accepted: a finite number > 0.1") from None
-        if not math.isfinite(t_max) or t_max <= 0.1:
-            raise ValueError(f"t_max={t_max!r} is not accepted: a finite number > 0.1 (times start at 0.01)")
+    same = _same_settings(quick, paths, t_max, backend, precision)
+    paths, t_max = _checked_size(paths, t_max, quick)
     from stochpend.lifecycle import check_precision, check_threads, resolve_backend
 
     check_threads(threads)
@@ -272,25 +256,13 @@ def reproduce(
         raise ValueError("matplotlib is not installed: pip install 'stochpend[plot]'") from None
 
     specs = {name: _module(name).runs(paths, t_max, quick) for name in names}
-    # Validate every run before any work (one-line ValueError naming the parameter).
-    from stochpend import resources
-    from stochpend.params import SimulationConfig
-
-    estimates: dict[tuple[str, str], resources.Estimate] = {}
-    for name, name_specs in specs.items():
-        for s in name_specs:
-            estimates[name, s.key] = resources.check(
-                SimulationConfig.build(**s.simulate_kwargs()), backend=backend, precision=precision,
-                max_path_steps=max_path_steps, threads=threads)
+    estimates = _estimates(specs, backend=backend, precision=precision,
+                           max_path_steps=max_path_steps, threads=threads)
 
     _prepare_out(out)
     progress = progress or NoProgress()
     log = getattr(progress, "log", None) or (lambda message: None)
-    if (out / "report.html").exists() and set(names) != set(_figure_names("all")):
-        # A partial run's report holds its own figures only: say so before replacing a fuller one.
-        log(f"note: {str(out / 'report.html')!r} is replaced by a report of {' '.join(names)} only; "
-            f"`stochpend reproduce all{same} --out {shlex.quote(str(out))}` rebuilds the full one "
-            "(the runs stored with these settings are reused)")
+    _note_partial_report(out, names, same, log)
 
     # Which runs need simulating (for the overall bar).
     unique: dict[Path, RunSpec] = {}
@@ -353,16 +325,75 @@ def reproduce(
                   "out": str(out), "backend": backend, "precision": precision},
         versions=versions(), runs={r.path.name: r for r in records.values()},
     )
-    _write_tables_md(result)
-    _write_results_json(result)
-    from stochpend.report import write_report
-
-    write_report(result)
+    _write_outputs(result)
     return result
 
 
 # ---------------------------------------------------------------------------------------------
 # Pieces
+
+
+def _same_settings(quick: bool, paths: Any, t_max: Any, backend: str, precision: str) -> str:
+    """The settings as given, as options: the advice to rebuild the full report repeats them, so
+    that it reuses the runs stored now (a run is reused only for the same paths, t_max and
+    backend)."""
+    return "".join([" --quick" if quick else "", "" if paths is None else f" --paths {paths}",
+                    "" if t_max is None else f" --t-max {t_max!r}",
+                    "" if backend == "cpu" else f" --backend {shlex.quote(str(backend))}",
+                    "" if precision == "float64" else f" --precision {shlex.quote(str(precision))}"])
+
+
+def _note_partial_report(out: Path, names: list[str], same: str, log: Callable[[str], None]) -> None:
+    """A partial run's report holds its own figures only: say so before replacing a fuller one."""
+    if (out / "report.html").exists() and set(names) != set(_figure_names("all")):
+        log(f"note: {str(out / 'report.html')!r} is replaced by a report of {' '.join(names)} only; "
+            f"`stochpend reproduce all{same} --out {shlex.quote(str(out))}` rebuilds the full one "
+            "(the runs stored with these settings are reused)")
+
+
+def _write_outputs(result: ReproduceResult) -> None:
+    """tables.md, results.json and report.html of a finished reproduction."""
+    _write_tables_md(result)
+    _write_results_json(result)
+    from stochpend.report import write_report
+
+    write_report(result)
+
+
+def _checked_size(paths: Any, t_max: Any, quick: bool) -> tuple[int, float | None]:
+    """``reproduce``'s paths (its default: the paper's, or the quick one) and t_max (None: each
+    figure's own), validated."""
+    if paths is None:
+        paths = QUICK_PATHS if quick else DEFAULT_PATHS
+    if isinstance(paths, bool) or not isinstance(paths, (int, np.integer)) or paths < 2:
+        raise ValueError(f"paths={paths!r} is not accepted: an integer >= 2 (the jackknife needs 2 batches)")
+    paths = int(paths)
+    if t_max is not None:
+        try:
+            t_max = float(t_max)
+        except (TypeError, ValueError):
+            raise ValueError(f"t_max={t_max!r} is not accepted: a finite number > 0.1") from None
+        if not math.isfinite(t_max) or t_max <= 0.1:
+            raise ValueError(f"t_max={t_max!r} is not accepted: a finite number > 0.1 (times start at 0.01)")
+    return paths, t_max
+
+
+def _estimates(specs: dict[str, list[RunSpec]], *, backend: str, precision: str,
+               max_path_steps: float | None, threads: int | None) -> dict[tuple[str, str], Any]:
+    """Every run validated before any work (a one-line ValueError naming the parameter), and
+    its cost: ``resources.Estimate`` by (figure, run key)."""
+    from stochpend import resources
+    from stochpend.params import SimulationConfig
+
+    estimates: dict[tuple[str, str], resources.Estimate] = {}
+    for name, name_specs in specs.items():
+        for s in name_specs:
+            estimates[name, s.key] = resources.check(
+                SimulationConfig.build(**s.simulate_kwargs()), backend=backend, precision=precision,
+                max_path_steps=max_path_steps, threads=threads)
+    return estimates
+
+
 # ---------------------------------------------------------------------------------------------
 
 
