@@ -95,22 +95,36 @@ def predictions(
     t = _scalar("t", t, "t must be a finite number >= 0")
     if t < 0:
         _fail("t", t, "t must be a finite number >= 0")
-    rows: list[Prediction] = []
-
     if noise == "white":
-        reg = "white noise, averaged FPE (moyblanc, eq:pdfEblanc)"
-        valid = "all t, once theta is uniformly spread (any omega)"
-        rows += [
-            Prediction(reg, "<E>", float(laws.white_mean_E(t, D=D)), "eq:scalEblanc", valid),
-            Prediction(
-                reg, "<E^2>", float(laws.white_mean_E2(t, D=D)), "eq:pdfEblanc", valid, "3 (D t)^2/16"
-            ),
-            Prediction(reg, "S", laws.white_skewness(), "eq:skewEblanc", valid, "5/sqrt(3), raw moments"),
-            Prediction(reg, "F", laws.white_flatness(), "eq:flatEblanc", valid, "35/3, raw moments"),
-        ]
-        return rows
+        return _white_rows(t, D)
 
     tau = _check_tau(tau)
+    rows = _ou_rows(t, D, tau)
+    if bfpe:
+        if t <= 0:
+            _fail("t", t, "t must be > 0 to solve the B.F.P.E. (bfpe=True)")
+        rows += _bfpe_rows(t, D, tau)
+    return rows
+
+
+def _white_rows(t: float, D: float) -> list[Prediction]:
+    """White noise: <E>, <E^2>, S, F of the averaged FPE (moyblanc, eq:pdfEblanc)."""
+    reg = "white noise, averaged FPE (moyblanc, eq:pdfEblanc)"
+    valid = "all t, once theta is uniformly spread (any omega)"
+    return [
+        Prediction(reg, "<E>", float(laws.white_mean_E(t, D=D)), "eq:scalEblanc", valid),
+        Prediction(
+            reg, "<E^2>", float(laws.white_mean_E2(t, D=D)), "eq:pdfEblanc", valid, "3 (D t)^2/16"
+        ),
+        Prediction(reg, "S", laws.white_skewness(), "eq:skewEblanc", valid, "5/sqrt(3), raw moments"),
+        Prediction(reg, "F", laws.white_flatness(), "eq:flatEblanc", valid, "35/3, raw moments"),
+    ]
+
+
+def _ou_rows(t: float, D: float, tau: float) -> list[Prediction]:
+    """OU noise: t_c, the white-like law, first- and second-order averaging and the
+    B.F.P.E.'s closed-form laws."""
+    rows: list[Prediction] = []
     t_c = laws.crossover_time(D=D, tau=tau)
     rows.append(
         Prediction(
@@ -200,26 +214,28 @@ def predictions(
             f"a = {laws.bfpe_longtime_correction():.6f}",
         )
     )
-    if bfpe:
-        if t <= 0:
-            _fail("t", t, "t must be > 0 to solve the B.F.P.E. (bfpe=True)")
-        from stochpend.theory.bfpe import solve_bfpe
+    return rows
 
-        ds = solve_bfpe(D=D, tau=tau, t_max=t, times=[t])
-        regb = "OU, B.F.P.E. solved numerically (avbfpe, omega = 0)"
-        valid_b = "all t (omega = 0; an approximation of the OU dynamics)"
-        get = lambda name: float(ds[name].values[-1])  # noqa: E731
-        rows += [
-            Prediction(regb, "<E>", get("mean_E"), "avbfpe", valid_b),
-            Prediction(regb, "<E^2>", get("mean_E2"), "avbfpe, idquadr", valid_b),
-            Prediction(regb, "phi", get("phi"), "deflatness", valid_b, f"-> {laws.PHI_INF:.6f} for t >> t_c"),
-            Prediction(
-                regb, "S", get("skewness"), "avbfpe", valid_b, f"-> {laws.OU2_SKEWNESS:.6f} for t >> t_c"
-            ),
-            Prediction(
-                regb, "F", get("flatness"), "avbfpe", valid_b, f"-> {laws.OU2_FLATNESS:.6g} for t >> t_c"
-            ),
-        ]
+
+def _bfpe_rows(t: float, D: float, tau: float) -> list[Prediction]:
+    """The averaged B.F.P.E. (avbfpe) solved numerically up to t: <E>, <E^2>, phi, S, F."""
+    from stochpend.theory.bfpe import solve_bfpe
+
+    ds = solve_bfpe(D=D, tau=tau, t_max=t, times=[t])
+    regb = "OU, B.F.P.E. solved numerically (avbfpe, omega = 0)"
+    valid_b = "all t (omega = 0; an approximation of the OU dynamics)"
+    get = lambda name: float(ds[name].values[-1])  # noqa: E731
+    rows = [
+        Prediction(regb, "<E>", get("mean_E"), "avbfpe", valid_b),
+        Prediction(regb, "<E^2>", get("mean_E2"), "avbfpe, idquadr", valid_b),
+        Prediction(regb, "phi", get("phi"), "deflatness", valid_b, f"-> {laws.PHI_INF:.6f} for t >> t_c"),
+        Prediction(
+            regb, "S", get("skewness"), "avbfpe", valid_b, f"-> {laws.OU2_SKEWNESS:.6f} for t >> t_c"
+        ),
+        Prediction(
+            regb, "F", get("flatness"), "avbfpe", valid_b, f"-> {laws.OU2_FLATNESS:.6g} for t >> t_c"
+        ),
+    ]
     return rows
 
 
