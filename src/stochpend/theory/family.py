@@ -1050,41 +1050,59 @@ def family_predictions(
     omega = _positive("omega", omega, _OMEGA + "; the family table needs a well")
     D = _nonnegative("D", D, _D)
     F = _finite("F", F, "the constant torque")
-    rows: list[Prediction] = []
-    P = Prediction
     if noise == "ou":
         tau = _positive("tau", tau, _TAU)
-        v = harmonic_ou_additive_variances(D_a=D_a, tau=tau, gamma=gamma, omega=omega)
-        reg = "harmonic, additive OU noise, stationary"
-        ref = "Lyapunov eq. (family.py)"
-        valid = "t >> 1/gamma, tau; D = F = 0"
-        N = "N = 1 + gamma tau + omega^2 tau^2"
-        rows += [
-            P(reg, "<x^2>", v.mean_x2, ref, valid, f"D_a (1 + gamma tau)/(2 gamma omega^2 N), {N}"),
-            P(reg, "<x Omega>", v.mean_xOmega, ref, valid, "0 (stationarity)"),
-            P(reg, "<Omega^2>", v.mean_Omega2, ref, valid, "D_a/(2 gamma N); tau -> 0: T"),
-            P(reg, "<E>", harmonic_ou_additive_mean_E(D_a=D_a, tau=tau, gamma=gamma, omega=omega), ref, valid,
-              "D_a (2 + gamma tau)/(4 gamma N)"),
-        ]
-        reg = "random frequency, OU noise D on x"
-        valid = "F = D_a = 0; any D, tau"
-        rows += [
-            P(reg, "lambda_2", random_frequency_ou_growth_rate(D=D, tau=tau, gamma=gamma, omega=omega),
-              "Hermite hierarchy (family.py)", valid,
-              "rate of <E>; second moments do not close; numerically exact (64 levels)"),
-            P(reg, "D_c", random_frequency_ou_threshold(tau=tau, gamma=gamma, omega=omega),
-              "Hermite hierarchy (family.py)", valid, "<E> decays iff D < D_c"),
-            P(reg, "D_c", random_frequency_ou_threshold_series(tau=tau, gamma=gamma, omega=omega),
-              "small-tau series", "gamma tau, omega tau << 1",
-              "2 gamma omega^2 [1 - gamma tau + (2 gamma^2 + 4 omega^2) tau^2] + O(tau^3)"),
-            P(reg, "D_c", random_frequency_ou_threshold_weak_noise(tau=tau, gamma=gamma, omega=omega),
-              "energy averaging", "gamma << omega, D_c/tau << omega^2",
-              "2 gamma omega^2 (1 + 4 omega^2 tau^2)"),
-            P(reg, "lambda", math.nan, "none", "-",
-              "Lyapunov exponent for OU noise: not derived; measured only"),
-        ]
-        return rows
+        return _family_ou_rows(D_a=D_a, tau=tau, gamma=gamma, omega=omega, D=D)
 
+    T = temperature(D_a=D_a, gamma=gamma)
+    return (_boltzmann_rows(D_a=D_a, gamma=gamma, omega=omega)
+            + _kramers_rows(D_a=D_a, gamma=gamma, omega=omega, T=T)
+            + _washboard_rows(D_a=D_a, gamma=gamma, omega=omega, F=F)
+            + _random_frequency_rows(D=D, gamma=gamma, omega=omega))
+
+
+def _family_ou_rows(*, D_a: float, tau: float, gamma: float, omega: float, D: float) -> list[Prediction]:
+    """OU noise: the harmonic oscillator with additive OU noise and the random-frequency
+    oscillator with OU noise."""
+    rows: list[Prediction] = []
+    P = Prediction
+    v = harmonic_ou_additive_variances(D_a=D_a, tau=tau, gamma=gamma, omega=omega)
+    reg = "harmonic, additive OU noise, stationary"
+    ref = "Lyapunov eq. (family.py)"
+    valid = "t >> 1/gamma, tau; D = F = 0"
+    N = "N = 1 + gamma tau + omega^2 tau^2"
+    rows += [
+        P(reg, "<x^2>", v.mean_x2, ref, valid, f"D_a (1 + gamma tau)/(2 gamma omega^2 N), {N}"),
+        P(reg, "<x Omega>", v.mean_xOmega, ref, valid, "0 (stationarity)"),
+        P(reg, "<Omega^2>", v.mean_Omega2, ref, valid, "D_a/(2 gamma N); tau -> 0: T"),
+        P(reg, "<E>", harmonic_ou_additive_mean_E(D_a=D_a, tau=tau, gamma=gamma, omega=omega), ref, valid,
+          "D_a (2 + gamma tau)/(4 gamma N)"),
+    ]
+    reg = "random frequency, OU noise D on x"
+    valid = "F = D_a = 0; any D, tau"
+    rows += [
+        P(reg, "lambda_2", random_frequency_ou_growth_rate(D=D, tau=tau, gamma=gamma, omega=omega),
+          "Hermite hierarchy (family.py)", valid,
+          "rate of <E>; second moments do not close; numerically exact (64 levels)"),
+        P(reg, "D_c", random_frequency_ou_threshold(tau=tau, gamma=gamma, omega=omega),
+          "Hermite hierarchy (family.py)", valid, "<E> decays iff D < D_c"),
+        P(reg, "D_c", random_frequency_ou_threshold_series(tau=tau, gamma=gamma, omega=omega),
+          "small-tau series", "gamma tau, omega tau << 1",
+          "2 gamma omega^2 [1 - gamma tau + (2 gamma^2 + 4 omega^2) tau^2] + O(tau^3)"),
+        P(reg, "D_c", random_frequency_ou_threshold_weak_noise(tau=tau, gamma=gamma, omega=omega),
+          "energy averaging", "gamma << omega, D_c/tau << omega^2",
+          "2 gamma omega^2 (1 + 4 omega^2 tau^2)"),
+        P(reg, "lambda", math.nan, "none", "-",
+          "Lyapunov exponent for OU noise: not derived; measured only"),
+    ]
+    return rows
+
+
+
+def _boltzmann_rows(*, D_a: float, gamma: float, omega: float) -> list[Prediction]:
+    """Boltzmann's stationary law under additive white noise."""
+    rows: list[Prediction] = []
+    P = Prediction
     T = temperature(D_a=D_a, gamma=gamma)
     reg = "Boltzmann, additive white noise"
     ref = "FPE stationary law"
@@ -1103,6 +1121,13 @@ def family_predictions(
         P(reg, "<E>", boltzmann_harmonic_mean_E(D_a=D_a, gamma=gamma, omega=omega), ref, valid, "harmonic: T"),
     ]
 
+    return rows
+
+
+def _kramers_rows(*, D_a: float, gamma: float, omega: float, T: float) -> list[Prediction]:
+    """The pendulum's escape rates over its barrier (Kramers, Mel'nikov-Meshkov, Lifson-Jackson)."""
+    rows: list[Prediction] = []
+    P = Prediction
     barrier = pendulum_barrier(omega=omega) / T
     delta = pendulum_energy_loss(D_a=D_a, gamma=gamma, omega=omega)
     regime = kramers_regime(D_a=D_a, gamma=gamma, omega=omega)
@@ -1125,6 +1150,13 @@ def family_predictions(
           "Delta U/T >= 5", f"{low}escape rate from a well, {regime} formula"),
     ]
 
+    return rows
+
+
+def _washboard_rows(*, D_a: float, gamma: float, omega: float, F: float) -> list[Prediction]:
+    """The tilted washboard under a constant torque F."""
+    rows: list[Prediction] = []
+    P = Prediction
     reg = "tilted washboard (torque F)"
     rows += [
         P(reg, "<Omega>", running_velocity(F=F, gamma=gamma), "force balance", "F >> omega^2; running, low noise",
@@ -1137,6 +1169,13 @@ def family_predictions(
           "T/gamma = D_a/(2 gamma^2)"),
     ]
 
+    return rows
+
+
+def _random_frequency_rows(*, D: float, gamma: float, omega: float) -> list[Prediction]:
+    """The random-frequency oscillator with white noise D on x: thresholds and rates."""
+    rows: list[Prediction] = []
+    P = Prediction
     reg = "random frequency, white noise D on x"
     valid = "F = D_a = 0; any D"
     rows += [
