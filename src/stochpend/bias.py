@@ -291,12 +291,12 @@ class _CpuPairs:
     """A chunk of pairs in host arrays, advanced by the CPU's pair driver."""
 
     def __init__(self, config: SimulationConfig, spec: Spec, p0: int, n: int) -> None:
-        from stochpend import initial, integrator, rng
+        from stochpend import initial, integrator
         from stochpend._backends import cpu
 
         c = self.config = config
         self.advance_k = cpu.pair_advance_kernel(spec)
-        self.key0, self.key1 = rng.seed_to_key(config.seed)
+        self.key0, self.key1 = config.keys.main
         self.x, self.Omega, self.xf, self.Omegaf, self.xi, self.xi_aux, self.t, self.t_comp = (
             np.empty(n) for _ in range(8))
         self.k = np.empty(n, dtype=np.uint64)

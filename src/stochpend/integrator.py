@@ -144,7 +144,7 @@ def run_record(config: Any) -> tuple[Any, ...]:
     terms = _dynamics.terms_of_config(config)
     if "additive_noise" in terms:  # the generic additive channel: its noise's record, its key
         return (*run, _dynamics.record(config), _dynamics.channel_record(config),
-                rng.additive_key(config.seed))
+                config.keys.additive)
     if terms:  # terms on: their record d
         return (*run, _dynamics.record(config))
     return run

@@ -20,6 +20,7 @@ from stochpend import noises as _noises
 from stochpend import observables as _observables
 from stochpend import oscillators as _oscillators
 from stochpend import parameters as _parameters
+from stochpend import rng as _rng
 
 #: The built-in noises (a registered noise is accepted too: ``stochpend.noises.register``).
 NOISES = tuple(noise.name for noise in _noises.BUILTIN)
@@ -187,6 +188,12 @@ class SimulationConfig:
         if self.additive_noise is None:  # unset: the attributes are what they were
             d.pop("additive_noise")
         return d
+
+    @property
+    def keys(self) -> _rng.RunKeys:
+        """The run's Philox keys (:func:`stochpend.rng.run_keys`): the one place its seed
+        becomes a key."""
+        return _rng.run_keys(self.seed)
 
     @classmethod
     def build(

@@ -461,7 +461,7 @@ def draw_samples(kind: str, *params: float, count: int, seed: int = 0) -> np.nda
     if kind not in kinds:
         raise ValueError(f"kind={kind!r} is not accepted: one of {', '.join(kinds)}")
     p = [float(v) for v in params] + [0.0] * (3 - len(params))
-    key0, key1 = rng.seed_to_key(seed)
+    key0, key1 = rng.run_keys(seed).main
     return _sampler_draws(kinds.index(kind), p[0], p[1], p[2], int(count), key0, key1)
 
 
@@ -609,7 +609,7 @@ def _run_chunk(config: ReducedConfig, p0: int, n: int, sums: np.ndarray | None,
     """Paths p0 .. p0 + n - 1: advance through every output time, accumulating the sums of
     their batches into ``sums[:, j]`` and ``hist[j]`` (when given). Returns the final state
     (as E), the status and the number of path-steps."""
-    key0, key1 = rng.seed_to_key(config.seed)
+    key0, key1 = rng.run_keys(config.seed).main
     times = np.asarray(config.times)
     bs = config.batch_size
     nb = -(-n // bs)

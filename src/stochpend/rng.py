@@ -32,6 +32,7 @@ round-off (word 0 carries the high bits of the float64 u1, word 2 those of u2).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba.extending import register_jitable
@@ -238,6 +239,21 @@ def philox4x32_10_keyed(c0, c1, c2, c3, rk0, rk1):
     c0, c1, c2, c3 = philox_round(c0, c1, c2, c3, rk0[7], rk1[7])
     c0, c1, c2, c3 = philox_round(c0, c1, c2, c3, rk0[8], rk1[8])
     return philox_round(c0, c1, c2, c3, rk0[9], rk1[9])
+
+
+class RunKeys(NamedTuple):
+    """The Philox keys of one run, made from its seed by :func:`run_keys` and nowhere else in the
+    package (a driver reads ``config.keys``): ``main`` the seed's key words (the multiplicative
+    noise, the initial conditions, the white/OU additive noise), ``additive`` the generic additive
+    channel's (:func:`additive_key`). Each a pair of uint64 holding 32-bit words."""
+
+    main: tuple[np.uint64, np.uint64]
+    additive: tuple[np.uint64, np.uint64]
+
+
+def run_keys(seed: int) -> RunKeys:
+    """The run's keys (:class:`RunKeys`) for a seed in [0, 2**64)."""
+    return RunKeys(seed_to_key(seed), additive_key(seed))
 
 
 def seed_to_key(seed: int) -> tuple[np.uint64, np.uint64]:

@@ -166,3 +166,28 @@ def test_float32_normals_have_standard_gaussian_moments_and_tails():
     for name, (value, exact, var) in checks.items():
         z = (value - exact) / math.sqrt(var / m)
         assert abs(z) < Z_TOL, f"{name} = {value:.6g}, exact {exact:.6g}: {z:+.2f} standard errors"
+
+
+def test_the_seed_becomes_a_key_in_one_place():
+    """Issue 33, item 6: only rng.run_keys turns a seed into Philox keys (drivers read
+    config.keys); the keys are the seed's words and the channel's mixed words, as before."""
+    import ast
+    from pathlib import Path
+
+    from stochpend.params import SimulationConfig
+
+    src = Path(rng.__file__).parent
+    callers = set()
+    for path in src.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call):
+                name = getattr(node.func, "attr", getattr(node.func, "id", None))
+                if name in ("seed_to_key", "additive_key", "run_keys"):
+                    callers.add((path.relative_to(src).as_posix(), name))
+    assert callers == {("rng.py", "seed_to_key"), ("rng.py", "additive_key"), ("params.py", "run_keys"),
+                       ("reduced.py", "run_keys")}, callers
+    seed = 2**40 + 77
+    keys = SimulationConfig.build(seed=seed).keys
+    assert keys.main == (np.uint64(seed & 0xFFFFFFFF), np.uint64(seed >> 32))
+    assert keys.additive == (np.uint64((seed & 0xFFFFFFFF) ^ rng.ADDITIVE_KEY_MIX[0]),
+                             np.uint64((seed >> 32) ^ rng.ADDITIVE_KEY_MIX[1]))

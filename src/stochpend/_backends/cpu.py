@@ -657,7 +657,7 @@ class Engine:
         self.accs = observables_.accumulators(observables_.objects(config.observables))
         if self.accs:
             self.kernels.advance = tracked_kernel(spec, self.accs)
-        self.key0, self.key1 = rng.seed_to_key(config.seed)
+        self.key0, self.key1 = config.keys.main
         self.record = spec.noise.record(config)
         self.run = integrator.run_record(config)
         # The additive channel's per-path arrays (xi_a for the OU channel, xi_a and aux_a for

@@ -342,7 +342,7 @@ class PairEngine:
         self.config = config
         self.init = init_kernel(spec)
         self.advance_k = pair_advance_kernel(spec)
-        self.key0, self.key1 = rng.seed_to_key(config.seed)
+        self.key0, self.key1 = config.keys.main
         self.p0, self.n = p0, n
         self.record = spec.noise.record(config)
         self.run = integrator.run_record(config)
@@ -643,7 +643,7 @@ class Engine:
             self.d_edges = cuda.to_device(np.ascontiguousarray(hist_edges(config), dtype=np.float64))
         self._zero_flag = np.zeros(1, dtype=np.int32)
         self._fill_checked = False
-        self.key0, self.key1 = rng.seed_to_key(config.seed)
+        self.key0, self.key1 = config.keys.main
         self.record = spec.noise.record(config)
         self.run = integrator.run_record(config)
         self.n = 0
