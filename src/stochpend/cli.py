@@ -196,7 +196,8 @@ def _root(
 CONFIG_KEYS = ("noise", "D", "tau", "omega_noise", "omega", "potential", "n", "coupling", "paths", "t_max",
                "n_times", "times", "seed", "theta0", "Omega0", "h_max", "step_c", "hist_bins", "bias_paths",
                "accuracy", "rtol", "max_path_steps", "backend", "precision", "threads", "joint_bins",
-               "joint_x_range", "joint_Omega_max", "additive_noise")
+               "joint_x_range", "joint_Omega_max", "additive_noise", "target_error", "target_confidence",
+               "target_statistics", "target_times")
 _CONFIG_REFUSED = {"out": "the output file is named on the command line (--out)",
                    "overwrite": "only the command line that runs may allow overwriting (--overwrite)",
                    "checkpoint": "the checkpoint file is named on the command line (--checkpoint)",
@@ -321,6 +322,10 @@ def simulate(
     joint_Omega_max: Annotated[float | None, typer.Option("--joint-Omega-max", help="With --joint-bins: the Omega range [-W, W).", show_default="every Omega the energy histogram covers")] = None,
     additive_noise: Annotated[str | None, typer.Option("--additive-noise", metavar="NAME", help="The additive noise xi_a's noise (with --param additive_D=...): a registered noise, e.g. harmonic or dichotomous; its parameters are --param additive_tau=, additive_omega_noise=, additive_<its own>=.", show_default="white, or ou when additive_tau > 0")] = None,
     observable: Annotated[list[str] | None, typer.Option("--observable", metavar="NAME", help="Also report a registered observable or per-path accumulator ('displacement', or one a --plugin registers; repeat it; 'stochpend list' shows them).", show_default="none")] = None,
+    target_error: Annotated[float | None, typer.Option("--target-error", help="Ask for an accuracy instead: the relative total error (statistical + discretisation bias) of each target statistic at each output time, met at least cost by multilevel Monte Carlo on fixed steps h_max/2^l (--paths, --step-c, --bias-paths are not used; docs/numerics.md).", show_default="none: paths and steps as given")] = None,
+    target_confidence: Annotated[float, typer.Option("--target-confidence", help="Confidence of --target-error's total error, in (0.5, 1).")] = 0.95,
+    target_statistics: Annotated[str | None, typer.Option("--target-statistics", metavar="NAMES", help="With --target-error: the means to control, comma-separated (mean_E, mean_E2, ... or mean_<observable>).", show_default="mean_E,mean_E2")] = None,
+    target_times: Annotated[str | None, typer.Option("--target-times", metavar="TIMES", help="With --target-error: the output times to control, comma-separated, among the run's.", show_default="every output time")] = None,
     config_file: Annotated[Path | None, typer.Option("--config", parser=file_name, is_eager=True, callback=_load_config,
                                                 help="A TOML file of physics and numerics options, by their names here "
                                                 "(noise, D, tau, t_max, paths, h_max, ...); options on the command "
@@ -363,6 +368,18 @@ def simulate(
         times=parse_times(times), n_times=n_times, seed=seed, theta0=parse_theta0(theta0),
         Omega0=Omega0, observables=tuple(observable or ()), **kwargs,
     )
+    if target_error is not None:
+        from stochpend._cli_target import simulate_target
+
+        if checkpoint is not None or checkpoint_every is not None:
+            raise ValueError(f"checkpoint={str(checkpoint)!r} is not accepted with --target-error: "
+                             "a target run is not checkpointed yet")
+        simulate_target(config, target_error=target_error, target_confidence=target_confidence,
+                        target_statistics=target_statistics, target_times=target_times,
+                        backend=backend, precision=precision, max_path_steps=max_path_steps,
+                        accuracy=accuracy, rtol=rtol, out=out, overwrite=overwrite, quiet=quiet,
+                        config_file=config_file, ctx=ctx)
+        return
     from stochpend import bias as _bias
 
     accuracy, rtol = _bias.check_accuracy(accuracy, rtol)
@@ -488,6 +505,8 @@ def result_kind(ds: Any) -> str | None:
     B.F.P.E.'s solution), "reduced" (the reduced dynamics), "simulation" (simulate, a
     checkpointed run, resume, reproduce's runs), or None (not a file of stochpend's)."""
     title = str(ds.attrs.get("title", ""))
+    if "target_error" in ds.attrs and "n_samples" in ds:
+        return "target"  # simulate --target-error (stochpend.multilevel)
     if "mean_E" not in ds:
         return None
     if title == "stochpend parameter sweep" or any(d not in ("time", "E_bin", "E_bin_edge", "batch")
@@ -602,8 +621,13 @@ def show(
                  f"{', '.join(left_out)} are in --format json")
         return
     warned: list[str] = []
+    tables: list[Any]
     try:  # the tables are built whole before anything is printed
-        if kind == "sweep":
+        if kind == "target":
+            from stochpend.multilevel import summary_lines
+
+            tables = ["\n".join(summary_lines(ds))]
+        elif kind == "sweep":
             from stochpend._cli_scale import sweep_table
 
             tables = [sweep_table(ds)]
@@ -628,7 +652,7 @@ def show(
                          f"command can show ({why})") from None
     for table in tables:
         results.print(table)
-    for line in joint_lines(ds) if kind != "sweep" else ():
+    for line in joint_lines(ds) if kind not in ("sweep", "target") else ():
         results.print(line, markup=False, highlight=False)
     for line in warned:
         console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)

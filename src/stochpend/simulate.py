@@ -64,6 +64,10 @@ def simulate(
     bias_paths: int | None = None,
     accuracy: str = "fixed",
     rtol: float | None = None,
+    target_error: float | None = None,
+    target_confidence: float = 0.95,
+    target_statistics: Any = None,
+    target_times: Any = None,
     **noise_params: float,
 ) -> xr.Dataset:
     r"""Simulate an ensemble of stochastic pendulums and return its energy statistics.
@@ -172,6 +176,20 @@ def simulate(
     rtol : float, optional
         With ``accuracy="auto"`` (implied): the accepted bias as a fraction of each value,
         instead of half a standard error.
+    target_error : float, optional
+        Ask for an accuracy instead of paths and a step: the relative total error (statistical
+        half-width plus a bound on the discretisation bias) of each of ``target_statistics`` at
+        each of ``target_times``, at confidence ``target_confidence``, met at least cost by
+        multilevel Monte Carlo on coupled levels with fixed steps h_max/2**l
+        (:mod:`stochpend.multilevel`, docs/numerics.md). ``paths``, ``step_c``, ``bias_paths``
+        are then not used; the result is the multilevel Dataset (below).
+    target_confidence : float
+        Confidence of the total error, in (0.5, 1); default 0.95.
+    target_statistics : sequence of str, optional
+        Means to control (default ``("mean_E", "mean_E2")``; any ``mean_*`` of the table or of a
+        user observable).
+    target_times : array_like, optional
+        Output times to control, among the run's ``times`` (default all of them).
 
     Returns
     -------
@@ -185,6 +203,13 @@ def simulate(
         (the estimated discretisation bias, value minus zero-step limit) unless
         ``bias_paths=0``. Attributes hold every parameter, the seed,
         the scheme, versions, wall time and the number of path-steps.
+        With ``target_error``: coordinates ``time`` (the target times) and ``level``; per
+        statistic ``<name>``, ``<name>_stat_error``, ``<name>_bias_bound``,
+        ``<name>_total_error``, ``<name>_relative_total_error``, ``<name>_certified``,
+        ``<name>_cost_to_certify`` (time), the per-level ``<name>_level_mean``,
+        ``<name>_level_variance``, ``<name>_level_decorrelation``, ``<name>_consistency``
+        (level, time), the rates ``<name>_alpha``, ``<name>_beta``; ``n_samples``,
+        ``cost_per_sample``, ``h`` (level); attributes ``target_*`` and the path-steps spent.
 
     Raises
     ------
@@ -199,6 +224,10 @@ def simulate(
         observables=observables, noise_params=noise_params, joint_bins=joint_bins,
         joint_x_range=joint_x_range, joint_Omega_max=joint_Omega_max, additive_noise=additive_noise,
     )
+    if target_error is not None:
+        return _target(config, target_error, target_confidence, target_statistics, target_times,
+                       backend=backend, precision=precision, accuracy=accuracy, rtol=rtol,
+                       max_path_steps=max_path_steps)
     # Refused here, before any work (run validates again what it is handed: a few checks).
     settings = Run.build(config, backend=backend, precision=precision, threads=threads,
                          chunk_paths=chunk_paths, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
@@ -207,6 +236,30 @@ def simulate(
              progress=resolve_progress(progress), precision=precision, bias_paths=settings.bias_paths,
              accuracy=settings.accuracy, rtol=settings.rtol, max_path_steps=max_path_steps)
     warn_about(ds)
+    return ds
+
+
+def _target(config: SimulationConfig, target_error: Any, target_confidence: Any, target_statistics: Any,
+            target_times: Any, *, backend: str, precision: str, accuracy: Any, rtol: Any,
+            max_path_steps: Any) -> xr.Dataset:
+    """``simulate(target_error=...)``: validated before any work, then
+    :func:`stochpend.multilevel.target_run`."""
+    from stochpend import multilevel, resources
+    from stochpend._warnings import StochpendWarning
+
+    target = multilevel.check_target(config, target_error, target_confidence, target_statistics, target_times)
+    if accuracy != "fixed" or rtol is not None:
+        raise ValueError(f"accuracy={accuracy!r} is not accepted with target_error: the target "
+                         "chooses the steps itself; leave accuracy='fixed' and rtol unset")
+    if precision != "float64":
+        raise ValueError(f"precision={precision!r} is not accepted with target_error: float64")
+    resources.work_limit(max_path_steps)
+    ds = multilevel.target_run(config, target, backend=resolve_backend(backend), max_path_steps=max_path_steps)
+    missed = int(ds.attrs["target_entries"]) - int(ds.attrs["target_certified"])
+    if missed:
+        warnings.warn(f"{missed} of {ds.attrs['target_entries']} (statistic, time) entries are not "
+                      "certified to the target (their <name>_cost_to_certify says what it would take)",
+                      StochpendWarning, stacklevel=3)
     return ds
 
 

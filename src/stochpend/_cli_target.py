@@ -1,0 +1,60 @@
+"""``stochpend simulate --target-error EPS``: the command's side of :mod:`stochpend.multilevel`
+(the table on stdout, notes and warnings on stderr, the file with ``--out``)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+from stochpend._cli_common import console, note, results
+
+
+def _times(text: str | None) -> list[float] | None:
+    if text is None:
+        return None
+    try:
+        return [float(x) for x in str(text).split(",") if x.strip()]
+    except ValueError:
+        raise ValueError(f"target_times={text!r} is not accepted: a comma-separated list of the run's "
+                         "output times, e.g. 1,10") from None
+
+
+def simulate_target(config: Any, *, target_error: float, target_confidence: float, target_statistics: str | None,
+                    target_times: Any, backend: str, precision: str, max_path_steps: Any, accuracy: str,
+                    rtol: Any, out: Path | None, overwrite: bool, quiet: bool, config_file: Path | None,
+                    ctx: Any) -> None:
+    """Validate (one line, exit 2, before any work), run, print the table, write ``out``."""
+    from stochpend import io, multilevel, resources
+    from stochpend.simulate import resolve_backend
+
+    if isinstance(target_times, str):
+        target_times = _times(target_times)
+    target = multilevel.check_target(config, target_error, target_confidence, target_statistics, target_times)
+    if accuracy != "fixed" or rtol is not None:
+        raise ValueError(f"accuracy={accuracy!r} is not accepted with --target-error: the target chooses "
+                         "the steps itself; leave --accuracy fixed and --rtol unset")
+    if precision != "float64":
+        raise ValueError(f"precision={precision!r} is not accepted with --target-error: float64")
+    resources.work_limit(max_path_steps)
+    backend = resolve_backend(backend, note=note)
+    ds = multilevel.target_run(config, target, backend=backend, max_path_steps=max_path_steps,
+                               note=None if quiet else note)
+    ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
+    if config_file is not None and ctx is not None:
+        ds.attrs["config_file"] = str(config_file)
+        ds.attrs["config_text"] = ctx.meta.get("stochpend.config_text", "")
+    if out is not None:
+        io.to_netcdf(ds, out, overwrite=overwrite)
+    if not quiet:
+        for line in multilevel.summary_lines(ds):
+            results.print(line, markup=False, highlight=False, soft_wrap=True)
+    missed = int(ds.attrs["target_entries"]) - int(ds.attrs["target_certified"])
+    if missed:
+        console.print(f"[yellow]{missed} of {ds.attrs['target_entries']} (statistic, time) entries are not "
+                      "certified to the target: the table says what certifying each would cost[/]",
+                      highlight=False, soft_wrap=True)
+    if out is not None and not quiet:
+        from stochpend._terminal import markup
+
+        console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)

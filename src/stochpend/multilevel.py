@@ -1,0 +1,740 @@
+"""A total-error target met by multilevel Monte Carlo on coupled levels (issue 35, items 1-3).
+
+``simulate(..., target_error=eps)`` asks for a statistic P (a mean: ``mean_E``, ``mean_E2``, any
+``mean_<name>``) at the output times with a relative *total* error below eps, statistical and
+discretisation together, at a stated confidence (default 95 %). It is met by the multilevel
+estimator of Giles (2008) on the step ladder h_l = h_max / 2**l, l = 0 .. L (fixed steps:
+step_c = 0, see below):
+
+    E[P_{h_L}] = E[P_{h_0}] + sum_{l=1}^{L} E[Y_l],     Y_l = P_{h_l} - P_{h_{l-1}}     (telescope)
+
+Level 0 is an ordinary ensemble at h_0 (the run's own kernel, :func:`stochpend.runner.run_batches`);
+level l >= 1 is an ensemble of coupled pairs (:func:`stochpend.integrator.Integrator.advance_pair`
+through :mod:`stochpend.bias`'s pair drivers on ``refined(config, l - 1)``): a coarse member at
+h_{l-1} and a fine member taking each coarse step as two half steps, driven by one noise
+realization, so that V_l = Var Y_l falls with h while the levels stay coupled. Per level and
+output time: the mean m_l and the per-sample variance V_l of the difference, the cost C_l per
+sample (path-steps measured, fine half steps counted as steps); the samples per level that meet
+a statistical half-width s at least cost (Lagrange, Giles' Eq. (12)):
+
+    N_l = ceil((z/s)**2 sqrt(V_l/C_l) sum_k sqrt(V_k C_k))                             (plan)
+
+the largest over the statistics and times asked for (each constraint is then met; not the joint
+optimum). The discretisation bias of P_{h_L} is the tail of the telescope; with the weak
+expansion E[Y_l] ~ K h_l**alpha,
+
+    |E P_{h_L} - P_0| <= (|m_L| + z_b se(m_L)) / (2**alpha - 1)                             (bias)
+
+(or the same from level L-1 scaled by 2**-alpha, the smaller of the two, each at half the bias's
+error probability), alpha the fitted rate over the levels whose mean is resolved (> 3 se), at
+most 2 (the scheme's weak order; a faster fitted decay is pre-asymptotic), 2 where the fit cannot
+tell. The statistical half-width is Student's t at the Welch-Satterthwaite degrees of freedom
+of the levels' batch variances. The error probability 1 - confidence is split in halves between
+the statistical interval and the bias bound (Bonferroni), so total = half-width + bias bound holds
+at the stated confidence for each (statistic, time); it is not family-wise over them.
+
+Levels L are added one at a time while a bias bound exceeds half the target; then the samples are
+planned from the pilot's V_l, C_l and topped up, rounds repeating while a planned error misses.
+
+Honest at late times: where the finest level's pairs have decorrelated (sqrt(1 - r) > 1/2,
+:data:`stochpend.bias.DECORRELATED`: V_l no longer falls with h) the time is left out of the plan
+and reported *not certified*, with the cost that certifying it by this estimator would take
+(``<name>_cost_to_certify``). A time is certified only when it is coupled, its total error is at
+most eps |estimate|, no path went non-finite and the bias bound is finite.
+
+Random streams: level l's samples of round k draw from the seed
+``SeedSequence(seed, spawn_key=(SPAWN, l, k))`` (NumPy's, a fixed function), never the run's own
+seed: every level and round has its own Philox key, so they are independent of each other and of
+an ordinary run with the same seed, and the result is a fixed function of (seed, configuration,
+target) whatever the threads or chunks.
+
+Fixed steps. The coupled pair's fine member takes the coarse member's steps halved; an adaptive
+step control at half (h_max, c) chooses other steps, so level l's fine member and level l+1's
+coarse member would differ in law (by O(h**3)) and the telescope would not close. With step_c = 0
+every member is the fixed-step scheme at its h_l and the telescope is exact (up to the landing
+step before each output time, which both take but split differently: O(h**3) each); the
+consistency check (Giles: level l-1's fine mean against level l's coarse mean, in sigma) reports
+it. What this version does not do: the nonlinear statistics (skewness, flatness: functions of
+means, by the jackknife), the Richardson-extrapolated (multilevel Richardson-Romberg) estimate,
+a fall-back to independent ensembles at late times, a wall-time budget, checkpoints, sweeps.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from stochpend import bias, observables, stats
+
+if TYPE_CHECKING:  # pragma: no cover
+    import xarray as xr
+
+    from stochpend.params import SimulationConfig
+    from stochpend.progress import Progress
+
+__all__ = ["DEFAULT_STATISTICS", "check_target", "level_seed", "plan_samples", "target_run"]
+
+#: What ``target_error`` controls when no ``target_statistics`` are named.
+DEFAULT_STATISTICS = ("mean_E", "mean_E2")
+#: Batches of each level's round (the jackknife's units; its variance has batches - 1 degrees of
+#: freedom, the Student t of the half-width accounts for them).
+LEVEL_BATCHES = 64
+#: Samples of each level's pilot round.
+PILOT_SAMPLES = 256
+#: Levels piloted at the start (0, 1, 2: two differences, enough for a first rate).
+PILOT_LEVELS = 3
+#: The finest level tried: h_max / 2**MAX_LEVEL.
+MAX_LEVEL = 10
+#: Rounds of planning and topping up.
+MAX_ROUNDS = 16
+#: Part of the spawn key of every level's seed (issue 35): no other SeedSequence in stochpend uses it.
+SPAWN = 35
+#: A level's mean counts as resolved for the rate fit beyond this many standard errors.
+RESOLVED_SE = 3.0
+#: Giles' consistency check: |fine mean of level l-1 - coarse mean of level l| in sigma.
+CONSISTENCY_SIGMA = 3.0
+
+
+# -- validation -----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Target:
+    """A validated target: relative total error ``error`` at ``confidence`` for ``statistics``
+    at the output times ``times`` (indices ``index`` into the run's)."""
+
+    error: float
+    confidence: float
+    statistics: tuple[str, ...]
+    times: np.ndarray
+    index: np.ndarray
+
+
+def _number(name: str, value: Any, accepted: str, ok: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError, OverflowError):
+        v = math.nan
+    if isinstance(value, bool) or not ok(v):
+        raise ValueError(f"{name}={value!r} is not accepted: {accepted}")
+    return v
+
+
+def check_target(config: SimulationConfig, target_error: Any, target_confidence: Any = 0.95,
+                 target_statistics: Any = None, target_times: Any = None) -> Target:
+    """Validate a target against ``config`` (one-line ``ValueError`` naming the parameter)."""
+    eps = _number("target_error", target_error, "a number in (0, 1), the relative total error "
+                  "(statistical and discretisation) of each statistic", lambda v: 0.0 < v < 1.0)
+    conf = _number("target_confidence", target_confidence, "a number in (0.5, 1), e.g. 0.95",
+                   lambda v: 0.5 < v < 1.0)
+    known = [s.name for s in observables.STATISTICS if s.name.startswith("mean_")]
+    known += [f"mean_{u}" for u in config.observables]
+    if target_statistics is None:
+        names: tuple[str, ...] = DEFAULT_STATISTICS
+    else:
+        given = ([s for s in target_statistics.split(",") if s.strip()] if isinstance(target_statistics, str)
+                 else target_statistics)
+        try:
+            names = tuple(str(s).strip() for s in given)
+        except TypeError:
+            names = ()
+        bad = [s for s in names if s not in known]
+        if not names or bad or len(set(names)) != len(names):
+            raise ValueError(f"target_statistics={target_statistics!r} is not accepted: distinct names "
+                             f"among {', '.join(known)} (means; skewness and flatness are not yet targets)")
+    run_times = np.asarray(config.times, dtype=float)
+    if target_times is None:
+        index = np.arange(run_times.size)
+    else:
+        try:
+            want = np.atleast_1d(np.asarray(target_times, dtype=float))
+        except (TypeError, ValueError):
+            want = np.array([math.nan])
+        index_list = []
+        for t in want:
+            hit = np.flatnonzero(np.isclose(run_times, t, rtol=1e-12, atol=0.0))
+            if want.ndim != 1 or hit.size != 1:
+                raise ValueError(f"target_times={target_times!r} is not accepted: times among the "
+                                 f"run's output times ({run_times.size} from {run_times[0]:g} to "
+                                 f"{run_times[-1]:g}; set them with times=)")
+            index_list.append(int(hit[0]))
+        index = np.array(sorted(set(index_list)), dtype=np.int64)
+        if index.size != want.size:
+            raise ValueError(f"target_times={target_times!r} is not accepted: distinct times among "
+                             "the run's output times")
+    return Target(eps, conf, names, run_times[index], index)
+
+
+# -- streams ----------------------------------------------------------------------------------------
+def level_seed(seed: int, level: int, round_: int) -> int:
+    """The seed of level ``level``'s samples of round ``round_``: a fixed function of the run's
+    seed, distinct (with probability 1 - 2**-64 per pair) from the run's seed and from every other
+    level's and round's, so that their Philox streams are independent."""
+    words = np.random.SeedSequence(int(seed), spawn_key=(SPAWN, int(level), int(round_))).generate_state(
+        2, np.uint32)
+    return int(words[0]) | (int(words[1]) << 32)
+
+
+# -- one round of one level ---------------------------------------------------------------------
+@dataclass
+class Round:
+    """One round of samples of one level: ``n`` samples, ``path_steps`` spent, and per
+    (statistic, time) the means of the fine (``f``) and coarse (``c``; level 0: none) members and
+    of their difference (``y``; level 0: the fine mean), each with the variance of that mean
+    (jackknife over the round's batches, ``batches - 1`` degrees of freedom)."""
+
+    n: int
+    path_steps: int
+    seed: int
+    batches: int
+    f: np.ndarray
+    f_var: np.ndarray
+    c: np.ndarray
+    c_var: np.ndarray
+    y: np.ndarray
+    y_var: np.ndarray
+    nonfinite: int
+
+
+def _jackknife(sums: np.ndarray, g: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(value, variance of the value) of g(means) by the delete-one-batch jackknife; ``sums``
+    (B, n_times, ..., n_sums) with the count in column S_COUNT."""
+    def means(s: np.ndarray) -> np.ndarray:
+        count = s[..., stats.S_COUNT]
+        return s / np.where(count > 0, count, np.nan)[..., None]
+
+    total = sums.sum(axis=0)
+    value = g(means(total))
+    n_b = sums.shape[0]
+    if n_b < 2:
+        return value, np.full_like(value, np.nan)
+    jk = g(means(total[None] - sums))
+    dev = jk - jk.mean(axis=0)
+    return value, (n_b - 1) / n_b * np.sum(dev * dev, axis=0)
+
+
+def _st(x: np.ndarray) -> np.ndarray:
+    """(..., time, statistic) -> (..., statistic, time)."""
+    return np.swapaxes(x, -1, -2)
+
+
+def _user_column(config: SimulationConfig, name: str) -> int:
+    c = stats.N_SUMS
+    for u in config.observables:
+        if f"mean_{u}" == name:
+            return c
+        c += observables._columns(observables._REGISTRY[u])
+    raise KeyError(name)
+
+
+def _stat_columns(config: SimulationConfig, names: Sequence[str]) -> np.ndarray:
+    cols = []
+    for n in names:
+        try:
+            cols.append(observables.column(n.removeprefix("mean_")))
+        except KeyError:
+            cols.append(_user_column(config, n))
+    return np.array(cols, dtype=np.int64)
+
+
+def _batches(n: int) -> tuple[int, int]:
+    b = min(LEVEL_BATCHES, n)
+    size = -(-n // b)
+    return -(-n // size), size
+
+
+def run_level(config: SimulationConfig, level: int, n: int, round_: int, cols: np.ndarray,
+              index: np.ndarray, *, backend: str = "cpu", progress: Progress | None = None) -> Round:
+    """``n`` samples of ``level`` (0: an ordinary ensemble at ``config``'s step; l >= 1: coupled
+    pairs at ``refined(config, l - 1)``) with the seed :func:`level_seed`, reduced to the means of
+    the statistics' columns ``cols`` at the output times ``index``."""
+    seed = level_seed(config.seed, level, round_)
+    n_b, _ = _batches(n)
+    if level == 0:
+        from stochpend import runner
+
+        cfg = replace(config, seed=seed, paths=n, n_batches=n_b)
+        ens, path_steps = runner.run_batches(cfg, 0, n_b, backend=backend, progress=progress)
+        sums = ens.sums[:, index]  # (B, T, n_sums)
+        f, f_var = _jackknife(sums, lambda m: _st(m[..., cols]))
+        nonfinite = int(sums[:, -1, stats.S_NONFINITE].sum()) if sums.size else 0
+        nan = np.full_like(f, np.nan)
+        return Round(n, int(path_steps), seed, n_b, f, f_var, nan, nan.copy(), f, f_var, nonfinite)
+    cfg = replace(bias.refined(config, level - 1), seed=seed)
+    sums, path_steps = _pair_sums(cfg, n, n_b, backend, progress)
+    sums = sums[:, index]  # (B, T, 2, n_sums)
+    f, f_var = _jackknife(sums, lambda m: _st(m[..., 1, cols]))
+    c, c_var = _jackknife(sums, lambda m: _st(m[..., 0, cols]))
+    y, y_var = _jackknife(sums, lambda m: _st(m[..., 1, cols] - m[..., 0, cols]))
+    nonfinite = int(sums[:, -1, 0, stats.S_NONFINITE].sum()) if sums.size else 0
+    return Round(n, int(path_steps), seed, n_b, f, f_var, c, c_var, y, y_var, nonfinite)
+
+
+def _pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, backend: str,
+               progress: Progress | None) -> tuple[np.ndarray, int]:
+    """The coarse and fine members' per-batch sums (n_batches, n_times, 2, n_sums) of
+    ``n_pairs`` coupled pairs of ``config`` and the path-steps they took: the loop of
+    :func:`stochpend.bias.estimate`, keeping the sums (its batches are the jackknife's)."""
+    from stochpend import integrator
+    from stochpend._backends import cpu
+    from stochpend.progress import NoProgress
+
+    progress = progress or NoProgress()
+    spec = bias.pair_spec(config, backend)
+    accumulate = cpu.accumulate_kernel(spec, config.observables)
+    n_tracks = len(observables.accumulators(observables.objects(config.observables)))
+    times = np.asarray(config.times, dtype=np.float64)
+    batch_size = -(-n_pairs // n_batches)
+    chunk_batches = max(1, bias.CHUNK_PAIRS // batch_size)
+    sums = np.zeros((n_batches, times.size, 2, observables.n_sums(config)))
+    q = integrator.run_record(config)[1]
+    draws = 0
+    for b0 in range(0, n_batches, chunk_batches):
+        b1 = min(b0 + chunk_batches, n_batches)
+        p0 = b0 * batch_size
+        n = min(b1 * batch_size, n_pairs) - p0
+        pairs = (bias._GpuPairs if backend == "cuda" else bias._CpuPairs)(config, spec, p0, n)
+        max_steps = max(1000, bias._WORK_PER_CALL // max(n, 1))
+        hist = np.zeros((b1 - b0, 2), dtype=np.int64)
+        tracks = np.zeros((n_tracks, n))
+        for j, t_target in enumerate(times):
+            while not pairs.advance(float(t_target), max_steps):
+                pass
+            x, Omega, xf, Omegaf, xi, t, status = pairs.members()
+            bias._accumulate_pairs(accumulate, x, Omega, xf, Omegaf, xi, t, status, config.omega**2, q,
+                                   batch_size, sums[b0:b1, j], hist, tracks)
+            pairs.set_status(status)
+        draws += pairs.draws()
+    # One draw a fine half step; the coarse steps are half as many (bias.estimate's count).
+    return sums, draws + draws // 2
+
+
+# -- a level's rounds together ----------------------------------------------------------------------
+@dataclass
+class Level:
+    """All rounds of one level, combined: a round's mean weighted by its samples, the variance
+    of the combined mean sum (n_k/N)**2 var_k with Satterthwaite's degrees of freedom."""
+
+    level: int
+    rounds: list[Round] = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        return sum(r.n for r in self.rounds)
+
+    @property
+    def path_steps(self) -> int:
+        return sum(r.path_steps for r in self.rounds)
+
+    @property
+    def cost(self) -> float:
+        """Path-steps a sample, measured."""
+        return self.path_steps / self.n
+
+    def combined(self, what: str) -> tuple[np.ndarray, np.ndarray]:
+        n = self.n
+        mean = sum(r.n / n * getattr(r, what) for r in self.rounds)
+        var = sum((r.n / n) ** 2 * getattr(r, f"{what}_var") for r in self.rounds)
+        return np.asarray(mean), np.asarray(var)
+
+    def dof(self, what: str = "y") -> np.ndarray:
+        """Satterthwaite's degrees of freedom of the combined variance."""
+        n = self.n
+        parts = [((r.n / n) ** 2 * getattr(r, f"{what}_var"), r.batches - 1) for r in self.rounds]
+        num = sum(p for p, _ in parts) ** 2
+        den = sum(p * p / max(d, 1) for p, d in parts)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.asarray(num / den)
+
+    @property
+    def nonfinite(self) -> int:
+        return sum(r.nonfinite for r in self.rounds)
+
+
+# -- planning ---------------------------------------------------------------------------------------
+def plan_samples(V: np.ndarray, C: np.ndarray, half_width: float, z: float) -> np.ndarray:
+    """Giles' samples per level (Eq. (plan) of the module): the least total cost sum N_l C_l
+    with z sqrt(sum V_l/N_l) <= ``half_width``. ``V``: per-sample variances (L+1,), ``C``: costs
+    per sample (L+1,). Returns integers >= 1 (shape (L+1,))."""
+    V = np.maximum(np.asarray(V, dtype=float), 0.0)
+    C = np.asarray(C, dtype=float)
+    total = float(np.sum(np.sqrt(V * C)))
+    n = np.ceil((z / half_width) ** 2 * np.sqrt(V / C) * total)
+    return np.maximum(n, 1).astype(np.int64)
+
+
+def _fit_rate(levels: np.ndarray, values: np.ndarray) -> float:
+    """Minus the slope of log2(values) over ``levels`` (NaN below two points)."""
+    ok = np.isfinite(values) & (values > 0)
+    if np.count_nonzero(ok) < 2:
+        return math.nan
+    return float(-np.polyfit(levels[ok], np.log2(values[ok]), 1)[0])
+
+
+def _quantile(p_two_sided: float, dof: Any = math.inf) -> Any:
+    """The two-sided Student t (normal for infinite dof) quantile of error probability p."""
+    from scipy.special import ndtri, stdtrit
+
+    dof = np.asarray(dof, dtype=float)
+    z = -ndtri(p_two_sided / 2.0)
+    with np.errstate(invalid="ignore"):
+        t = -stdtrit(np.where(np.isfinite(dof) & (dof > 0), dof, 1e9), p_two_sided / 2.0)
+    return np.where(np.isfinite(dof) & (dof > 0), t, z)
+
+
+@dataclass
+class State:
+    """What the levels say now, per (statistic, time): arrays of shape (S, T) unless noted."""
+
+    estimate: np.ndarray
+    stat_var: np.ndarray
+    stat_dof: np.ndarray
+    m: np.ndarray        # (L+1, S, T) means of Y_l (level 0: P_0)
+    m_var: np.ndarray    # (L+1, S, T) variances of those means
+    V: np.ndarray        # (L+1, S, T) per-sample variances
+    C: np.ndarray        # (L+1,) path-steps a sample
+    N: np.ndarray        # (L+1,)
+    decorrelation: np.ndarray  # (L+1, S, T) sqrt(1 - r) of each pair level (NaN at level 0)
+    consistency: np.ndarray    # (L+1, S, T) |F_{l-1} - C_l| / sigma (NaN at level 0)
+    alpha: np.ndarray
+    beta: np.ndarray
+    gamma: float
+    alpha_used: np.ndarray
+    bias_bound: np.ndarray
+    coupled: np.ndarray
+
+
+def _state(levels: list[Level], conf: float) -> State:
+    L = len(levels) - 1
+    m, m_var = zip(*(lv.combined("y") for lv in levels), strict=True)
+    m_a, m_var_a = np.array(m), np.array(m_var)
+    N = np.array([lv.n for lv in levels], dtype=np.int64)
+    C = np.array([lv.cost for lv in levels])
+    V = m_var_a * N[:, None, None]
+    estimate = m_a.sum(axis=0)
+    stat_var = m_var_a.sum(axis=0)
+    dofs = np.array([lv.dof("y") for lv in levels])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        stat_dof = stat_var**2 / np.sum(m_var_a**2 / np.maximum(dofs - 0.0, 1.0), axis=0)
+    decor = np.full(m_a.shape, np.nan)
+    consist = np.full(m_a.shape, np.nan)
+    for lv in levels[1:]:
+        l = lv.level
+        _, fv = lv.combined("f")
+        c, cv = lv.combined("c")
+        with np.errstate(invalid="ignore", divide="ignore"):
+            decor[l] = np.sqrt(m_var_a[l] / (fv + cv))
+            prev, prev_v = levels[l - 1].combined("f")
+            consist[l] = np.abs(prev - c) / np.sqrt(prev_v + cv)
+    ls = np.arange(1, L + 1, dtype=float)
+    S, T = estimate.shape
+    alpha = np.full((S, T), np.nan)
+    beta = np.full((S, T), np.nan)
+    gamma = _fit_rate(ls, C[1:]) * -1.0 if L >= 2 else math.nan
+    # The bias bound's error probability: half of 1 - conf, shared by two candidate bounds.
+    z_b = float(_quantile((1.0 - conf) / 4.0))
+    alpha_used = np.full((S, T), 2.0)
+    bound = np.full((S, T), np.inf)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        se = np.sqrt(m_var_a)
+        for s in range(S):
+            for t in range(T):
+                if L >= 1:
+                    resolved = np.abs(m_a[1:, s, t]) > RESOLVED_SE * se[1:, s, t]
+                    if np.count_nonzero(resolved) >= 2:
+                        alpha[s, t] = _fit_rate(ls[resolved], np.abs(m_a[1:, s, t][resolved]))
+                    beta[s, t] = _fit_rate(ls, V[1:, s, t])
+                a = alpha[s, t]
+                a = 2.0 if not math.isfinite(a) else min(a, 2.0)
+                alpha_used[s, t] = a
+                if L >= 1 and a > 0.0:
+                    cands = [(abs(m_a[L, s, t]) + z_b * se[L, s, t]) / (2.0**a - 1.0)]
+                    if L >= 2:
+                        cands.append((abs(m_a[L - 1, s, t]) + z_b * se[L - 1, s, t]) * 2.0**-a / (2.0**a - 1.0))
+                    finite = [c for c in cands if math.isfinite(c)]
+                    bound[s, t] = min(finite) if finite else math.inf
+    coupled = ~(decor[L] > bias.DECORRELATED) if L >= 1 else np.ones((S, T), bool)
+    return State(estimate, stat_var, stat_dof, m_a, m_var_a, V, C, N, decor, consist, alpha, beta,
+                 gamma, alpha_used, bound, coupled)
+
+
+def _extra_levels(st: State, budget: np.ndarray) -> np.ndarray:
+    """Levels beyond L that the bias bound asks for, per (statistic, time), from its rate."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = st.bias_bound / budget
+        need = np.ceil(np.log2(ratio) / st.alpha_used - 1e-9)
+    return np.where(ratio <= 1.0, 0, np.where(np.isfinite(need), need, MAX_LEVEL))
+
+
+def _projected(st: State, extra: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(V, C, bound) with ``extra`` more levels, extrapolated from the finest with the fitted
+    rates (beta at least 1, gamma 1: a pair level doubles the steps)."""
+    if extra <= 0:
+        return st.V, st.C, st.bias_bound
+    beta = np.where(np.isfinite(st.beta), np.clip(st.beta, 0.0, 4.0), 1.0)
+    k = np.arange(1, extra + 1)[:, None, None]
+    V = np.concatenate([st.V, st.V[-1][None] * 2.0 ** (-beta[None] * k)])
+    C = np.concatenate([st.C, st.C[-1] * 2.0 ** np.arange(1, extra + 1)])
+    bound = st.bias_bound * 2.0 ** (-st.alpha_used * extra)
+    return V, C, bound
+
+
+def _plan(st: State, eps: float, conf: float, active: np.ndarray, *, slack: bool = False) -> np.ndarray:
+    """N_l over the active (statistic, time) entries: the largest of each one's Giles plan for a
+    statistical half-width of half the target. ``slack``: the half-width is the target less the
+    bias bound (where that is at least half the target), and level 0 takes the rest of the
+    variance that the pair levels, at their present samples or more, leave."""
+    L = st.N.size - 1
+    # Student t at the current degrees of freedom: the run's will be more, its t smaller
+    z = _quantile((1.0 - conf) / 2.0, st.stat_dof)
+    N = np.zeros(L + 1, dtype=np.int64)
+    S, T = st.estimate.shape
+    for s in range(S):
+        for t in range(T):
+            if not active[s, t]:
+                continue
+            aim = eps * abs(st.estimate[s, t])
+            half = 0.5 * aim
+            if slack and st.bias_bound[s, t] <= half:
+                half = aim - st.bias_bound[s, t]
+            zz = float(z[s, t])
+            n = plan_samples(st.V[:, s, t], st.C, half, zz)
+            if slack and L >= 1:
+                n[1:] = np.maximum(n[1:], st.N[1:])
+                rest = (half / zz) ** 2 - float(np.sum(np.maximum(st.V[1:, s, t], 0.0) / n[1:]))
+                if rest > 0:
+                    n[0] = max(1, math.ceil(max(st.V[0, s, t], 0.0) / rest))
+            N = np.maximum(N, n)
+    return N
+
+
+def _cost_to_certify(st: State, eps: float, conf: float) -> np.ndarray:
+    """Path-steps that this estimator would spend in all for each (statistic, time) alone:
+    the levels its bias asks for (extrapolated) and Giles' samples for the rest of the error."""
+    S, T = st.estimate.shape
+    out = np.full((S, T), np.inf)
+    z = float(_quantile((1.0 - conf) / 2.0))
+    extra = _extra_levels(st, 0.5 * eps * np.abs(st.estimate))
+    for s in range(S):
+        for t in range(T):
+            k = int(min(extra[s, t], MAX_LEVEL))
+            V, C, bound = _projected(st, k)
+            half = 0.5 * eps * abs(st.estimate[s, t])
+            if bound[s, t] <= half and np.all(np.isfinite(V[:, s, t])):
+                N = plan_samples(V[:, s, t], C, half, z)
+                out[s, t] = float(np.sum(N * C))
+    return out
+
+
+# -- the run ------------------------------------------------------------------------------------
+def _path_steps_guess(config: SimulationConfig, level: int, n: int) -> float:
+    """A priori path-steps of ``n`` samples of ``level``: t_max/h_0 a plain path, 3 t_max/h_{l-1}
+    a pair (one coarse step and two fine half steps)."""
+    steps = config.t_max / config.h_max
+    return float(n) * (steps if level == 0 else 3.0 * steps * 2.0 ** (level - 1))
+
+
+def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu",
+               max_path_steps: Any = None, progress: Progress | None = None,
+               note: Any = None) -> xr.Dataset:
+    """Meet ``target`` (:func:`check_target`) for ``config`` by multilevel Monte Carlo (module
+    docstring) and return the Dataset (see :func:`stochpend.simulate`, ``target_error``).
+
+    ``config.paths`` is not used (the plan sets the samples); ``step_c`` is set to 0 (fixed
+    steps h_max / 2**l). Refuses (``ValueError``, one line) before the pilot when the pilot alone
+    exceeds ``max_path_steps``, and before the main run when the plan does.
+    """
+    from stochpend import resources
+    from stochpend._jitcache import CompileClock
+
+    note = note or (lambda _msg: None)
+    limit = resources.work_limit(max_path_steps)
+    cfg = replace(config, step_c=0.0, paths=PILOT_SAMPLES)
+    pilot_cost = sum(_path_steps_guess(cfg, level, PILOT_SAMPLES) for level in range(PILOT_LEVELS))
+    if pilot_cost > limit:
+        raise ValueError(f"target_error={target.error:g} is not accepted: its pilot alone ({PILOT_SAMPLES} "
+                         f"samples on each of levels 0..{PILOT_LEVELS - 1}) needs about {pilot_cost:.3g} "
+                         f"path-steps, above the limit of {limit:.3g}; use a larger h_max or a shorter "
+                         "t_max, or raise the limit with max_path_steps= (--max-path-steps)")
+    cols = _stat_columns(config, target.statistics)
+    started = _time.perf_counter()
+    levels: list[Level] = []
+    spent = 0
+
+    def add(level: int, n: int) -> None:
+        nonlocal spent
+        if level == len(levels):
+            levels.append(Level(level))
+        r = run_level(cfg, level, n, len(levels[level].rounds), cols, target.index, backend=backend)
+        levels[level].rounds.append(r)
+        spent += r.path_steps
+
+    eps, conf = target.error, target.confidence
+    with CompileClock() as clock:
+        for level in range(PILOT_LEVELS):
+            add(level, PILOT_SAMPLES)
+        note(f"target: pilot of {PILOT_SAMPLES} samples on levels 0..{PILOT_LEVELS - 1} ({spent:.3g} path-steps)")
+        for _ in range(MAX_ROUNDS):
+            # Giles' loop: (a) the pair levels' samples for a statistical half-width of half
+            # the target (so that the finest level's mean, and with it the bias bound, is
+            # resolved), refused if the whole plan is over the limit; (b) a level more while a
+            # bias bound exceeds half the target; (c) the samples for the target less the bias
+            # bound, level 0 taking what the pair levels leave.
+            st = _state(levels, conf)
+            active = st.coupled & np.isfinite(st.estimate) & (st.estimate != 0)
+            L = len(levels) - 1
+            N = _plan(st, eps, conf, active)
+            more = np.maximum(N - st.N, 0)
+            whole = float(np.sum(more * st.C))
+            if spent + whole > limit:
+                _refuse(target, spent, spent + whole, limit, "the plan")
+            more[0] = 0
+            # a round adds at least a tenth of a level's samples: fewer rounds, each worth its start
+            more = np.where(more > 0.1 * st.N, more, 0)
+            if np.any(more):
+                _top_up(add, more, st, note)
+                continue
+            extra = _extra_levels(st, 0.5 * eps * np.abs(st.estimate))
+            if np.any(active & (extra > 0)) and L < MAX_LEVEL:
+                guess = _path_steps_guess(cfg, L + 1, PILOT_SAMPLES)
+                if spent + guess > limit:
+                    _refuse(target, spent, spent + guess, limit, f"level {L + 1}'s pilot")
+                add(L + 1, PILOT_SAMPLES)
+                note(f"target: level {L + 1} added (h = {cfg.h_max * 0.5 ** (L + 1):.3g})")
+                continue
+            more = np.maximum(_plan(st, eps, conf, active, slack=True) - st.N, 0)
+            more = np.where((more > 0) & (more < 0.05 * st.N), np.ceil(0.05 * st.N), more).astype(np.int64)
+            if not np.any(more):
+                break
+            if spent + float(np.sum(more * st.C)) > limit:
+                _refuse(target, spent, spent + float(np.sum(more * st.C)), limit, "the plan")
+            _top_up(add, more, st, note)
+        st = _state(levels, conf)
+    wall = _time.perf_counter() - started
+    return _dataset(config, cfg, target, levels, st, spent, wall, clock.seconds, backend)
+
+
+def _top_up(add: Any, more: np.ndarray, st: State, note: Any) -> None:
+    note(f"target: samples per level {', '.join(str(int(n)) for n in st.N + more)} "
+         f"({float(np.sum(more * st.C)):.3g} more path-steps)")
+    for level, n in enumerate(more):
+        if n > 0:
+            add(level, int(n))
+
+
+def _refuse(target: Target, spent: int, total: float, limit: float, what: str) -> None:
+    raise ValueError(f"target_error={target.error:g} is not accepted: {what} would bring the work to "
+                     f"{total:.3g} path-steps ({spent:.3g} spent on the pilot), above the limit of "
+                     f"{limit:.3g}; ask for a larger target_error, fewer target_times or statistics, "
+                     "or raise the limit with max_path_steps= (--max-path-steps)")
+
+
+def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, levels: list[Level],
+             st: State, spent: int, wall: float, compile_s: float, backend: str) -> xr.Dataset:
+    import xarray as xr
+
+    from stochpend.lifecycle import provenance
+
+    eps, conf = target.error, target.confidence
+    z = _quantile((1.0 - conf) / 2.0, st.stat_dof)
+    half = z * np.sqrt(st.stat_var)
+    total = half + st.bias_bound
+    nonfinite = sum(lv.nonfinite for lv in levels)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rel = total / np.abs(st.estimate)
+    certified = st.coupled & (rel <= eps) & np.isfinite(st.bias_bound) & (nonfinite == 0)
+    cost = np.where(certified, np.nan, _cost_to_certify(st, eps, conf))
+    L = len(levels) - 1
+    data: dict[str, Any] = {}
+    for s, name in enumerate(target.statistics):
+        data[name] = ("time", st.estimate[s], {"long_name": f"{name}, multilevel estimate (telescope)"})
+        data[f"{name}_stat_error"] = ("time", half[s], {
+            "long_name": f"statistical half-width of {name} at confidence 1 - (1 - c)/2 (Student t, "
+                         "Satterthwaite dof)"})
+        data[f"{name}_bias_bound"] = ("time", st.bias_bound[s], {
+            "long_name": f"bound on |discretisation bias| of {name} at the finest level, at "
+                         "confidence 1 - (1 - c)/2 (Eq. (bias) of stochpend.multilevel)"})
+        data[f"{name}_total_error"] = ("time", total[s], {
+            "long_name": f"stat_error + bias_bound of {name}: its total error at confidence c"})
+        data[f"{name}_relative_total_error"] = ("time", rel[s], {"long_name": "total_error / |estimate|"})
+        data[f"{name}_certified"] = ("time", certified[s].astype(np.int8), {
+            "long_name": "1: coupled levels and relative total error <= target; 0: not certified"})
+        data[f"{name}_cost_to_certify"] = ("time", cost[s], {
+            "long_name": "path-steps this estimator would spend in all to certify this time alone "
+                         "(NaN: certified; inf: beyond the finest level)"})
+        data[f"{name}_level_mean"] = (("level", "time"), st.m[:, s], {
+            "long_name": f"mean of Y_l = P_l - P_(l-1) for {name} (level 0: P_0)"})
+        data[f"{name}_level_variance"] = (("level", "time"), st.V[:, s], {
+            "long_name": f"per-sample variance V_l of Y_l for {name}"})
+        data[f"{name}_level_decorrelation"] = (("level", "time"), st.decorrelation[:, s], {
+            "long_name": "sqrt(1 - r) of the level's pairs (0 coupled, 1 independent)"})
+        data[f"{name}_consistency"] = (("level", "time"), st.consistency[:, s], {
+            "long_name": "|fine mean of level l-1 - coarse mean of level l| in sigma (Giles' check, "
+                         f"fails above {CONSISTENCY_SIGMA:g})"})
+        data[f"{name}_alpha"] = ("time", st.alpha[s], {"long_name": "fitted weak rate alpha (NaN: "
+                                                       "fewer than two resolved levels)"})
+        data[f"{name}_alpha_used"] = ("time", st.alpha_used[s], {"long_name": "alpha in the bias bound"})
+        data[f"{name}_beta"] = ("time", st.beta[s], {"long_name": "fitted variance rate beta"})
+    data["n_samples"] = ("level", st.N, {"long_name": "samples N_l (level 0: paths; l >= 1: pairs)"})
+    data["cost_per_sample"] = ("level", st.C, {"long_name": "path-steps a sample, measured"})
+    data["level_path_steps"] = ("level", np.array([lv.path_steps for lv in levels], dtype=np.int64))
+    data["h"] = ("level", cfg.h_max * 0.5 ** np.arange(L + 1), {"long_name": "fine step h_l"})
+    attrs = provenance(cfg, backend=backend, threads=0, wall_time_s=wall - compile_s, path_steps=spent)
+    attrs.pop("paths", None)
+    fails = int(np.count_nonzero(st.consistency > CONSISTENCY_SIGMA))
+    attrs.update({
+        "title": "stochpend multilevel estimate to a total-error target",
+        "target_error": eps,
+        "target_confidence": conf,
+        "target_statistics": ",".join(target.statistics),
+        "target_method": "multilevel Monte Carlo on coupled levels, fixed steps h_max/2**l "
+                         "(stochpend.multilevel; docs/numerics.md)",
+        "target_levels": L + 1,
+        "target_gamma": st.gamma,
+        "target_certified": int(np.count_nonzero(certified)),
+        "target_entries": int(certified.size),
+        "target_consistency_failures": fails,
+        "target_nonfinite_paths": nonfinite,
+        "target_level_seeds": ";".join(",".join(str(r.seed) for r in lv.rounds) for lv in levels),
+        "target_seeds": f"SeedSequence(seed, spawn_key=({SPAWN}, level, round))",
+        "compile_time_s": compile_s,
+        "total_wall_time_s": wall,
+    })
+    return xr.Dataset(data, coords={"time": target.times, "level": np.arange(L + 1)}, attrs=attrs)
+
+
+def summary_lines(ds: Any) -> list[str]:
+    """The table of a target result: per statistic and time the estimate, statistical error,
+    bias bound, total and whether it is certified; then the cost (stdout lines)."""
+    names = [n for n in str(ds.attrs.get("target_statistics", "")).split(",") if n and n in ds]
+    eps = float(ds.attrs.get("target_error", math.nan))
+    conf = float(ds.attrs.get("target_confidence", math.nan))
+    lines = [f"target: relative total error {eps:g} at {100 * conf:g} % confidence, "
+             f"{int(ds.attrs.get('target_levels', 0))} levels"]
+    lines.append(f"{'statistic':<10} {'t':>9} {'estimate':>13} {'stat err':>10} {'bias bound':>10} "
+                 f"{'total':>10} {'rel':>9}  certified")
+    for name in names:
+        for i, t in enumerate(ds.time.values):
+            cert = int(ds[f"{name}_certified"].values[i])
+            extra = "yes" if cert else f"no (certifying: {float(ds[f'{name}_cost_to_certify'].values[i]):.3g} path-steps)"
+            lines.append(f"{name:<10} {t:>9.4g} {float(ds[name].values[i]):>13.6g} "
+                         f"{float(ds[f'{name}_stat_error'].values[i]):>10.3g} "
+                         f"{float(ds[f'{name}_bias_bound'].values[i]):>10.3g} "
+                         f"{float(ds[f'{name}_total_error'].values[i]):>10.3g} "
+                         f"{float(ds[f'{name}_relative_total_error'].values[i]):>9.2e}  {extra}")
+    n = ", ".join(str(int(v)) for v in ds["n_samples"].values) if "n_samples" in ds else "?"
+    lines.append(f"cost: {float(ds.attrs.get('path_steps', math.nan)):.4g} path-steps (samples per level "
+                 f"{n}), {float(ds.attrs.get('total_wall_time_s', math.nan)):.3g} s")
+    fails = int(ds.attrs.get("target_consistency_failures", 0))
+    if fails:
+        lines.append(f"consistency check: {fails} (level, statistic, time) entries beyond "
+                     f"{CONSISTENCY_SIGMA:g} sigma (the telescope's levels disagree in law there)")
+    return lines
+
+
+def is_target_result(ds: Any) -> bool:
+    """Whether ``ds`` is a :func:`target_run` result."""
+    return "target_error" in getattr(ds, "attrs", {}) and "n_samples" in ds
