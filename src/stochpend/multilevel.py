@@ -181,12 +181,15 @@ def level_seed(seed: int, level: int, round_: int) -> int:
 # -- one round of one level ---------------------------------------------------------------------
 @dataclass
 class Round:
-    """One round of samples of one level: ``n`` samples, ``path_steps`` spent, and per
-    (statistic, time) the means of the fine (``f``) and coarse (``c``; level 0: none) members and
-    of their difference (``y``; level 0: the fine mean), each with the variance of that mean
-    (jackknife over the round's batches, ``batches - 1`` degrees of freedom)."""
+    """One round of samples of one level, run to the output time ``stop`` (index): ``n`` samples
+    at each time, shape (T,) (0 after ``stop``), ``path_steps`` spent, and per (statistic, time)
+    the means of the fine (``f``) and coarse (``c``; level 0: none) members and of their
+    difference (``y``; level 0: the fine mean), each with the variance of that mean (jackknife
+    over the round's batches, ``batches - 1`` degrees of freedom); NaN after ``stop``."""
 
-    n: int
+    n: np.ndarray
+    stop: int
+    t_stop: float
     path_steps: int
     seed: int
     batches: int
@@ -246,31 +249,65 @@ def _batches(n: int) -> tuple[int, int]:
     return -(-n // size), size
 
 
-def run_level(config: SimulationConfig, level: int, n: int, round_: int, cols: np.ndarray,
-              index: np.ndarray, *, backend: str = "cpu", progress: Progress | None = None) -> Round:
+def run_level(config: SimulationConfig, level: int, n: int, round_: int, cols: np.ndarray, stop: int,
+              *, backend: str = "cpu", progress: Progress | None = None) -> Round:
     """``n`` samples of ``level`` (0: an ordinary ensemble at ``config``'s step; l >= 1: coupled
-    pairs at ``refined(config, l - 1)``) with the seed :func:`level_seed`, reduced to the means of
-    the statistics' columns ``cols`` at the output times ``index``."""
+    pairs at ``refined(config, l - 1)``) with the seed :func:`level_seed`, run to the output time
+    of index ``stop`` only, reduced to the means of the statistics' columns ``cols``."""
     seed = level_seed(config.seed, level, round_)
     n_b, _ = _batches(n)
+    T = len(config.times)
+    cfg = _truncated(config, stop + 1)
     if level == 0:
         from stochpend import runner
 
-        cfg = replace(config, seed=seed, paths=n, n_batches=n_b)
+        cfg = replace(cfg, seed=seed, paths=n, n_batches=n_b)
         ens, path_steps = runner.run_batches(cfg, 0, n_b, backend=backend, progress=progress)
-        sums = ens.sums[:, index]  # (B, T, n_sums)
+        sums = ens.sums  # (B, T', n_sums)
         f, f_var = _jackknife(sums, lambda m: _st(m[..., cols]))
-        nonfinite = int(sums[:, -1, stats.S_NONFINITE].sum()) if sums.size else 0
+        nonfinite = int(sums[:, -1, stats.S_NONFINITE].sum())
+        f, f_var = _pad(f, T), _pad(f_var, T)
         nan = np.full_like(f, np.nan)
-        return Round(n, int(path_steps), seed, n_b, f, f_var, nan, nan.copy(), f, f_var, nonfinite)
-    cfg = replace(bias.refined(config, level - 1), seed=seed)
-    sums, path_steps = _pair_sums(cfg, n, n_b, backend, progress)
-    sums = sums[:, index]  # (B, T, 2, n_sums)
+        return Round(_counts(n, stop, T), stop, cfg.t_max, int(path_steps), seed, n_b, f, f_var,
+                     nan, nan.copy(), f, f_var, nonfinite)
+    cfg = replace(bias.refined(cfg, level - 1), seed=seed)
+    sums, path_steps = _pair_sums(cfg, n, n_b, backend, progress)  # (B, T', 2, n_sums)
     f, f_var = _jackknife(sums, lambda m: _st(m[..., 1, cols]))
     c, c_var = _jackknife(sums, lambda m: _st(m[..., 0, cols]))
     y, y_var = _jackknife(sums, lambda m: _st(m[..., 1, cols] - m[..., 0, cols]))
-    nonfinite = int(sums[:, -1, 0, stats.S_NONFINITE].sum()) if sums.size else 0
-    return Round(n, int(path_steps), seed, n_b, f, f_var, c, c_var, y, y_var, nonfinite)
+    nonfinite = int(sums[:, -1, 0, stats.S_NONFINITE].sum())
+    return Round(_counts(n, stop, T), stop, cfg.t_max, int(path_steps), seed, n_b, _pad(f, T), _pad(f_var, T),
+                 _pad(c, T), _pad(c_var, T), _pad(y, T), _pad(y_var, T), nonfinite)
+
+
+def _counts(n: int, stop: int, T: int) -> np.ndarray:
+    out = np.zeros(T, dtype=np.int64)
+    out[:stop + 1] = n
+    return out
+
+
+def _pad(a: np.ndarray, T: int) -> np.ndarray:
+    """(S, T') -> (S, T), NaN after T'."""
+    out = np.full((a.shape[0], T), np.nan)
+    out[:, :a.shape[1]] = a
+    return out
+
+
+def _truncated(config: SimulationConfig, k: int) -> SimulationConfig:
+    """``config`` with its first ``k`` output times only (t_max the last of them)."""
+    if k == len(config.times):
+        return config
+    return replace(config, times=tuple(config.times[:k]), t_max=float(config.times[k - 1]),
+                   hist_E_max=tuple(config.hist_E_max[:k]),
+                   joint_Omega_max=tuple(config.joint_Omega_max[:k]) if config.joint_Omega_max else ())
+
+
+def _target_config(config: SimulationConfig, target: Target) -> SimulationConfig:
+    """The ladder's base: ``config`` at fixed steps (step_c = 0), its target times only."""
+    idx = [int(i) for i in target.index]
+    return replace(config, step_c=0.0, paths=PILOT_SAMPLES, times=tuple(float(t) for t in target.times),
+                   t_max=float(target.times[-1]), hist_E_max=tuple(config.hist_E_max[i] for i in idx),
+                   joint_Omega_max=tuple(config.joint_Omega_max[i] for i in idx) if config.joint_Omega_max else ())
 
 
 def _pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, backend: str,
@@ -315,39 +352,52 @@ def _pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, backend: 
 # -- a level's rounds together ----------------------------------------------------------------------
 @dataclass
 class Level:
-    """All rounds of one level, combined: a round's mean weighted by its samples, the variance
-    of the combined mean sum (n_k/N)**2 var_k with Satterthwaite's degrees of freedom."""
+    """All rounds of one level, combined at each time: a round's mean weighted by its samples
+    there, the variance of the combined mean sum (n_k/N)**2 var_k with Satterthwaite's degrees
+    of freedom."""
 
     level: int
     rounds: list[Round] = field(default_factory=list)
 
     @property
-    def n(self) -> int:
-        return sum(r.n for r in self.rounds)
+    def n(self) -> np.ndarray:
+        """Samples at each time, (T,)."""
+        return np.sum([r.n for r in self.rounds], axis=0)
 
     @property
     def path_steps(self) -> int:
         return sum(r.path_steps for r in self.rounds)
 
     @property
-    def cost(self) -> float:
-        """Path-steps a sample, measured."""
-        return self.path_steps / self.n
+    def rate(self) -> float:
+        """Path-steps a sample per unit of time, measured (fixed steps: the cost to t is
+        proportional to t, up to the landing steps)."""
+        return self.path_steps / sum(int(r.n[r.stop]) * r.t_stop for r in self.rounds)
+
+    def _weights(self) -> list[np.ndarray]:
+        n = self.n
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return [np.where(r.n > 0, r.n / n, 0.0) for r in self.rounds]
 
     def combined(self, what: str) -> tuple[np.ndarray, np.ndarray]:
-        n = self.n
-        mean = sum(r.n / n * getattr(r, what) for r in self.rounds)
-        var = sum((r.n / n) ** 2 * getattr(r, f"{what}_var") for r in self.rounds)
+        mean = np.zeros_like(self.rounds[0].f)
+        var = np.zeros_like(mean)
+        for w, r in zip(self._weights(), self.rounds, strict=True):
+            a, v = getattr(r, what), getattr(r, f"{what}_var")
+            mean = mean + np.where(w > 0, w * a, 0.0)
+            var = var + np.where(w > 0, w * w * v, 0.0)
         return np.asarray(mean), np.asarray(var)
 
     def dof(self, what: str = "y") -> np.ndarray:
-        """Satterthwaite's degrees of freedom of the combined variance."""
-        n = self.n
-        parts = [((r.n / n) ** 2 * getattr(r, f"{what}_var"), r.batches - 1) for r in self.rounds]
-        num = sum(p for p, _ in parts) ** 2
-        den = sum(p * p / max(d, 1) for p, d in parts)
+        """Satterthwaite's degrees of freedom of the combined variance, (S, T)."""
+        num = np.zeros_like(self.rounds[0].f)
+        den = np.zeros_like(num)
+        for w, r in zip(self._weights(), self.rounds, strict=True):
+            p = np.where(w > 0, w * w * getattr(r, f"{what}_var"), 0.0)
+            num = num + p
+            den = den + p * p / max(r.batches - 1, 1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            return np.asarray(num / den)
+            return np.asarray(num * num / den)
 
     @property
     def nonfinite(self) -> int:
@@ -395,8 +445,8 @@ class State:
     m: np.ndarray        # (L+1, S, T) means of Y_l (level 0: P_0)
     m_var: np.ndarray    # (L+1, S, T) variances of those means
     V: np.ndarray        # (L+1, S, T) per-sample variances
-    C: np.ndarray        # (L+1,) path-steps a sample
-    N: np.ndarray        # (L+1,)
+    C: np.ndarray        # (L+1, T) path-steps a sample run to each time
+    N: np.ndarray        # (L+1, T) samples at each time
     decorrelation: np.ndarray  # (L+1, S, T) sqrt(1 - r) of each pair level (NaN at level 0)
     consistency: np.ndarray    # (L+1, S, T) |F_{l-1} - C_l| / sigma (NaN at level 0)
     alpha: np.ndarray
@@ -407,13 +457,14 @@ class State:
     coupled: np.ndarray
 
 
-def _state(levels: list[Level], conf: float) -> State:
+def _state(levels: list[Level], conf: float, times: np.ndarray) -> State:
     L = len(levels) - 1
     m, m_var = zip(*(lv.combined("y") for lv in levels), strict=True)
     m_a, m_var_a = np.array(m), np.array(m_var)
     N = np.array([lv.n for lv in levels], dtype=np.int64)
-    C = np.array([lv.cost for lv in levels])
-    V = m_var_a * N[:, None, None]
+    rates = np.array([lv.rate for lv in levels])
+    C = rates[:, None] * np.asarray(times, dtype=float)[None, :]
+    V = m_var_a * N[:, None, :]
     estimate = m_a.sum(axis=0)
     stat_var = m_var_a.sum(axis=0)
     dofs = np.array([lv.dof("y") for lv in levels])
@@ -433,7 +484,7 @@ def _state(levels: list[Level], conf: float) -> State:
     S, T = estimate.shape
     alpha = np.full((S, T), np.nan)
     beta = np.full((S, T), np.nan)
-    gamma = _fit_rate(ls, C[1:]) * -1.0 if L >= 2 else math.nan
+    gamma = -_fit_rate(ls, rates[1:]) if L >= 2 else math.nan
     # The bias bound's error probability: half of 1 - conf, shared by two candidate bounds.
     z_b = float(_quantile((1.0 - conf) / 4.0))
     alpha_used = np.full((S, T), 2.0)
@@ -477,21 +528,22 @@ def _projected(st: State, extra: int) -> tuple[np.ndarray, np.ndarray, np.ndarra
     beta = np.where(np.isfinite(st.beta), np.clip(st.beta, 0.0, 4.0), 1.0)
     k = np.arange(1, extra + 1)[:, None, None]
     V = np.concatenate([st.V, st.V[-1][None] * 2.0 ** (-beta[None] * k)])
-    C = np.concatenate([st.C, st.C[-1] * 2.0 ** np.arange(1, extra + 1)])
+    C = np.concatenate([st.C, st.C[-1][None] * 2.0 ** np.arange(1, extra + 1)[:, None]])
     bound = st.bias_bound * 2.0 ** (-st.alpha_used * extra)
     return V, C, bound
 
 
 def _plan(st: State, eps: float, conf: float, active: np.ndarray, *, slack: bool = False) -> np.ndarray:
-    """N_l over the active (statistic, time) entries: the largest of each one's Giles plan for a
-    statistical half-width of half the target. ``slack``: the half-width is the target less the
-    bias bound (where that is at least half the target), and level 0 takes the rest of the
-    variance that the pair levels, at their present samples or more, leave."""
-    L = st.N.size - 1
+    """Samples N_l needed at each time, shape (L+1, T): at each time the largest over the
+    active statistics of Giles' plan (costs to that time) for a statistical half-width of half
+    the target. ``slack``: the half-width is the target less the bias bound (where that is at
+    most half the target), and level 0 takes the rest of the variance that the pair levels, at
+    their present samples or more, leave."""
+    L = st.N.shape[0] - 1
     # Student t at the current degrees of freedom: the run's will be more, its t smaller
     z = _quantile((1.0 - conf) / 2.0, st.stat_dof)
-    N = np.zeros(L + 1, dtype=np.int64)
     S, T = st.estimate.shape
+    N = np.zeros((L + 1, T), dtype=np.int64)
     for s in range(S):
         for t in range(T):
             if not active[s, t]:
@@ -501,14 +553,29 @@ def _plan(st: State, eps: float, conf: float, active: np.ndarray, *, slack: bool
             if slack and st.bias_bound[s, t] <= half:
                 half = aim - st.bias_bound[s, t]
             zz = float(z[s, t])
-            n = plan_samples(st.V[:, s, t], st.C, half, zz)
+            n = plan_samples(st.V[:, s, t], st.C[:, t], half, zz)
             if slack and L >= 1:
-                n[1:] = np.maximum(n[1:], st.N[1:])
+                n[1:] = np.maximum(n[1:], st.N[1:, t])
                 rest = (half / zz) ** 2 - float(np.sum(np.maximum(st.V[1:, s, t], 0.0) / n[1:]))
                 if rest > 0:
                     n[0] = max(1, math.ceil(max(st.V[0, s, t], 0.0) / rest))
-            N = np.maximum(N, n)
+            N[:, t] = np.maximum(N[:, t], n)
     return N
+
+
+def staircase(deficit: np.ndarray) -> list[tuple[int, int]]:
+    """Rounds ``(stop, n)`` that give one level at least ``deficit[j]`` more samples at each
+    time j at least cost: samples run to time j serve every earlier time, so R_j = max over
+    j' >= j of deficit[j'] samples must reach time j, and n_j = R_j - R_{j+1} stop there."""
+    d = np.maximum(np.asarray(deficit, dtype=np.int64), 0)
+    reach = np.maximum.accumulate(d[::-1])[::-1]
+    nxt = np.append(reach[1:], 0)
+    return [(j, int(reach[j] - nxt[j])) for j in range(d.size) if reach[j] > nxt[j]]
+
+
+def _staircase_cost(deficits: np.ndarray, C: np.ndarray) -> float:
+    return float(sum(n * C[level, j] for level in range(deficits.shape[0])
+                     for j, n in staircase(deficits[level])))
 
 
 def _cost_to_certify(st: State, eps: float, conf: float) -> np.ndarray:
@@ -524,8 +591,8 @@ def _cost_to_certify(st: State, eps: float, conf: float) -> np.ndarray:
             V, C, bound = _projected(st, k)
             half = 0.5 * eps * abs(st.estimate[s, t])
             if bound[s, t] <= half and np.all(np.isfinite(V[:, s, t])):
-                N = plan_samples(V[:, s, t], C, half, z)
-                out[s, t] = float(np.sum(N * C))
+                N = plan_samples(V[:, s, t], C[:, t], half, z)
+                out[s, t] = float(np.sum(N * C[:, t]))
     return out
 
 
@@ -552,7 +619,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
 
     note = note or (lambda _msg: None)
     limit = resources.work_limit(max_path_steps)
-    cfg = replace(config, step_c=0.0, paths=PILOT_SAMPLES)
+    cfg = _target_config(config, target)
     pilot_cost = sum(_path_steps_guess(cfg, level, PILOT_SAMPLES) for level in range(PILOT_LEVELS))
     if pilot_cost > limit:
         raise ValueError(f"target_error={target.error:g} is not accepted: its pilot alone ({PILOT_SAMPLES} "
@@ -564,11 +631,14 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
     levels: list[Level] = []
     spent = 0
 
-    def add(level: int, n: int) -> None:
+    T = len(cfg.times)
+    times = np.asarray(cfg.times, dtype=float)
+
+    def add(level: int, n: int, stop: int = T - 1) -> None:
         nonlocal spent
         if level == len(levels):
             levels.append(Level(level))
-        r = run_level(cfg, level, n, len(levels[level].rounds), cols, target.index, backend=backend)
+        r = run_level(cfg, level, n, len(levels[level].rounds), cols, stop, backend=backend)
         levels[level].rounds.append(r)
         spent += r.path_steps
 
@@ -583,12 +653,11 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             # resolved), refused if the whole plan is over the limit; (b) a level more while a
             # bias bound exceeds half the target; (c) the samples for the target less the bias
             # bound, level 0 taking what the pair levels leave.
-            st = _state(levels, conf)
+            st = _state(levels, conf, times)
             active = st.coupled & np.isfinite(st.estimate) & (st.estimate != 0)
             L = len(levels) - 1
-            N = _plan(st, eps, conf, active)
-            more = np.maximum(N - st.N, 0)
-            whole = float(np.sum(more * st.C))
+            more = np.maximum(_plan(st, eps, conf, active) - st.N, 0)
+            whole = _staircase_cost(more, st.C)
             if spent + whole > limit:
                 _refuse(target, spent, spent + whole, limit, "the plan")
             more[0] = 0
@@ -609,20 +678,21 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             more = np.where((more > 0) & (more < 0.05 * st.N), np.ceil(0.05 * st.N), more).astype(np.int64)
             if not np.any(more):
                 break
-            if spent + float(np.sum(more * st.C)) > limit:
-                _refuse(target, spent, spent + float(np.sum(more * st.C)), limit, "the plan")
+            if spent + _staircase_cost(more, st.C) > limit:
+                _refuse(target, spent, spent + _staircase_cost(more, st.C), limit, "the plan")
             _top_up(add, more, st, note)
-        st = _state(levels, conf)
+        st = _state(levels, conf, times)
     wall = _time.perf_counter() - started
     return _dataset(config, cfg, target, levels, st, spent, wall, clock.seconds, backend)
 
 
 def _top_up(add: Any, more: np.ndarray, st: State, note: Any) -> None:
-    note(f"target: samples per level {', '.join(str(int(n)) for n in st.N + more)} "
-         f"({float(np.sum(more * st.C)):.3g} more path-steps)")
-    for level, n in enumerate(more):
-        if n > 0:
-            add(level, int(n))
+    """Run ``more`` (L+1, T) samples as rounds of :func:`staircase`."""
+    note(f"target: samples per level at the last time {', '.join(str(int(n)) for n in st.N[:, -1] + more[:, -1])}"
+         f" ({_staircase_cost(more, st.C):.3g} more path-steps)")
+    for level in range(more.shape[0]):
+        for stop, n in staircase(more[level]):
+            add(level, n, stop)
 
 
 def _refuse(target: Target, spent: int, total: float, limit: float, what: str) -> None:
@@ -678,8 +748,10 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
                                                        "fewer than two resolved levels)"})
         data[f"{name}_alpha_used"] = ("time", st.alpha_used[s], {"long_name": "alpha in the bias bound"})
         data[f"{name}_beta"] = ("time", st.beta[s], {"long_name": "fitted variance rate beta"})
-    data["n_samples"] = ("level", st.N, {"long_name": "samples N_l (level 0: paths; l >= 1: pairs)"})
-    data["cost_per_sample"] = ("level", st.C, {"long_name": "path-steps a sample, measured"})
+    data["n_samples"] = (("level", "time"), st.N, {
+        "long_name": "samples N_l reaching each time (level 0: paths; l >= 1: coupled pairs)"})
+    data["cost_per_sample"] = (("level", "time"), st.C, {
+        "long_name": "path-steps a sample run to each time (measured rate x time)"})
     data["level_path_steps"] = ("level", np.array([lv.path_steps for lv in levels], dtype=np.int64))
     data["h"] = ("level", cfg.h_max * 0.5 ** np.arange(L + 1), {"long_name": "fine step h_l"})
     attrs = provenance(cfg, backend=backend, threads=0, wall_time_s=wall - compile_s, path_steps=spent)
@@ -725,9 +797,11 @@ def summary_lines(ds: Any) -> list[str]:
                          f"{float(ds[f'{name}_bias_bound'].values[i]):>10.3g} "
                          f"{float(ds[f'{name}_total_error'].values[i]):>10.3g} "
                          f"{float(ds[f'{name}_relative_total_error'].values[i]):>9.2e}  {extra}")
-    n = ", ".join(str(int(v)) for v in ds["n_samples"].values) if "n_samples" in ds else "?"
-    lines.append(f"cost: {float(ds.attrs.get('path_steps', math.nan)):.4g} path-steps (samples per level "
-                 f"{n}), {float(ds.attrs.get('total_wall_time_s', math.nan)):.3g} s")
+    n_s = np.asarray(ds["n_samples"].values).reshape(len(ds["level"]), -1)
+    first, last = (", ".join(str(int(v)) for v in n_s[:, k]) for k in (0, -1))
+    lines.append(f"cost: {float(ds.attrs.get('path_steps', math.nan)):.4g} path-steps, "
+                 f"{float(ds.attrs.get('total_wall_time_s', math.nan)):.3g} s; samples per level "
+                 f"{first} at the first time, {last} at the last")
     fails = int(ds.attrs.get("target_consistency_failures", 0))
     if fails:
         lines.append(f"consistency check: {fails} (level, statistic, time) entries beyond "
