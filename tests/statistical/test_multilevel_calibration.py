@@ -1,0 +1,56 @@
+"""Calibration of simulate(target_error=...) (issue 35, "Calibrated"): over 100 seeds of cases
+with exact answers, the reported total error (statistical half-width + bias bound, 95 %)
+covers the true error |estimate - exact| in at least 90 % of runs, and the reported cost is
+the path-steps spent.
+
+Cases (stochpend.theory.family, the damped family with additive white noise D_a, started in
+its Boltzmann law exp(-E/T), T = D_a/(2 gamma), so that the exact law is stationary):
+* the pendulum: <E> = T/2 - omega^2 I1/I0(omega^2/T), <E^2> = 3T^2/4 - omega^2 T I1/I0 +
+  omega^4 (1/2 + I2/(2 I0)) (Omega ~ N(0, T) independent of the von Mises angle);
+* the harmonic oscillator: E/T ~ Exp(1), <E> = T, <E^2> = 2 T^2. Its scheme's stationary
+  <Omega^2> is T/(1 - h^2 omega^2/4) (test_family_dynamics): at h_max = 1 level 0 alone is
+  biased by T/6, 17 % of <E>, so the telescope and the bias bound carry the result.
+Each takes a few minutes on two cores (make test-slow).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+import stochpend
+from stochpend.theory import family
+
+SEEDS = 100
+EPS = 0.01
+COVERAGE = 0.90
+GAMMA, D_A, OMEGA = 0.5, 0.4, 1.0
+T = family.temperature(D_a=D_A, gamma=GAMMA)
+
+
+def _exact(potential: str) -> dict[str, float]:
+    if potential == "harmonic":
+        return {"mean_E": T, "mean_E2": 2.0 * T * T}
+    c = family.boltzmann_pendulum_mean_cos(D_a=D_A, gamma=GAMMA, omega=OMEGA)
+    c2 = family.boltzmann_pendulum_mean_cos2(D_a=D_A, gamma=GAMMA, omega=OMEGA)
+    return {"mean_E": family.boltzmann_pendulum_mean_E(D_a=D_A, gamma=GAMMA, omega=OMEGA),
+            "mean_E2": 0.75 * T * T - OMEGA**2 * T * c + OMEGA**4 * c2}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("potential", ["pendulum", "harmonic"])
+def test_the_reported_total_error_covers_the_true_error(potential):
+    exact = _exact(potential)
+    covered = {name: 0 for name in exact}
+    level0_off = 0
+    for seed in range(SEEDS):
+        ds = stochpend.simulate(noise="white", D=0.0, omega=OMEGA, potential=potential, t_max=2.0, times=(2.0,),
+                                h_max=1.0, seed=seed, gamma=GAMMA, additive_D=D_A, initial_temperature=T,
+                                target_error=EPS)
+        assert ds.attrs["path_steps"] == int(ds["level_path_steps"].sum())
+        for name, want in exact.items():
+            covered[name] += abs(float(ds[name][0]) - want) <= float(ds[f"{name}_total_error"][0])
+        level0_off += abs(float(ds["mean_E_level_mean"][0, 0]) - exact["mean_E"]) > EPS * abs(exact["mean_E"])
+    for name, n in covered.items():
+        assert n >= COVERAGE * SEEDS, (potential, name, n)
+    if potential == "harmonic":  # the bias is the point: level 0 alone misses the target
+        assert level0_off == SEEDS

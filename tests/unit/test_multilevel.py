@@ -1,0 +1,224 @@
+"""simulate(target_error=...): multilevel Monte Carlo to a total-error target (issue 35).
+
+Fast checks: bad targets refused in one line (API and CLI, exit 2, no work done); Giles'
+allocation meets its constraint at the least cost (Cauchy-Schwarz bound); the staircase of
+rounds; the levels' streams are distinct, deterministic and not the run's; a cheap case (the
+damped pendulum started in its Boltzmann law, whose <E> is exact) meets its target with every
+entry certified and the true error inside the reported one; a late time of the OU pendulum,
+where the pairs decorrelate, is not certified and its cost is stated; the CLI's table, file
+and show. The calibration over 100 seeds is tests/statistical/test_multilevel_calibration.py.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import stochpend
+from stochpend import multilevel
+from stochpend.cli import app
+from stochpend.params import SimulationConfig
+from stochpend.theory import family
+
+GAMMA, D_A, OMEGA = 0.5, 0.4, 1.0
+T_BOLTZMANN = family.temperature(D_a=D_A, gamma=GAMMA)
+#: The damped pendulum with additive white noise, started in its Boltzmann law: stationary,
+#: <E> exact (stochpend.theory.family); a coarse h_max so that the bias is not negligible.
+CHEAP = dict(noise="white", D=0.0, omega=OMEGA, t_max=2.0, times=(1.0, 2.0), h_max=0.5,
+             gamma=GAMMA, additive_D=D_A, initial_temperature=T_BOLTZMANN)
+
+
+def _exact() -> dict[str, float]:
+    c = family.boltzmann_pendulum_mean_cos(D_a=D_A, gamma=GAMMA, omega=OMEGA)
+    c2 = family.boltzmann_pendulum_mean_cos2(D_a=D_A, gamma=GAMMA, omega=OMEGA)
+    T = T_BOLTZMANN
+    # E = Omega^2/2 - omega^2 cos x with Omega ~ N(0, T) independent of x (von Mises)
+    return {"mean_E": family.boltzmann_pendulum_mean_E(D_a=D_A, gamma=GAMMA, omega=OMEGA),
+            "mean_E2": 0.75 * T * T - OMEGA**2 * T * c + OMEGA**4 * c2}
+
+
+# -- refusals ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("kwargs", "needle"), [
+    (dict(target_error=0.0), "target_error=0.0 is not accepted: a number in (0, 1)"),
+    (dict(target_error=-0.1), "target_error=-0.1 is not accepted"),
+    (dict(target_error=1.0), "target_error=1.0 is not accepted"),
+    (dict(target_error=math.nan), "target_error=nan is not accepted"),
+    (dict(target_error="x"), "target_error='x' is not accepted"),
+    (dict(target_error=True), "target_error=True is not accepted"),
+    (dict(target_error=0.01, target_confidence=1.0), "target_confidence=1.0 is not accepted"),
+    (dict(target_error=0.01, target_statistics=["skewness"]), "target_statistics=['skewness'] is not accepted"),
+    (dict(target_error=0.01, target_statistics="mean_E,mean_E"), "target_statistics='mean_E,mean_E'"),
+    (dict(target_error=0.01, target_statistics="mean_nothing"), "among mean_E, mean_E2"),
+    (dict(target_error=0.01, target_times=[1.5]), "target_times=[1.5] is not accepted: times among the run's"),
+    (dict(target_error=0.01, target_times=[1.0, 1.0]), "target_times=[1.0, 1.0] is not accepted: distinct"),
+    (dict(target_error=0.01, accuracy="auto"), "accuracy='auto' is not accepted with target_error"),
+    (dict(target_error=0.01, max_path_steps=-1), "max_path_steps=-1 is not accepted"),
+])
+def test_a_bad_target_is_refused_in_one_line(kwargs, needle):
+    with pytest.raises(ValueError) as err:
+        stochpend.simulate(**CHEAP, **kwargs)
+    assert needle in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_a_pilot_over_the_work_limit_is_refused_before_any_work(monkeypatch):
+    def no_work(*_a, **_k):
+        raise AssertionError("a level ran")
+
+    monkeypatch.setattr(multilevel, "run_level", no_work)
+    with pytest.raises(ValueError, match=r"target_error=0\.01 is not accepted: its pilot alone .* needs about "
+                                         r"[0-9.e+]+ path-steps, above the limit of 1e\+03"):
+        stochpend.simulate(**CHEAP, target_error=0.01, max_path_steps=1000)
+
+
+def test_a_plan_over_the_work_limit_is_refused_with_what_it_would_take():
+    # The pilot (256 samples on three levels, ~1e4 path-steps) fits; 1e-5 relative does not.
+    with pytest.raises(ValueError, match=r"target_error=1e-05 is not accepted: the plan would bring the work to "
+                                         r"[0-9.e+]+ path-steps \([0-9.e+]+ spent on the pilot\), above the limit"):
+        stochpend.simulate(**CHEAP, target_error=1e-5, max_path_steps=1e6)
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["--target-error", "0"], "--target-error 0.0 is not accepted"),
+    (["--target-error", "nan"], "--target-error nan is not accepted"),
+    (["--target-error", "0.01", "--target-statistics", "flatness"], "--target-statistics 'flatness' is not accepted"),
+    (["--target-error", "0.01", "--target-times", "3"], "--target-times [3.0] is not accepted"),
+    (["--target-error", "0.01", "--target-times", "a"], "--target-times 'a' is not accepted"),
+    (["--target-error", "0.01", "--target-confidence", "2"], "--target-confidence 2.0 is not accepted"),
+])
+def test_the_cli_refuses_a_bad_target_in_one_line_exit_2(args, needle, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(app, ["simulate", "--t-max", "2", "--times", "1,2", "--out", "o.nc", *args])
+    assert result.exit_code == 2, result.output
+    assert needle in " ".join(result.output.split())
+    assert "Traceback" not in result.output
+    assert len(result.output.strip().splitlines()) == 1, result.output
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- planning ---------------------------------------------------------------------------------------
+def test_giles_allocation_meets_its_constraint_at_the_least_cost():
+    rng = np.random.default_rng(35)
+    for _ in range(200):
+        L = int(rng.integers(1, 7))
+        V = 10.0 ** rng.uniform(-8, 1, L)
+        C = 10.0 ** rng.uniform(0, 4, L)
+        half, z = 10.0 ** rng.uniform(-4, -1), 1.96
+        N = multilevel.plan_samples(V, C, half, z)
+        assert z * math.sqrt(np.sum(V / N)) <= half * (1 + 1e-12)
+        # Cauchy-Schwarz: every allocation meeting the constraint costs at least this much,
+        # and the plan's rounding up adds at most one sample a level.
+        least = (z / half) ** 2 * np.sum(np.sqrt(V * C)) ** 2
+        assert least <= np.sum(N * C) <= least + np.sum(C) + 1e-9 * least
+        # an allocation moved off the optimum, rescaled to meet the constraint, costs more
+        other = N * rng.uniform(0.5, 2.0, L)
+        other = other * (z / half) ** 2 * np.sum(V / other)
+        assert np.sum(other * C) >= least * (1 - 1e-12)
+
+
+@pytest.mark.parametrize(("deficit", "rounds"), [
+    ([5, 3, 7, 0], [(2, 7)]),
+    ([5, 3, 1], [(0, 2), (1, 2), (2, 1)]),
+    ([0, 0, 0], []),
+    ([0, 4, 0, 4], [(3, 4)]),
+])
+def test_the_staircase_gives_each_time_its_samples_running_each_no_further_than_needed(deficit, rounds):
+    got = multilevel.staircase(np.array(deficit))
+    assert got == rounds
+    reach = np.zeros(len(deficit), dtype=int)
+    for stop, n in got:
+        reach[: stop + 1] += n
+    assert np.all(reach >= np.array(deficit))
+
+
+# -- streams ----------------------------------------------------------------------------------------
+def test_every_level_and_round_has_its_own_seed_and_none_is_the_runs():
+    for seed in (0, 1, 2**64 - 1):
+        seeds = {multilevel.level_seed(seed, level, r) for level in range(12) for r in range(12)}
+        assert len(seeds) == 144 and seed not in seeds
+        assert all(0 <= s < 2**64 for s in seeds)
+        assert multilevel.level_seed(seed, 3, 4) == multilevel.level_seed(seed, 3, 4)
+    assert multilevel.level_seed(0, 1, 0) != multilevel.level_seed(1, 1, 0)
+
+
+def test_the_levels_draw_independent_numbers():
+    """Level 1's coarse members have level 0's law; drawn from the same streams they would
+    repeat level 0's paths. Their batch means differ, and a round repeats its own numbers."""
+    config = SimulationConfig.build(noise="ou", paths=512, t_max=1.0, times=(0.5, 1.0), seed=4, h_max=0.1)
+    target = multilevel.check_target(config, 0.1)
+    base = multilevel._target_config(config, target)
+    cols = multilevel._stat_columns(base, ("mean_E",))
+    l0 = multilevel.run_level(base, 0, 512, 0, cols, 1)
+    l0_again = multilevel.run_level(base, 0, 512, 0, cols, 1)
+    l0_next = multilevel.run_level(base, 0, 512, 1, cols, 1)
+    l1 = multilevel.run_level(base, 1, 512, 0, cols, 1)
+    assert np.array_equal(l0.f, l0_again.f)
+    assert not np.any(l0.f == l0_next.f)
+    assert not np.any(l0.f == l1.c)
+    # the same law: level 1's coarse mean agrees with level 0's within their errors
+    z = (l0.f - l1.c) / np.sqrt(l0.f_var + l1.c_var)
+    assert np.all(np.abs(z) < 4), z
+    # and the unconditioned simulate with the run's seed draws other numbers again
+    plain = stochpend.simulate(noise="ou", paths=512, t_max=1.0, times=(0.5, 1.0), seed=4, h_max=0.1, step_c=0.0,
+                               bias_paths=0)
+    assert not np.any(plain["mean_E"].values == l0.f[0])
+
+
+# -- end to end -------------------------------------------------------------------------------------
+def test_a_cheap_case_meets_its_target_and_covers_the_exact_value():
+    eps = 0.02
+    ds = stochpend.simulate(**CHEAP, seed=7, target_error=eps)
+    exact = _exact()
+    for name in ("mean_E", "mean_E2"):
+        assert np.all(ds[f"{name}_certified"].values == 1), name
+        total = ds[f"{name}_total_error"].values
+        assert np.allclose(total, ds[f"{name}_stat_error"].values + ds[f"{name}_bias_bound"].values)
+        assert np.all(total <= eps * np.abs(ds[name].values)), (name, total)
+        assert np.all(np.abs(ds[name].values - exact[name]) <= total), (name, ds[name].values, exact[name])
+        # the telescope: the estimate is the sum of the level means
+        assert np.allclose(ds[name].values, ds[f"{name}_level_mean"].sum("level").values)
+        assert np.all(ds[f"{name}_alpha_used"].values <= 2.0)
+    # the cost reported is the cost spent, level by level
+    assert ds.attrs["path_steps"] == int(ds["level_path_steps"].sum())
+    assert ds.attrs["target_error"] == eps and ds.attrs["target_confidence"] == 0.95
+    assert ds.sizes["level"] >= 3 and np.all(np.diff(ds["h"].values) < 0)
+    assert ds.attrs["step_c"] == 0.0
+    # the same seed gives the same numbers
+    again = stochpend.simulate(**CHEAP, seed=7, target_error=eps)
+    assert np.array_equal(again["mean_E"].values, ds["mean_E"].values)
+
+
+def test_a_late_time_where_the_pairs_decorrelate_is_not_certified_and_its_cost_is_said():
+    """OU pendulum, D = tau = omega = 1: the coupled pairs decorrelate by t ~ 50 (issue 35)."""
+    with pytest.warns(stochpend.StochpendWarning, match="not certified"):
+        ds = stochpend.simulate(noise="ou", t_max=100.0, times=(1.0, 100.0), seed=2, target_error=0.05,
+                                target_statistics=["mean_E"])
+    assert ds["mean_E_certified"].values.tolist() == [1, 0]
+    assert ds["mean_E_level_decorrelation"].values[-1, -1] > 0.5
+    cost = float(ds["mean_E_cost_to_certify"].values[-1])
+    assert cost > ds.attrs["path_steps"] and math.isnan(ds["mean_E_cost_to_certify"].values[0])
+
+
+def test_the_cli_prints_the_table_writes_the_file_and_show_reads_it(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    args = ["simulate", "--noise", "white", "--D", "0", "--t-max", "2", "--times", "1,2", "--h-max", "0.5",
+            "-p", f"gamma={GAMMA}", "-p", f"additive_D={D_A}", "-p", f"initial_temperature={T_BOLTZMANN!r}",
+            "--target-error", "0.05", "--target-times", "2", "--out", "t.nc"]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert "mean_E2 " in result.stdout and "certified" in result.stdout and "path-steps" in result.stdout
+    assert "note: target: pilot" in result.stderr
+    from stochpend import io
+
+    ds = io.open_results(tmp_path / "t.nc")
+    assert ds.time.values.tolist() == [2.0] and "command_line" in ds.attrs
+    shown = CliRunner().invoke(app, ["show", "t.nc"])
+    assert shown.exit_code == 0, shown.output
+    table = [ln for ln in result.stdout.splitlines() if ln.startswith("mean_E")]
+    assert table and all(ln in shown.stdout for ln in table)
+    for fmt in ("csv", "json"):
+        out = CliRunner().invoke(app, ["show", "t.nc", "--format", fmt])
+        assert out.exit_code == 0 and "mean_E_total_error" in out.stdout, out.output
