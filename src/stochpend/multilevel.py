@@ -697,7 +697,7 @@ def _top_up(add: Any, more: np.ndarray, st: State, note: Any) -> None:
 
 def _refuse(target: Target, spent: int, total: float, limit: float, what: str) -> None:
     raise ValueError(f"target_error={target.error:g} is not accepted: {what} would bring the work to "
-                     f"{total:.3g} path-steps ({spent:.3g} spent on the pilot), above the limit of "
+                     f"{total:.3g} path-steps ({spent:.3g} already spent), above the limit of "
                      f"{limit:.3g}; ask for a larger target_error, fewer target_times or statistics, "
                      "or raise the limit with max_path_steps= (--max-path-steps)")
 
@@ -754,7 +754,10 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
         "long_name": "path-steps a sample run to each time (measured rate x time)"})
     data["level_path_steps"] = ("level", np.array([lv.path_steps for lv in levels], dtype=np.int64))
     data["h"] = ("level", cfg.h_max * 0.5 ** np.arange(L + 1), {"long_name": "fine step h_l"})
-    attrs = provenance(cfg, backend=backend, threads=0, wall_time_s=wall - compile_s, path_steps=spent)
+    import numba
+
+    attrs = provenance(cfg, backend=backend, threads=numba.get_num_threads(), wall_time_s=wall - compile_s,
+                       path_steps=spent)
     attrs.pop("paths", None)
     fails = int(np.count_nonzero(st.consistency > CONSISTENCY_SIGMA))
     attrs.update({

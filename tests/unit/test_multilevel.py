@@ -77,7 +77,7 @@ def test_a_pilot_over_the_work_limit_is_refused_before_any_work(monkeypatch):
 def test_a_plan_over_the_work_limit_is_refused_with_what_it_would_take():
     # The pilot (256 samples on three levels, ~1e4 path-steps) fits; 1e-5 relative does not.
     with pytest.raises(ValueError, match=r"target_error=1e-05 is not accepted: the plan would bring the work to "
-                                         r"[0-9.e+]+ path-steps \([0-9.e+]+ spent on the pilot\), above the limit"):
+                                         r"[0-9.e+]+ path-steps \([0-9.e+]+ already spent\), above the limit"):
         stochpend.simulate(**CHEAP, target_error=1e-5, max_path_steps=1e6)
 
 
