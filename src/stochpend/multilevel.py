@@ -802,9 +802,11 @@ def summary_lines(ds: Any) -> list[str]:
                          f"{float(ds[f'{name}_relative_total_error'].values[i]):>9.2e}  {extra}")
     n_s = np.asarray(ds["n_samples"].values).reshape(len(ds["level"]), -1)
     first, last = (", ".join(str(int(v)) for v in n_s[:, k]) for k in (0, -1))
+    compiling = float(ds.attrs.get("compile_time_s", 0.0) or 0.0)
     lines.append(f"cost: {float(ds.attrs.get('path_steps', math.nan)):.4g} path-steps, "
-                 f"{float(ds.attrs.get('total_wall_time_s', math.nan)):.3g} s; samples per level "
-                 f"{first} at the first time, {last} at the last")
+                 f"{float(ds.attrs.get('wall_time_s', math.nan)):.3g} s"
+                 + (f" (+ {compiling:.3g} s compiling)" if compiling > 0 else "")
+                 + f"; samples per level {first} at the first time, {last} at the last")
     fails = int(ds.attrs.get("target_consistency_failures", 0))
     if fails:
         lines.append(f"consistency check: {fails} (level, statistic, time) entries beyond "

@@ -222,3 +222,17 @@ def test_the_cli_prints_the_table_writes_the_file_and_show_reads_it(tmp_path, mo
     for fmt in ("csv", "json"):
         out = CliRunner().invoke(app, ["show", "t.nc", "--format", fmt])
         assert out.exit_code == 0 and "mean_E_total_error" in out.stdout, out.output
+
+
+def test_a_configuration_file_sets_the_target(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "run.toml").write_text('noise = "white"\nD = 0.0\nt_max = 2.0\ntimes = [1.0, 2.0]\nh_max = 0.5\n'
+                                       'target_error = 0.05\ntarget_statistics = "mean_E"\n', encoding="utf-8")
+    result = CliRunner().invoke(app, ["simulate", "--config", "run.toml", "-p", f"gamma={GAMMA}", "-p", f"additive_D={D_A}",
+                                      "-p", f"initial_temperature={T_BOLTZMANN!r}", "--out", "t.nc"])
+    assert result.exit_code == 0, result.output
+    from stochpend import io
+
+    ds = io.open_results(tmp_path / "t.nc")
+    assert ds.attrs["target_error"] == 0.05 and ds.attrs["target_statistics"] == "mean_E"
+    assert "mean_E2" not in ds and ds.time.values.tolist() == [1.0, 2.0]
