@@ -31,7 +31,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
         "_backends.joint", "_backends.layout", "runner")),
     ("run lifecycle: bias, resources, checkpoints, sweeps, the reduced model", (
         "bias", "resources", "lifecycle", "_compile_helper", "simulate", "checkpoint", "sweep",
-        "_sweep_sets", "_blocks", "_backends.dask", "reduced")),
+        "_sweep_sets", "_blocks", "_backends.dask", "reduced", "multilevel")),
     ("results: theory, exponents, figures, plots, the report", (
         "theory", "theory.bfpe", "theory.family", "theory.laws", "theory.scaling", "theory.table",
         "exponents", "plotting", "figures", "figures._common", "figures._family", "figures.cases",
@@ -39,8 +39,8 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
         "figures.family_random_frequency", "figures.family_washboard", "figures.fig1",
         "figures.fig2", "figures.fig3", "figures.fig4", "report", "reproduce")),
     ("the public face and the command line", (
-        "", "__main__", "cli", "_cli_common", "_cli_reproduce", "_cli_scale", "_cli_theory",
-        "_cli_types")),
+        "", "__main__", "cli", "_cli_common", "_cli_reproduce", "_cli_scale", "_cli_target",
+        "_cli_theory", "_cli_types")),
 )
 
 
