@@ -33,8 +33,13 @@ of the levels' batch variances. The error probability 1 - confidence is split in
 the statistical interval and the bias bound (Bonferroni), so total = half-width + bias bound holds
 at the stated confidence for each (statistic, time); it is not family-wise over them.
 
-Levels L are added one at a time while a bias bound exceeds half the target; then the samples are
-planned from the pilot's V_l, C_l and topped up, rounds repeating while a planned error misses.
+The loop (:func:`target_run`): a pilot of PILOT_SAMPLES on levels 0, 1, 2; the pair levels topped
+up to the plan for half the target (the whole plan refused first if over ``max_path_steps``); a
+level added while a bias bound exceeds half the target; the samples for the target less the
+bias bound, level 0 taking the variance the pair levels leave; rounds repeat while the plan asks
+for more. Samples are counted per output time, and a round runs only as far as the latest time
+that needs it (:func:`staircase`): a relative target at an early time, where <E> is small, does
+not send its many paths on to t_max.
 
 Honest at late times: where the finest level's pairs have decorrelated (sqrt(1 - r) > 1/2,
 :data:`stochpend.bias.DECORRELATED`: V_l no longer falls with h) the time is left out of the plan
