@@ -96,7 +96,7 @@ PILOT_LEVELS = 3
 #: The finest level tried: h_max / 2**MAX_LEVEL.
 MAX_LEVEL = 10
 #: Rounds of planning and topping up.
-MAX_ROUNDS = 16
+MAX_ROUNDS = 32
 #: Part of the spawn key of every level's seed (issue 35): no other SeedSequence in stochpend uses it.
 SPAWN = 35
 #: A level's mean counts as resolved for the rate fit beyond this many standard errors.
@@ -538,12 +538,13 @@ def _projected(st: State, extra: int) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return V, C, bound
 
 
-def _plan(st: State, eps: float, conf: float, active: np.ndarray, *, slack: bool = False) -> np.ndarray:
+def _plan(st: State, eps: float, conf: float, active: np.ndarray, *, slack: bool = False,
+          magnitude: np.ndarray | None = None) -> np.ndarray:
     """Samples N_l needed at each time, shape (L+1, T): at each time the largest over the
     active statistics of Giles' plan (costs to that time) for a statistical half-width of half
     the target. ``slack``: the half-width is the target less the bias bound (where that is at
     most half the target), and level 0 takes the rest of the variance that the pair levels, at
-    their present samples or more, leave."""
+    their present samples or more, leave. ``magnitude``: |P| to aim at (default |estimate|)."""
     L = st.N.shape[0] - 1
     # Student t at the current degrees of freedom: the run's will be more, its t smaller
     z = _quantile((1.0 - conf) / 2.0, st.stat_dof)
@@ -553,7 +554,7 @@ def _plan(st: State, eps: float, conf: float, active: np.ndarray, *, slack: bool
         for t in range(T):
             if not active[s, t]:
                 continue
-            aim = eps * abs(st.estimate[s, t])
+            aim = eps * (abs(st.estimate[s, t]) if magnitude is None else magnitude[s, t])
             half = 0.5 * aim
             if slack and st.bias_bound[s, t] <= half:
                 half = aim - st.bias_bound[s, t]
@@ -566,6 +567,26 @@ def _plan(st: State, eps: float, conf: float, active: np.ndarray, *, slack: bool
                     n[0] = max(1, math.ceil(max(st.V[0, s, t], 0.0) / rest))
             N[:, t] = np.maximum(N[:, t], n)
     return N
+
+
+def _guarded_plan(st: State, eps: float, conf: float, active: np.ndarray, *,
+                  slack: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_plan`, approached from below: a relative target planned from a few hundred pilot
+    samples can ask for many times the samples it needs (|P| underestimated by a standard error
+    or two: the pilot of the OU pendulum's <E> at t = 1 asked for 5x, 2.1e9 path-steps for a
+    1.6e8 job). So each round plans for |P| one step up, |estimate| + 2 se (it asks no more than
+    the target needs, at about 97.5 %), and where that plan is already met but the plan at
+    |estimate| is not, at most doubles the samples; the loop then plans again with the better
+    estimate. The stopping rule is unchanged: the loop ends when the plan at |estimate| is met.
+
+    Returns (this round's samples, the plan at |estimate|, the plan one step up), each (L+1, T):
+    a refusal needs the last over the limit too (the run cannot be known to be too costly from
+    a plan that may ask for several times what it needs), and names the middle one's cost."""
+    need = _plan(st, eps, conf, active, slack=slack)
+    optimistic = _plan(st, eps, conf, active, slack=slack,
+                       magnitude=np.abs(st.estimate) + 2.0 * np.sqrt(np.maximum(st.stat_var, 0.0)))
+    step = np.maximum(optimistic, np.minimum(need, 2 * st.N))
+    return np.minimum(need, step), need, optimistic
 
 
 def staircase(deficit: np.ndarray) -> list[tuple[int, int]]:
@@ -661,10 +682,11 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             st = _state(levels, conf, times)
             active = st.coupled & np.isfinite(st.estimate) & (st.estimate != 0)
             L = len(levels) - 1
-            more = np.maximum(_plan(st, eps, conf, active) - st.N, 0)
-            whole = _staircase_cost(more, st.C)
-            if spent + whole > limit:
-                _refuse(target, spent, spent + whole, limit, "the plan")
+            step, need, least = _guarded_plan(st, eps, conf, active)
+            more = np.maximum(step - st.N, 0)
+            if spent + _staircase_cost(np.maximum(least - st.N, 0), st.C) > limit:
+                _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), limit,
+                        "the plan")
             more[0] = 0
             # a round adds at least a tenth of a level's samples: fewer rounds, each worth its start
             more = np.where(more > 0.1 * st.N, more, 0)
@@ -679,12 +701,14 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
                 add(L + 1, PILOT_SAMPLES)
                 note(f"target: level {L + 1} added (h = {cfg.h_max * 0.5 ** (L + 1):.3g})")
                 continue
-            more = np.maximum(_plan(st, eps, conf, active, slack=True) - st.N, 0)
+            step, need, least = _guarded_plan(st, eps, conf, active, slack=True)
+            more = np.maximum(step - st.N, 0)
             more = np.where((more > 0) & (more < 0.05 * st.N), np.ceil(0.05 * st.N), more).astype(np.int64)
             if not np.any(more):
                 break
-            if spent + _staircase_cost(more, st.C) > limit:
-                _refuse(target, spent, spent + _staircase_cost(more, st.C), limit, "the plan")
+            if spent + max(_staircase_cost(more, st.C), _staircase_cost(np.maximum(least - st.N, 0), st.C)) > limit:
+                _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), limit,
+                        "the plan")
             _top_up(add, more, st, note)
         st = _state(levels, conf, times)
     wall = _time.perf_counter() - started
