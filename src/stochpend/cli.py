@@ -48,7 +48,7 @@ from stochpend._cli_common import (  # the shared layer; several are also used a
     shown_rows,
     summary_table,
 )
-from stochpend._cli_types import file_name, integer, usage_message
+from stochpend._cli_types import fast_coercion, file_name, integer, usage_message
 from stochpend._terminal import markup
 from stochpend.paper import eq
 
@@ -84,6 +84,7 @@ def _plain_flags(params: list[Any]) -> list[Any]:
         text = getattr(param, "show_default", None)
         if isinstance(text, str):
             param._get_default_string = lambda *args, _text=text, **kwargs: _text
+        fast_coercion(param)  # no Pydantic where the option's own parser decides
     return params
 
 

@@ -55,6 +55,19 @@ def test_light_commands_import_neither_numba_nor_dask(args, small_result):
     top, done = _imported(args, small_result.parent)
     assert done.returncode == 0, done.stderr[-2000:]
     assert not top & set(HEAVY), f"stochpend {' '.join(args)} imported {sorted(top & set(HEAVY))}"
+    # Typer converts option values with Pydantic (0.15 s to import and build); an option with its
+    # own parser, text and a default need none (stochpend._cli_types.fast_coercion)
+    assert "pydantic" not in top, f"stochpend {' '.join(args)} imported pydantic"
+
+
+def test_a_value_pydantic_converts_still_converts(small_result):
+    """A float given on the command line still goes through Typer's own conversion: a bad one
+    is refused in one line, a good one is used."""
+    top, done = _imported(["theory", "--D", "abc"], small_result.parent)
+    assert done.returncode == 2 and done.stderr.strip().splitlines()[-1].startswith("error: --D 'abc' is not accepted")
+    assert "pydantic" in top
+    top, done = _imported(["theory", "--D", "2", "--time", "1e3"], small_result.parent)
+    assert done.returncode == 0, done.stderr[-2000:]
 
 
 def test_list_imports_no_numba(small_result):
