@@ -60,6 +60,15 @@ def test_light_commands_import_neither_numba_nor_dask(args, small_result):
     assert "pydantic" not in top, f"stochpend {' '.join(args)} imported pydantic"
 
 
+@pytest.mark.parametrize("args", [["--help"], ["list"], ["info"], ["theory"], ["theory", "--noise", "white"]])
+def test_commands_without_a_file_import_no_xarray(args, small_result):
+    """Nothing to read, so no xarray and pandas (0.5 s): ``theory`` used to import them with
+    the B.F.P.E. solver (stochpend.theory imports solve_bfpe on first use)."""
+    top, done = _imported(args, small_result.parent)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert not top & {"xarray", "pandas", "h5py"}, f"stochpend {' '.join(args)} imported {sorted(top & {'xarray', 'pandas', 'h5py'})}"
+
+
 def test_a_value_pydantic_converts_still_converts(small_result):
     """A float given on the command line still goes through Typer's own conversion: a bad one
     is refused in one line, a good one is used."""
