@@ -64,7 +64,7 @@ def theory_command(
     tau: Annotated[float, typer.Option("--tau", help="OU correlation time tau > 0 (ignored for white noise).")] = 1.0,
     omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency omega >= 0 (the asymptotic laws do not depend on it).")] = 1.0,
     time: Annotated[float, typer.Option("--time", help="Time at which the predictions are evaluated, >= 0.")] = 1000.0,
-    t: Annotated[float | None, typer.Option("--t", hidden=True, help="Former name of --time.")] = None,
+    t: Annotated[float | None, typer.Option("--t", "--t-max", hidden=True, help="Former name of --time; --t-max, simulate's name of the last time, means it too.")] = None,
     bfpe: Annotated[bool, typer.Option("--bfpe", help=f"Also solve the averaged Best Fokker-Planck Equation (omega = 0, {eq('avbfpe')}) up to that time.")] = False,
     family: Annotated[bool, typer.Option("--family", help="Instead, the laws of the damped, driven family (docs/theory.md): Boltzmann, Kramers, washboard, random-frequency oscillator; --D is then the multiplicative noise on x, --time is not used.")] = False,
     gamma: Annotated[float, typer.Option("--gamma", help="With --family: damping gamma > 0.")] = 0.5,
@@ -76,7 +76,7 @@ def theory_command(
     (with --family: the damped, driven family's stationary laws and rates)."""
     from stochpend.theory import predictions
 
-    if t is not None:  # --t, the former name, still works
+    if t is not None:  # --t, the former name, and --t-max (simulate's word) still work
         time = t
     if family:
         from stochpend.theory.family import family_predictions
