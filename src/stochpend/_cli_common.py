@@ -609,7 +609,7 @@ def summary_table(ds: Any, max_rows: int = 12, width: int | None = None,
         caption += "."
         from stochpend import bias as _bias
 
-        line = _bias.summary_line(ds)
+        line = _bias.summary_line(ds, shown=idx)
         if line:
             caption += " " + line[0].upper() + line[1:]
     table.caption = caption
