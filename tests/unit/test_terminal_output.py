@@ -213,3 +213,41 @@ def test_the_table_hint_of_simulate_and_reduced_works_as_printed(tmp_path):
     assert bare.exit_code == 0, bare.output
     assert ("12 of 20 output times shown (for all, write them with --out FILE, then: stochpend show FILE "
             "--rows 20)") in " ".join(bare.output.split())
+
+
+@pytest.mark.parametrize(("content", "kind"), [
+    (b'{"mean_E": 1}', "JSON or other text"), (b"\x89PNG\r\n\x1a\n" + bytes(40), "a PNG image"),
+    (b"%PDF-1.7\n", "a PDF document"), (b"t,mean_E\n1,2\n", "text"), (b"", "an empty file"),
+    (b"<html><body>report</body></html>", "HTML, SVG or other XML text"), (b"CDF\x01" + bytes(40), "a NetCDF-3 file"),
+    (b"\x00\xff\x13\x37" * 8, "a file of another format"),
+])
+@pytest.mark.parametrize("command", ["show", "plot"])
+def test_a_file_of_another_kind_is_named_in_words(tmp_path, command, content, kind):
+    """Walk-through C4: `show results.json` (or fig1.png, report.html) answered in HDF5's words,
+    '(Unable to synchronously open file (file signature not found))'."""
+    from typer.testing import CliRunner
+
+    from stochpend.cli import app
+
+    path = tmp_path / "results.json"
+    path.write_bytes(content)
+    result = CliRunner().invoke(app, [command, str(path)])
+    lines = [ln for ln in result.output.splitlines() if ln.strip()]
+    assert result.exit_code == 2 and len(lines) == 1, result.output
+    assert f"it is {kind}, not a results file" in lines[0], lines[0]
+    assert "signature" not in lines[0] and "synchronously" not in lines[0]
+
+
+def test_an_hdf5_file_after_a_user_block_is_read_as_hdf5(tmp_path):
+    """HDF5's signature may follow a user block (512, 1024, ... bytes): such a file is not
+    called 'another format' (it is refused for what it holds)."""
+    import h5py
+    from typer.testing import CliRunner
+
+    from stochpend.cli import app
+
+    with h5py.File(tmp_path / "ub.nc", "w", userblock_size=512) as f:
+        f["x"] = 1.0
+    result = CliRunner().invoke(app, ["show", str(tmp_path / "ub.nc")])
+    assert result.exit_code == 2 and "not a file stochpend writes" in result.output, result.output
+    assert "another format" not in result.output
