@@ -527,6 +527,8 @@ def summary_table(ds: Any, max_rows: int = 12, width: int | None = None,
         model += f" ({attrs.get('coupling', 'force')} coupling)"
     # Attributes come from a file: escaped (terminal control characters, Rich markup).
     title = f"stochpend: {markup(model)}, {markup(noise)} noise, D={D:g}" + (f", tau={float(tau):g}" if tau != "none" else "")
+    if str(attrs.get("title", "")).startswith("stochpend reduced dynamics"):  # not the pendulum's own run
+        title = title.replace("stochpend: ", f"stochpend reduced dynamics ({markup(str(attrs.get('order', '?')))} order): ", 1)
     if attrs.get("omega_noise", "none") != "none":
         title += f", W={float(attrs['omega_noise']):g}"
     if attrs.get("noise_parameters"):  # the noise's own parameters (stochpend.parameters)

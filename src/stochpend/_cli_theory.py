@@ -137,8 +137,9 @@ def bfpe_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Table:
     from stochpend.theory import laws
 
     table.caption = (
-        f"t >> t_c limits (second-order averaging): {laws.OU2_MEAN_PREFACTOR:.6f}, {laws.OU2_MEAN_E2_PREFACTOR:g}, "
-        f"phi {laws.PHI_INF:.6f}, S {laws.OU2_SKEWNESS:.6f}, F {laws.OU2_FLATNESS:g}."
+        f"t >> t_c limits (second-order averaging): <E>/(Dt/tau^2)^1/2 {laws.OU2_MEAN_PREFACTOR:.6f}, "
+        f"<E2>/(Dt/tau^2) {laws.OU2_MEAN_E2_PREFACTOR:g}, phi {laws.PHI_INF:.6f}, S {laws.OU2_SKEWNESS:.6f}, "
+        f"F {laws.OU2_FLATNESS:g}."
         + (f" Not shown at this width: {', '.join(dropped)} (--format csv has all)." if dropped else "")
     )
     return table
