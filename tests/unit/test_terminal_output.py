@@ -251,3 +251,17 @@ def test_an_hdf5_file_after_a_user_block_is_read_as_hdf5(tmp_path):
     result = CliRunner().invoke(app, ["show", str(tmp_path / "ub.nc")])
     assert result.exit_code == 2 and "not a file stochpend writes" in result.output, result.output
     assert "another format" not in result.output
+
+
+def test_info_names_cores_memory_and_the_kernel_cache(tmp_path):
+    """Walk-through N13: info had no core count, memory or cache location."""
+    env = {**os.environ, "COLUMNS": "300", "NUMBA_CACHE_DIR": str(tmp_path / "kc"),
+           "PYTHONPATH": str(Path(stochpend.__file__).resolve().parents[1])}
+    done = subprocess.run([sys.executable, "-m", "stochpend", "info"], capture_output=True, text=True, env=env,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    rows = {ln.split("│")[1].strip(): ln.split("│")[2].strip() for ln in done.stdout.splitlines() if ln.count("│") == 3}
+    assert rows["cpus usable"] == str(len(os.sched_getaffinity(0)))
+    assert re.fullmatch(r"[\d.]+ [KMGT]?i?B in all, [\d.]+ [KMGT]?i?B available", rows["memory"]), rows["memory"]
+    assert rows["kernel cache"] == f"{tmp_path / 'kc'} (NUMBA_CACHE_DIR)"
+    assert rows["calibration"].startswith(str(tmp_path / "kc"))
