@@ -265,3 +265,31 @@ def test_info_names_cores_memory_and_the_kernel_cache(tmp_path):
     assert re.fullmatch(r"[\d.]+ [KMGT]?i?B in all, [\d.]+ [KMGT]?i?B available", rows["memory"]), rows["memory"]
     assert rows["kernel cache"] == f"{tmp_path / 'kc'} (NUMBA_CACHE_DIR)"
     assert rows["calibration"].startswith(str(tmp_path / "kc"))
+
+
+@pytest.mark.parametrize("args", [["show", "{run}"], ["show", "{run}", "--format", "csv"], ["theory"], ["scaling"],
+                                  ["info"], ["list"]])
+def test_results_go_to_stdout_whole_even_with_columns_80(run_file, args):
+    """Walk-through B1, E1, M9: `COLUMNS=80 show run1.nc | head` gave the whole table (no value
+    cut); `show > f`, `theory | wc`, `scaling`, `info`: results on stdout, at most notes on stderr."""
+    env = {**os.environ, "COLUMNS": "80"}
+    done = subprocess.run(_stochpend(*(a.format(run=run_file) for a in args)), capture_output=True, text=True,
+                          env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip(), done.stderr
+    assert all(ln.startswith("note: ") for ln in done.stderr.splitlines() if ln.strip()), done.stderr  # notes only
+    assert "…" not in done.stdout and "\x1b[" not in done.stdout
+    if args[:2] == ["show", "{run}"] and len(args) == 2:
+        assert "bias <E>" in done.stdout and "non-finite" in done.stdout  # no column dropped in a pipe
+
+
+def test_the_datasets_verdicts_say_what_their_flags_mean(run_file):
+    """Walk-through N11: repr(ds) is readable; each verdict variable names its flags."""
+    ds = io.open_results(run_file)
+    text = repr(ds)
+    assert len(text.splitlines()) < 80
+    verdicts = [v for v in ds.data_vars if v.endswith("_bias_verdict")]
+    assert verdicts
+    for name in verdicts:
+        assert ds[name].attrs["flag_meanings"].split() == ["certified_small", "significant", "inconclusive"], name
+        assert list(ds[name].attrs["flag_values"]) == [0, 1, 2], name
