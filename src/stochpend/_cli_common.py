@@ -233,6 +233,8 @@ def handles_errors(fn: F) -> F:
                  "use less extreme values")
         except KeyboardInterrupt as exc:
             _stop_listening()
+            for bar in list(_BARS):  # the bar first: redrawn after the line, it hid the prompt's line (I1)
+                bar.finish()
             console.print("[yellow]interrupted[/]")
             raise typer.Exit(128 + getattr(exc, "signum", 2)) from None
 
@@ -329,6 +331,7 @@ class RichProgress:
             TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=console, transient=True,
         )
         self._progress.start()
+        _BARS.append(self)
         self._task = self._progress.add_task(description, total=total)
 
     def update(self, done: float) -> None:
@@ -346,9 +349,15 @@ class RichProgress:
 
     def finish(self) -> None:
         self._beat = None
+        if self in _BARS:
+            _BARS.remove(self)
         if self._progress is not None:
             self._progress.stop()
             self._progress = None
+
+
+#: The bars drawing now (:class:`RichProgress`), stopped before an 'interrupted' line.
+_BARS: list[RichProgress] = []
 
 
 def _minutes(seconds: float) -> str:

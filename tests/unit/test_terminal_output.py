@@ -293,3 +293,38 @@ def test_the_datasets_verdicts_say_what_their_flags_mean(run_file):
     for name in verdicts:
         assert ds[name].attrs["flag_meanings"].split() == ["certified_small", "significant", "inconclusive"], name
         assert list(ds[name].attrs["flag_values"]) == [0, 1, 2], name
+
+
+def test_ctrl_c_leaves_the_interrupted_line_last_and_the_prompt_on_its_own_line():
+    """Walk-through I1: after Ctrl-C in a terminal the bar was drawn again below 'interrupted'
+    and left without a newline, so the shell's prompt was glued to it ('ETA 0:02:03$')."""
+    import signal
+    import time
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 80, 0, 0))
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
+    proc = subprocess.Popen(_stochpend("simulate", "--paths", "200000", "--t-max", "300", "--n-times", "3",
+                                       "--bias-paths", "0", "--seed", "1"),
+                            stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True)
+    os.close(slave)
+    out, sent, start = b"", False, time.monotonic()
+    while time.monotonic() - start < 300:
+        ready, _, _ = select.select([master], [], [], 0.5)
+        if ready:
+            try:
+                data = os.read(master, 65536)
+            except OSError:
+                break
+            if not data:
+                break
+            out += data
+        if not sent and b"ETA" in out:  # the bar is drawn: interrupt as a user's Ctrl-C does
+            proc.send_signal(signal.SIGINT)
+            sent = True
+    proc.wait(timeout=60)
+    os.close(master)
+    assert sent and proc.returncode == 130, out[-2000:]
+    after = out[out.rindex(b"interrupted"):]
+    assert b"ETA" not in after and b"simulating" not in after, after
+    assert after.endswith(b"\n"), after
