@@ -328,3 +328,24 @@ def test_ctrl_c_leaves_the_interrupted_line_last_and_the_prompt_on_its_own_line(
     after = out[out.rindex(b"interrupted"):]
     assert b"ETA" not in after and b"simulating" not in after, after
     assert after.endswith(b"\n"), after
+
+
+def test_a_harmonic_noise_run_reads_in_an_80_column_terminal():
+    """Walk-through R14: `simulate --noise harmonic --tau 1 --omega-noise 1.5` in 80x24: every
+    line fits, no value cut, what is left out is said."""
+    screen = _in_pty(_stochpend("simulate", "--noise", "harmonic", "--tau", "1", "--omega-noise", "1.5",
+                                "--paths", "400", "--t-max", "20", "--n-times", "12", "--seed", "2"), 80, returns="\n",
+                    wait_s=300)
+    lines = screen.splitlines()
+    assert max(len(line) for line in lines) <= 80, max(lines, key=len)
+    assert "…" not in screen and "Traceback" not in screen
+    assert len([line for line in lines if line.startswith("│")]) == 12
+    assert "harmonic noise" in " ".join(screen.split())
+
+
+@pytest.mark.slow  # the default run: 10 000 paths to t = 1000 (about 20 s on 2 cores)
+def test_simulate_with_no_options_runs_the_default_and_prints_its_table():
+    """Walk-through M24: `stochpend simulate` alone is a sensible run."""
+    done = subprocess.run(_stochpend("simulate"), capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr
+    assert "<E>" in done.stdout and "stochpend: pendulum, ou noise, D=1" in " ".join(done.stdout.split())
