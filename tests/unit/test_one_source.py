@@ -257,12 +257,16 @@ def _api_of(command: str) -> Any:
         from stochpend.theory import solve_bfpe
 
         return solve_bfpe
+    if command == "sweep":
+        return stochpend.sweep.sweep
+    if command == "theory":
+        return stochpend.theory.predictions
     from stochpend.reproduce import reproduce
 
     return reproduce
 
 
-@pytest.mark.parametrize("command", ["reduced", "bfpe", "reproduce"])
+@pytest.mark.parametrize("command", ["reduced", "bfpe", "reproduce", "sweep", "theory"])
 def test_other_commands_defaults_are_their_apis(command):
     """Every option of the command that the API function also takes, with a default on both
     sides, has the same default."""
