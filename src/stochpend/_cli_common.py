@@ -233,6 +233,8 @@ def handles_errors(fn: F) -> F:
                  "use less extreme values")
         except KeyboardInterrupt as exc:
             _stop_listening()
+            for bar in list(_BARS):  # the bar first: redrawn after the line, it hid the prompt's line (I1)
+                bar.finish()
             console.print("[yellow]interrupted[/]")
             raise typer.Exit(128 + getattr(exc, "signum", 2)) from None
 
@@ -329,6 +331,7 @@ class RichProgress:
             TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=console, transient=True,
         )
         self._progress.start()
+        _BARS.append(self)
         self._task = self._progress.add_task(description, total=total)
 
     def update(self, done: float) -> None:
@@ -346,9 +349,15 @@ class RichProgress:
 
     def finish(self) -> None:
         self._beat = None
+        if self in _BARS:
+            _BARS.remove(self)
         if self._progress is not None:
             self._progress.stop()
             self._progress = None
+
+
+#: The bars drawing now (:class:`RichProgress`), stopped before an 'interrupted' line.
+_BARS: list[RichProgress] = []
 
 
 def _minutes(seconds: float) -> str:
@@ -527,6 +536,8 @@ def summary_table(ds: Any, max_rows: int = 12, width: int | None = None,
         model += f" ({attrs.get('coupling', 'force')} coupling)"
     # Attributes come from a file: escaped (terminal control characters, Rich markup).
     title = f"stochpend: {markup(model)}, {markup(noise)} noise, D={D:g}" + (f", tau={float(tau):g}" if tau != "none" else "")
+    if str(attrs.get("title", "")).startswith("stochpend reduced dynamics"):  # not the pendulum's own run
+        title = title.replace("stochpend: ", f"stochpend reduced dynamics ({markup(str(attrs.get('order', '?')))} order): ", 1)
     if attrs.get("omega_noise", "none") != "none":
         title += f", W={float(attrs['omega_noise']):g}"
     if attrs.get("noise_parameters"):  # the noise's own parameters (stochpend.parameters)
@@ -609,7 +620,7 @@ def summary_table(ds: Any, max_rows: int = 12, width: int | None = None,
         caption += "."
         from stochpend import bias as _bias
 
-        line = _bias.summary_line(ds)
+        line = _bias.summary_line(ds, shown=idx)
         if line:
             caption += " " + line[0].upper() + line[1:]
     table.caption = caption

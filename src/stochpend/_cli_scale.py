@@ -257,7 +257,9 @@ def sweep_table(ds: Any) -> Table:
     noises = set(ds["noise"].values.ravel().tolist()) if "noise" in ds.variables else {noise}
     scaled = {frozenset({"ou"}): "<E2>/(Dt/tau^2)", frozenset({"white"}): "<E>/(Dt/4)"}.get(
         frozenset(noises), "<E2>/(Dt/tau^2) (ou), <E>/(Dt/4) (white)")
-    for col in (*swept, "t", "<E>", "<E2>", scaled, "S", "F", "non-finite"):
+    # the bias estimate of each set ("estimating the discretisation bias" had no column to show)
+    has_bias = "mean_E_bias" in ds and "mean_E_bias_stderr" in ds
+    for col in (*swept, "t", "<E>", *(["bias <E>"] if has_bias else []), "<E2>", scaled, "S", "F", "non-finite"):
         table.add_column(col, justify="right", no_wrap=True)
     for s in sets:
         row = ds.isel(s["index"]).isel(time=-1)
@@ -274,16 +276,24 @@ def sweep_table(ds: Any) -> Table:
         se_shown: float | None = se
         if not norm > 0:
             val, se_shown = float("nan"), None
+        bias_cell = []
+        if has_bias:
+            verdict = int(row["mean_E_bias_verdict"]) if "mean_E_bias_verdict" in row else None
+            bias_cell = [common._bias_cell(float(row.mean_E_bias), float(row.mean_E_bias_stderr), verdict)]
         table.add_row(
             *(f"{v:g}" if isinstance(v, float) else str(v) for v in s["params"].values()),
-            f"{t:.4g}", fmt(float(row.mean_E), float(row.mean_E_stderr)),
+            f"{t:.4g}", fmt(float(row.mean_E), float(row.mean_E_stderr)), *bias_cell,
             fmt(float(row.mean_E2), float(row.mean_E2_stderr)), fmt(val, se_shown),
             fmt(float(row.skewness), float(row.skewness_stderr)), fmt(float(row.flatness), float(row.flatness_stderr)),
             str(int(row.nonfinite_paths)),
         )
+    workers = ds.attrs.get("sweep_workers")
     table.caption = (f"{ds.attrs.get('sweep_tasks')} tasks on {ds.attrs.get('sweep_engine')} "
-                     f"({ds.attrs.get('sweep_workers')} workers); wall time {float(ds.attrs['wall_time_s']):.3g} s, "
-                     f"{float(ds.attrs['path_steps']):.3g} path-steps.")
+                     f"({workers} worker{'' if str(workers) == '1' else 's'}); wall time "
+                     f"{float(ds.attrs['wall_time_s']):.3g} s, {float(ds.attrs['path_steps']):.3g} path-steps."
+                     + (" bias <E>: the estimated discretisation bias at the last time (value minus "
+                        "zero-step limit); '!' significant, 'unresolved' where the estimate cannot tell."
+                        if has_bias else ""))
     return table
 
 

@@ -64,7 +64,7 @@ def theory_command(
     tau: Annotated[float, typer.Option("--tau", help="OU correlation time tau > 0 (ignored for white noise).")] = 1.0,
     omega: Annotated[float, typer.Option("--omega", help="Pendulum frequency omega >= 0 (the asymptotic laws do not depend on it).")] = 1.0,
     time: Annotated[float, typer.Option("--time", help="Time at which the predictions are evaluated, >= 0.")] = 1000.0,
-    t: Annotated[float | None, typer.Option("--t", hidden=True, help="Former name of --time.")] = None,
+    t: Annotated[float | None, typer.Option("--t", "--t-max", hidden=True, help="Former name of --time; --t-max, simulate's name of the last time, means it too.")] = None,
     bfpe: Annotated[bool, typer.Option("--bfpe", help=f"Also solve the averaged Best Fokker-Planck Equation (omega = 0, {eq('avbfpe')}) up to that time.")] = False,
     family: Annotated[bool, typer.Option("--family", help="Instead, the laws of the damped, driven family (docs/theory.md): Boltzmann, Kramers, washboard, random-frequency oscillator; --D is then the multiplicative noise on x, --time is not used.")] = False,
     gamma: Annotated[float, typer.Option("--gamma", help="With --family: damping gamma > 0.")] = 0.5,
@@ -76,7 +76,7 @@ def theory_command(
     (with --family: the damped, driven family's stationary laws and rates)."""
     from stochpend.theory import predictions
 
-    if t is not None:  # --t, the former name, still works
+    if t is not None:  # --t, the former name, and --t-max (simulate's word) still work
         time = t
     if family:
         from stochpend.theory.family import family_predictions
@@ -137,8 +137,9 @@ def bfpe_table(ds: Any, max_rows: int = 12, width: int | None = None) -> Table:
     from stochpend.theory import laws
 
     table.caption = (
-        f"t >> t_c limits (second-order averaging): {laws.OU2_MEAN_PREFACTOR:.6f}, {laws.OU2_MEAN_E2_PREFACTOR:g}, "
-        f"phi {laws.PHI_INF:.6f}, S {laws.OU2_SKEWNESS:.6f}, F {laws.OU2_FLATNESS:g}."
+        f"t >> t_c limits (second-order averaging): <E>/(Dt/tau^2)^1/2 {laws.OU2_MEAN_PREFACTOR:.6f}, "
+        f"<E2>/(Dt/tau^2) {laws.OU2_MEAN_E2_PREFACTOR:g}, phi {laws.PHI_INF:.6f}, S {laws.OU2_SKEWNESS:.6f}, "
+        f"F {laws.OU2_FLATNESS:g}."
         + (f" Not shown at this width: {', '.join(dropped)} (--format csv has all)." if dropped else "")
     )
     return table

@@ -7,7 +7,8 @@
   docstring gave a bias-pair default the code had long left); a default given as ``None``
   stands for something the entry's text must say in words;
 * the paper's equation labels (``Eq. `eqOU```) become its printed numbers ("Eq. (18)"), as the
-  command line's help and the report cite them (:func:`stochpend.paper.with_numbers`).
+  command line's help and the report cite them (:func:`stochpend.paper.with_numbers`), except in
+  parameter names and ````literal```` spans, where a word that is also a label (``bfpe``) is code.
 
 :func:`undocumented` lists the signature's parameters that the docstring does not describe
 (a test keeps it empty).
@@ -67,11 +68,19 @@ def undocumented(fn: Callable[..., Any]) -> list[str]:
     return [name for name in inspect.signature(fn).parameters if name not in documented_names]
 
 
+_LITERAL = re.compile(r"(``[^`]*``)")
+
+
+def numbered(text: str) -> str:
+    """``text`` with the paper's labels as equation numbers, outside ````literal```` spans."""
+    from stochpend.paper import with_numbers
+
+    return "".join(part if part.startswith("``") else with_numbers(part) for part in _LITERAL.split(text))
+
+
 def documented(fn: F) -> F:
     """Append each parameter's default to its heading and cite equations by number (module
     docstring)."""
-    from stochpend.paper import with_numbers
-
     doc = inspect.cleandoc(fn.__doc__ or "")
     if not doc:
         return fn
@@ -79,7 +88,9 @@ def documented(fn: F) -> F:
     lines = doc.splitlines()
     lines = [lines[0], *("    " + ln if ln else ln for ln in lines[1:])]  # back to the body's indentation
     start, end = _section(lines, "Parameters")
-    for i in range(start, end):
+    heading_lines = {i for i in range(start, end) if _HEADING.match(lines[i])}
+    lines = [line if i in heading_lines else numbered(line) for i, line in enumerate(lines)]
+    for i in sorted(heading_lines):
         m = _HEADING.match(lines[i])
         if not m:
             continue
@@ -95,5 +106,5 @@ def documented(fn: F) -> F:
             rest = re.sub(r",? optional$", "", rest)
             joiner = "" if rest == " :" else ","
             lines[i] = f"    {m.group('names')}{rest}{joiner} default{'s' if len(defaults) > 1 else ''} {', '.join(defaults)}"
-    fn.__doc__ = with_numbers("\n".join(lines))
+    fn.__doc__ = "\n".join(lines)
     return fn

@@ -732,26 +732,39 @@ def warnings_for(ds: Any, fmt: Callable[[float, float], str],
     return lines
 
 
-def summary_line(ds: Any, paths: int | None = None) -> str | None:
+def summary_line(ds: Any, paths: int | None = None, shown: Sequence[int] | None = None) -> str | None:
     """One sentence for under a table: how far the estimate certifies the bias, and where the
-    pairs decorrelate (None without an estimate)."""
+    pairs decorrelate (None without an estimate). With ``shown`` (the indices of the table's
+    rows), a time that is not a row says between which rows it lies (a footer cited t = 11.94
+    under a table without that row)."""
     verdicts = assess_dataset(ds)
     if verdicts is None:
         return None
     times = verdicts.times
+
+    def at(t: float) -> str:
+        rows = sorted(float(times[i]) for i in shown or () if 0 <= i < len(times))
+        if not rows or any(f"{r:.4g}" == f"{t:.4g}" for r in rows):
+            return f"t = {t:.4g}"
+        before = [r for r in rows if r < t]
+        after = [r for r in rows if r > t]
+        if before and after:
+            return f"t = {t:.4g} (between the rows t = {before[-1]:.4g} and {after[0]:.4g})"
+        return f"t = {t:.4g} (not a row shown)"
+
     until = verdicts.certified_until
     if math.isnan(until):
         head = "bias: inconclusive from the first output time"
     elif until >= times[-1]:
         head = "bias: resolved at every output time (below SE/2 or significant)"
     else:
-        head = (f"bias: resolved (below SE/2 or significant) up to t = {until:.4g}, "
+        head = (f"bias: resolved (below SE/2 or significant) up to {at(until)}, "
                 "inconclusive after")
     horizon = verdicts.horizon
     if math.isfinite(horizon):
         n = paths if paths is not None else int(ds.attrs.get("paths", 0) or 0)
         need = independent_paths_to_certify(n, verdicts.width) if n > 0 else None
-        head += (f"; the coupled pairs decorrelate from t = {horizon:.4g}, beyond which only "
+        head += (f"; the coupled pairs decorrelate from {at(horizon)}, beyond which only "
                  "independent ensembles at two steps could resolve it"
                  + (f" ({need:.2g} paths each)" if need else ""))
     return head + "."

@@ -48,7 +48,7 @@ from stochpend._cli_common import (  # the shared layer; several are also used a
     shown_rows,
     summary_table,
 )
-from stochpend._cli_types import file_name, integer, usage_message
+from stochpend._cli_types import fast_coercion, file_name, integer, usage_message
 from stochpend._terminal import markup
 from stochpend.paper import eq
 
@@ -84,6 +84,7 @@ def _plain_flags(params: list[Any]) -> list[Any]:
         text = getattr(param, "show_default", None)
         if isinstance(text, str):
             param._get_default_string = lambda *args, _text=text, **kwargs: _text
+        fast_coercion(param)  # no Pydantic where the option's own parser decides
     return params
 
 
@@ -825,6 +826,31 @@ def _no_cuda_driver() -> str | None:
     return "no NVIDIA driver on this machine (no /dev/nvidiactl)"
 
 
+def _machine_rows() -> list[tuple[str, str]]:
+    """(item, value) rows of ``info``: the CPUs this process may use, the memory (total, and
+    available to a run: less under a cgroup limit), and where compiled kernels are cached,
+    each read without importing Numba."""
+    import os
+
+    from stochpend import _calibration, resources
+
+    rows = [("cpus usable", str(_calibration.cores()))]
+    try:
+        total: int | None = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        total = None
+    available = resources.available_memory()
+    rows.append(("memory", f"{resources.format_bytes(total) if total else 'unknown'} in all, "
+                           f"{resources.format_bytes(available) if available else 'unknown'} available"))
+    cache = os.environ.get("NUMBA_CACHE_DIR", "").strip()
+    where = (f"{cache} (NUMBA_CACHE_DIR)" if cache else
+             f"the __pycache__ folders of {Path(__file__).resolve().parent} (Numba's default; a temporary "
+             "folder, per process, where they are not writable)")
+    rows.append(("kernel cache", markup(where)))
+    rows.append(("calibration", markup(str(_calibration.path()))))
+    return rows
+
+
 @app.command()
 def info() -> None:
     """Versions, threads, and which backends are usable here."""
@@ -843,6 +869,8 @@ def info() -> None:
     table.add_row("numpy / numba / xarray", f"{version('numpy')} / {version('numba')} / {version('xarray')}")
     table.add_row("numba threads", _numba_threads())
     table.add_row("machine", f"{platform.machine()} {platform.processor()}")
+    for item, value in _machine_rows():  # walk-through N13: cores, memory and the kernel cache
+        table.add_row(item, value)
     from stochpend import _cputarget
 
     table.add_row("cpu target", _cputarget.planned())  # what the CPU kernels compile for (--cpu-target)

@@ -26,6 +26,7 @@ import xarray as xr
 from numpy.typing import NDArray
 
 # The labels of diagnose_growth are those of ScalingPrediction.growth, so the two compare directly.
+from stochpend._docs import documented
 from stochpend.theory.scaling import GROWTHS
 
 __all__ = ["ExponentFit", "GROWTHS", "diagnose_growth", "fit_exponent", "fit_rate", "fit_slope"]
@@ -245,6 +246,7 @@ def _require_positive(mean: NDArray[np.float64], loo: NDArray[np.float64], t: ND
         )
 
 
+@documented  # help() shows the signature's defaults
 def diagnose_growth(ds: xr.Dataset, detail: bool = False) -> str:
     r"""Classify the growth of <E(t)>: power law, exponential, or finite-time blow-up.
 

@@ -28,10 +28,11 @@ calling kernel and inlined, callable from Python too (as the tests do).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
-from numba import types
-from numba.extending import intrinsic, overload, register_jitable
+
+from stochpend._jitable import register_jitable, when_numba
 
 
 # -- bit casts, floor, exact integer conversions --------------------------------------------------
@@ -53,53 +54,62 @@ def floor(x):
     return float(math.floor(x))
 
 
-@intrinsic
-def _f64_as_i64(typingctx, x):
-    if not isinstance(x, types.Float) or x.bitwidth != 64:
-        return None
+def _register_overloads() -> None:
+    """The LLVM implementations of the three functions above (``intrinsic`` and ``overload``),
+    registered when Numba is first imported (:func:`stochpend._jitable.when_numba`), so that
+    importing this module imports no Numba."""
+    global _f64_as_i64, _i64_as_f64, _floor
+    from numba import types
+    from numba.extending import intrinsic, overload
 
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], context.get_value_type(types.int64))
+    @intrinsic
+    def _f64_as_i64(typingctx, x):
+        if not isinstance(x, types.Float) or x.bitwidth != 64:
+            return None
 
-    return types.int64(types.float64), codegen
+        def codegen(context, builder, signature, args):
+            return builder.bitcast(args[0], context.get_value_type(types.int64))
+
+        return types.int64(types.float64), codegen
+
+    @intrinsic
+    def _i64_as_f64(typingctx, x):
+        if not isinstance(x, types.Integer) or x.bitwidth != 64:
+            return None
+
+        def codegen(context, builder, signature, args):
+            return builder.bitcast(args[0], context.get_value_type(types.float64))
+
+        return types.float64(x), codegen
+
+    @intrinsic
+    def _floor(typingctx, x):
+        if not isinstance(x, types.Float) or x.bitwidth != 64:
+            return None
+
+        def codegen(context, builder, signature, args):
+            fn = builder.module.declare_intrinsic("llvm.floor", [args[0].type])
+            return builder.call(fn, args)
+
+        return types.float64(types.float64), codegen
+
+    @overload(f64_as_i64)
+    def _ol_f64_as_i64(x):
+        return lambda x: _f64_as_i64(x)
+
+    @overload(i64_as_f64)
+    def _ol_i64_as_f64(x):
+        return lambda x: _i64_as_f64(x)
+
+    @overload(floor)
+    def _ol_floor(x):
+        return lambda x: _floor(x)
 
 
-@intrinsic
-def _i64_as_f64(typingctx, x):
-    if not isinstance(x, types.Integer) or x.bitwidth != 64:
-        return None
-
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], context.get_value_type(types.float64))
-
-    return types.float64(x), codegen
-
-
-@intrinsic
-def _floor(typingctx, x):
-    if not isinstance(x, types.Float) or x.bitwidth != 64:
-        return None
-
-    def codegen(context, builder, signature, args):
-        fn = builder.module.declare_intrinsic("llvm.floor", [args[0].type])
-        return builder.call(fn, args)
-
-    return types.float64(types.float64), codegen
-
-
-@overload(f64_as_i64)
-def _ol_f64_as_i64(x):
-    return lambda x: _f64_as_i64(x)
-
-
-@overload(i64_as_f64)
-def _ol_i64_as_f64(x):
-    return lambda x: _i64_as_f64(x)
-
-
-@overload(floor)
-def _ol_floor(x):
-    return lambda x: _floor(x)
+_f64_as_i64: Any = None
+_i64_as_f64: Any = None
+_floor: Any = None
+when_numba(_register_overloads)
 
 
 @register_jitable

@@ -17,9 +17,8 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from numba.extending import register_jitable
-
 from stochpend import fastmath
+from stochpend._jitable import register_jitable
 
 
 @register_jitable

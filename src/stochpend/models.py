@@ -55,8 +55,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numba.extending import register_jitable
 
+from stochpend._jitable import register_jitable
 from stochpend.oscillators.base import Oscillator, OscillatorKernel
 from stochpend.parameters import Parameter
 

@@ -388,7 +388,9 @@ def _checked_noise(noise: Any, D: Any, tau: Any, omega_noise: Any) -> tuple[Any,
     omega_noise only for one that uses it (its default from tau where not given)."""
     noise_piece = _noises.get(noise)
     if noise_piece is None:
-        _fail("noise", noise, f"one of {', '.join(_noises.names())}")
+        lower = noise.lower() if isinstance(noise, str) else None  # --noise OU: names are lower case
+        _fail("noise", noise, f"one of {', '.join(_noises.names())}"
+              + (f" (names are lower case: {lower!r})" if lower in _noises.names() else ""))
     D = _finite("D", D, "D must be a finite number >= 0 (the noise amplitude)")
     if D < 0:
         _fail("D", D, "D must be a finite number >= 0 (the noise amplitude)")

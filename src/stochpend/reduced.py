@@ -92,6 +92,7 @@ from numba import prange
 from numba.extending import register_jitable
 
 from stochpend import _cputarget, rng
+from stochpend._docs import documented
 from stochpend._jitcache import own_index
 from stochpend._version import __version__
 from stochpend.noises import ou as _ou
@@ -681,6 +682,7 @@ def _chunk_batches(config: ReducedConfig, chunk_paths: int | None) -> int:
     return max(1, (chunk_paths or DEFAULT_CHUNK_PATHS) // config.batch_size)
 
 
+@documented  # help() shows the signature's defaults and the paper's equation numbers
 def simulate_reduced(
     order: str,
     *,
@@ -733,7 +735,7 @@ def simulate_reduced(
         Seed in [0, 2**64). The reduced dynamics use their own Philox stream (draw indices
         >= 2**62), independent of the pendulum's numbers for the same seed.
     E0 : float
-        Initial energy, >= 0 (default 0).
+        Initial energy, >= 0.
     xi0 : float or "stationary"
         Initial OU noise of the second order; default drawn from N(0, D/(2 tau)).
     h_max : float, optional
@@ -744,6 +746,10 @@ def simulate_reduced(
         the tail), jackknife batches.
     threads, chunk_paths : int, optional
         CPU threads and paths held in memory at once; results do not depend on them.
+    max_path_steps : float, optional
+        Refuse, before any work, a run needing more than this many path-steps (paths x the
+        steps of its order); default :data:`stochpend.resources.DEFAULT_MAX_PATH_STEPS`,
+        ``math.inf``: no limit (the command line's ``--max-path-steps``).
 
     Returns
     -------

@@ -52,6 +52,7 @@ import xarray as xr
 
 from stochpend import bias
 from stochpend._blocks import BlockResult, Task, run_block
+from stochpend._docs import documented
 from stochpend._sources import BUILD
 from stochpend._sweep_sets import flat_sets as flat_sets  # where 'show' reads it without Numba
 from stochpend.lifecycle import provenance
@@ -424,6 +425,7 @@ def default_tasks_per_set(spec: SweepSpec, slots: int) -> int:
 
 
 # -- the sweep -------------------------------------------------------------------------------
+@documented  # help() shows the signature's defaults and the paper's equation numbers
 def sweep(
     spec: Mapping[str, Any] | str | os.PathLike | SweepSpec,
     *,

@@ -336,3 +336,18 @@ def test_interval_width_is_students_t_quantile_to_the_last_bit():
             expected = float(student.isf(bias.FAMILY_ALPHA / (2.0 * n_tests), batches - 1))
             assert bias.interval_width(n_tests, batches) == expected
     assert bias.interval_width(0, 32) == math.inf and bias.interval_width(5, 1) == math.inf
+
+
+def test_the_footer_says_where_a_time_that_is_not_a_shown_row_lies(monkeypatch):
+    """Walk-through N4: the footer said 'resolved ... up to t = 11.94' under a table of 12 of 40
+    times without that row; a time the table shows is cited as it is."""
+    times = np.array([0.1, 1.0, 2.0, 11.94, 20.0, 49.24, 100.0])
+    assessment = bias.Assessment(times, {}, 3.0, 10, 11.94, 49.24)
+    monkeypatch.setattr(bias, "assess_dataset", lambda ds: assessment)
+    ds = types.SimpleNamespace(attrs={"paths": 0})
+    line = bias.summary_line(ds, shown=[0, 2, 4, 6])
+    assert "up to t = 11.94 (between the rows t = 2 and 20)" in line
+    assert "decorrelate from t = 49.24 (between the rows t = 20 and 100)" in line
+    line = bias.summary_line(ds, shown=[0, 3, 5, 6])
+    assert "up to t = 11.94, inconclusive" in line and "from t = 49.24, beyond" in line
+    assert "between" not in bias.summary_line(ds)  # without rows: the times alone

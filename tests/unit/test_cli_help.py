@@ -191,12 +191,13 @@ def test_cli_message_leaves_file_keys_and_arguments_alone() -> None:
 
 # -- 5. one name and one range per parameter ----------------------------------------------------
 def test_theory_takes_time_and_keeps_t_as_hidden_alias() -> None:
-    for option in ("--time", "--t"):
+    """--t is the former name; --t-max (simulate's last time) was refused (walk-through H3)."""
+    for option in ("--time", "--t", "--t-max"):
         result = CliRunner().invoke(cli.app, ["theory", "--noise", "white", "--D", "2", option, "3"], env=WIDE)
         assert result.exit_code == 0, result.output
         assert "Predictions at t = 3" in result.output
     text = _help("theory")
-    assert re.search(r"^│ --time\s", text, re.M) and not re.search(r"^│ --t\s", text, re.M)
+    assert re.search(r"^│ --time\s", text, re.M) and not re.search(r"^│ --t(-max)?\s", text, re.M)
 
 
 @pytest.mark.parametrize("command,low", [("simulate", 1), ("scaling", 2)])
@@ -282,3 +283,9 @@ def test_config_file_refusals_are_one_line_naming_the_key(tmp_path, text, needle
     lines = r.output.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and needle in lines[0], r.output
     assert not list(tmp_path.glob("*.nc"))
+
+
+def test_a_noise_name_in_capitals_gets_the_lower_case_name() -> None:
+    """Walk-through M13: `--noise OU` was refused with no hint that the name is 'ou'."""
+    assert _error_line(["simulate", "--noise", "OU"]).endswith("(names are lower case: 'ou')")
+    assert "lower case" not in _error_line(["simulate", "--noise", "pink"])

@@ -154,3 +154,18 @@ def test_scaling_command_prints_every_predicted_law_and_refuses_n1():
     assert bad.exit_code == 2
     lines = [ln for ln in bad.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and "--n 1 is not accepted" in lines[0]
+
+
+def test_reduced_tables_say_reduced_and_the_bfpe_footer_names_its_limits(app, tmp_path) -> None:
+    """Walk-through N15: the reduced run's table title read as the pendulum's own run; R18: the
+    B.F.P.E. footer's first two limits (0.337989, 0.25) had no label."""
+    result = _run(app, ["reduced", "--order", "first", "--paths", "200", "--t-max", "5", "--n-times", "3",
+                        "--out", str(tmp_path / "r.nc")])
+    assert result.exit_code == 0, result.output
+    assert "stochpend reduced dynamics (first order):" in " ".join(result.output.split())
+    shown = _run(app, ["show", str(tmp_path / "r.nc")])
+    assert "stochpend reduced dynamics (first order):" in " ".join(shown.output.split()), shown.output
+    result = _run(app, ["bfpe", "--D", "1", "--tau", "0.1", "--t-max", "1e3", "--n-times", "3", "--n-cells", "100",
+                        "--steps-per-decade", "10"])
+    text = " ".join(result.output.split())
+    assert "<E>/(Dt/tau^2)^1/2 0.337989, <E2>/(Dt/tau^2) 0.25, phi" in text, result.output

@@ -65,6 +65,16 @@ CLI_CASES = [
     ("simulate-out-exists", ["simulate", *FAST, "--out", "{d}/existing.nc"], ["--out ", "--overwrite"]),
     ("simulate-out-no-directory", ["simulate", *FAST, "--out", "{d}/missing/run.nc"], ["--out ", "does not exist"]),
     ("simulate-unknown-option", ["simulate", *FAST, "--frobnicate", "3"], ["--frobnicate", "no such option"]),
+    # the walk-through's typos and names (new-user-walkthrough-turn4.md G2, M13)
+    ("simulate-out-directory", ["simulate", *FAST, "--out", "{d}"], ["--out ", "it is a directory, not a file"]),
+    ("simulate-out-directory-overwrite", ["simulate", *FAST, "--out", "{d}", "--overwrite"],
+     ["--out ", "it is a directory, not a file"]),
+    ("simulate-option-typo", ["simulate", "--pahts", "10"], ["--pahts", "Possible options: --bias-paths, --paths"]),
+    ("command-typo", ["simulat"], ["'simulat'", "Did you mean 'simulate'?"]),
+    ("simulate-potential-typo", ["simulate", "--potentail", "x"], ["--potentail", "--potential"]),
+    ("simulate-paths-10k", ["simulate", "--paths", "10k"], ["--paths '10k'", "an integer"]),
+    ("simulate-noise-capitals", ["simulate", *FAST, "--noise", "OU"], ["--noise 'OU'", "lower case: 'ou'"]),
+    ("reproduce-unknown-figure", ["reproduce", "fig5", "--quick", "--out", "{d}/r5"], ["figure='fig5'", "fig1"]),
     # show: foreign, damaged and missing files
     ("show-text-file", ["show", "{d}/notes.txt"], ["path=", "NetCDF"]),
     ("show-truncated-netcdf", ["show", "{d}/truncated.nc"], ["path=", "NetCDF"]),

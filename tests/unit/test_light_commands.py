@@ -1,9 +1,9 @@
 """The commands that compute nothing start without Numba or Dask (issue 36, item 1).
 
 Numba takes about a second to import on a 2-core machine and Dask (pulled by xarray's checks
-for Dask arrays) 0.6 s; ``--help``, ``--version``, ``show``, ``info`` and ``theory`` need
-neither. Each runs in a fresh process under ``python -X importtime``, which lists every module
-the process imported; the test reads that list (no times are compared: the benchmark,
+for Dask arrays) 0.6 s; ``--help``, ``--version``, ``show``, ``info``, ``list`` and ``theory``
+need neither. Each runs in a fresh process under ``python -X importtime``, which lists every
+module the process imported; the test reads that list (no times are compared: the benchmark,
 benchmarks/startup.py, measures them).
 """
 
@@ -48,21 +48,44 @@ def small_result(tmp_path_factory) -> Path:
     return path
 
 
-@pytest.mark.parametrize("args", [["--help"], ["--version"], ["show", "r.nc"], ["show", "r.nc", "--format", "csv"],
+@pytest.mark.parametrize("args", [["--help"], ["--version"], ["list", "--help"], ["show", "r.nc"], ["show", "r.nc", "--format", "csv"],
                                   ["show", "sweep.nc"], ["show", "bfpe.nc"],
                                   ["info"], ["theory"], ["theory", "--noise", "white"], ["simulate", "--help"]])
 def test_light_commands_import_neither_numba_nor_dask(args, small_result):
     top, done = _imported(args, small_result.parent)
     assert done.returncode == 0, done.stderr[-2000:]
     assert not top & set(HEAVY), f"stochpend {' '.join(args)} imported {sorted(top & set(HEAVY))}"
+    # Typer converts option values with Pydantic (0.15 s to import and build); an option with its
+    # own parser, text and a default need none (stochpend._cli_types.fast_coercion)
+    assert "pydantic" not in top, f"stochpend {' '.join(args)} imported pydantic"
 
 
-@pytest.mark.xfail(strict=True, reason="'list' reads the noises' and oscillators' modules, which import "
-                   "Numba at module level (register_jitable); making them lazy touches the kernels' sources")
+@pytest.mark.parametrize("args", [["--help"], ["list"], ["info"], ["theory"], ["theory", "--noise", "white"]])
+def test_commands_without_a_file_import_no_xarray(args, small_result):
+    """Nothing to read, so no xarray and pandas (0.5 s): ``theory`` used to import them with
+    the B.F.P.E. solver (stochpend.theory imports solve_bfpe on first use)."""
+    top, done = _imported(args, small_result.parent)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert not top & {"xarray", "pandas", "h5py"}, f"stochpend {' '.join(args)} imported {sorted(top & {'xarray', 'pandas', 'h5py'})}"
+
+
+def test_a_value_pydantic_converts_still_converts(small_result):
+    """A float given on the command line still goes through Typer's own conversion: a bad one
+    is refused in one line, a good one is used."""
+    top, done = _imported(["theory", "--D", "abc"], small_result.parent)
+    assert done.returncode == 2 and done.stderr.strip().splitlines()[-1].startswith("error: --D 'abc' is not accepted")
+    assert "pydantic" in top
+    top, done = _imported(["theory", "--D", "2", "--time", "1e3"], small_result.parent)
+    assert done.returncode == 0, done.stderr[-2000:]
+
+
 def test_list_imports_no_numba(small_result):
+    """``list`` reads the noises', oscillators' and models' modules, whose functions are
+    ``register_jitable``: stochpend._jitable defers their registration until Numba is imported."""
     top, done = _imported(["list"], small_result.parent)
     assert done.returncode == 0, done.stderr[-2000:]
-    assert "numba" not in top
+    assert "white" in done.stdout and "pendulum" in done.stdout
+    assert not top & set(HEAVY), f"stochpend list imported {sorted(top & set(HEAVY))}"
 
 
 def test_the_probe_sees_an_import(small_result):

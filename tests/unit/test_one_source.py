@@ -122,6 +122,64 @@ def test_documented_writes_defaults_and_numbers():
     assert _docs.undocumented(g) == ["e"]  # the drift the first test catches
 
 
+def _public_functions() -> list[Any]:
+    """The API entry points whose parameters the command line shares (simulate, sweep, bfpe,
+    reduced, theory, scaling) and the growth diagnosis: their help() must not drift either."""
+    from stochpend.reduced import simulate_reduced
+
+    return [stochpend.simulate, stochpend.sweep.sweep, stochpend.theory.solve_bfpe, simulate_reduced,
+            stochpend.theory.predictions, stochpend.theory.predicted_exponent,
+            stochpend.exponents.diagnose_growth]
+
+
+#: "default 1000", "(default: 0.5)", "default ``40``" in a parameter's text.
+_DEFAULT_IN_WORDS = re.compile(r"\bdefault:? (?:``)?(-?\d[\d_.]*(?:e[+-]?\d+)?)(?:``)?(?![\w.])")
+
+
+def _stale_defaults(fn: Any) -> list[str]:
+    """Parameters whose entry states a number as its default that is not the signature's."""
+    stale = []
+    signature = inspect.signature(fn).parameters
+    for name in _docs.headings(fn):
+        p = signature.get(name)
+        if p is None or isinstance(p.default, bool) or not isinstance(p.default, int | float):
+            continue
+        for m in _DEFAULT_IN_WORDS.finditer(_entry(fn, name)):
+            if float(m.group(1).replace("_", "")) != float(p.default):
+                stale.append(f"{name}: {m.group(0)!r}, signature {p.default!r}")
+    return stale
+
+
+@pytest.mark.parametrize("fn", _public_functions(), ids=lambda f: f.__qualname__)
+def test_public_functions_document_every_parameter_with_the_signatures_defaults(fn):
+    assert _docs.undocumented(fn) == [], fn.__qualname__
+    headings = _docs.headings(fn)
+    for name, p in inspect.signature(fn).parameters.items():
+        if p.default is inspect.Parameter.empty or p.default is None or name == "noise_params":
+            continue
+        shown = re.escape(_docs._shown(p.default))
+        assert re.search(rf"defaults? (.*\b)?{re.escape(name)}={shown}|default {shown}$", headings[name]), \
+            (fn.__qualname__, name, headings[name])
+    assert _stale_defaults(fn) == []
+    text = "\n".join(ln for ln in (fn.__doc__ or "").splitlines() if not _docs._HEADING.match(ln))  # names are code
+    assert _docs.numbered(text) == text, f"{fn.__qualname__}: an equation label, not its number"
+
+
+def test_a_stale_default_in_words_is_found():
+    def f(n_cells: int = 1000, u_max: float = 5.0) -> None:
+        """F.
+
+        Parameters
+        ----------
+        n_cells : int
+            Cells (default 500).
+        u_max : float
+            Extent (default 5).
+        """
+
+    assert _stale_defaults(_docs.documented(f)) == ["n_cells: 'default 500', signature 1000"]
+
+
 # -- the command line against the API -----------------------------------------------------------
 def test_cli_constants_are_the_apis():
     assert (_cli_common.DEFAULT_H_MAX, _cli_common.DEFAULT_STEP_C, _cli_common.DEFAULT_HIST_BINS) == (
@@ -199,12 +257,16 @@ def _api_of(command: str) -> Any:
         from stochpend.theory import solve_bfpe
 
         return solve_bfpe
+    if command == "sweep":
+        return stochpend.sweep.sweep
+    if command == "theory":
+        return stochpend.theory.predictions
     from stochpend.reproduce import reproduce
 
     return reproduce
 
 
-@pytest.mark.parametrize("command", ["reduced", "bfpe", "reproduce"])
+@pytest.mark.parametrize("command", ["reduced", "bfpe", "reproduce", "sweep", "theory"])
 def test_other_commands_defaults_are_their_apis(command):
     """Every option of the command that the API function also takes, with a default on both
     sides, has the same default."""

@@ -10,6 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 import stochpend
+from stochpend import _cli_common as common
 from stochpend import cli, io
 from stochpend._cli_scale import resume_command, sweep_command
 from stochpend._sources import BUILD
@@ -265,6 +266,24 @@ def test_cli_sweep_writes_netcdf(tmp_path, app):
     ref = sweep(p)
     for name in ref.data_vars:
         assert np.array_equal(back[name].values, ref[name].values, equal_nan=True), name
+
+
+def test_cli_sweep_table_shows_the_bias_it_estimated_and_counts_workers_in_words(tmp_path, app):
+    """Walk-through M22: the sweep printed "estimating the discretisation bias" and then no bias
+    column, and its caption said "(1 workers)"."""
+    p = _write(tmp_path, CASES)
+    wide = {"COLUMNS": "250", "TERMINAL_WIDTH": "250"}
+    result = CliRunner().invoke(app, ["sweep", str(p), "--bias-paths", "8", "--out", str(tmp_path / "s.nc")], env=wide)
+    assert result.exit_code == 0, result.output
+    assert "bias <E>" in result.output and "discretisation bias at the last time" in result.output
+    assert "(1 worker)" in result.output and "workers)" not in result.output
+    back = io.open_results(tmp_path / "s.nc")
+    cells = common._bias_cell(float(back.mean_E_bias.isel(case=0, time=-1)),
+                              float(back.mean_E_bias_stderr.isel(case=0, time=-1)),
+                              int(back.mean_E_bias_verdict.isel(case=0, time=-1)))
+    assert cells in result.output
+    result = CliRunner().invoke(app, ["sweep", str(p), "--bias-paths", "0"], env=wide)
+    assert result.exit_code == 0 and "bias <E>" not in result.output, result.output
 
 
 @pytest.mark.parametrize(

@@ -213,3 +213,139 @@ def test_the_table_hint_of_simulate_and_reduced_works_as_printed(tmp_path):
     assert bare.exit_code == 0, bare.output
     assert ("12 of 20 output times shown (for all, write them with --out FILE, then: stochpend show FILE "
             "--rows 20)") in " ".join(bare.output.split())
+
+
+@pytest.mark.parametrize(("content", "kind"), [
+    (b'{"mean_E": 1}', "JSON or other text"), (b"\x89PNG\r\n\x1a\n" + bytes(40), "a PNG image"),
+    (b"%PDF-1.7\n", "a PDF document"), (b"t,mean_E\n1,2\n", "text"), (b"", "an empty file"),
+    (b"<html><body>report</body></html>", "HTML, SVG or other XML text"), (b"CDF\x01" + bytes(40), "a NetCDF-3 file"),
+    (b"\x00\xff\x13\x37" * 8, "a file of another format"),
+])
+@pytest.mark.parametrize("command", ["show", "plot"])
+def test_a_file_of_another_kind_is_named_in_words(tmp_path, command, content, kind):
+    """Walk-through C4: `show results.json` (or fig1.png, report.html) answered in HDF5's words,
+    '(Unable to synchronously open file (file signature not found))'."""
+    from typer.testing import CliRunner
+
+    from stochpend.cli import app
+
+    path = tmp_path / "results.json"
+    path.write_bytes(content)
+    result = CliRunner().invoke(app, [command, str(path)])
+    lines = [ln for ln in result.output.splitlines() if ln.strip()]
+    assert result.exit_code == 2 and len(lines) == 1, result.output
+    assert f"it is {kind}, not a results file" in lines[0], lines[0]
+    assert "signature" not in lines[0] and "synchronously" not in lines[0]
+
+
+def test_an_hdf5_file_after_a_user_block_is_read_as_hdf5(tmp_path):
+    """HDF5's signature may follow a user block (512, 1024, ... bytes): such a file is not
+    called 'another format' (it is refused for what it holds)."""
+    import h5py
+    from typer.testing import CliRunner
+
+    from stochpend.cli import app
+
+    with h5py.File(tmp_path / "ub.nc", "w", userblock_size=512) as f:
+        f["x"] = 1.0
+    result = CliRunner().invoke(app, ["show", str(tmp_path / "ub.nc")])
+    assert result.exit_code == 2 and "not a file stochpend writes" in result.output, result.output
+    assert "another format" not in result.output
+
+
+def test_info_names_cores_memory_and_the_kernel_cache(tmp_path):
+    """Walk-through N13: info had no core count, memory or cache location."""
+    env = {**os.environ, "COLUMNS": "300", "NUMBA_CACHE_DIR": str(tmp_path / "kc"),
+           "PYTHONPATH": str(Path(stochpend.__file__).resolve().parents[1])}
+    done = subprocess.run([sys.executable, "-m", "stochpend", "info"], capture_output=True, text=True, env=env,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    rows = {ln.split("│")[1].strip(): ln.split("│")[2].strip() for ln in done.stdout.splitlines() if ln.count("│") == 3}
+    assert rows["cpus usable"] == str(len(os.sched_getaffinity(0)))
+    assert re.fullmatch(r"[\d.]+ [KMGT]?i?B in all, [\d.]+ [KMGT]?i?B available", rows["memory"]), rows["memory"]
+    assert rows["kernel cache"] == f"{tmp_path / 'kc'} (NUMBA_CACHE_DIR)"
+    assert rows["calibration"].startswith(str(tmp_path / "kc"))
+
+
+@pytest.mark.parametrize("args", [["show", "{run}"], ["show", "{run}", "--format", "csv"], ["theory"], ["scaling"],
+                                  ["info"], ["list"]])
+def test_results_go_to_stdout_whole_even_with_columns_80(run_file, args):
+    """Walk-through B1, E1, M9: `COLUMNS=80 show run1.nc | head` gave the whole table (no value
+    cut); `show > f`, `theory | wc`, `scaling`, `info`: results on stdout, at most notes on stderr."""
+    env = {**os.environ, "COLUMNS": "80"}
+    done = subprocess.run(_stochpend(*(a.format(run=run_file) for a in args)), capture_output=True, text=True,
+                          env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip(), done.stderr
+    assert all(ln.startswith("note: ") for ln in done.stderr.splitlines() if ln.strip()), done.stderr  # notes only
+    assert "…" not in done.stdout and "\x1b[" not in done.stdout
+    if args[:2] == ["show", "{run}"] and len(args) == 2:
+        assert "bias <E>" in done.stdout and "non-finite" in done.stdout  # no column dropped in a pipe
+
+
+def test_the_datasets_verdicts_say_what_their_flags_mean(run_file):
+    """Walk-through N11: repr(ds) is readable; each verdict variable names its flags."""
+    ds = io.open_results(run_file)
+    text = repr(ds)
+    assert len(text.splitlines()) < 80
+    verdicts = [v for v in ds.data_vars if v.endswith("_bias_verdict")]
+    assert verdicts
+    for name in verdicts:
+        assert ds[name].attrs["flag_meanings"].split() == ["certified_small", "significant", "inconclusive"], name
+        assert list(ds[name].attrs["flag_values"]) == [0, 1, 2], name
+
+
+def test_ctrl_c_leaves_the_interrupted_line_last_and_the_prompt_on_its_own_line():
+    """Walk-through I1: after Ctrl-C in a terminal the bar was drawn again below 'interrupted'
+    and left without a newline, so the shell's prompt was glued to it ('ETA 0:02:03$')."""
+    import signal
+    import time
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 80, 0, 0))
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
+    proc = subprocess.Popen(_stochpend("simulate", "--paths", "200000", "--t-max", "300", "--n-times", "3",
+                                       "--bias-paths", "0", "--seed", "1"),
+                            stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True)
+    os.close(slave)
+    out, sent, start = b"", False, time.monotonic()
+    while time.monotonic() - start < 300:
+        ready, _, _ = select.select([master], [], [], 0.5)
+        if ready:
+            try:
+                data = os.read(master, 65536)
+            except OSError:
+                break
+            if not data:
+                break
+            out += data
+        if not sent and b"ETA" in out:  # the bar is drawn: interrupt as a user's Ctrl-C does
+            proc.send_signal(signal.SIGINT)
+            sent = True
+    proc.wait(timeout=60)
+    os.close(master)
+    assert sent and proc.returncode == 130, out[-2000:]
+    after = out[out.rindex(b"interrupted"):]
+    assert b"ETA" not in after and b"simulating" not in after, after
+    assert after.endswith(b"\n"), after
+
+
+def test_a_harmonic_noise_run_reads_in_an_80_column_terminal():
+    """Walk-through R14: `simulate --noise harmonic --tau 1 --omega-noise 1.5` in 80x24: every
+    line fits, no value cut, what is left out is said."""
+    screen = _in_pty(_stochpend("simulate", "--noise", "harmonic", "--tau", "1", "--omega-noise", "1.5",
+                                "--paths", "400", "--t-max", "20", "--n-times", "12", "--seed", "2"), 80, returns="\n",
+                    wait_s=300)
+    lines = screen.splitlines()
+    assert max(len(line) for line in lines) <= 80, max(lines, key=len)
+    assert "…" not in screen and "Traceback" not in screen
+    assert len([line for line in lines if line.startswith("│")]) == 12
+    assert "harmonic noise" in " ".join(screen.split())
+
+
+@pytest.mark.slow  # the default run: 10 000 paths to t = 1000 (about 20 s on 2 cores)
+def test_simulate_with_no_options_runs_the_default_and_prints_its_table():
+    """Walk-through M24: `stochpend simulate` alone is a sensible run."""
+    done = subprocess.run(_stochpend("simulate"), capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr
+    assert "<E>" in done.stdout and "stochpend: pendulum, ou noise, D=1" in " ".join(done.stdout.split())

@@ -36,7 +36,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numba.extending import register_jitable
+
+from stochpend._jitable import register_jitable
 
 __all__ = ["Noise", "NoiseKernel", "no_event", "at_no_event", "no_scratch"]
 

@@ -13,9 +13,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba.extending import register_jitable
 
 from stochpend import rng
+from stochpend._jitable import register_jitable
 from stochpend.noises.base import Noise, NoiseKernel, no_scratch
 
 _U64 = np.uint64

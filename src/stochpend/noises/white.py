@@ -10,9 +10,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba.extending import register_jitable
 
 from stochpend import rng
+from stochpend._jitable import register_jitable
 from stochpend.fastmath import select
 from stochpend.noises.base import Noise, NoiseKernel, at_no_event, no_event
 

@@ -11,8 +11,7 @@ that follows the instantaneous speed heats the oscillator secularly, docs/scalin
 
 from __future__ import annotations
 
-from numba.extending import register_jitable
-
+from stochpend._jitable import register_jitable
 from stochpend.oscillators.base import Oscillator, OscillatorKernel
 
 

@@ -8,8 +8,7 @@ from __future__ import annotations
 
 import math
 
-from numba.extending import register_jitable
-
+from stochpend._jitable import register_jitable
 from stochpend.oscillators.base import Oscillator, OscillatorKernel
 
 

@@ -4,10 +4,12 @@ other oscillators and noises (:mod:`.scaling`, docs/scaling.md), and the laws of
 driven family (:mod:`.family`: Boltzmann, Kramers, washboard, random-frequency oscillator).
 
 Equation labels in the docstrings are the ``\\label`` names of Mallick & Marcq (2004); see
-``docs/theory.md`` for the map from each equation to its function.
+``docs/theory.md`` for the map from each equation to its function. :func:`solve_bfpe` (and its
+xarray and scipy.linalg) is imported on first use.
 """
 
-from stochpend.theory.bfpe import solve_bfpe
+from typing import Any
+
 from stochpend.theory.laws import (
     BFPE_LONGTIME_MEAN_PREFACTOR,
     OU1_MEAN_E2_PREFACTOR,
@@ -100,3 +102,14 @@ __all__ = [
     "white_pdf_Omega",
     "white_skewness",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """:func:`solve_bfpe` on first use: its module imports xarray and scipy.linalg (about half a
+    second), which ``stochpend theory`` and the closed forms never need."""
+    if name == "solve_bfpe":
+        from stochpend.theory.bfpe import solve_bfpe
+
+        globals()["solve_bfpe"] = solve_bfpe
+        return solve_bfpe
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

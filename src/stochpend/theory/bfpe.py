@@ -44,6 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import solve_banded
 from scipy.special import erfc
 
+from stochpend._docs import documented
 from stochpend.theory.laws import (
     BFPE_LONGTIME_MEAN_PREFACTOR,
     PHI_INF,
@@ -234,6 +235,7 @@ def _check_cost(n_cells: int, n_times: int, n_steps: int, max_cell_steps: float 
     return work, seconds, need
 
 
+@documented  # help() shows the signature's defaults and the paper's equation numbers
 def solve_bfpe(
     *,
     D: float,
@@ -274,15 +276,15 @@ def solve_bfpe(
     omega : float, optional
         Must be 0: the averaged B.F.P.E. is derived for ``omega = 0``.
     n_cells : int, optional
-        Cells on the half line ``Omega >= 0`` (default 1000; halving it changes ``mean_E`` at
+        Cells on the half line ``Omega >= 0`` (halving it changes ``mean_E`` at
         ``10^4 t_c`` by about 1e-4 relative).
     steps_per_decade : int, optional
-        Time steps per decade of ``t`` (log-spaced from ``t0``; default 100).
+        Time steps per decade of ``t`` (log-spaced from ``t0``).
     tail_exponent : float, optional
         The outer wall is placed where bounds of the law fall below ``exp(-tail_exponent)``
-        at ``t_max`` (default 200); the ``boundary_flux`` output checks it a posteriori.
+        at ``t_max``; the ``boundary_flux`` output checks it a posteriori.
     n_Omega : int, optional
-        Points of the output law ``P_Omega`` (symmetric about 0; default 201).
+        Points of the output law ``P_Omega`` (symmetric about 0).
     u_max : float, optional
         The output law is sampled on ``Omega = u <Omega^2>^{1/2}``, ``u in [-u_max, u_max]``.
     max_cell_steps : float, optional

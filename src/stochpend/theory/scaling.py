@@ -33,6 +33,7 @@ from fractions import Fraction
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from stochpend._docs import documented
 from stochpend.theory.laws import _check_D, _check_tau, _fail, _scalar
 
 __all__ = [
@@ -96,6 +97,7 @@ def _fmt(x: float) -> str:
     return str(f.numerator) if f.denominator == 1 else f"{f.numerator}/{f.denominator}"
 
 
+@documented  # help() shows the signature's defaults and the paper's equation numbers
 def predicted_exponent(
     potential: str, noise: str, coupling: str = "force", power_n: int = 2
 ) -> ScalingPrediction:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from stochpend._docs import documented
 from stochpend.theory import laws
 from stochpend.theory.laws import _check_D, _check_omega, _check_tau, _fail, _scalar
 
@@ -45,6 +46,7 @@ class Prediction:
     note: str = ""
 
 
+@documented  # help() shows the signature's defaults and the paper's equation numbers
 def predictions(
     *,
     noise: str,
