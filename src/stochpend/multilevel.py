@@ -67,6 +67,7 @@ a fall-back to independent ensembles at late times, a wall-time budget, checkpoi
 from __future__ import annotations
 
 import math
+import textwrap
 import time as _time
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -622,6 +623,47 @@ def _cost_to_certify(st: State, eps: float, conf: float) -> np.ndarray:
     return out
 
 
+def _cost_independent(st: State, eps: float, conf: float) -> tuple[np.ndarray, np.ndarray]:
+    """Path-steps of the cheapest route that does not need coupling (issue 35, item 3): two
+    *independent* ordinary ensembles of N paths each at h_k and h_(k+1) = h_k/2, the finer one
+    the estimate and their difference d_k (Richardson's) its bias bound,
+
+        total = z sqrt(V/N) + (|d_k| + z_b sqrt(2 V/N))/(2^alpha - 1) <= eps |P|,
+
+    so sqrt(N) = (z + z_b sqrt(2)/(2^alpha - 1)) sqrt(V) / (eps |P| - |d_k|/(2^alpha - 1)) and the
+    cost N (C_k + 2 C_k), minimised over k. V is level 0's per-sample variance (an ordinary
+    ensemble's: it hardly depends on h), |d_k| the measured mean difference of level k + 1 where
+    there is one (a pair's mean is unbiased whatever its coupling) less two of its standard
+    errors, beyond it the last one scaled by 2^(-alpha) a level, C_k = C_0 2^k (fixed steps). Returns (cost, k) of shape
+    (S, T); inf where no k up to MAX_LEVEL meets the target."""
+    S, T = st.estimate.shape
+    L = st.m.shape[0] - 1
+    z = float(_quantile((1.0 - conf) / 2.0))
+    z_b = float(_quantile((1.0 - conf) / 4.0))
+    cost = np.full((S, T), np.inf)
+    best_k = np.full((S, T), -1)
+    for s in range(S):
+        for t in range(T):
+            V0, P, a = float(st.V[0, s, t]), abs(float(st.estimate[s, t])), float(st.alpha_used[s, t])
+            if L < 1 or not (math.isfinite(V0) and V0 >= 0 and P > 0 and a > 0):
+                continue
+            shrink = 2.0**a - 1.0
+            # |d| two standard errors down (0 where unresolved): a decorrelated level's mean from a
+            # few hundred pairs is mostly noise, and the route measures d itself. So the cost is a
+            # lower bound ("at least"), never an overstatement.
+            low_d = np.maximum(np.abs(st.m[:, s, t]) - 2.0 * np.sqrt(st.m_var[:, s, t]), 0.0)
+            for k in range(MAX_LEVEL):
+                d = low_d[k + 1] if k + 1 <= L else low_d[L] * 2.0 ** (-a * (k + 1 - L))
+                room = eps * P - d / shrink
+                if not (room > 0 and math.isfinite(d)):
+                    continue
+                n = math.ceil(((z + z_b * math.sqrt(2.0) / shrink) * math.sqrt(V0) / room) ** 2)
+                c = n * 3.0 * float(st.C[0, t]) * 2.0**k
+                if c < cost[s, t]:
+                    cost[s, t], best_k[s, t] = c, k
+    return cost, best_k
+
+
 # -- the run ------------------------------------------------------------------------------------
 def _path_steps_guess(config: SimulationConfig, level: int, n: int) -> float:
     """A priori path-steps of ``n`` samples of ``level``: t_max/h_0 a plain path, 3 t_max/h_{l-1}
@@ -745,7 +787,15 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
     with np.errstate(invalid="ignore", divide="ignore"):
         rel = total / np.abs(st.estimate)
     certified = st.coupled & (rel <= eps) & np.isfinite(st.bias_bound) & (nonfinite == 0)
-    cost = np.where(certified, np.nan, _cost_to_certify(st, eps, conf))
+    ml_cost = _cost_to_certify(st, eps, conf)
+    ind_cost, ind_k = _cost_independent(st, eps, conf)
+    # The cheaper of the two routes: this estimator, or two independent ensembles (issue 35,
+    # item 3: where the levels decorrelate the coupling buys nothing and the pairs' variance is
+    # that of two ensembles, so the telescope's cost is far above the plain route's).
+    independent = ind_cost < ml_cost
+    cost = np.where(certified, np.nan, np.minimum(ml_cost, ind_cost))
+    route_h = np.where(certified | ~np.isfinite(cost), np.nan,
+                       np.where(independent, cfg.h_max * 0.5 ** np.maximum(ind_k, 0), np.nan))
     L = len(levels) - 1
     data: dict[str, Any] = {}
     for s, name in enumerate(target.statistics):
@@ -762,8 +812,12 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
         data[f"{name}_certified"] = ("time", certified[s].astype(np.int8), {
             "long_name": "1: coupled levels and relative total error <= target; 0: not certified"})
         data[f"{name}_cost_to_certify"] = ("time", cost[s], {
-            "long_name": "path-steps this estimator would spend in all to certify this time alone "
-                         "(NaN: certified; inf: beyond the finest level)"})
+            "long_name": "path-steps the cheaper route would spend in all to certify this time alone: "
+                         "this estimator, or two independent ensembles at h and h/2 (see "
+                         f"{name}_certify_h) (NaN: certified; inf: no route up to the finest level)"})
+        data[f"{name}_certify_h"] = ("time", route_h[s], {
+            "long_name": "coarser step h of the two independent ensembles (h, h/2) where that route is "
+                         "the cheaper; NaN where the multilevel estimator is (or the time is certified)"})
         data[f"{name}_level_mean"] = (("level", "time"), st.m[:, s], {
             "long_name": f"mean of Y_l = P_l - P_(l-1) for {name} (level 0: P_0)"})
         data[f"{name}_level_variance"] = (("level", "time"), st.V[:, s], {
@@ -810,6 +864,19 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
     return xr.Dataset(data, coords={"time": target.times, "level": np.arange(L + 1)}, attrs=attrs)
 
 
+
+def _certify_text(ds: Any, name: str, i: int) -> str:
+    """What certifying an uncertified entry would take, and by which route."""
+    cost = float(ds[f"{name}_cost_to_certify"].values[i])
+    h = float(ds[f"{name}_certify_h"].values[i]) if f"{name}_certify_h" in ds else math.nan
+    if not math.isfinite(cost):
+        return "not certified; no route up to the finest level meets the target"
+    if math.isfinite(h):
+        return (f"not certified; certifying takes at least {cost:.3g} path-steps (two "
+                f"independent runs at h = {h:.3g} and {h / 2:.3g})")
+    return f"not certified; certifying takes about {cost:.3g} path-steps (this multilevel estimator)"
+
+
 def summary_lines(ds: Any) -> list[str]:
     """The table of a target result: per statistic and time the estimate, statistical error,
     bias bound, total and whether it is certified; then the cost (stdout lines)."""
@@ -818,24 +885,30 @@ def summary_lines(ds: Any) -> list[str]:
     conf = float(ds.attrs.get("target_confidence", math.nan))
     lines = [f"target: relative total error {eps:g} at {100 * conf:g} % confidence, "
              f"{int(ds.attrs.get('target_levels', 0))} levels"]
-    lines.append(f"{'statistic':<10} {'t':>9} {'estimate':>13} {'stat err':>10} {'bias bound':>10} "
-                 f"{'total':>10} {'rel':>9}  certified")
+    lines.append(f"{'statistic':<10} {'t':>8} {'estimate':>12} {'stat err':>9} {'bias bound':>10} "
+                 f"{'total':>9} {'rel':>8}  cert")
+    notes = []
     for name in names:
         for i, t in enumerate(ds.time.values):
             cert = int(ds[f"{name}_certified"].values[i])
-            extra = "yes" if cert else f"no (certifying: {float(ds[f'{name}_cost_to_certify'].values[i]):.3g} path-steps)"
-            lines.append(f"{name:<10} {t:>9.4g} {float(ds[name].values[i]):>13.6g} "
-                         f"{float(ds[f'{name}_stat_error'].values[i]):>10.3g} "
+            if not cert:
+                notes += textwrap.wrap(f"{name} at t = {t:.4g}: {_certify_text(ds, name, i)}", 78,
+                                       initial_indent="  ", subsequent_indent="    ", break_on_hyphens=False)
+            lines.append(f"{name:<10} {t:>8.4g} {float(ds[name].values[i]):>12.6g} "
+                         f"{float(ds[f'{name}_stat_error'].values[i]):>9.3g} "
                          f"{float(ds[f'{name}_bias_bound'].values[i]):>10.3g} "
-                         f"{float(ds[f'{name}_total_error'].values[i]):>10.3g} "
-                         f"{float(ds[f'{name}_relative_total_error'].values[i]):>9.2e}  {extra}")
+                         f"{float(ds[f'{name}_total_error'].values[i]):>9.3g} "
+                         f"{float(ds[f'{name}_relative_total_error'].values[i]):>8.2e}  "
+                         f"{'yes' if cert else 'no'}")
     n_s = np.asarray(ds["n_samples"].values).reshape(len(ds["level"]), -1)
     first, last = (", ".join(str(int(v)) for v in n_s[:, k]) for k in (0, -1))
     compiling = float(ds.attrs.get("compile_time_s", 0.0) or 0.0)
+    lines += notes
     lines.append(f"cost: {float(ds.attrs.get('path_steps', math.nan)):.4g} path-steps, "
                  f"{float(ds.attrs.get('wall_time_s', math.nan)):.3g} s"
-                 + (f" (+ {compiling:.3g} s compiling)" if compiling > 0 else "")
-                 + f"; samples per level {first} at the first time, {last} at the last")
+                 + (f" (+ {compiling:.3g} s compiling)" if compiling > 0 else ""))
+    lines += textwrap.wrap(f"samples per level: {first} at the first time, {last} at the last", 78,
+                           subsequent_indent="  ")
     fails = int(ds.attrs.get("target_consistency_failures", 0))
     if fails:
         lines.append(f"consistency check: {fails} (level, statistic, time) entries beyond "

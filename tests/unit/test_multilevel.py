@@ -209,7 +209,8 @@ def test_the_cli_prints_the_table_writes_the_file_and_show_reads_it(tmp_path, mo
             "--target-error", "0.05", "--target-times", "2", "--out", "t.nc"]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output
-    assert "mean_E2 " in result.stdout and "certified" in result.stdout and "path-steps" in result.stdout
+    assert "mean_E2 " in result.stdout and " cert" in result.stdout and "path-steps" in result.stdout
+    assert max(len(line) for line in result.stdout.splitlines()) <= 80  # an 80-column terminal
     assert "note: target: pilot" in result.stderr
     from stochpend import io
 
@@ -236,3 +237,33 @@ def test_a_configuration_file_sets_the_target(tmp_path, monkeypatch):
     ds = io.open_results(tmp_path / "t.nc")
     assert ds.attrs["target_error"] == 0.05 and ds.attrs["target_statistics"] == "mean_E"
     assert "mean_E2" not in ds and ds.time.values.tolist() == [1.0, 2.0]
+
+
+def test_the_cost_to_certify_a_decorrelated_time_is_the_independent_route_and_follows_its_formula():
+    """Issue 35, item 3: where the pairs decorrelate, two independent ensembles at h and h/2 are
+    the cheaper route; the cost said is that route's least N (C + 2C), from level 0's variance
+    and the level means less two standard errors (a lower bound, never an overstatement)."""
+    from stochpend import multilevel
+
+    ds = stochpend.simulate(noise="ou", t_max=100.0, times=(1.0, 100.0), seed=2, target_error=0.05,
+                            target_statistics=["mean_E"], progress=False)
+    h = float(ds["mean_E_certify_h"].values[-1])
+    assert math.isnan(float(ds["mean_E_certify_h"].values[0]))  # certified: no route said
+    assert h == pytest.approx(ds.attrs["h_max"] * 0.5 ** round(math.log2(ds.attrs["h_max"] / h)))
+    k = round(math.log2(ds.attrs["h_max"] / h))
+    V0 = float(ds["mean_E_level_variance"].values[0, -1])
+    P = abs(float(ds["mean_E"].values[-1]))
+    a = float(ds["mean_E_alpha_used"].values[-1])
+    n_l = ds["n_samples"].values[:, -1]
+    m = ds["mean_E_level_mean"].values[:, -1]
+    se = np.sqrt(ds["mean_E_level_variance"].values[:, -1] / n_l)
+    L = len(m) - 1
+    low = np.maximum(np.abs(m) - 2 * se, 0.0)
+    d = low[k + 1] if k + 1 <= L else low[L] * 2.0 ** (-a * (k + 1 - L))
+    z = float(multilevel._quantile(0.025))
+    z_b = float(multilevel._quantile(0.0125))
+    shrink = 2.0**a - 1.0
+    n = math.ceil(((z + z_b * math.sqrt(2.0) / shrink) * math.sqrt(V0) / (0.05 * P - d / shrink)) ** 2)
+    C0 = float(ds["cost_per_sample"].values[0, -1])
+    assert float(ds["mean_E_cost_to_certify"].values[-1]) == pytest.approx(n * 3 * C0 * 2.0**k, rel=1e-9)
+    assert "two independent ensembles" in ds["mean_E_cost_to_certify"].attrs["long_name"]
