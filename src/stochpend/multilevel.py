@@ -98,6 +98,8 @@ PILOT_LEVELS = 3
 MAX_LEVEL = 10
 #: Rounds of planning and topping up.
 MAX_ROUNDS = 32
+#: Rounds of the independent runs of one late time (issue 35, item 3).
+ROUTE_ROUNDS = 4
 #: Part of the spawn key of every level's seed (issue 35): no other SeedSequence in stochpend uses it.
 SPAWN = 35
 #: A level's mean counts as resolved for the rate fit beyond this many standard errors.
@@ -753,8 +755,12 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
                         "the plan")
             _top_up(add, more, st, note)
         st = _state(levels, conf, times)
+        route = _certify_by_independent_runs(cfg, target, st, sum(lv.nonfinite for lv in levels),
+                                             limit - spent, cols, backend, note)
+        if route is not None:
+            spent += route.path_steps
     wall = _time.perf_counter() - started
-    return _dataset(config, cfg, target, levels, st, spent, wall, clock.seconds, backend)
+    return _dataset(config, cfg, target, levels, st, spent, wall, clock.seconds, backend, route)
 
 
 def _top_up(add: Any, more: np.ndarray, st: State, note: Any) -> None:
@@ -773,17 +779,24 @@ def _refuse(target: Target, spent: int, total: float, limit: float, what: str) -
                      "or raise the limit with max_path_steps= (--max-path-steps)")
 
 
-def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, levels: list[Level],
-             st: State, spent: int, wall: float, compile_s: float, backend: str) -> xr.Dataset:
-    import xarray as xr
+@dataclass
+class Verdict:
+    """Per (statistic, time), shape (S, T): the statistical half-width, whether certified, the
+    cost of the cheaper route to certify (NaN where certified) and, where that route is two
+    independent ensembles, its coarser step (else NaN) and index k."""
 
-    from stochpend.lifecycle import provenance
+    half: np.ndarray
+    certified: np.ndarray
+    cost: np.ndarray
+    route_h: np.ndarray
+    route_k: np.ndarray
+    independent: np.ndarray
 
-    eps, conf = target.error, target.confidence
+
+def _verdict(st: State, eps: float, conf: float, nonfinite: int, h0: float | None = None) -> Verdict:
     z = _quantile((1.0 - conf) / 2.0, st.stat_dof)
     half = z * np.sqrt(st.stat_var)
     total = half + st.bias_bound
-    nonfinite = sum(lv.nonfinite for lv in levels)
     with np.errstate(invalid="ignore", divide="ignore"):
         rel = total / np.abs(st.estimate)
     certified = st.coupled & (rel <= eps) & np.isfinite(st.bias_bound) & (nonfinite == 0)
@@ -794,16 +807,167 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
     # that of two ensembles, so the telescope's cost is far above the plain route's).
     independent = ind_cost < ml_cost
     cost = np.where(certified, np.nan, np.minimum(ml_cost, ind_cost))
+    h = 1.0 if h0 is None else h0
     route_h = np.where(certified | ~np.isfinite(cost), np.nan,
-                       np.where(independent, cfg.h_max * 0.5 ** np.maximum(ind_k, 0), np.nan))
+                       np.where(independent, h * 0.5 ** np.maximum(ind_k, 0), np.nan))
+    return Verdict(half, certified, cost, route_h, ind_k, independent & ~certified & np.isfinite(cost))
+
+
+@dataclass
+class Route:
+    """What the independent ensembles gave, per (statistic, time), shape (S, T): ``ran`` where
+    they replaced the multilevel entry, the finer ensemble's mean (``estimate``), its half-width
+    and the bias bound from the two ensembles' difference; the path-steps, seeds and non-finite
+    paths they took."""
+
+    ran: np.ndarray
+    estimate: np.ndarray
+    half: np.ndarray
+    bound: np.ndarray
+    path_steps: int = 0
+    seeds: tuple[int, ...] = ()
+    nonfinite: int = 0
+
+
+def _ensemble(cfg: SimulationConfig, h: float, n: int, seed: int, stop: int, cols: np.ndarray,
+              backend: str) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """An ordinary fixed-step ensemble of ``n`` paths at step ``h`` with ``seed`` to the output
+    time of index ``stop``: the statistics' means and their variances (jackknife), (S, T'), the
+    path-steps and the non-finite paths."""
+    from stochpend import runner
+
+    n_b, _ = _batches(n)
+    c = replace(_truncated(cfg, stop + 1), h_max=float(h), step_c=0.0, seed=seed, paths=n, n_batches=n_b)
+    ens, path_steps = runner.run_batches(c, 0, n_b, backend=backend)
+    f, f_var = _jackknife(ens.sums, lambda m: _st(m[..., cols]))
+    return f, f_var, int(path_steps), int(ens.sums[:, -1, stats.S_NONFINITE].sum())
+
+
+def _certify_by_independent_runs(cfg: SimulationConfig, target: Target, st: State, nonfinite: int,
+                                 room: float, cols: np.ndarray, backend: str, note: Any) -> Route | None:
+    """Issue 35, item 3: each time that the levels could not certify and for which two
+    independent ensembles at h_k and h_k/2 are the cheaper route (:func:`_cost_independent`) is
+    run that way while the route fits in ``room`` path-steps: N paths at each step, the finer
+    ensemble the estimate with its half-width, the bias bound (|d| + z_b se_d)/(2^alpha - 1) from
+    their difference d. As the levels' plan, approached from below: the first N is planned for
+    |P| two standard errors up (the pilot's few hundred samples say little of a late time), then
+    up to :data:`ROUTE_ROUNDS` rounds top both ensembles up to the N the measured variances,
+    mean and difference ask for. Seeds ``SeedSequence(seed, spawn_key=(35, 1000 + j, 64 t +
+    round))``, j = 0, 1 the two steps: independent of the levels, of each other and across rounds."""
+    eps, conf = target.error, target.confidence
+    v = _verdict(st, eps, conf, nonfinite, cfg.h_max)
+    S, T = st.estimate.shape
+    route = Route(np.zeros((S, T), bool), np.full((S, T), np.nan), np.full((S, T), np.nan),
+                  np.full((S, T), np.nan))
+    z = float(_quantile((1.0 - conf) / 2.0))
+    z_b = float(_quantile((1.0 - conf) / 4.0))
+    seeds: list[int] = []
+    for t in range(T):
+        todo = v.independent[:, t]
+        if not np.any(todo):
+            continue
+        k = int(np.max(v.route_k[todo, t]))
+        h = cfg.h_max * 0.5**k
+        shrink = 2.0 ** st.alpha_used[todo, t] - 1.0
+        per_path = 3.0 * float(st.C[0, t]) * 2.0**k  # a path at h_k and one at h_k/2
+        P_hi = np.abs(st.estimate[todo, t]) + 2.0 * np.sqrt(np.maximum(st.stat_var[todo, t], 0.0))
+        lead = (z + z_b * math.sqrt(2.0) / shrink) * np.sqrt(np.maximum(st.V[0, todo, t], 0.0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            want = np.ceil((lead / (eps * P_hi)) ** 2)
+        n_plan = int(np.nanmax(want)) if np.any(np.isfinite(want)) else 0
+        if float(np.max(v.cost[todo, t])) > room:  # even the least the route may cost: none of it
+            note(f"target: t = {cfg.times[t]:g} left uncertified: its independent runs need at least "
+                 f"{float(np.max(v.cost[todo, t])):.3g} path-steps, over what the limit leaves ({room:.3g})")
+            continue
+        parts: list[list[tuple[int, np.ndarray, np.ndarray]]] = [[], []]
+        n_done = 0
+        for round_ in range(ROUTE_ROUNDS):
+            n_more = max(n_plan - n_done, 0)
+            if n_more == 0 or n_more * per_path > room:
+                if n_more:
+                    note(f"target: t = {cfg.times[t]:g}: the independent runs need about "
+                         f"{n_more * per_path:.3g} more path-steps than the limit leaves")
+                break
+            note(f"target: t = {cfg.times[t]:g} by two independent runs at h = {h:.3g}, {h / 2:.3g}: "
+                 f"{n_more} more paths each")
+            for j, hh in enumerate((h, 0.5 * h)):
+                seed = level_seed(cfg.seed, 1000 + j, 64 * t + round_)
+                seeds.append(seed)
+                f, f_var, steps, bad = _ensemble(cfg, hh, n_more, seed, t, cols, backend)
+                parts[j].append((n_more, f[:, t], f_var[:, t]))
+                route.path_steps += steps
+                route.nonfinite += bad
+                room -= steps
+            n_done += n_more
+            (mc, vc), (mf, vf) = (_pooled(p) for p in parts)
+            d = mc - mf
+            half = z * np.sqrt(vf)
+            bound = (np.abs(d) + z_b * np.sqrt(vc + vf)) / (2.0 ** st.alpha_used[:, t] - 1.0)
+            route.ran[todo, t] = True
+            route.estimate[:, t] = np.where(todo, mf, np.nan)
+            route.half[:, t] = np.where(todo, half, np.nan)
+            route.bound[:, t] = np.where(todo, bound, np.nan)
+            if np.all((half + bound)[todo] <= eps * np.abs(mf[todo])):
+                break
+            # the N the measured numbers ask for (per-path variances n var), at least 1.2 N
+            with np.errstate(invalid="ignore", divide="ignore"):
+                Vf, Vc = vf * n_done, vc * n_done
+                room_e = eps * np.abs(mf) - np.abs(d) / (2.0 ** st.alpha_used[:, t] - 1.0)
+                need = ((z * np.sqrt(Vf) + z_b * np.sqrt(Vf + Vc) / (2.0 ** st.alpha_used[:, t] - 1.0))
+                        / room_e) ** 2
+            need = np.where(todo & (room_e > 0), need, np.nan)
+            if not np.any(np.isfinite(need)):
+                break  # the bias alone is beyond the target at this step: no N certifies it
+            n_plan = max(int(math.ceil(float(np.nanmax(need)))), int(1.2 * n_done))
+    route.seeds = tuple(seeds)
+    return route if np.any(route.ran) else None
+
+
+def _pooled(parts: list[tuple[int, np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """Rounds of one ensemble pooled: the mean weighted by paths, the variance of that mean."""
+    n = sum(p[0] for p in parts)
+    mean = sum(p[0] * p[1] for p in parts) / n
+    var = sum((p[0] / n) ** 2 * p[2] for p in parts)
+    return np.asarray(mean), np.asarray(var)
+
+
+def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, levels: list[Level],
+             st: State, spent: int, wall: float, compile_s: float, backend: str,
+             route: Route | None = None) -> xr.Dataset:
+    import xarray as xr
+
+    from stochpend.lifecycle import provenance
+
+    eps, conf = target.error, target.confidence
+    nonfinite = sum(lv.nonfinite for lv in levels)
+    v = _verdict(st, eps, conf, nonfinite, cfg.h_max)
+    estimate, half, bound = st.estimate.copy(), v.half.copy(), st.bias_bound.copy()
+    by_route = np.zeros(estimate.shape, dtype=bool)
+    if route is not None:  # the times the independent ensembles certified, or tried to
+        by_route = route.ran
+        estimate = np.where(by_route, route.estimate, estimate)
+        half = np.where(by_route, route.half, half)
+        bound = np.where(by_route, route.bound, bound)
+        nonfinite += route.nonfinite
+    total = half + bound
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rel = total / np.abs(estimate)
+    certified = np.where(by_route, (rel <= eps) & np.isfinite(bound) & (route is not None and route.nonfinite == 0),
+                         v.certified)
+    cost = np.where(certified, np.nan, v.cost)
+    route_h = np.where(certified | ~np.isfinite(cost), np.nan, v.route_h)
     L = len(levels) - 1
     data: dict[str, Any] = {}
     for s, name in enumerate(target.statistics):
-        data[name] = ("time", st.estimate[s], {"long_name": f"{name}, multilevel estimate (telescope)"})
+        data[name] = ("time", estimate[s], {"long_name": f"{name}, multilevel estimate (telescope), or where "
+                                            f"{name}_route is 1 the finer of two independent ensembles"})
+        data[f"{name}_route"] = ("time", by_route[s].astype(np.int8), {
+            "long_name": "0: the multilevel estimate; 1: two independent ensembles at h and h/2 "
+                         f"({name}_route_h), the finer the estimate, their difference the bias bound"})
         data[f"{name}_stat_error"] = ("time", half[s], {
             "long_name": f"statistical half-width of {name} at confidence 1 - (1 - c)/2 (Student t, "
                          "Satterthwaite dof)"})
-        data[f"{name}_bias_bound"] = ("time", st.bias_bound[s], {
+        data[f"{name}_bias_bound"] = ("time", bound[s], {
             "long_name": f"bound on |discretisation bias| of {name} at the finest level, at "
                          "confidence 1 - (1 - c)/2 (Eq. (bias) of stochpend.multilevel)"})
         data[f"{name}_total_error"] = ("time", total[s], {
@@ -857,6 +1021,8 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
         "target_consistency_failures": fails,
         "target_nonfinite_paths": nonfinite,
         "target_level_seeds": ";".join(",".join(str(r.seed) for r in lv.rounds) for lv in levels),
+        "target_route_path_steps": 0 if route is None else route.path_steps,
+        "target_route_seeds": "" if route is None else ",".join(str(x) for x in route.seeds),
         "target_seeds": f"SeedSequence(seed, spawn_key=({SPAWN}, level, round))",
         "compile_time_s": compile_s,
         "total_wall_time_s": wall,

@@ -182,7 +182,7 @@ def test_a_cheap_case_meets_its_target_and_covers_the_exact_value():
         assert np.allclose(ds[name].values, ds[f"{name}_level_mean"].sum("level").values)
         assert np.all(ds[f"{name}_alpha_used"].values <= 2.0)
     # the cost reported is the cost spent, level by level
-    assert ds.attrs["path_steps"] == int(ds["level_path_steps"].sum())
+    assert ds.attrs["path_steps"] == int(ds["level_path_steps"].sum()) + ds.attrs["target_route_path_steps"]
     assert ds.attrs["target_error"] == eps and ds.attrs["target_confidence"] == 0.95
     assert ds.sizes["level"] >= 3 and np.all(np.diff(ds["h"].values) < 0)
     assert ds.attrs["step_c"] == 0.0
@@ -191,12 +191,18 @@ def test_a_cheap_case_meets_its_target_and_covers_the_exact_value():
     assert np.array_equal(again["mean_E"].values, ds["mean_E"].values)
 
 
+#: A work limit that the levels fit in (their plan: about 2e7 path-steps) and the late time's independent
+#: runs (about 3e7) do not: the time stays uncertified and its cost is said.
+LATE_LIMIT = 2.5e7
+
+
 def test_a_late_time_where_the_pairs_decorrelate_is_not_certified_and_its_cost_is_said():
     """OU pendulum, D = tau = omega = 1: the coupled pairs decorrelate by t ~ 50 (issue 35)."""
     with pytest.warns(stochpend.StochpendWarning, match="not certified"):
         ds = stochpend.simulate(noise="ou", t_max=100.0, times=(1.0, 100.0), seed=2, target_error=0.05,
-                                target_statistics=["mean_E"])
+                                target_statistics=["mean_E"], max_path_steps=LATE_LIMIT)
     assert ds["mean_E_certified"].values.tolist() == [1, 0]
+    assert ds["mean_E_route"].values.tolist() == [0, 0]  # the limit left no room for the runs
     assert ds["mean_E_level_decorrelation"].values[-1, -1] > 0.5
     cost = float(ds["mean_E_cost_to_certify"].values[-1])
     assert cost > ds.attrs["path_steps"] and math.isnan(ds["mean_E_cost_to_certify"].values[0])
@@ -246,7 +252,7 @@ def test_the_cost_to_certify_a_decorrelated_time_is_the_independent_route_and_fo
     from stochpend import multilevel
 
     ds = stochpend.simulate(noise="ou", t_max=100.0, times=(1.0, 100.0), seed=2, target_error=0.05,
-                            target_statistics=["mean_E"], progress=False)
+                            target_statistics=["mean_E"], progress=False, max_path_steps=LATE_LIMIT)
     h = float(ds["mean_E_certify_h"].values[-1])
     assert math.isnan(float(ds["mean_E_certify_h"].values[0]))  # certified: no route said
     assert h == pytest.approx(ds.attrs["h_max"] * 0.5 ** round(math.log2(ds.attrs["h_max"] / h)))
@@ -267,3 +273,21 @@ def test_the_cost_to_certify_a_decorrelated_time_is_the_independent_route_and_fo
     C0 = float(ds["cost_per_sample"].values[0, -1])
     assert float(ds["mean_E_cost_to_certify"].values[-1]) == pytest.approx(n * 3 * C0 * 2.0**k, rel=1e-9)
     assert "two independent ensembles" in ds["mean_E_cost_to_certify"].attrs["long_name"]
+
+
+def test_a_decorrelated_late_time_is_certified_by_two_independent_runs():
+    """Issue 35, item 3: with room for them, the late time's two independent ensembles (h, h/2)
+    run, certify it, and count in the cost; the estimate agrees with an ordinary run at h/2."""
+    ds = stochpend.simulate(noise="ou", t_max=100.0, times=(1.0, 100.0), seed=2, target_error=0.05,
+                            target_statistics=["mean_E"], progress=False)
+    assert ds["mean_E_certified"].values.tolist() == [1, 1]
+    assert ds["mean_E_route"].values.tolist() == [0, 1]
+    assert ds["mean_E_level_decorrelation"].values[-1, -1] > 0.5  # the levels could not
+    assert ds.attrs["target_route_path_steps"] > 0
+    assert ds.attrs["path_steps"] == int(ds["level_path_steps"].sum()) + ds.attrs["target_route_path_steps"]
+    assert float(ds["mean_E_relative_total_error"].values[-1]) <= 0.05
+    h = float(ds["h"].values[0])
+    plain = stochpend.simulate(noise="ou", t_max=100.0, times=[100.0], h_max=h / 2, step_c=0.0, paths=20_000,
+                               seed=5, bias_paths=0, progress=False)
+    diff = abs(float(ds["mean_E"].values[-1]) - float(plain["mean_E"].values[-1]))
+    assert diff <= float(ds["mean_E_total_error"].values[-1]) + 4 * float(plain["mean_E_stderr"].values[-1])
