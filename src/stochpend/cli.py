@@ -760,7 +760,7 @@ def plot(
     io.check_output_path(target, overwrite=overwrite, name="out")
     ds, notes = open_result(path)
     kind = result_kind(ds)
-    if kind not in ("simulation", "reduced"):
+    if kind not in ("simulation", "reduced", "target"):
         # One line for a file it cannot draw (a sweep's IndexError and a B.F.P.E. solution's
         # KeyError were tracebacks): what the file is, and what shows it.
         what = {"sweep": "a parameter sweep's result", "bfpe": "a B.F.P.E. solution"}.get(str(kind))
@@ -774,7 +774,7 @@ def plot(
 
     buffer = _bytes_io.BytesIO()
     try:
-        figure = plotting.plot_run(ds, band=band)
+        figure = plotting.plot_target(ds) if kind == "target" else plotting.plot_run(ds, band=band)
     except (KeyError, AttributeError, TypeError, ValueError, OverflowError, IndexError) as exc:
         why = " ".join(str(exc).split()) or type(exc).__name__
         raise ValueError(f"path={str(path)!r} is not accepted: not a run this command can draw ({why})") from None

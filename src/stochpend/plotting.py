@@ -39,14 +39,14 @@ THEORY_STYLE: dict[str, Any] = {"color": "0.15", "linestyle": ":", "linewidth": 
 ALT_THEORY_STYLE: dict[str, Any] = {"color": "0.55", "linestyle": "-.", "linewidth": 1.0}
 
 
-def new_figure(figsize: tuple[float, float] = (5.5, 4.2), *, ncols: int = 1) -> tuple[Any, Any]:
-    """A figure on the Agg canvas (no pyplot) and its axes (an array when ``ncols > 1``)."""
+def new_figure(figsize: tuple[float, float] = (5.5, 4.2), *, ncols: int = 1, nrows: int = 1) -> tuple[Any, Any]:
+    """A figure on the Agg canvas (no pyplot) and its axes (an array when ``ncols`` or ``nrows`` > 1)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=figsize, layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(1, ncols)
+    axes = fig.subplots(nrows, ncols)
     return fig, axes
 
 
@@ -200,4 +200,34 @@ def plot_run(ds: Any, *, band: float = 2.0) -> Any:
         plot_theory(ax, t[keep], y, label=label, **style)
     ax.set_title(describe_attrs(ds.attrs) + f", {int(ds.attrs.get('paths', 0))} paths", fontsize=9)
     ax.legend(fontsize=8)
+    return fig
+
+
+def plot_target(ds: Any) -> Any:
+    """A total-error target's result (``simulate(target_error=...)``, stochpend.multilevel): each
+    target statistic against t with its total error (statistical + bias bound, at the stated
+    confidence) as error bars; certified times filled, the others open. Returns the Figure."""
+    from stochpend.figures._common import describe_attrs
+
+    names = [n for n in str(ds.attrs.get("target_statistics", "")).split(",") if n in ds]
+    fig, axes = new_figure((6.0, 2.6 * max(len(names), 1)), nrows=max(len(names), 1))
+    axes = np.atleast_1d(axes)
+    t = np.asarray(ds.time.values, dtype=float)
+    for ax, name in zip(axes, names, strict=False):
+        y = np.asarray(ds[name].values, dtype=float)
+        err = np.asarray(ds[f"{name}_total_error"].values, dtype=float)
+        ok = np.asarray(ds[f"{name}_certified"].values, dtype=bool)
+        for mask, face, label in ((ok, None, "certified"), (~ok, "none", "not certified")):
+            if np.any(mask):
+                ax.errorbar(t[mask], y[mask], yerr=err[mask], fmt="o", mfc=face, capsize=3, label=label)
+        if np.all(t > 0):
+            ax.set_xscale("log")
+        if np.all(y - err > 0):
+            ax.set_yscale("log")
+        ax.set_ylabel(name)
+        ax.legend(fontsize=8)
+    axes[-1].set_xlabel("t")
+    eps = float(ds.attrs.get("target_error", float("nan")))
+    conf = float(ds.attrs.get("target_confidence", float("nan")))
+    axes[0].set_title(describe_attrs(ds.attrs) + f"; target {eps:g} at {100 * conf:g} %", fontsize=9)
     return fig

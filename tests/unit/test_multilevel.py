@@ -218,6 +218,9 @@ def test_the_cli_prints_the_table_writes_the_file_and_show_reads_it(tmp_path, mo
     assert "mean_E2 " in result.stdout and " cert" in result.stdout and "path-steps" in result.stdout
     assert max(len(line) for line in result.stdout.splitlines()) <= 80  # an 80-column terminal
     assert "note: target: pilot" in result.stderr
+    plotted = CliRunner().invoke(app, ["plot", "t.nc", "--out", "t.png"])
+    assert plotted.exit_code == 0, plotted.output
+    assert (tmp_path / "t.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     from stochpend import io
 
     ds = io.open_results(tmp_path / "t.nc")
