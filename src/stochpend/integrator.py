@@ -344,9 +344,9 @@ def _member_tree(depth: int, step: Any, combine: Any, half: Any) -> Any:
 _MAX_LEVELS = 4
 
 
-def _member_tuples(levels: int) -> tuple[Any, Any, Any]:
-    """``nest(x0, Omega0, ..., x3, Omega3) -> mem``, ``flat(mem) -> (x0, Omega0, ..., x3,
-    Omega3)`` and ``finite(mem)`` of ``levels`` members (the nested ``mem`` of
+def _member_tuples(levels: int) -> tuple[Any, Any]:
+    """``nest(x0, Omega0, ..., x3, Omega3) -> mem`` and ``flat(mem) -> (x0, Omega0, ..., x3,
+    Omega3)`` of ``levels`` members (the nested ``mem`` of
     :func:`_member_tree`), on scalars only: the step loop takes the arrays from its state tuple
     itself (a function taking the tuple costs a counted reference per array). The scalars of
     members beyond ``levels`` are not read (``nest``) or are repeats (``flat``)."""
@@ -356,11 +356,8 @@ def _member_tuples(levels: int) -> tuple[Any, Any, Any]:
 
         def flat(mem):
             return (mem[0], mem[1], mem[0], mem[1], mem[0], mem[1], mem[0], mem[1])
-
-        def finite(mem):
-            return math.isfinite(mem[0]) and math.isfinite(mem[1])
     else:
-        nest_f, flat_f, finite_f = _member_tuples(levels - 1)
+        nest_f, flat_f = _member_tuples(levels - 1)
 
         def nest(x0, O0, x1, O1, x2, O2, x3, O3):  # noqa: F811 - one per number of members
             return (x0, O0, nest_f(x1, O1, x2, O2, x3, O3, x3, O3))
@@ -369,10 +366,7 @@ def _member_tuples(levels: int) -> tuple[Any, Any, Any]:
             rest = flat_f(mem[2])
             return (mem[0], mem[1], rest[0], rest[1], rest[2], rest[3], rest[4], rest[5])
 
-        def finite(mem):  # noqa: F811
-            return math.isfinite(mem[0]) and math.isfinite(mem[1]) and finite_f(mem[2])
-
-    return tuple(register_jitable(_named(f, f"{f.__name__}_members{levels}")) for f in (nest, flat, finite))
+    return register_jitable(_named(nest, f"nest_members{levels}")), register_jitable(_named(flat, f"flat_members{levels}"))
 
 
 def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace, family: SimpleNamespace,
@@ -420,8 +414,16 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
 
     DEPTH = LEVELS - 1
     DRAWS = 2 ** DEPTH
-    # The finest member's step, h/2**DEPTH (exact: a power of two), for the noise's coefficients.
+    # The finest member's step, h/2**DEPTH (exact: a power of two), for the noise's coefficients;
+    # chosen here, so that one member's loop has no branch for it.
     FINEST = real(0.5 ** DEPTH)
+    if DEPTH == 0:
+        def finest(h):
+            return h
+    else:
+        def finest(h):
+            return FINEST * h
+    finest = register_jitable(_named(finest, f"finest_of{LEVELS}"))
     noise_path = _draw_tree(DEPTH, noise.step)
     ou_path = _draw_tree(DEPTH, family.additive_ou_step)
     white_path = _draw_tree(DEPTH, family.additive_step)
@@ -430,7 +432,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         members_step = _member_tree(DEPTH, family.family_step, family.additive_sum, half)
     else:
         members_step = _member_tree(DEPTH, oscillator.verlet_step, family.additive_sum, half)
-    nest, flat, members_finite = _member_tuples(LEVELS)
+    nest, flat = _member_tuples(LEVELS)
     assert LEVELS <= _MAX_LEVELS
     # Member m's x and Omega: the state's arrays 2 m and 2 m + 1 (level_positions); x's and
     # Omega's for a member beyond LEVELS (read, never written: every store is under HAS_m).
@@ -512,7 +514,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         # Everything of the noise's step that depends on h only (with several members, on the
         # finest member's step), cached while h is unchanged (h = h_max most of the time).
         h_cached = h_max_r
-        hf = FINEST * h_max_r if LEVELS > 1 else h_max_r
+        hf = finest(h_max_r)
         C = coefficients(hf, p)
         Ca = ou_coefficients(hf, pa)
         Can = a_coefficients(hf, pan)
@@ -544,7 +546,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
                 t_land = t_target
             h = real(h_clock)
             if h != h_cached:
-                hf = FINEST * h if LEVELS > 1 else h
+                hf = finest(h)
                 C = coefficients(hf, p)
                 Ca = ou_coefficients(hf, pa)
                 if ADN:
@@ -588,7 +590,14 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             kk += _U64(DRAWS)
             steps += 1
             tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
-            finite = members_finite(mem) and math.isfinite(xn) and math.isfinite(xa)
+            # One short-circuit chain, as the step loop had it written out (a helper returning a
+            # bool made ptxas allocate more registers); the members beyond LEVELS fold away.
+            m = flat(mem)
+            finite = (math.isfinite(m[0]) and math.isfinite(m[1])
+                      and (not HAS_1 or (math.isfinite(m[2]) and math.isfinite(m[3])))
+                      and (not HAS_2 or (math.isfinite(m[4]) and math.isfinite(m[5])))
+                      and (not HAS_3 or (math.isfinite(m[6]) and math.isfinite(m[7])))
+                      and math.isfinite(xn) and math.isfinite(xa))
             if not finite:
                 bad = True
                 break
@@ -1041,7 +1050,8 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         family_step_inline=family_step_inline, family_bounds=family_bounds,
         ou_coefficients=ou_coefficients, ou_update=ou_update, ou_record=ou_record,
         noise_step=noise_step, additive_step=additive_step, additive_ou_step=additive_ou_step,
-        additive_sum=additive_sum, init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
+        additive_sum=additive_sum, channel_step=channel_step, a_coefficients=a_coefficients,
+        a_scratch0=a_scratch0, init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
         advance_levels=advance_levels, advance_lanes=advance_lanes,
         path_values=statistics(spec.oscillator, spec.coupling),
         lockstep=(not spec.adaptive) and spec.noise.pair_draws and not HAS_EVENTS and not FAMILY,

@@ -17,7 +17,7 @@ import numpy as np
 
 #: Each case a configuration (``SimulationConfig.build``): one path's Spec with adaptive steps
 #: (no family terms), the family's time-dependent terms with the additive white noise and fixed
-#: steps, and the additive OU channel with adaptive steps.
+#: steps, the additive OU channel and the generic channel (a harmonic noise) with adaptive steps.
 CASES: dict[str, dict[str, Any]] = {
     "ou": dict(noise="ou", D=1.0, tau=1.0, omega=1.0, h_max=0.1, step_c=0.25),
     "family": dict(noise="white", D=0.5, omega=1.0, h_max=0.1, step_c=0.0,
@@ -25,6 +25,8 @@ CASES: dict[str, dict[str, Any]] = {
                                    drive_frequency=1.3, parametric_amplitude=0.2)),
     "additive_ou": dict(noise="white", D=0.3, omega=1.0, h_max=0.1, step_c=0.25,
                         dyn_params=dict(gamma=0.5, additive_D=0.4, additive_tau=1.0)),
+    "channel": dict(noise="white", D=0.5, omega=1.0, h_max=0.1, step_c=0.25, additive_noise="harmonic",
+                    dyn_params=dict(gamma=0.3, additive_D=0.4, additive_tau=0.5)),
 }
 LEVELS = (2, 3, 4)
 #: Output times (the second resumes where the first landed) and the steps of one call.

@@ -5,7 +5,7 @@ CUDA backend's ``cuda.levels_kernel``).
 Each member must be a single run at its own step fed the summed noise increments. The reference
 here is that run written plainly: per coarse step it draws the finest member's ``2**(L-1)``
 exact noise steps (the integrator's per-draw leaves ``noise_step``, ``additive_step``,
-``additive_ou_step``) into arrays, and member m takes its ``2**m`` steps of h/2**m (the
+``additive_ou_step``, ``channel_step``) into arrays, and member m takes its ``2**m`` steps of h/2**m (the
 integrator's ``verlet`` or ``family_step``) with the increments summed two by two, finest
 first: the sum a member uses is the sum of its two halves' sums. Bit for bit: a sequential sum
 (((I1 + I2) + I3) + I4) would differ from ((I1 + I2) + (I3 + I4)) in the last bits, and the
@@ -50,19 +50,24 @@ def _reference(spec):
     additive_step = b.additive_step
     additive_ou_step = b.additive_ou_step
     additive_sum = b.additive_sum
+    channel_step = b.channel_step
+    a_coefficients = b.a_coefficients
+    a_scratch0 = b.a_scratch0
     ou_coefficients = b.ou_coefficients
     ou_record = b.ou_record
     ADAPTIVE = spec.adaptive
     FAMILY = bool(spec.terms)
     ADDITIVE_OU = "additive_ou" in spec.terms
-    assert "additive_noise" not in spec.terms  # the generic channel is not written here
+    ADN = "additive_noise" in spec.terms
 
     @numba.njit
-    def reference(L, x0, O0, xi0, xa0, xad0, t_targets, key0, key1, path0, p, run):
+    def reference(L, x0, O0, xi0, xa0, xad0, xaa0, t_targets, key0, key1, path0, p, run):
         n = x0.shape[0]
         omega2, q, h_max, step_c = run[0], run[1], run[2], run[3]
         d = run[4] if FAMILY else (0.0,)
         pa = ou_record(d)
+        if ADN:  # the generic channel's record and key
+            pan, kan = run[5], run[6]
         N = 1 << (L - 1)
         out = np.empty((L, 2, n))
         for i in range(n):
@@ -70,6 +75,8 @@ def _reference(spec):
             mx = np.full(L, x0[i])
             mO = np.full(L, O0[i])
             xn, xa, S, xad = xi0[i], xa0[i], scratch0(), xad0[i]
+            if ADN:
+                cs = (xad0[i], xaa0[i], a_scratch0())
             tt, tc, kk = 0.0, 0.0, np.uint64(0)
             I = np.empty(N)
             Z = np.empty(N)
@@ -85,11 +92,15 @@ def _reference(spec):
                     hf = h_clock / N
                     C = coefficients(hf, p)
                     Ca = ou_coefficients(hf, pa)
+                    if ADN:
+                        Can = a_coefficients(hf, pan)
                     for j in range(N):  # the finest member's draws, in order
                         I[j], s = noise_step(key0, key1, path, kk + np.uint64(j), (xn, xa, S), C)
                         xn, xa, S = s[0], s[1], s[2]
                         if ADDITIVE_OU:
                             Z[j], xad = additive_ou_step(key0, key1, path, kk + np.uint64(j), xad, Ca)
+                        elif ADN:
+                            Z[j], cs = channel_step(kan[0], kan[1], path, kk + np.uint64(j), cs, Can)
                         else:
                             Z[j], _ = additive_step(key0, key1, path, kk + np.uint64(j), 0.0, C)
                     Im, Zm, width = I.copy(), Z.copy(), N
@@ -138,7 +149,9 @@ def _run_cpu(name, levels, kernel=None):
 
 @pytest.mark.parametrize("name", list(cases.CASES))
 def test_each_member_is_a_single_run_at_its_own_step_fed_the_summed_increments(name):
-    """L = 2, 3, 4 on the CPU (one path at a time): every member equals the reference to the
+    """L = 2, 3, 4 on the CPU (one path at a time), four Specs (OU with adaptive steps; the
+    family's time-dependent terms with the additive white noise, fixed steps; the additive OU
+    channel; the generic channel): every member equals the reference to the
     last bit, the noise, clock and draw count too; the members differ (a coupled set, not one
     path L times)."""
     cfg = cases.config(name)
@@ -149,8 +162,10 @@ def test_each_member_is_a_single_run_at_its_own_step_fed_the_summed_increments(n
         state, draws = _run_cpu(name, levels)
         start = cases.initial_state(cfg, levels)
         I_XI, _, I_T, _, I_K, I_ST = integrator.level_positions(levels)
-        xad0 = start[I_ST + 1] if "additive_ou" in spec.terms else np.zeros(cases.PATHS)
-        ref = reference(levels, start[0], start[1], start[I_XI], start[I_XI + 1], xad0,
+        extra = start[I_ST + 1:]  # the additive channel's xi_a (and aux_a)
+        xad0 = extra[0] if extra else np.zeros(cases.PATHS)
+        xaa0 = extra[1] if len(extra) > 1 else np.zeros(cases.PATHS)
+        ref = reference(levels, start[0], start[1], start[I_XI], start[I_XI + 1], xad0, xaa0,
                         np.array(cases.TIMES), key0, key1, cases.PATH0, spec.noise.record(cfg),
                         integrator.run_record(cfg))
         for m in range(levels):
