@@ -5,8 +5,8 @@ CUDA backend's ``cuda.levels_kernel``).
 Each member must be a single run at its own step fed the summed noise increments. The reference
 here is that run written plainly: per coarse step it draws the finest member's ``2**(L-1)``
 exact noise steps (the integrator's per-draw leaves ``noise_step``, ``additive_step``,
-``additive_ou_step``, ``channel_step``) into arrays, and member m takes its ``2**m`` steps of h/2**m (the
-integrator's ``verlet`` or ``family_step``) with the increments summed two by two, finest
+``additive_ou_step``, ``channel_step``) into arrays, and member m takes its ``2**m`` steps of
+h/2**m (the integrator's ``verlet`` or ``family_step``) with the increments summed two by two, finest
 first: the sum a member uses is the sum of its two halves' sums. Bit for bit: a sequential sum
 (((I1 + I2) + I3) + I4) would differ from ((I1 + I2) + (I3 + I4)) in the last bits, and the
 sub-steps' start times are composed as the halvings compose them (t + h/2 + h/4), not t + 3h/4
