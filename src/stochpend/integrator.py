@@ -272,6 +272,12 @@ def _no_channel(run):
 
 
 @register_jitable
+def _first(z1, z2, hc, d):
+    """The member tree's ``combine`` without the family's terms (no additive draw to combine)."""
+    return z1
+
+
+@register_jitable
 def _track_nothing(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):
     return None
 
@@ -286,23 +292,31 @@ def _named(function: Any, name: str) -> Any:
 
 
 @functools.cache
-def _draw_tree(depth: int, leaf: Any) -> Any:
-    """The draws of one coarse step for ``depth`` halvings: ``leaf(key0, key1, path, n, s, coef)
-    -> (I, s)`` (a noise's or a channel's exact step with draw n: its integral over the step and
-    its state s after it) taken ``2**depth`` times, draws ``n .. n + 2**depth - 1`` in order.
-    Returns the integrals as a binary tree of nested pairs (depth 0: the scalar, 1: ``(I1, I2)``,
-    2: ``((I1, I2), (I3, I4))``), the state threaded through; ``coef`` the finest step's
-    coefficients."""
+def _draw_tree(depth: int, leaf: Any, inline: bool = False) -> Any:
+    """The draws of one coarse step for ``depth`` halvings: ``leaf(key0, key1, path, n, a, b, S,
+    coef) -> (I, a, b, S)`` (a noise's or a channel's exact step with draw n: its integral over
+    the step and its state ``a, b`` and scratch ``S`` after it) taken ``2**depth`` times, draws
+    ``n .. n + 2**depth - 1`` in order. Returns the integrals as a binary tree of nested pairs
+    (depth 0: the scalar, 1: ``(I1, I2)``, 2: ``((I1, I2), (I3, I4))``), the state threaded
+    through; ``coef`` the finest step's coefficients. The state goes as separate scalars.
+
+    ``inline``: the nodes inlined by Numba (the CPU's step loops). Left to LLVM, a node with its
+    two inlined draws stayed a call per coarse step, its returned tuple in memory: the CPU's
+    one-pair kernel was 5 % slower than the loop with its draws written out. numba-cuda cannot
+    type a Numba-inlined function ("add(omitted, omitted)", as ``family_step_inline``), so the
+    CUDA kernels take the plain nodes (NVVM inlines them)."""
     if depth == 0:
         return leaf
-    half_tree = _draw_tree(depth - 1, leaf)
+    half_tree = _draw_tree(depth - 1, leaf, inline)
     SPAN = _U64(2 ** (depth - 1))
 
-    def draws(key0, key1, path, n, s, coef):
-        I1, s = half_tree(key0, key1, path, n, s, coef)
-        I2, s = half_tree(key0, key1, path, n + SPAN, s, coef)
-        return (I1, I2), s
+    def draws(key0, key1, path, n, a, b, S, coef):
+        I1, a, b, S = half_tree(key0, key1, path, n, a, b, S, coef)
+        I2, a, b, S = half_tree(key0, key1, path, n + SPAN, a, b, S, coef)
+        return (I1, I2), a, b, S
 
+    if inline:
+        return register_jitable(inline="always")(_named(draws, f"{leaf.__name__}_tree{depth}_inline"))
     return register_jitable(_named(draws, f"{leaf.__name__}_tree{depth}"))
 
 
@@ -370,7 +384,7 @@ def _member_tuples(levels: int) -> tuple[Any, Any]:
 
 
 def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace, family: SimpleNamespace,
-               channel: SimpleNamespace, control: SimpleNamespace) -> Any:
+               channel: SimpleNamespace, control: SimpleNamespace, *, inline: bool = False) -> Any:
     """The step loop of ``LEVELS`` coupled members (1: one path, :func:`advance_path`; 2: the
     bias estimate's coarse/fine pair, :func:`advance_pair`; 3, 4: ``advance_levels``), written
     once: the step control, the escape rule, the landing, the noise's events, the clock, the
@@ -424,14 +438,14 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         def finest(h):
             return FINEST * h
     finest = register_jitable(_named(finest, f"finest_of{LEVELS}"))
-    noise_path = _draw_tree(DEPTH, noise.step)
-    ou_path = _draw_tree(DEPTH, family.additive_ou_step)
-    white_path = _draw_tree(DEPTH, family.additive_step)
-    channel_path = _draw_tree(DEPTH, channel.step)
+    noise_path = _draw_tree(DEPTH, noise.step, inline)
+    ou_path = _draw_tree(DEPTH, family.ou_step, inline)
+    white_path = _draw_tree(DEPTH, family.additive_step, inline)
+    channel_path = _draw_tree(DEPTH, channel.step, inline)
     if FAMILY:
         members_step = _member_tree(DEPTH, family.family_step, family.additive_sum, half)
     else:
-        members_step = _member_tree(DEPTH, oscillator.verlet_step, family.additive_sum, half)
+        members_step = _member_tree(DEPTH, oscillator.verlet_step, _first, half)
     nest, flat = _member_tuples(LEVELS)
     assert LEVELS <= _MAX_LEVELS
     # Member m's x and Omega: the state's arrays 2 m and 2 m + 1 (level_positions); x's and
@@ -560,23 +574,17 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             # The finest member's steps draw the noise (draws kk .. kk + DRAWS - 1); each
             # coarser member's kick uses the sum of its two halves' integrals, the exact
             # integral over its step (one member: one draw, its own step).
-            It, ns = noise_path(key0, key1, path, kk, (xn, xa, S), C)
-            xn = ns[0]
-            xa = ns[1]
-            S = ns[2]
+            It, xn, xa, S = noise_path(key0, key1, path, kk, xn, xa, S, C)
             if FAMILY:
                 # The additive noise likewise: the finest member's steps draw it, a coarser
                 # member's step uses its halves' integrals summed (the OU and the generic
                 # channel) or the normal of the exact composition of their two O flows (white).
                 if ADDITIVE_OU:
-                    zt, xad = ou_path(key0, key1, path, kk, xad, Ca)
+                    zt, xad, _, _ = ou_path(key0, key1, path, kk, xad, xad, Sa, Ca)
                 elif ADN:  # the channel's noise under its own key
-                    zt, cs = channel_path(ka0, ka1, path, kk, (xan, xaa, Sa), Can)
-                    xan = cs[0]
-                    xaa = cs[1]
-                    Sa = cs[2]
+                    zt, xan, xaa, Sa = channel_path(ka0, ka1, path, kk, xan, xaa, Sa, Can)
                 else:
-                    zt, _ = white_path(key0, key1, path, kk, real(0.0), Ca)
+                    zt, _, _, _ = white_path(key0, key1, path, kk, xad, xad, Sa, Ca)
             else:
                 zt = It  # not read: Stormer-Verlet has no additive noise
             mem, _, _ = members_step(mem, h, h_clock, tt, It, zt, omega2_r, q, d)
@@ -634,7 +642,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         return DRAWS * steps, (1 if (not bad and tt < t_target) else 0)
 
     name = {1: "advance_path", 2: "advance_pair"}.get(LEVELS, f"advance_levels{LEVELS}")
-    return register_jitable(_named(advance, name))
+    return register_jitable(_named(advance, name + ("_inline" if inline and LEVELS > 1 else "")))
 
 
 
@@ -920,10 +928,10 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         return real(0.0)
 
     @register_jitable
-    def additive_step(key0, key1, path, n, s, coef):
+    def additive_step(key0, key1, path, n, a, b, S, coef):
         """The additive white noise as a leaf of the draw tree (:func:`_draw_tree`): the normal of
-        draw n; no state (``s`` passed through) and no coefficients."""
-        return additive_normal(key0, key1, path, n), s
+        draw n; no state (``a, b, S`` passed through) and no coefficients."""
+        return additive_normal(key0, key1, path, n), a, b, S
 
     @register_jitable
     def additive_sum(z1, z2, hc, d):
@@ -946,12 +954,18 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         return Ia, xa_new
 
     @register_jitable
-    def noise_step(key0, key1, path, n, s, C):
+    def noise_step(key0, key1, path, n, xn, xa, S, C):
         """The noise's exact step with draw n as a leaf of the draw tree (:func:`_draw_tree`):
-        ``s = (xi, aux, scratch)``; returns (its integral over the step, s after it)."""
-        z, S = draw(key0, key1, path, n, s[2])
-        I, xn, xa = update(s[0], s[1], C, z)
-        return I, (xn, xa, S)
+        returns (its integral over the step, xi, aux and the scratch S after it)."""
+        z, S = draw(key0, key1, path, n, S)
+        I, xn, xa = update(xn, xa, C, z)
+        return I, xn, xa, S
+
+    @register_jitable
+    def ou_step(key0, key1, path, n, xa, b, S, Ca):
+        """:func:`additive_ou_step` as a leaf of the draw tree (``b``, ``S`` passed through)."""
+        Ia, xa = additive_ou_step(key0, key1, path, n, xa, Ca)
+        return Ia, xa, b, S
 
     @register_jitable
     def verlet_step(x, Omega, h, omega2, noise_integral, q, t0, h_clock, za, d):
@@ -961,24 +975,24 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
 
     if ADN:
         @register_jitable
-        def channel_step(key0, key1, path, n, s, C):
+        def channel_step(key0, key1, path, n, xn, xa, S, C):
             """The generic channel's exact step with draw n under its own key, as
-            :func:`noise_step`: ``s = (xi_a, aux_a, scratch)``."""
-            z, S = a_draw(key0, key1, path, n, s[2])
-            I, xn, xa = a_update(s[0], s[1], C, z)
-            return I, (xn, xa, S)
+            :func:`noise_step`: its xi_a, aux_a and scratch."""
+            z, S = a_draw(key0, key1, path, n, S)
+            I, xn, xa = a_update(xn, xa, C, z)
+            return I, xn, xa, S
     else:
         channel_step = noise_step  # never called (every use is under a compile-time ``if ADN``)
 
     # The step loop's pieces, in bundles (_step_loop).
-    pieces = dict(
+    pieces: dict[str, Any] = dict(
         noise=SimpleNamespace(HAS_EVENTS=HAS_EVENTS, load_aux=load_aux, scratch0=scratch0,
                               coefficients=coefficients, next_event=next_event, at_event=at_event,
                               step=noise_step),
         oscillator=SimpleNamespace(real=real, half=half, step_size=step_size, verlet_step=verlet_step),
         family=SimpleNamespace(FAMILY=FAMILY, ADDITIVE_OU=ADDITIVE_OU, dyn_of=dyn_of,
                                family_bounds=family_bounds, family_step=family_step, ou_record=ou_record,
-                               ou_coefficients=ou_coefficients, additive_ou_step=additive_ou_step,
+                               ou_coefficients=ou_coefficients, ou_step=ou_step,
                                additive_step=additive_step, additive_sum=additive_sum),
         channel=SimpleNamespace(ADN=ADN, A_EVENTS=A_EVENTS, channel_of=channel_of, a_load_aux=a_load_aux,
                                 a_scratch0=a_scratch0, a_coefficients=a_coefficients,
@@ -1020,7 +1034,7 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     #: ``p``, ``run`` as for ``advance_path``. ``k`` counts draws (two per coarse step). Returns
     #: ``(draws_taken, unfinished)``; a pair with either member non-finite or escaped gets
     #: status 1.
-    advance_pair = _step_loop(2, **pieces)
+    advance_pair = _step_loop(2, **pieces, inline=True)
 
     #: ``advance_levels[L]``: the step loop of L coupled members (L = 1: ``advance_path``, 2:
     #: ``advance_pair``, 3, 4), with ``advance_pair``'s signature. Member m (0 the coarsest)
@@ -1031,10 +1045,15 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     #: (:func:`_member_tree`), so member m has the law of an ordinary run at step h/2**m.
     #: ``state``: ``(x_0, Omega_0, ..., x_{L-1}, Omega_{L-1}, xi, xi_aux, t, t_comp, k,
     #: status)`` (:func:`level_positions`), then the additive channel's arrays as for a path;
-    #: ``k`` counts draws. Returns ``(draws_taken, unfinished)``.
+    #: ``k`` counts draws. Returns ``(draws_taken, unfinished)``. These are the CPU's (the draw
+    #: trees inlined by Numba, :func:`_draw_tree`); ``device_levels[L]`` the same loops for the
+    #: CUDA kernels (the same numbers: the same operations in the same order).
     advance_levels = {1: advance_path, 2: advance_pair}
-    for levels in LEVELS[2:]:
-        advance_levels[levels] = _step_loop(levels, **pieces)
+    device_levels = {1: advance_path}
+    for levels in LEVELS[1:]:
+        if levels > 2:
+            advance_levels[levels] = _step_loop(levels, **pieces, inline=True)
+        device_levels[levels] = _step_loop(levels, **pieces)
 
     advance_lanes = _lockstep_lanes(real=real, coefficients=coefficients, update=update, verlet=verlet,
                                     mathlib_log=mathlib_log, mathlib_sincos=mathlib_sincos)
@@ -1043,16 +1062,17 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     # first in a process would otherwise name it, so the pair kernel compiled by the compile
     # helper (pairs alone) and the one this process looks up (lanes first) would differ in name
     # and never share a cache entry.
-    name_closures([G, step_size, verlet, *advance_levels.values(), advance_lanes, family_step_inline],
+    name_closures([G, step_size, verlet, *advance_levels.values(), *device_levels.values(), advance_lanes,
+                   family_step_inline],
                   spec.label if track is None else f"{spec.label}/track/{id(track):x}")
     return SimpleNamespace(
         spec=spec, real=real, G=G, step_size=step_size, verlet=verlet, family_step=family_step,
         family_step_inline=family_step_inline, family_bounds=family_bounds,
         ou_coefficients=ou_coefficients, ou_update=ou_update, ou_record=ou_record,
-        noise_step=noise_step, additive_step=additive_step, additive_ou_step=additive_ou_step,
+        noise_step=noise_step, additive_step=additive_step, ou_step=ou_step,
         additive_sum=additive_sum, channel_step=channel_step, a_coefficients=a_coefficients,
         a_scratch0=a_scratch0, init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
-        advance_levels=advance_levels, advance_lanes=advance_lanes,
+        advance_levels=advance_levels, device_levels=device_levels, advance_lanes=advance_lanes,
         path_values=statistics(spec.oscillator, spec.coupling),
         lockstep=(not spec.adaptive) and spec.noise.pair_draws and not HAS_EVENTS and not FAMILY,
     )

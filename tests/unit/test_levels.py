@@ -5,7 +5,7 @@ CUDA backend's ``cuda.levels_kernel``).
 Each member must be a single run at its own step fed the summed noise increments. The reference
 here is that run written plainly: per coarse step it draws the finest member's ``2**(L-1)``
 exact noise steps (the integrator's per-draw leaves ``noise_step``, ``additive_step``,
-``additive_ou_step``, ``channel_step``) into arrays, and member m takes its ``2**m`` steps of
+``ou_step``, ``channel_step``) into arrays, and member m takes its ``2**m`` steps of
 h/2**m (the integrator's ``verlet`` or ``family_step``) with the increments summed two by two, finest
 first: the sum a member uses is the sum of its two halves' sums. Bit for bit: a sequential sum
 (((I1 + I2) + I3) + I4) would differ from ((I1 + I2) + (I3 + I4)) in the last bits, and the
@@ -48,7 +48,7 @@ def _reference(spec):
     step_size = b.step_size
     family_bounds = b.family_bounds
     additive_step = b.additive_step
-    additive_ou_step = b.additive_ou_step
+    ou_step = b.ou_step
     additive_sum = b.additive_sum
     channel_step = b.channel_step
     a_coefficients = b.a_coefficients
@@ -76,7 +76,7 @@ def _reference(spec):
             mO = np.full(L, O0[i])
             xn, xa, S, xad = xi0[i], xa0[i], scratch0(), xad0[i]
             if ADN:
-                cs = (xad0[i], xaa0[i], a_scratch0())
+                xaa, Sa = xaa0[i], a_scratch0()
             tt, tc, kk = 0.0, 0.0, np.uint64(0)
             I = np.empty(N)
             Z = np.empty(N)
@@ -95,14 +95,14 @@ def _reference(spec):
                     if ADN:
                         Can = a_coefficients(hf, pan)
                     for j in range(N):  # the finest member's draws, in order
-                        I[j], s = noise_step(key0, key1, path, kk + np.uint64(j), (xn, xa, S), C)
-                        xn, xa, S = s[0], s[1], s[2]
+                        n_j = kk + np.uint64(j)
+                        I[j], xn, xa, S = noise_step(key0, key1, path, n_j, xn, xa, S, C)
                         if ADDITIVE_OU:
-                            Z[j], xad = additive_ou_step(key0, key1, path, kk + np.uint64(j), xad, Ca)
+                            Z[j], xad, _, _ = ou_step(key0, key1, path, n_j, xad, 0.0, 0, Ca)
                         elif ADN:
-                            Z[j], cs = channel_step(kan[0], kan[1], path, kk + np.uint64(j), cs, Can)
+                            Z[j], xad, xaa, Sa = channel_step(kan[0], kan[1], path, n_j, xad, xaa, Sa, Can)
                         else:
-                            Z[j], _ = additive_step(key0, key1, path, kk + np.uint64(j), 0.0, C)
+                            Z[j], _, _, _ = additive_step(key0, key1, path, n_j, 0.0, 0.0, 0, C)
                     Im, Zm, width = I.copy(), Z.copy(), N
                     for m in range(L - 1, -1, -1):  # finest first; then sum two by two
                         steps = 1 << m

@@ -315,7 +315,7 @@ def pair_advance_kernel(spec: Spec):
     """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, run,
     unfinished)``: the integrator's ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate) for
     one pair per thread, as :func:`advance_kernel` runs ``advance_path``."""
-    advance_pair = integrator.build(spec).advance_pair
+    advance_pair = integrator.build(spec).device_levels[2]
 
     @cuda.jit(cache=spec.cacheable)
     @own_index(spec.label + "/pairs")
@@ -342,7 +342,7 @@ def levels_kernel(spec: Spec, levels: int):
         return advance_kernel(spec)
     if levels == 2:
         return pair_advance_kernel(spec)
-    advance_levels = integrator.build(spec).advance_levels[levels]
+    advance_levels = integrator.build(spec).device_levels[levels]
 
     @cuda.jit(cache=spec.cacheable)
     @own_index(f"{spec.label}/levels{levels}")
