@@ -314,7 +314,8 @@ def tracked_kernel(spec: Spec, accs: tuple):
 def pair_advance_kernel(spec: Spec):
     """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, run,
     unfinished)``: the integrator's ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate) for
-    one pair per thread, as :func:`advance_kernel` runs ``advance_path``."""
+    one pair per thread, as :func:`advance_kernel` runs ``advance_path``; its device variant
+    ``device_levels[2]`` (the same operations, the draw tree's nodes left to NVVM to inline)."""
     advance_pair = integrator.build(spec).device_levels[2]
 
     @cuda.jit(cache=spec.cacheable)
