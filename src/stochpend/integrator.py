@@ -18,6 +18,10 @@ functions that the backends' thin drivers call:
   with the step control, the landing rule, the noise's events, the clock, escape detection and
   the random-number bookkeeping; the CPU path-parallel driver and the CUDA thread-per-path
   kernel both call it;
+* ``advance_pair`` and ``advance_levels[L]``: the same step loop for L = 2, 3, 4 coupled members
+  at steps h, h/2, ..., h/2**(L-1) driven by one noise path (the finest member's steps draw it,
+  a coarser member's kick uses the sum of its two halves' integrals); L = 2 is the bias
+  estimate's coarse/fine pair, L = 1 ``advance_path``;
 * :func:`Integrator.advance_lanes`: the same steps for a block of paths that share their time
   and step count (fixed steps, noises with ``pair_draws``), laid out so that LLVM vectorizes
   them across the lanes (the CPU's lock-step driver);
@@ -33,7 +37,6 @@ compiles to its own straight-line code: no branch on a noise or model code insid
 from __future__ import annotations
 
 import functools
-import inspect
 import math
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -81,11 +84,24 @@ LANES = 64
 _U64 = np.uint64
 
 
+#: Members of the coupled levels :func:`build` compiles: ``advance_levels[L]`` for L = 1 (a
+#: path, ``advance_path``), 2 (the bias estimate's pair, ``advance_pair``), 3 and 4.
+LEVELS = (1, 2, 3, 4)
+
+
+def level_positions(levels: int) -> tuple[int, int, int, int, int, int]:
+    """Where the state tuple of ``levels`` coupled members keeps ``(xi, xi_aux, t, t_comp, k,
+    status)``: after the members' ``x, Omega`` pairs, member m (0 the coarsest, step h; m the
+    step h/2**m) at positions ``2 m``, ``2 m + 1``."""
+    J = 2 * (levels - 1)
+    return 2 + J, 3 + J, 4 + J, 5 + J, 6 + J, 7 + J
+
+
 def state_positions(pair: bool) -> tuple[int, int, int, int, int, int]:
     """Where a path's state tuple keeps ``(xi, xi_aux, t, t_comp, k, status)``: after ``x,
-    Omega`` for one path, after ``x, Omega, xf, Omegaf`` for a coupled pair (``pair``)."""
-    J = 2 if pair else 0
-    return 2 + J, 3 + J, 4 + J, 5 + J, 6 + J, 7 + J
+    Omega`` for one path, after ``x, Omega, xf, Omegaf`` for a coupled pair (``pair``)
+    (:func:`level_positions` of 1 or 2 members)."""
+    return level_positions(2 if pair else 1)
 
 
 # -- time bookkeeping (float64 in every precision) --------------------------------------------
@@ -256,30 +272,190 @@ def _no_channel(run):
 
 
 @register_jitable
+def _first(z1, z2, hc, d):
+    """The member tree's ``combine`` without the family's terms (no additive draw to combine)."""
+    return z1
+
+
+@register_jitable
 def _track_nothing(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):
     return None
 
 
-def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, A_EVENTS,
-               ADDITIVE_OU, ADN, TRACK, track_step, dyn_of, load_aux, scratch0,
-               coefficients, draw, update, next_event, at_event, step_size, family_bounds, verlet,
-               family_step, ou_record, ou_coefficients, additive_normal, pair_normals,
-               additive_ou_step, channel_of, a_load_aux, a_scratch0, a_coefficients, a_draw,
-               a_update, a_next_event, a_at_event) -> Any:
-    """The step loop of one path (``PAIR`` False: :func:`advance_path`) or of a coupled
-    coarse/fine pair (True: :func:`advance_pair`), written once: the step control, the
-    escape rule, the landing, the noise's events, the clock, the finiteness check and the
-    bookkeeping are shared; what differs is what a step advances (one member with one draw,
-    or two members with two draws) and the arrays it reads and writes. ``PAIR`` is a
-    compile-time constant: each variant compiles to its own straight-line code.
+def _named(function: Any, name: str) -> Any:
+    """``function`` renamed ``name`` (its qualname's last part too): the level trees make one
+    closure per depth and piece, and :func:`stochpend._jitcache.name_closures` needs one name
+    per code."""
+    function.__qualname__ = function.__qualname__.replace(function.__name__, name)
+    function.__name__ = name
+    return function
 
-    The keyword arguments are the pieces :func:`build` made for the Spec (its noise's, its
-    oscillator's and the family's device functions, the stubs of what the Spec leaves out) and
-    its compile-time constants, under the names :func:`build` gives them: the step loop's
-    closure captures them as it captured them when it was written inside :func:`build`, so
-    the compiled code is the same."""
-    I_XI, I_XA, I_T, I_TC, I_K, I_ST = state_positions(PAIR)
-    TRACKED = TRACK and not PAIR
+
+@functools.cache
+def _draw_tree(depth: int, leaf: Any, inline: bool = False) -> Any:
+    """The draws of one coarse step for ``depth`` halvings: ``leaf(key0, key1, path, n, a, b, S,
+    coef) -> (I, a, b, S)`` (a noise's or a channel's exact step with draw n: its integral over
+    the step and its state ``a, b`` and scratch ``S`` after it) taken ``2**depth`` times, draws
+    ``n .. n + 2**depth - 1`` in order. Returns the integrals as a binary tree of nested pairs
+    (depth 0: the scalar, 1: ``(I1, I2)``, 2: ``((I1, I2), (I3, I4))``), the state threaded
+    through; ``coef`` the finest step's coefficients. The state goes as separate scalars.
+
+    ``inline``: the nodes inlined by Numba (the CPU's step loops). Left to LLVM, a node with its
+    two inlined draws stayed a call per coarse step, its returned tuple in memory: the CPU's
+    one-pair kernel was 5 % slower than the loop with its draws written out. numba-cuda cannot
+    type a Numba-inlined function ("add(omitted, omitted)", as ``family_step_inline``), so the
+    CUDA kernels take the plain nodes (NVVM inlines them)."""
+    if depth == 0:
+        return leaf
+    half_tree = _draw_tree(depth - 1, leaf, inline)
+    SPAN = _U64(2 ** (depth - 1))
+
+    def draws(key0, key1, path, n, a, b, S, coef):
+        I1, a, b, S = half_tree(key0, key1, path, n, a, b, S, coef)
+        I2, a, b, S = half_tree(key0, key1, path, n + SPAN, a, b, S, coef)
+        return (I1, I2), a, b, S
+
+    if inline:
+        return register_jitable(inline="always")(_named(draws, f"{leaf.__name__}_tree{depth}_inline"))
+    return register_jitable(_named(draws, f"{leaf.__name__}_tree{depth}"))
+
+
+@functools.cache
+def _member_tree(depth: int, step: Any, combine: Any, half: Any) -> Any:
+    """``members(mem, h, h_clock, t0, It, zt, omega2, q, d) -> (mem, I, z)``: ``depth + 1``
+    coupled members over one step of the coarsest, ``mem = (x, Omega)`` (depth 0) or ``(x,
+    Omega, finer)``, ``finer`` the next ``depth`` members' ``mem``.
+
+    The finer members take the step as two halves (h/2, clock ``h_clock``/2, the second from
+    ``t0 + h_clock/2``), each with one half of the draw trees ``It`` (the noise's integrals,
+    :func:`_draw_tree`) and ``zt`` (the additive channel's); then the coarsest member takes
+    ``step(x, Omega, h, omega2, I, q, t0, h_clock, z, d)`` (``verlet`` or ``family_step``) with
+    ``I`` the sum of its two halves' integrals (the exact integral over its step) and ``z`` their
+    additive draws combined (``combine(z1, z2, h_clock/2, d)``). Returns the members after the
+    step, with the coarsest member's ``I`` and ``z`` (its parent's halves)."""
+    if depth == 0:
+        def one(mem, h, h_clock, t0, It, zt, omega2, q, d):
+            x, Om = step(mem[0], mem[1], h, omega2, It, q, t0, h_clock, zt, d)
+            return (x, Om), It, zt
+
+        return register_jitable(_named(one, f"{step.__name__}_members1"))
+    finer = _member_tree(depth - 1, step, combine, half)
+
+    def members(mem, h, h_clock, t0, It, zt, omega2, q, d):
+        hh = half * h
+        hc = 0.5 * h_clock
+        rest, I1, z1 = finer(mem[2], hh, hc, t0, It[0], zt[0], omega2, q, d)
+        rest, I2, z2 = finer(rest, hh, hc, t0 + hc, It[1], zt[1], omega2, q, d)
+        I = I1 + I2
+        z = combine(z1, z2, hc, d)
+        x, Om = step(mem[0], mem[1], h, omega2, I, q, t0, h_clock, z, d)
+        return (x, Om, rest), I, z
+
+    return register_jitable(_named(members, f"{step.__name__}_members{depth + 1}"))
+
+
+#: The most members a step loop carries (:data:`LEVELS`): the arrays it takes from the state.
+_MAX_LEVELS = 4
+
+
+def _member_tuples(levels: int) -> tuple[Any, Any]:
+    """``nest(x0, Omega0, ..., x3, Omega3) -> mem`` and ``flat(mem) -> (x0, Omega0, ..., x3,
+    Omega3)`` of ``levels`` members (the nested ``mem`` of
+    :func:`_member_tree`), on scalars only: the step loop takes the arrays from its state tuple
+    itself (a function taking the tuple costs a counted reference per array). The scalars of
+    members beyond ``levels`` are not read (``nest``) or are repeats (``flat``)."""
+    if levels == 1:
+        def nest(x0, O0, x1, O1, x2, O2, x3, O3):
+            return (x0, O0)
+
+        def flat(mem):
+            return (mem[0], mem[1], mem[0], mem[1], mem[0], mem[1], mem[0], mem[1])
+    else:
+        nest_f, flat_f = _member_tuples(levels - 1)
+
+        def nest(x0, O0, x1, O1, x2, O2, x3, O3):  # noqa: F811 - one per number of members
+            return (x0, O0, nest_f(x1, O1, x2, O2, x3, O3, x3, O3))
+
+        def flat(mem):  # noqa: F811
+            rest = flat_f(mem[2])
+            return (mem[0], mem[1], rest[0], rest[1], rest[2], rest[3], rest[4], rest[5])
+
+    return register_jitable(_named(nest, f"nest_members{levels}")), register_jitable(_named(flat, f"flat_members{levels}"))
+
+
+def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace, family: SimpleNamespace,
+               channel: SimpleNamespace, control: SimpleNamespace, *, inline: bool = False) -> Any:
+    """The step loop of ``LEVELS`` coupled members (1: one path, :func:`advance_path`; 2: the
+    bias estimate's coarse/fine pair, :func:`advance_pair`; 3, 4: ``advance_levels``), written
+    once: the step control, the escape rule, the landing, the noise's events, the clock, the
+    finiteness check and the bookkeeping are shared; a step draws the noise ``2**(LEVELS-1)``
+    times (:func:`_draw_tree`) and advances the members (:func:`_member_tree`). ``LEVELS`` is
+    a compile-time constant: each variant compiles to its own straight-line code.
+
+    The bundles are :func:`build`'s pieces for the Spec, by name: ``noise`` (the noise's device
+    functions and its exact step ``step``), ``oscillator`` (``real``, ``half``, ``verlet``,
+    ``step_size``), ``family`` (the family's terms: ``FAMILY``, ``family_step``, the additive
+    white and OU channels), ``channel`` (the generic additive channel, ``ADN``) and ``control``
+    (``ADAPTIVE``, ``escape``, the accumulators' ``TRACK``, ``track_step``). The step loop's
+    closure captures each piece as it did when it was written inside :func:`build`."""
+    real = oscillator.real
+    half = oscillator.half
+    step_size = oscillator.step_size
+    escape = control.escape
+    ADAPTIVE = control.ADAPTIVE
+    TRACK = control.TRACK
+    track_step = control.track_step
+    HAS_EVENTS = noise.HAS_EVENTS
+    load_aux = noise.load_aux
+    scratch0 = noise.scratch0
+    coefficients = noise.coefficients
+    next_event = noise.next_event
+    at_event = noise.at_event
+    FAMILY = family.FAMILY
+    ADDITIVE_OU = family.ADDITIVE_OU
+    dyn_of = family.dyn_of
+    family_bounds = family.family_bounds
+    ou_record = family.ou_record
+    ou_coefficients = family.ou_coefficients
+    ADN = channel.ADN
+    A_EVENTS = channel.A_EVENTS
+    channel_of = channel.channel_of
+    a_load_aux = channel.a_load_aux
+    a_scratch0 = channel.a_scratch0
+    a_coefficients = channel.a_coefficients
+    a_next_event = channel.a_next_event
+    a_at_event = channel.a_at_event
+
+    DEPTH = LEVELS - 1
+    DRAWS = 2 ** DEPTH
+    # The finest member's step, h/2**DEPTH (exact: a power of two), for the noise's coefficients;
+    # chosen here, so that one member's loop has no branch for it.
+    FINEST = real(0.5 ** DEPTH)
+    if DEPTH == 0:
+        def finest(h):
+            return h
+    else:
+        def finest(h):
+            return FINEST * h
+    finest = register_jitable(_named(finest, f"finest_of{LEVELS}"))
+    noise_path = _draw_tree(DEPTH, noise.step, inline)
+    ou_path = _draw_tree(DEPTH, family.ou_step, inline)
+    white_path = _draw_tree(DEPTH, family.additive_step, inline)
+    channel_path = _draw_tree(DEPTH, channel.step, inline)
+    if FAMILY:
+        members_step = _member_tree(DEPTH, family.family_step, family.additive_sum, half)
+    else:
+        members_step = _member_tree(DEPTH, oscillator.verlet_step, _first, half)
+    nest, flat = _member_tuples(LEVELS)
+    assert LEVELS <= _MAX_LEVELS
+    # Member m's x and Omega: the state's arrays 2 m and 2 m + 1 (level_positions); x's and
+    # Omega's for a member beyond LEVELS (read, never written: every store is under HAS_m).
+    I_X1, I_X2, I_X3 = (2 * m if m < LEVELS else 0 for m in range(1, _MAX_LEVELS))
+    I_O1, I_O2, I_O3 = (2 * m + 1 if m < LEVELS else 1 for m in range(1, _MAX_LEVELS))
+    HAS_1, HAS_2, HAS_3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
+
+    I_XI, I_XA, I_T, I_TC, I_K, I_ST = level_positions(LEVELS)
+    TRACKED = TRACK and LEVELS == 1
     # The accumulators' slots (n_slots, n_paths): the state's array after status, taken by a
     # constant index like every array here. Not through a function returning ``state[8]``:
     # numba-cuda refuses a device function that returns an array it was not passed ("Only
@@ -287,7 +463,6 @@ def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, 
     # kernels did not compile for a real GPU (the CPU and the simulator accept it). x's in a
     # Spec without accumulators (not read: see ``tracks`` below).
     I_TRK = I_ST + 1 if TRACKED else 0
-    DRAWS = 2 if PAIR else 1
     # The additive OU noise's xi_a: the state's array after the others (the slots too); a
     # constant index (as every array here, see below), x's in a Spec without it (unused).
     I_ADD = I_ST + 1 + (1 if TRACKED else 0) if (ADDITIVE_OU or ADN) else 0
@@ -302,8 +477,12 @@ def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, 
         # takes a tuple of arrays.
         x = state[0]
         Omega = state[1]
-        xf = state[2]  # the pair's fine member (a path: unused)
-        Omegaf = state[3]
+        x1 = state[I_X1]
+        Omega1 = state[I_O1]
+        x2 = state[I_X2]
+        Omega2 = state[I_O2]
+        x3 = state[I_X3]
+        Omega3 = state[I_O3]
         xi = state[I_XI]
         xi_aux = state[I_XA]
         t = state[I_T]
@@ -321,10 +500,7 @@ def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, 
         h_max_r = real(h_max)
         c_r = real(step_c)
         path = _U64(path0 + i)
-        xs = x[i]
-        Om = Omega[i]
-        xs2 = xf[i]
-        Om2 = Omegaf[i]
+        mem = nest(x[i], Omega[i], x1[i], Omega1[i], x2[i], Omega2[i], x3[i], Omega3[i])
         xn = xi[i]
         xa = load_aux(xi_aux[i])
         tt = t[i]
@@ -349,19 +525,19 @@ def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, 
         Sa = a_scratch0()
         t_ev = math.inf
         t_ev_a = math.inf
-        # Everything of the noise's step that depends on h only (for a pair, on its half
-        # steps h/2), cached while h is unchanged (h = h_max most of the time).
+        # Everything of the noise's step that depends on h only (with several members, on the
+        # finest member's step), cached while h is unchanged (h = h_max most of the time).
         h_cached = h_max_r
-        hh = half * h_max_r
-        C = coefficients(hh if PAIR else h_max_r, p)
-        Ca = ou_coefficients(hh if PAIR else h_max_r, pa)
-        Can = a_coefficients(hh if PAIR else h_max_r, pan)
+        hf = finest(h_max_r)
+        C = coefficients(hf, p)
+        Ca = ou_coefficients(hf, pa)
+        Can = a_coefficients(hf, pan)
         S = scratch0()
         steps = 0
         bad = False
         while steps < max_steps:
             if ADAPTIVE:
-                h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
+                h = step_size(mem[0], mem[1], xn, h_max_r, c_r, omega2_r, q)
                 if FAMILY:
                     h = family_bounds(h, c_r, d)
                 if h < escape * h_max_r:
@@ -383,70 +559,35 @@ def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, 
                 event = False
                 t_land = t_target
             h = real(h_clock)
-            if PAIR:
-                if h != h_cached:
-                    hh = half * h
-                    C = coefficients(hh, p)
-                    Ca = ou_coefficients(hh, pa)
-                    if ADN:
-                        Can = a_coefficients(hh, pan)
-                    h_cached = h
-                # The half steps draw the noise (draws 2m and 2m + 1 for coarse step m);
-                # the coarse kick uses the sum of their integrals, the exact integral over
-                # the whole step.
-                z, S = draw(key0, key1, path, kk, S)
-                I1, xn, xa = update(xn, xa, C, z)
-                z, S = draw(key0, key1, path, kk + _U64(1), S)
-                I2, xn, xa = update(xn, xa, C, z)
-                if FAMILY:
-                    # The additive noise likewise: the fine member's half steps draw it, the
-                    # coarse member's one step uses the normal of their sum over the step
-                    # (the exact composition of the two O flows).
-                    hc = 0.5 * h_clock
-                    if ADDITIVE_OU:  # as the multiplicative noise: the half steps' integrals
-                        z1, xad = additive_ou_step(key0, key1, path, kk, xad, Ca)
-                        z2, xad = additive_ou_step(key0, key1, path, kk + _U64(1), xad, Ca)
-                        zc = z1 + z2
-                    elif ADN:  # likewise, the channel's noise under its own key
-                        za_z, Sa = a_draw(ka0, ka1, path, kk, Sa)
-                        z1, xan, xaa = a_update(xan, xaa, Can, za_z)
-                        za_z, Sa = a_draw(ka0, ka1, path, kk + _U64(1), Sa)
-                        z2, xan, xaa = a_update(xan, xaa, Can, za_z)
-                        zc = z1 + z2
-                    else:
-                        z1, z2, zc = pair_normals(key0, key1, path, kk, hc, d)
-                    xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I1, q, tt, hc, z1, d)
-                    xs2, Om2 = family_step(xs2, Om2, hh, omega2_r, I2, q, tt + hc, hc, z2, d)
-                    xs, Om = family_step(xs, Om, h, omega2_r, I1 + I2, q, tt, h_clock, zc, d)
+            if h != h_cached:
+                hf = finest(h)
+                C = coefficients(hf, p)
+                Ca = ou_coefficients(hf, pa)
+                if ADN:
+                    Can = a_coefficients(hf, pan)
+                h_cached = h
+            if TRACKED:
+                x_before = mem[0]
+                Om_before = mem[1]
+                xn_before = xn
+                t_before = tt
+            # The finest member's steps draw the noise (draws kk .. kk + DRAWS - 1); each
+            # coarser member's kick uses the sum of its two halves' integrals, the exact
+            # integral over its step (one member: one draw, its own step).
+            It, xn, xa, S = noise_path(key0, key1, path, kk, xn, xa, S, C)
+            if FAMILY:
+                # The additive noise likewise: the finest member's steps draw it, a coarser
+                # member's step uses its halves' integrals summed (the OU and the generic
+                # channel) or the normal of the exact composition of their two O flows (white).
+                if ADDITIVE_OU:
+                    zt, xad, _, _ = ou_path(key0, key1, path, kk, xad, xad, Sa, Ca)
+                elif ADN:  # the channel's noise under its own key
+                    zt, xan, xaa, Sa = channel_path(ka0, ka1, path, kk, xan, xaa, Sa, Can)
                 else:
-                    xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I1, q)
-                    xs2, Om2 = verlet(xs2, Om2, hh, omega2_r, I2, q)
-                    xs, Om = verlet(xs, Om, h, omega2_r, I1 + I2, q)
+                    zt, _, _, _ = white_path(key0, key1, path, kk, xad, xad, Sa, Ca)
             else:
-                if h != h_cached:
-                    C = coefficients(h, p)
-                    Ca = ou_coefficients(h, pa)
-                    if ADN:
-                        Can = a_coefficients(h, pan)
-                    h_cached = h
-                if TRACKED:
-                    x_before = xs
-                    Om_before = Om
-                    xn_before = xn
-                    t_before = tt
-                z, S = draw(key0, key1, path, kk, S)
-                noise_integral, xn, xa = update(xn, xa, C, z)
-                if FAMILY:
-                    if ADDITIVE_OU:
-                        za, xad = additive_ou_step(key0, key1, path, kk, xad, Ca)
-                    elif ADN:  # the channel's exact step: the integral of xi_a over it
-                        za_z, Sa = a_draw(ka0, ka1, path, kk, Sa)
-                        za, xan, xaa = a_update(xan, xaa, Can, za_z)
-                    else:
-                        za = additive_normal(key0, key1, path, kk)
-                    xs, Om = family_step(xs, Om, h, omega2_r, noise_integral, q, tt, h_clock, za, d)
-                else:
-                    xs, Om = verlet(xs, Om, h, omega2_r, noise_integral, q)
+                zt = It  # not read: Stormer-Verlet has no additive noise
+            mem, _, _ = members_step(mem, h, h_clock, tt, It, zt, omega2_r, q, d)
             if A_EVENTS:  # the event of the channel(s) whose time the step landed on
                 if HAS_EVENTS and event and t_land == t_ev:
                     xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
@@ -457,26 +598,35 @@ def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, 
             kk += _U64(DRAWS)
             steps += 1
             tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
-            if PAIR:
-                finite = (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xs2)
-                          and math.isfinite(Om2) and math.isfinite(xn) and math.isfinite(xa))
-            else:
-                finite = (math.isfinite(xs) and math.isfinite(Om) and math.isfinite(xn)
-                          and math.isfinite(xa))
+            # One short-circuit chain, as the step loop had it written out (a helper returning a
+            # bool made ptxas allocate more registers); the members beyond LEVELS fold away.
+            m = flat(mem)
+            finite = (math.isfinite(m[0]) and math.isfinite(m[1])
+                      and (not HAS_1 or (math.isfinite(m[2]) and math.isfinite(m[3])))
+                      and (not HAS_2 or (math.isfinite(m[4]) and math.isfinite(m[5])))
+                      and (not HAS_3 or (math.isfinite(m[6]) and math.isfinite(m[7])))
+                      and math.isfinite(xn) and math.isfinite(xa))
             if not finite:
                 bad = True
                 break
             if TRACKED:
                 track_step(tracks, i, np.float64(x_before), np.float64(Om_before),
-                           np.float64(xn_before), np.float64(xs), np.float64(Om),
+                           np.float64(xn_before), np.float64(mem[0]), np.float64(mem[1]),
                            np.float64(xn), t_before, tt)
             if last:
                 break
-        x[i] = xs
-        Omega[i] = Om
-        if PAIR:
-            xf[i] = xs2
-            Omegaf[i] = Om2
+        out = flat(mem)
+        x[i] = out[0]
+        Omega[i] = out[1]
+        if HAS_1:
+            x1[i] = out[2]
+            Omega1[i] = out[3]
+        if HAS_2:
+            x2[i] = out[4]
+            Omega2[i] = out[5]
+        if HAS_3:
+            x3[i] = out[6]
+            Omega3[i] = out[7]
         xi[i] = xn
         xi_aux[i] = xa
         if ADDITIVE_OU:
@@ -491,10 +641,8 @@ def _step_loop(PAIR: bool, *, real, half, escape, ADAPTIVE, FAMILY, HAS_EVENTS, 
             status[i] = 1
         return DRAWS * steps, (1 if (not bad and tt < t_target) else 0)
 
-    name = "advance_pair" if PAIR else "advance_path"
-    advance.__name__ = name
-    advance.__qualname__ = advance.__qualname__.replace("advance", name)
-    return register_jitable(advance)
+    name = {1: "advance_path", 2: "advance_pair"}.get(LEVELS, f"advance_levels{LEVELS}")
+    return register_jitable(_named(advance, name + ("_inline" if inline and LEVELS > 1 else "")))
 
 
 
@@ -574,9 +722,6 @@ def _lockstep_lanes(*, real, coefficients, update, verlet, mathlib_log, mathlib_
     return advance_lanes
 
 
-#: The names of the pieces :func:`_step_loop` takes from :func:`build`'s scope (its keyword
-#: arguments, declared once by its signature).
-_STEP_PIECES = tuple(inspect.signature(_step_loop).parameters)[1:]
 
 
 @functools.cache
@@ -783,14 +928,21 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         return real(0.0)
 
     @register_jitable
-    def pair_normals(key0, key1, path, kk, hc, d):
-        """The pair's additive normals: the fine member's half steps' z1, z2 (draws kk, kk + 1)
-        and the coarse member's zc, the normal of the exact composition of the two half-step
-        O flows, (e z1 + z2)/sqrt(1 + e^2), e = exp(-gamma h/2)."""
-        z1 = additive_normal(key0, key1, path, kk)
-        z2 = additive_normal(key0, key1, path, kk + _U64(1))
+    def additive_step(key0, key1, path, n, a, b, S, coef):
+        """The additive white noise as a leaf of the draw tree (:func:`_draw_tree`): the normal of
+        draw n; no state (``a, b, S`` passed through) and no coefficients."""
+        return additive_normal(key0, key1, path, n), a, b, S
+
+    @register_jitable
+    def additive_sum(z1, z2, hc, d):
+        """A coarser member's additive draw from its two halves' (each of clock length ``hc``):
+        the OU and the generic channel's integrals summed (the exact integral over the step), the
+        white noise's normals as the normal of the exact composition of the two half-step O
+        flows, (e z1 + z2)/sqrt(1 + e^2), e = exp(-gamma hc)."""
+        if ADDITIVE_OU or ADN:
+            return z1 + z2
         e1 = 1.0 + mathlib_expm1(-d[0] * hc) if DAMPED else 1.0
-        return z1, z2, real((e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1))
+        return real((e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1))
 
     @register_jitable
     def additive_ou_step(key0, key1, path, n, xa, Ca):
@@ -801,9 +953,52 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         Ia, xa_new, _ = ou_update(xa, real(0.0), Ca, (z1, z2))
         return Ia, xa_new
 
-    # The step loop's pieces, by the names its signature declares (_STEP_PIECES).
-    scope = locals()
-    step_pieces = {name: scope[name] for name in _STEP_PIECES}
+    @register_jitable
+    def noise_step(key0, key1, path, n, xn, xa, S, C):
+        """The noise's exact step with draw n as a leaf of the draw tree (:func:`_draw_tree`):
+        returns (its integral over the step, xi, aux and the scratch S after it)."""
+        z, S = draw(key0, key1, path, n, S)
+        I, xn, xa = update(xn, xa, C, z)
+        return I, xn, xa, S
+
+    @register_jitable
+    def ou_step(key0, key1, path, n, xa, b, S, Ca):
+        """:func:`additive_ou_step` as a leaf of the draw tree (``b``, ``S`` passed through)."""
+        Ia, xa = additive_ou_step(key0, key1, path, n, xa, Ca)
+        return Ia, xa, b, S
+
+    @register_jitable
+    def verlet_step(x, Omega, h, omega2, noise_integral, q, t0, h_clock, za, d):
+        """:func:`verlet` under ``family_step``'s arguments (the member tree's step without the
+        family's terms: ``t0``, ``h_clock``, ``za``, ``d`` unused)."""
+        return verlet(x, Omega, h, omega2, noise_integral, q)
+
+    if ADN:
+        @register_jitable
+        def channel_step(key0, key1, path, n, xn, xa, S, C):
+            """The generic channel's exact step with draw n under its own key, as
+            :func:`noise_step`: its xi_a, aux_a and scratch."""
+            z, S = a_draw(key0, key1, path, n, S)
+            I, xn, xa = a_update(xn, xa, C, z)
+            return I, xn, xa, S
+    else:
+        channel_step = noise_step  # never called (every use is under a compile-time ``if ADN``)
+
+    # The step loop's pieces, in bundles (_step_loop).
+    pieces: dict[str, Any] = dict(
+        noise=SimpleNamespace(HAS_EVENTS=HAS_EVENTS, load_aux=load_aux, scratch0=scratch0,
+                              coefficients=coefficients, next_event=next_event, at_event=at_event,
+                              step=noise_step),
+        oscillator=SimpleNamespace(real=real, half=half, step_size=step_size, verlet_step=verlet_step),
+        family=SimpleNamespace(FAMILY=FAMILY, ADDITIVE_OU=ADDITIVE_OU, dyn_of=dyn_of,
+                               family_bounds=family_bounds, family_step=family_step, ou_record=ou_record,
+                               ou_coefficients=ou_coefficients, ou_step=ou_step,
+                               additive_step=additive_step, additive_sum=additive_sum),
+        channel=SimpleNamespace(ADN=ADN, A_EVENTS=A_EVENTS, channel_of=channel_of, a_load_aux=a_load_aux,
+                                a_scratch0=a_scratch0, a_coefficients=a_coefficients,
+                                a_next_event=a_next_event, a_at_event=a_at_event, step=channel_step),
+        control=SimpleNamespace(ADAPTIVE=ADAPTIVE, escape=escape, TRACK=TRACK, track_step=track_step),
+    )
 
     #: ``advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)``: advance path
     #: i of the arrays towards ``t_target``, at most ``max_steps`` steps.
@@ -820,7 +1015,7 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     #: whenever the step is the largest one, so float32 takes the same steps and draws as
     #: float64. Returns ``(steps_taken, unfinished)`` (1 if the path stopped short of
     #: ``t_target``).
-    advance_path = _step_loop(False, **step_pieces)
+    advance_path = _step_loop(1, **pieces)
 
     #: ``advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, run)``: advance a
     #: *coupled pair* of path i towards ``t_target`` (the bias estimate, :mod:`stochpend.bias`).
@@ -839,7 +1034,26 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     #: ``p``, ``run`` as for ``advance_path``. ``k`` counts draws (two per coarse step). Returns
     #: ``(draws_taken, unfinished)``; a pair with either member non-finite or escaped gets
     #: status 1.
-    advance_pair = _step_loop(True, **step_pieces)
+    advance_pair = _step_loop(2, **pieces, inline=True)
+
+    #: ``advance_levels[L]``: the step loop of L coupled members (L = 1: ``advance_path``, 2:
+    #: ``advance_pair``, 3, 4), with ``advance_pair``'s signature. Member m (0 the coarsest)
+    #: takes each of ``advance_path``'s steps h (the step control on member 0's state, the
+    #: landing, the noise's events) as 2**m steps h/2**m: the finest member's steps draw the
+    #: noise (draws ``2**(L-1) n .. 2**(L-1) (n + 1) - 1`` for coarse step n; the noise state
+    #: is shared), and each coarser member's kick uses the sum of its two halves' integrals
+    #: (:func:`_member_tree`), so member m has the law of an ordinary run at step h/2**m.
+    #: ``state``: ``(x_0, Omega_0, ..., x_{L-1}, Omega_{L-1}, xi, xi_aux, t, t_comp, k,
+    #: status)`` (:func:`level_positions`), then the additive channel's arrays as for a path;
+    #: ``k`` counts draws. Returns ``(draws_taken, unfinished)``. These are the CPU's (the draw
+    #: trees inlined by Numba, :func:`_draw_tree`); ``device_levels[L]`` the same loops for the
+    #: CUDA kernels (the same numbers: the same operations in the same order).
+    advance_levels = {1: advance_path, 2: advance_pair}
+    device_levels = {1: advance_path}
+    for levels in LEVELS[1:]:
+        if levels > 2:
+            advance_levels[levels] = _step_loop(levels, **pieces, inline=True)
+        device_levels[levels] = _step_loop(levels, **pieces)
 
     advance_lanes = _lockstep_lanes(real=real, coefficients=coefficients, update=update, verlet=verlet,
                                     mathlib_log=mathlib_log, mathlib_sincos=mathlib_sincos)
@@ -848,14 +1062,17 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     # first in a process would otherwise name it, so the pair kernel compiled by the compile
     # helper (pairs alone) and the one this process looks up (lanes first) would differ in name
     # and never share a cache entry.
-    name_closures([G, step_size, verlet, advance_path, advance_pair, advance_lanes, family_step_inline],
+    name_closures([G, step_size, verlet, *advance_levels.values(), *device_levels.values(), advance_lanes,
+                   family_step_inline],
                   spec.label if track is None else f"{spec.label}/track/{id(track):x}")
     return SimpleNamespace(
         spec=spec, real=real, G=G, step_size=step_size, verlet=verlet, family_step=family_step,
         family_step_inline=family_step_inline, family_bounds=family_bounds,
         ou_coefficients=ou_coefficients, ou_update=ou_update, ou_record=ou_record,
-        init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
-        advance_lanes=advance_lanes,
+        noise_step=noise_step, additive_step=additive_step, ou_step=ou_step,
+        additive_sum=additive_sum, channel_step=channel_step, a_coefficients=a_coefficients,
+        a_scratch0=a_scratch0, init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
+        advance_levels=advance_levels, device_levels=device_levels, advance_lanes=advance_lanes,
         path_values=statistics(spec.oscillator, spec.coupling),
         lockstep=(not spec.adaptive) and spec.noise.pair_draws and not HAS_EVENTS and not FAMILY,
     )

@@ -117,7 +117,7 @@ def test_every_closure_of_every_builtin_spec_is_named_where_it_is_made():
                 for fast_math in (False, True):
                     spec = integrator.spec(noise, potential, precision=precision, fast_math=fast_math)
                     built = integrator.build(spec)
-                    fns = [built.advance_path, built.advance_pair, built.advance_lanes,
+                    fns = [*built.advance_levels.values(), *built.device_levels.values(), built.advance_lanes,
                            built.init_path, built.path_values]
                     if integrator.lanes_supported(spec):
                         fns += [integrator.build_lanes(spec).advance_range,

@@ -172,13 +172,14 @@ def advance_kernel(spec: Spec):
     return path_kernel(spec)
 
 
-def _one_at_a_time(advance_one, index: str | None, cache: bool, pair: bool):
+def _one_at_a_time(advance_one, index: str | None, cache: bool, levels: int):
     """The driver of the one-at-a-time kernels: ``advance(lo, hi, state, t_target, max_steps,
-    key0, key1, path0, p, run) -> (steps, unfinished)`` over paths (or pairs) ``lo .. hi - 1``,
-    each the integrator's ``advance_one`` (``advance_path`` or ``advance_pair``), on ranges of
-    paths (:func:`_ranges`). ``index``: the kernel's name (:func:`own_index`; None: none, a
-    kernel compiled in memory only); ``cache``: whether it is cached on disk (built-in pieces).
-    ``pair``: ``state`` is a coupled pair's (:func:`integrator.state_positions`).
+    key0, key1, path0, p, run) -> (steps, unfinished)`` over paths (or coupled levels) ``lo ..
+    hi - 1``, each the integrator's ``advance_one`` (``advance_path``, ``advance_pair`` or
+    ``advance_levels[levels]``), on ranges of paths (:func:`_ranges`). ``index``: the kernel's
+    name (:func:`own_index`; None: none, a kernel compiled in memory only); ``cache``: whether
+    it is cached on disk (built-in pieces). ``levels``: the members in ``state`` (1: a path, 2:
+    a coupled pair; :func:`integrator.level_positions`).
 
     The driver tests each path's status and clock itself and calls the integrator only for a
     path still running. ``advance_one`` tests them too, but reaching that test is a call with
@@ -187,7 +188,7 @@ def _one_at_a_time(advance_one, index: str | None, cache: bool, pair: bool):
     are for paths that have landed (466 calls over 10**4 paths in benchmarks/revisions.py
     one-path): that made the one-path kernel about 4 % slower than 5319e81's ``prange`` kernel,
     whose loop had the integrator inlined."""
-    _, _, I_T, _, _, I_ST = integrator.state_positions(pair)
+    _, _, I_T, _, _, I_ST = integrator.level_positions(levels)
 
     def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
                 run):  # pragma: no cover - compiled
@@ -214,7 +215,7 @@ def path_kernel(spec: Spec):
     """``advance`` (the signature of :func:`advance_kernel`) one path at a time: ranges of
     paths, each the integrator's ``advance_path``. The driver of every Spec without a SIMD one;
     for a fast-math Spec, the reference the SIMD drivers agree with bit for bit (tests)."""
-    return _one_at_a_time(integrator.build(spec).advance_path, spec.label, spec.cacheable, False)
+    return _one_at_a_time(integrator.build(spec).advance_path, spec.label, spec.cacheable, 1)
 
 
 @functools.cache
@@ -228,7 +229,7 @@ def tracked_kernel(spec: Spec, accs: tuple):
     from stochpend import observables
 
     return _one_at_a_time(integrator.build(spec, observables.track_step(accs)).advance_path,
-                          None, False, False)
+                          None, False, 1)
 
 
 #: Pieces of work per worker: the workers take them one after the other, so that a worker that
@@ -380,9 +381,26 @@ def pair_advance_kernel(spec: Spec):
     return _pair_path_kernel(spec)
 
 
+@functools.cache
 def _pair_path_kernel(spec: Spec):
     return _one_at_a_time(integrator.build(spec).advance_pair, spec.label + "/pairs",
-                          spec.cacheable, True)
+                          spec.cacheable, 2)
+
+
+@functools.cache
+def levels_kernel(spec: Spec, levels: int):
+    """``advance(state, t_target, max_steps, key0, key1, path0, p, run) -> (draws_taken,
+    unfinished)``: ``levels`` coupled members (``integrator.build(spec).advance_levels``: steps
+    h, h/2, ..., h/2**(levels-1) driven by one noise path) one path at a time, ``state`` of
+    :func:`integrator.level_positions` (members 0 .. levels-1, then ``xi, xi_aux, t, t_comp, k,
+    status`` and the additive channel's arrays). ``levels`` 1 is :func:`path_kernel`, 2 the
+    bias estimate's one-pair kernel."""
+    if levels == 1:
+        return path_kernel(spec)
+    if levels == 2:
+        return _pair_path_kernel(spec)
+    return _one_at_a_time(integrator.build(spec).advance_levels[levels], f"{spec.label}/levels{levels}",
+                          spec.cacheable, levels)
 
 
 def _pair_lanes_kernel(spec: Spec):

@@ -314,8 +314,9 @@ def tracked_kernel(spec: Spec, accs: tuple):
 def pair_advance_kernel(spec: Spec):
     """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, run,
     unfinished)``: the integrator's ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate) for
-    one pair per thread, as :func:`advance_kernel` runs ``advance_path``."""
-    advance_pair = integrator.build(spec).advance_pair
+    one pair per thread, as :func:`advance_kernel` runs ``advance_path``; its device variant
+    ``device_levels[2]`` (the same operations, the draw tree's nodes left to NVVM to inline)."""
+    advance_pair = integrator.build(spec).device_levels[2]
 
     @cuda.jit(cache=spec.cacheable)
     @own_index(spec.label + "/pairs")
@@ -325,6 +326,33 @@ def pair_advance_kernel(spec: Spec):
         if i >= state[0].shape[0]:
             return
         _, u = advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, run)
+        if u != 0:
+            unfinished[0] = 1
+
+    return advance
+
+
+@functools.cache
+def levels_kernel(spec: Spec, levels: int):
+    """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, run,
+    unfinished)``: ``levels`` coupled members (the integrator's ``advance_levels[levels]``:
+    steps h, h/2, ..., h/2**(levels-1) driven by one noise path; ``state`` of
+    ``integrator.level_positions``) for one path per thread, as :func:`pair_advance_kernel`
+    (which is ``levels`` 2; 1 is :func:`advance_kernel`)."""
+    if levels == 1:
+        return advance_kernel(spec)
+    if levels == 2:
+        return pair_advance_kernel(spec)
+    advance_levels = integrator.build(spec).device_levels[levels]
+
+    @cuda.jit(cache=spec.cacheable)
+    @own_index(f"{spec.label}/levels{levels}")
+    def advance(state, t_target, max_steps, key0, key1, path0, p, run,
+                unfinished):  # pragma: no cover
+        i = cuda.grid(1)
+        if i >= state[0].shape[0]:
+            return
+        _, u = advance_levels(i, state, t_target, max_steps, key0, key1, path0, p, run)
         if u != 0:
             unfinished[0] = 1
 
@@ -955,12 +983,13 @@ def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: froze
 
 
 def _pair_advance_signature(noise: Any, oscillator: Any, terms: frozenset = frozenset(),
-                            additive: Any = None):
+                            additive: Any = None, levels: int = 2):
     sig = _advance_signature("float64", noise, oscillator, terms, additive)
     f64 = nbtypes.Array(nbtypes.float64, 1, "C")
     x, Omega, *rest = sig[0].types
-    # x, Omega, then the fine member's xf, Omegaf; path0 is a uint64 (2**63 + pair index)
-    return (nbtypes.Tuple((x, Omega, f64, f64, *rest)), *sig[1:5], nbtypes.uint64, *sig[6:])
+    # x, Omega, then the finer members' (the pair's fine member xf, Omegaf); path0 is a uint64
+    # (2**63 + pair index)
+    return (nbtypes.Tuple((x, Omega, *(f64, f64) * (levels - 1), *rest)), *sig[1:5], nbtypes.uint64, *sig[6:])
 
 
 def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str, object, tuple]]:
@@ -1027,4 +1056,31 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
             if precision == "float64":
                 out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
                             _pair_advance_signature(white, pendulum, terms, channel)))
-    return out + _other_kernels(precisions)
+    return out + _levels_kernels() + _other_kernels(precisions)
+
+
+def _levels_kernels() -> list[tuple[str, object, tuple]]:
+    """The coupled levels' kernels (:func:`levels_kernel`, 3 and 4 members; 2 is ``pairs``),
+    float64 as the pairs, labelled ``levels <Spec> [L=n]``: the paper's pendulum with each
+    built-in noise (adaptive steps), OU with fixed steps, the family's term sets of
+    :func:`kernel_variants` and the generic additive channel."""
+    from stochpend import noises, oscillators
+
+    builtin = {noise.name: noise for noise in noises.BUILTIN}
+    pendulum = oscillators.BUILTIN["pendulum"]
+    specs = [(Spec(pendulum, "force", noise, "float64", True), ()) for noise in noises.BUILTIN]
+    specs.append((Spec(pendulum, "force", builtin["ou"], "float64", False), ()))
+    for terms in (frozenset({"damping", "additive"}),
+                  frozenset({"damping", "additive", "torque", "drive", "parametric"}),
+                  frozenset({"damping", "additive_ou"})):
+        specs.append((Spec(pendulum, "force", builtin["white"], "float64", True, False, terms), ()))
+    for channel_name in ("harmonic", "dichotomous"):
+        channel = builtin[channel_name]
+        terms = frozenset({"damping", "additive_noise"})
+        specs.append((Spec(pendulum, "force", builtin["white"], "float64", True, False, terms, channel), ()))
+    out = []
+    for spec, _ in specs:
+        for levels in integrator.LEVELS[2:]:
+            out.append((f"levels {spec.label} [L={levels}]", levels_kernel(spec, levels).py_func,
+                        _pair_advance_signature(spec.noise, pendulum, spec.terms, spec.additive, levels)))
+    return out

@@ -1,0 +1,91 @@
+"""The coupled levels' cases (test_levels.py), and their run in Numba's CUDA simulator.
+
+Usage: ``NUMBA_ENABLE_CUDASIM=1 python _levels_cudasim.py OUT.npz``: every case of :data:`CASES`
+at every number of members of :data:`LEVELS`, advanced by the CUDA backend's ``levels_kernel``
+(one path per thread) from :func:`initial_state` to each time of :data:`TIMES` in launches of
+:data:`MAX_STEPS` steps; every array of the state saved as ``"<case>/<levels>/<position>"``.
+The simulator must be switched on before Numba is imported, so it runs in its own process.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from typing import Any
+
+import numpy as np
+
+#: Each case a configuration (``SimulationConfig.build``): one path's Spec with adaptive steps
+#: (no family terms), the family's time-dependent terms with the additive white noise and fixed
+#: steps, the additive OU channel and the generic channel (a harmonic noise) with adaptive steps.
+CASES: dict[str, dict[str, Any]] = {
+    "ou": dict(noise="ou", D=1.0, tau=1.0, omega=1.0, h_max=0.1, step_c=0.25),
+    "family": dict(noise="white", D=0.5, omega=1.0, h_max=0.1, step_c=0.0,
+                   dyn_params=dict(gamma=0.5, additive_D=0.4, torque=0.1, drive_amplitude=0.3,
+                                   drive_frequency=1.3, parametric_amplitude=0.2)),
+    "additive_ou": dict(noise="white", D=0.3, omega=1.0, h_max=0.1, step_c=0.25,
+                        dyn_params=dict(gamma=0.5, additive_D=0.4, additive_tau=1.0)),
+    "channel": dict(noise="white", D=0.5, omega=1.0, h_max=0.1, step_c=0.25, additive_noise="harmonic",
+                    dyn_params=dict(gamma=0.3, additive_D=0.4, additive_tau=0.5)),
+}
+LEVELS = (2, 3, 4)
+#: Output times (the second resumes where the first landed) and the steps of one call.
+TIMES = (0.75, 2.0)
+MAX_STEPS = 7
+PATHS = 6
+SEED = 2024
+#: The first global path, as the bias estimate's pairs have it (a uint64 from 2**63).
+PATH0 = np.uint64(2**63 + 17)
+
+
+def config(name: str):
+    from stochpend.params import SimulationConfig
+
+    return SimulationConfig.build(**CASES[name], paths=64, t_max=TIMES[-1], n_times=2, seed=SEED)
+
+
+def initial_state(cfg, levels: int, n: int = PATHS) -> tuple[np.ndarray, ...]:
+    """The state of ``levels`` members (``integrator.level_positions``) at t = 0: every member
+    at the same spread of (x, Omega), the noises at 0, then the additive channel's arrays."""
+    from stochpend import dynamics
+
+    x = np.linspace(-2.5, 2.5, n)
+    Omega = np.linspace(-1.0, 1.5, n)
+    members = [a.copy() for _ in range(levels) for a in (x, Omega)]
+    zeros = [np.zeros(n) for _ in range(4)]  # xi, xi_aux, t, t_comp
+    extra = [np.zeros(n) for _ in dynamics.additive_arrays(cfg)]
+    return (*members, *zeros, np.zeros(n, dtype=np.uint64), np.zeros(n, dtype=np.uint8), *extra)
+
+
+def main(out_path: str) -> None:
+    if os.environ.get("NUMBA_ENABLE_CUDASIM") != "1":
+        raise SystemExit("set NUMBA_ENABLE_CUDASIM=1 before running this script")
+    from numba import cuda
+
+    from stochpend import integrator, rng
+    from stochpend._backends import cuda as backend
+
+    out: dict[str, np.ndarray] = {}
+    for name in CASES:
+        cfg = config(name)
+        spec = integrator.Spec.of(cfg)
+        key0, key1 = rng.seed_to_key(cfg.seed)
+        for levels in LEVELS:
+            kernel = backend.levels_kernel(spec, levels)
+            state = tuple(cuda.to_device(a) for a in initial_state(cfg, levels))
+            flag = cuda.to_device(np.zeros(1, dtype=np.int32))
+            for t_target in TIMES:
+                while True:
+                    flag.copy_to_device(np.zeros(1, dtype=np.int32))
+                    kernel[1, PATHS](state, t_target, MAX_STEPS, key0, key1, PATH0,
+                                     spec.noise.record(cfg), integrator.run_record(cfg), flag)
+                    if int(flag.copy_to_host()[0]) == 0:
+                        break
+            for j, a in enumerate(state):
+                out[f"{name}/{levels}/{j}"] = a.copy_to_host()
+    np.savez(out_path, **out)
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
+    main(sys.argv[1])

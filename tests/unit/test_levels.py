@@ -1,0 +1,257 @@
+"""Coupled levels (issue 33, item 2): L members at steps h, h/2, ..., h/2**(L-1) driven by one
+noise path (``integrator.build(spec).advance_levels[L]``; the CPU's ``cpu.levels_kernel``, the
+CUDA backend's ``cuda.levels_kernel``).
+
+Each member must be a single run at its own step fed the summed noise increments. The reference
+here is that run written plainly: per coarse step it draws the finest member's ``2**(L-1)``
+exact noise steps (the integrator's per-draw leaves ``noise_step``, ``additive_step``,
+``ou_step``, ``channel_step``) into arrays, and member m takes its ``2**m`` steps of
+h/2**m (the integrator's ``verlet`` or ``family_step``) with the increments summed two by two, finest
+first: the sum a member uses is the sum of its two halves' sums. Bit for bit: a sequential sum
+(((I1 + I2) + I3) + I4) would differ from ((I1 + I2) + (I3 + I4)) in the last bits, and the
+sub-steps' start times are composed as the halvings compose them (t + h/2 + h/4), not t + 3h/4
+(which can round differently; only the drive's and the parametric term's phases read them).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from pathlib import Path
+
+import numba
+import numpy as np
+import pytest
+
+from stochpend import integrator, rng
+from stochpend._backends import cpu
+from stochpend._backends import cuda as gpu
+from stochpend.mathlib import LIBM
+from tests import _background
+from tests.unit import _levels_cudasim as cases
+
+HELPER = Path(__file__).with_name("_levels_cudasim.py")
+
+
+def _reference(spec):
+    """``reference(L, state, t_targets, key0, key1, path0, p, run) -> members (L, 2, n)``: the
+    members of L coupled levels, each advanced as a single run at its own step (see the module
+    docstring), from ``state`` (the layout of ``integrator.level_positions(L)``)."""
+    b = integrator.build(spec)
+    nz = spec.noise.kernel(np.float64, LIBM)
+    coefficients = nz.coefficients
+    scratch0 = nz.scratch0
+    noise_step = b.noise_step
+    verlet = b.verlet
+    family_step = b.family_step
+    step_size = b.step_size
+    family_bounds = b.family_bounds
+    additive_step = b.additive_step
+    ou_step = b.ou_step
+    additive_sum = b.additive_sum
+    channel_step = b.channel_step
+    a_coefficients = b.a_coefficients
+    a_scratch0 = b.a_scratch0
+    ou_coefficients = b.ou_coefficients
+    ou_record = b.ou_record
+    ADAPTIVE = spec.adaptive
+    FAMILY = bool(spec.terms)
+    ADDITIVE_OU = "additive_ou" in spec.terms
+    ADN = "additive_noise" in spec.terms
+
+    @numba.njit
+    def reference(L, x0, O0, xi0, xa0, xad0, xaa0, t_targets, key0, key1, path0, p, run):
+        n = x0.shape[0]
+        omega2, q, h_max, step_c = run[0], run[1], run[2], run[3]
+        d = run[4] if FAMILY else (0.0,)
+        pa = ou_record(d)
+        if ADN:  # the generic channel's record and key
+            pan, kan = run[5], run[6]
+        N = 1 << (L - 1)
+        out = np.empty((L, 2, n))
+        for i in range(n):
+            path = np.uint64(path0 + np.uint64(i))
+            mx = np.full(L, x0[i])
+            mO = np.full(L, O0[i])
+            xn, xa, S, xad = xi0[i], xa0[i], scratch0(), xad0[i]
+            if ADN:
+                xaa, Sa = xaa0[i], a_scratch0()
+            tt, tc, kk = 0.0, 0.0, np.uint64(0)
+            I = np.empty(N)
+            Z = np.empty(N)
+            for t_target in t_targets:
+                last = tt >= t_target
+                while not last:
+                    h = h_max
+                    if ADAPTIVE:
+                        h = step_size(mx[0], mO[0], xn, h_max, step_c, omega2, q)
+                        if FAMILY:
+                            h = family_bounds(h, step_c, d)
+                    h_clock, last = integrator.landing_step(tt, h, t_target)
+                    hf = h_clock / N
+                    C = coefficients(hf, p)
+                    Ca = ou_coefficients(hf, pa)
+                    if ADN:
+                        Can = a_coefficients(hf, pan)
+                    for j in range(N):  # the finest member's draws, in order
+                        n_j = kk + np.uint64(j)
+                        I[j], xn, xa, S = noise_step(key0, key1, path, n_j, xn, xa, S, C)
+                        if ADDITIVE_OU:
+                            Z[j], xad, _, _ = ou_step(key0, key1, path, n_j, xad, 0.0, 0, Ca)
+                        elif ADN:
+                            Z[j], xad, xaa, Sa = channel_step(kan[0], kan[1], path, n_j, xad, xaa, Sa, Can)
+                        else:
+                            Z[j], _, _, _ = additive_step(key0, key1, path, n_j, 0.0, 0.0, 0, C)
+                    Im, Zm, width = I.copy(), Z.copy(), N
+                    for m in range(L - 1, -1, -1):  # finest first; then sum two by two
+                        steps = 1 << m
+                        hm = h_clock / steps
+                        for s_ in range(steps):
+                            t0 = tt
+                            for bit in range(m):  # t + h/2 + h/4 ... for the bits of s_
+                                if (s_ >> (m - 1 - bit)) & 1:
+                                    t0 += h_clock / (2 << bit)
+                            if FAMILY:
+                                mx[m], mO[m] = family_step(mx[m], mO[m], hm, omega2, Im[s_], q, t0, hm, Zm[s_], d)
+                            else:
+                                mx[m], mO[m] = verlet(mx[m], mO[m], hm, omega2, Im[s_], q)
+                        width //= 2
+                        for j in range(width):
+                            Zm[j] = additive_sum(Zm[2 * j], Zm[2 * j + 1], hm, d)
+                            Im[j] = Im[2 * j] + Im[2 * j + 1]
+                    kk += np.uint64(N)
+                    tt, tc = integrator.advance_clock(tt, tc, h_clock, last, t_target)
+            for m in range(L):
+                out[m, 0, i] = mx[m]
+                out[m, 1, i] = mO[m]
+        return out
+
+    return reference
+
+
+def _run_cpu(name, levels, kernel=None):
+    cfg = cases.config(name)
+    spec = integrator.Spec.of(cfg)
+    kernel = kernel or cpu.levels_kernel(spec, levels)
+    state = cases.initial_state(cfg, levels)
+    key0, key1 = rng.seed_to_key(cfg.seed)
+    draws = 0
+    for t_target in cases.TIMES:
+        while True:
+            d, unfinished = kernel(state, t_target, cases.MAX_STEPS, key0, key1, cases.PATH0,
+                                   spec.noise.record(cfg), integrator.run_record(cfg))
+            draws += d
+            if unfinished == 0:
+                break
+    return state, draws
+
+
+@pytest.mark.parametrize("name", list(cases.CASES))
+def test_each_member_is_a_single_run_at_its_own_step_fed_the_summed_increments(name):
+    """L = 2, 3, 4 on the CPU (one path at a time), four Specs (OU with adaptive steps; the
+    family's time-dependent terms with the additive white noise, fixed steps; the additive OU
+    channel; the generic channel): every member equals the reference to the
+    last bit, the noise, clock and draw count too; the members differ (a coupled set, not one
+    path L times)."""
+    cfg = cases.config(name)
+    spec = integrator.Spec.of(cfg)
+    reference = _reference(spec)
+    key0, key1 = rng.seed_to_key(cfg.seed)
+    for levels in cases.LEVELS:
+        state, draws = _run_cpu(name, levels)
+        start = cases.initial_state(cfg, levels)
+        I_XI, _, I_T, _, I_K, I_ST = integrator.level_positions(levels)
+        extra = start[I_ST + 1:]  # the additive channel's xi_a (and aux_a)
+        xad0 = extra[0] if extra else np.zeros(cases.PATHS)
+        xaa0 = extra[1] if len(extra) > 1 else np.zeros(cases.PATHS)
+        ref = reference(levels, start[0], start[1], start[I_XI], start[I_XI + 1], xad0, xaa0,
+                        np.array(cases.TIMES), key0, key1, cases.PATH0, spec.noise.record(cfg),
+                        integrator.run_record(cfg))
+        for m in range(levels):
+            assert np.array_equal(state[2 * m], ref[m, 0]), (name, levels, m)
+            assert np.array_equal(state[2 * m + 1], ref[m, 1]), (name, levels, m)
+        assert np.all(state[I_T] == cases.TIMES[-1]) and not np.any(state[I_ST])
+        assert draws == int(np.sum(state[I_K])) and np.all(state[I_K] % 2 ** (levels - 1) == 0)
+        assert not np.array_equal(state[0], state[2 * (levels - 1)])
+
+
+def test_two_levels_are_the_bias_estimates_pair():
+    """L = 2 is ``advance_pair`` (the bias estimate's step loop) and its CPU kernel the one-pair
+    kernel; 1 is ``advance_path``. (The pair's numbers: the reference above at L = 2, and
+    test_bias's SIMD pair lanes against the one-pair kernel.)"""
+    spec = integrator.Spec.of(cases.config("ou"))
+    built = integrator.build(spec)
+    assert built.advance_levels[2] is built.advance_pair and built.advance_levels[1] is built.advance_path
+    assert cpu.levels_kernel(spec, 2) is cpu._pair_path_kernel(spec)
+    assert cpu.levels_kernel(spec, 1) is cpu.path_kernel(spec)
+    assert gpu.levels_kernel(spec, 2) is gpu.pair_advance_kernel(spec)
+    assert integrator.level_positions(2) == integrator.state_positions(True)
+    assert integrator.level_positions(1) == integrator.state_positions(False)
+
+
+# -- the CUDA simulator ----------------------------------------------------------------------------
+def background_run(folder: Path) -> _background.Command:
+    """Every case in the CUDA simulator (a subprocess, a few seconds), started with the session."""
+    root = Path(__file__).resolve().parents[2]
+    return _background.Command([sys.executable, str(HELPER), str(folder / "out.npz")],
+                                env={**os.environ, "NUMBA_ENABLE_CUDASIM": "1"}, cwd=root)
+
+
+@pytest.mark.gpu
+def test_cuda_simulator_levels_equal_the_cpu_bit_for_bit():
+    """The CUDA kernel (one path per thread, simulated) gives the CPU kernel's state exactly, for
+    every case and L = 2, 3, 4."""
+    run = _background.start(__name__, background_run)
+    done = run.wait(timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    sim = np.load(run.folder / "out.npz")
+    for name in cases.CASES:
+        for levels in cases.LEVELS:
+            state, _ = _run_cpu(name, levels)
+            for j, a in enumerate(state):
+                assert np.array_equal(sim[f"{name}/{levels}/{j}"], a), (name, levels, j)
+
+
+# -- the law of each member ------------------------------------------------------------------------
+def test_member_l_has_the_law_of_an_ordinary_run_at_step_h_over_2_to_the_l():
+    """Fixed steps h = 0.6 (omega h = 1.2, the harmonic oscillator with white noise on the
+    force): member l of L = 4 and an independent ordinary run (another seed, ``advance_path``) at
+    h/2**l have the same mean energy at t = 2 and 4 (|z| < 4, z the difference in standard
+    errors). The test can fail: the coarsest member against the finest step's run is about 10
+    standard errors apart (the scheme's energy bias at omega h = 1.2)."""
+    from stochpend.params import SimulationConfig
+
+    n, h, L, omega = 4000, 0.6, 4, 2.0
+    cfg_kw = dict(noise="white", D=0.5, omega=omega, potential="harmonic", step_c=0.0, paths=n,
+                  t_max=4.0, n_times=2)
+
+    def energies(state):
+        return [0.5 * state[2 * m + 1] ** 2 + 0.5 * omega**2 * state[2 * m] ** 2
+                for m in range(len(state) // 2 - 3)]
+
+    cfg = SimulationConfig.build(**cfg_kw, h_max=h, seed=5)
+    spec = integrator.Spec.of(cfg)
+    state = cases.initial_state(cfg, L, n)
+    key0, key1 = rng.seed_to_key(cfg.seed)
+    members = {}
+    for t_target in (2.0, 4.0):
+        cpu.levels_kernel(spec, L)(state, t_target, 10**6, key0, key1, np.uint64(0), spec.noise.record(cfg),
+                                   integrator.run_record(cfg))
+        members[t_target] = energies(state)
+    ordinary = {}
+    for level in range(L):
+        c = SimulationConfig.build(**cfg_kw, h_max=h / 2**level, seed=6)
+        paths = cases.initial_state(c, 1, n)
+        k0, k1 = rng.seed_to_key(c.seed)
+        for t_target in (2.0, 4.0):
+            cpu.path_kernel(spec)(paths, t_target, 10**6, k0, k1, 0, spec.noise.record(c), integrator.run_record(c))
+            ordinary[t_target, level] = energies(paths)[0]
+
+    def z(a, b):
+        return (a.mean() - b.mean()) / math.sqrt(a.var() / a.size + b.var() / b.size)
+
+    for t_target in (2.0, 4.0):
+        for level in range(L):
+            assert abs(z(members[t_target][level], ordinary[t_target, level])) < 4, (t_target, level)
+    assert abs(z(members[4.0][0], ordinary[4.0, L - 1])) > 4
