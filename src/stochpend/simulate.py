@@ -179,7 +179,7 @@ def simulate(
     target_error : float, optional
         Ask for an accuracy instead of paths and a step: the relative total error (statistical
         half-width plus a bound on the discretisation bias) of each of ``target_statistics`` at
-        each of ``target_times``, at confidence ``target_confidence``, met at least cost by
+        each of ``target_times``, at confidence ``target_confidence``, met by
         multilevel Monte Carlo on coupled levels with fixed steps h_max/2**l
         (:mod:`stochpend.multilevel`, docs/numerics.md). ``paths``, ``step_c``, ``bias_paths``
         are then not used; the result is the multilevel Dataset (below).
