@@ -133,7 +133,8 @@ def _public_functions() -> list[Any]:
 
 
 #: "default 1000", "(default: 0.5)", "default ``40``" in a parameter's text.
-_DEFAULT_IN_WORDS = re.compile(r"\bdefault:? (?:``)?(-?\d[\d_.]*(?:e[+-]?\d+)?)(?:``)?(?![\w.])")
+# A number's digits, decimals and exponent; a full stop after it ends the sentence ("default 0.95.").
+_DEFAULT_IN_WORDS = re.compile(r"\bdefault:? (?:``)?(-?\d[\d_]*(?:\.[\d_]+)?(?:e[+-]?\d+)?)(?:``)?(?!\w|\.\d)")
 
 
 def _stale_defaults(fn: Any) -> list[str]:
