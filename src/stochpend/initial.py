@@ -111,7 +111,7 @@ def boltzmann(config: Any, path0: int, n: int) -> tuple[np.ndarray, np.ndarray]:
     q = oscillator.record(config)
     x = np.empty(n)
     Omega = np.empty(n)
-    key0, key1 = config.keys.main
+    key0, key1 = rng.run_keys(config.seed).main
     omega2 = float(config.omega) ** 2
     _kernel(oscillator)(x, Omega, key0, key1, np.uint64(path0), T, omega2, q, float(oscillator.energy_floor(q)))
     if oscillator.name == "power":  # x holds +-u: |x| = (m T y/omega^2)^(1/m), y = P^-1(1/m, u)
@@ -153,7 +153,7 @@ def additive_state(config: Any, path0: int, n: int) -> np.ndarray:
         return out
     pairs = getattr(config, "dyn_params", ())
     scale = math.sqrt(dynamics.value(pairs, "additive_D") / (2.0 * dynamics.value(pairs, "additive_tau")))
-    key0, key1 = config.keys.main
+    key0, key1 = rng.run_keys(config.seed).main
     _additive_draw(out, key0, key1, np.uint64(path0), scale)
     return out
 
@@ -187,6 +187,6 @@ def additive_states(config: Any, path0: int, n: int) -> tuple[np.ndarray, ...]:
     noise = dynamics.channel(config)
     xa = np.zeros(n)
     aux = np.zeros(n)
-    key0, key1 = config.keys.additive
+    key0, key1 = rng.run_keys(config.seed).additive
     _channel_init(noise)(xa, aux, key0, key1, np.uint64(path0), dynamics.channel_record(config))
     return xa, aux

@@ -160,7 +160,7 @@ def run_record(config: Any) -> tuple[Any, ...]:
     terms = _dynamics.terms_of_config(config)
     if "additive_noise" in terms:  # the generic additive channel: its noise's record, its key
         return (*run, _dynamics.record(config), _dynamics.channel_record(config),
-                config.keys.additive)
+                rng.run_keys(config.seed).additive)
     if terms:  # terms on: their record d
         return (*run, _dynamics.record(config))
     return run
