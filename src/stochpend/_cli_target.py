@@ -25,18 +25,14 @@ def simulate_target(config: Any, *, target_error: float, target_confidence: floa
                     rtol: Any, out: Path | None, overwrite: bool, quiet: bool, config_file: Path | None,
                     ctx: Any) -> None:
     """Validate (one line, exit 2, before any work), run, print the table, write ``out``."""
-    from stochpend import io, multilevel, resources
+    from stochpend import io, multilevel
     from stochpend.simulate import resolve_backend
 
     if isinstance(target_times, str):
         target_times = _times(target_times)
-    target = multilevel.check_target(config, target_error, target_confidence, target_statistics, target_times)
-    if accuracy != "fixed" or rtol is not None:
-        raise ValueError(f"accuracy={accuracy!r} is not accepted with --target-error: the target chooses "
-                         "the steps itself; leave --accuracy fixed and --rtol unset")
-    if precision != "float64":
-        raise ValueError(f"precision={precision!r} is not accepted with --target-error: float64")
-    resources.work_limit(max_path_steps)
+    target = multilevel.check_run(config, target_error, target_confidence, target_statistics, target_times,
+                                  accuracy=accuracy, rtol=rtol, precision=precision,
+                                  max_path_steps=max_path_steps, cli=True)
     backend = resolve_backend(backend, note=note)
     ds = multilevel.target_run(config, target, backend=backend, max_path_steps=max_path_steps,
                                note=None if quiet else note)

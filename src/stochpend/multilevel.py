@@ -177,6 +177,26 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
 
 
 # -- streams ----------------------------------------------------------------------------------------
+def check_run(config: SimulationConfig, target_error: Any, target_confidence: Any, target_statistics: Any,
+              target_times: Any, *, accuracy: Any, rtol: Any, precision: Any, max_path_steps: Any,
+              cli: bool = False) -> Target:
+    """Everything a target run is refused for, before any work (one line each): the target
+    (:func:`check_target`), an accuracy setting beside it, a precision other than float64, a bad
+    work limit. ``cli``: name the options as the command line spells them."""
+    from stochpend import resources
+
+    target = check_target(config, target_error, target_confidence, target_statistics, target_times)
+    if accuracy != "fixed" or rtol is not None:
+        leave = "leave --accuracy fixed and --rtol unset" if cli else "leave accuracy='fixed' and rtol unset"
+        raise ValueError(f"accuracy={accuracy!r} is not accepted with {'--target-error' if cli else 'target_error'}: "
+                         f"the target chooses the steps itself; {leave}")
+    if precision != "float64":
+        raise ValueError(f"precision={precision!r} is not accepted with "
+                         f"{'--target-error' if cli else 'target_error'}: float64")
+    resources.work_limit(max_path_steps)
+    return target
+
+
 def level_seed(seed: int, level: int, round_: int) -> int:
     """The seed of level ``level``'s samples of round ``round_``: a fixed function of the run's
     seed, distinct (with probability 1 - 2**-64 per pair) from the run's seed and from every other

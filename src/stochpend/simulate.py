@@ -244,16 +244,12 @@ def _target(config: SimulationConfig, target_error: Any, target_confidence: Any,
             max_path_steps: Any) -> xr.Dataset:
     """``simulate(target_error=...)``: validated before any work, then
     :func:`stochpend.multilevel.target_run`."""
-    from stochpend import multilevel, resources
+    from stochpend import multilevel
     from stochpend._warnings import StochpendWarning
 
-    target = multilevel.check_target(config, target_error, target_confidence, target_statistics, target_times)
-    if accuracy != "fixed" or rtol is not None:
-        raise ValueError(f"accuracy={accuracy!r} is not accepted with target_error: the target "
-                         "chooses the steps itself; leave accuracy='fixed' and rtol unset")
-    if precision != "float64":
-        raise ValueError(f"precision={precision!r} is not accepted with target_error: float64")
-    resources.work_limit(max_path_steps)
+    target = multilevel.check_run(config, target_error, target_confidence, target_statistics, target_times,
+                                  accuracy=accuracy, rtol=rtol, precision=precision,
+                                  max_path_steps=max_path_steps)
     ds = multilevel.target_run(config, target, backend=resolve_backend(backend), max_path_steps=max_path_steps)
     missed = int(ds.attrs["target_entries"]) - int(ds.attrs["target_certified"])
     if missed:
