@@ -314,22 +314,10 @@ def tracked_kernel(spec: Spec, accs: tuple):
 def pair_advance_kernel(spec: Spec):
     """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, run,
     unfinished)``: the integrator's ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate) for
-    one pair per thread, as :func:`advance_kernel` runs ``advance_path``; its device variant
-    ``device_levels[2]`` (the same operations, the draw tree's nodes left to NVVM to inline)."""
-    advance_pair = integrator.build(spec).device_levels[2]
-
-    @cuda.jit(cache=spec.cacheable)
-    @own_index(spec.label + "/pairs")
-    def advance(state, t_target, max_steps, key0, key1, path0, p, run,
-                unfinished):  # pragma: no cover
-        i = cuda.grid(1)
-        if i >= state[0].shape[0]:
-            return
-        _, u = advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, run)
-        if u != 0:
-            unfinished[0] = 1
-
-    return advance
+    one pair per thread, as :func:`advance_kernel` runs ``advance_path``: :func:`levels_kernel` with
+    2 members (its device variant ``device_levels[2]``: the same operations, the draw tree's nodes
+    left to NVVM to inline)."""
+    return levels_kernel(spec, 2)
 
 
 @functools.cache
@@ -337,16 +325,15 @@ def levels_kernel(spec: Spec, levels: int):
     """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, run,
     unfinished)``: ``levels`` coupled members (the integrator's ``advance_levels[levels]``:
     steps h, h/2, ..., h/2**(levels-1) driven by one noise path; ``state`` of
-    ``integrator.level_positions``) for one path per thread, as :func:`pair_advance_kernel`
-    (which is ``levels`` 2; 1 is :func:`advance_kernel`)."""
+    ``integrator.level_positions``) for one path per thread, as :func:`advance_kernel` runs one
+    path (``levels`` 1 is that kernel; 2 the bias estimate's pairs, cached under "/pairs")."""
     if levels == 1:
         return advance_kernel(spec)
-    if levels == 2:
-        return pair_advance_kernel(spec)
     advance_levels = integrator.build(spec).device_levels[levels]
+    label = spec.label + ("/pairs" if levels == 2 else f"/levels{levels}")
 
     @cuda.jit(cache=spec.cacheable)
-    @own_index(f"{spec.label}/levels{levels}")
+    @own_index(label)
     def advance(state, t_target, max_steps, key0, key1, path0, p, run,
                 unfinished):  # pragma: no cover
         i = cuda.grid(1)
