@@ -129,3 +129,35 @@ def test_lane_machine_refuses_a_spec_it_cannot_run():
         assert not integrator.lanes_supported(spec)
         with pytest.raises(ValueError, match="lanes_supported"):
             integrator.build_lanes(spec)
+
+
+@pytest.mark.parametrize("driver", ["lanes", "paths"])
+def test_the_pool_only_runs_kernels_compiled_on_the_calling_thread(monkeypatch, driver):
+    """A Ctrl-C while a kernel compiles ends the call at once only if the compile runs on the
+    calling thread (the pool's threads cannot be interrupted, and the caller waits for them):
+    CI's Ctrl-C test once waited over 60 s for a pool thread's cold compile. Every submission
+    to the pool finds the kernel compiled, for the very signature the call dispatches to (one
+    overload: no second compile)."""
+    spec = integrator.spec("ou", adaptive=True, fast_math=True)
+    if driver == "lanes":
+        kernel = cpu._lanes_kernel(spec)  # a new dispatcher: nothing compiled in this process
+        advance = cpu._with_workers(kernel, (integrator.LANE_F_ROWS, integrator.LANE_COUNT),
+                                    (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
+                                    (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
+    else:
+        advance = cpu._one_at_a_time(integrator.build(spec).advance_path, None, False, 1)
+        kernel = advance.kernel
+    assert not kernel.overloads
+    seen = []
+    pool = cpu._pool()
+
+    class Watching:
+        def submit(self, fn, *args):
+            seen.append(len(kernel.overloads))
+            return pool.submit(fn, *args)
+
+    kern = types.SimpleNamespace(init=cpu.kernels(spec).init, advance=advance, spec=spec)
+    # watched from after the paths' initialisation (a kernel of its own) on
+    _run(kern, 130, threads=2, setup=lambda p: monkeypatch.setattr(cpu, "_pool", Watching))
+    assert seen and set(seen) == {1}, seen
+    assert len(kernel.overloads) == 1

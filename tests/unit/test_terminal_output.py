@@ -309,21 +309,26 @@ def test_ctrl_c_leaves_the_interrupted_line_last_and_the_prompt_on_its_own_line(
                             stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True)
     os.close(slave)
     out, sent, start = b"", False, time.monotonic()
-    while time.monotonic() - start < 300:
-        ready, _, _ = select.select([master], [], [], 0.5)
-        if ready:
-            try:
-                data = os.read(master, 65536)
-            except OSError:
-                break
-            if not data:
-                break
-            out += data
-        if not sent and b"ETA" in out:  # the bar is drawn: interrupt as a user's Ctrl-C does
-            proc.send_signal(signal.SIGINT)
-            sent = True
-    proc.wait(timeout=60)
-    os.close(master)
+    try:
+        while time.monotonic() - start < 300:
+            ready, _, _ = select.select([master], [], [], 0.5)
+            if ready:
+                try:
+                    data = os.read(master, 65536)
+                except OSError:
+                    break
+                if not data:
+                    break
+                out += data
+            if not sent and b"ETA" in out:  # the bar is drawn: interrupt as a user's Ctrl-C does
+                proc.send_signal(signal.SIGINT)
+                sent = True
+        proc.wait(timeout=60)
+    finally:  # a run that outlives the test would end another test (its Popen's ResourceWarning)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        os.close(master)
     assert sent and proc.returncode == 130, out[-2000:]
     after = out[out.rindex(b"interrupted"):]
     assert b"ETA" not in after and b"simulating" not in after, after

@@ -144,6 +144,8 @@ def _ranges(kernel, items: int = 0, summed: bool = False):
         n_items = (rows[0] if isinstance(rows, tuple) else rows).shape[0]
         nw = max(1, min(numba.get_num_threads(), n_items))
         size = -(-n_items // nw)
+        if nw > 1:
+            _compile_here(kernel, (0, n_items, *args))
         done = _on_workers(lambda w: kernel(min(w * size, n_items),
                                             min((w + 1) * size, n_items), *args), nw)
         if summed:  # (steps, unfinished) of each range
@@ -317,6 +319,17 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_forget_pool)
 
 
+def _compile_here(kernel, args: tuple) -> None:
+    """Compile ``kernel`` for ``args`` (or load it from the cache) on the calling thread, before
+    :func:`_on_workers` hands it to the pool. Left to the first worker that calls it, the
+    compile could run on a pool thread, which an interrupted caller must wait for: Ctrl-C in a
+    cold, busy run (CI's Ctrl-C test: over 60 s) then waited for that compile and the worker's
+    share of the call. Here it is the caller's own work, which Ctrl-C ends at once."""
+    signature = tuple(kernel.typeof_pyval(a) for a in args)
+    if signature not in kernel.overloads:
+        kernel.compile(signature)
+
+
 def _on_workers(call, nw: int) -> list:
     """``[call(w) for w in range(nw)]``, worker 0 on this thread and the others on the pool
     (the kernels release the GIL). Returns only when every worker has returned, also on
@@ -356,6 +369,8 @@ def _with_workers(kernel, f_shape, u_shape, i_shape, items=None):
         us = np.empty((nw, *u_shape), dtype=np.uint64)
         js = np.empty((nw, *i_shape), dtype=np.int64)
         next_piece = np.zeros(1, dtype=np.int64)
+        if nw > 1:
+            _compile_here(kernel, (state, *args, (fs[0], us[0], js[0]), next_piece, nw))
         done = _on_workers(lambda w: kernel(state, *args, (fs[w], us[w], js[w]), next_piece, nw),
                            nw)
         return sum(d[0] for d in done), sum(d[1] for d in done)
