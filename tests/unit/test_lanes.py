@@ -161,3 +161,28 @@ def test_the_pool_only_runs_kernels_compiled_on_the_calling_thread(monkeypatch, 
     _run(kern, 130, threads=2, setup=lambda p: monkeypatch.setattr(cpu, "_pool", Watching))
     assert seen and set(seen) == {1}, seen
     assert len(kernel.overloads) == 1
+
+
+def test_ctrl_c_in_the_callers_share_stops_the_other_workers_taking_pieces():
+    """On an exception in worker 0 (the caller's thread: Ctrl-C), ``_on_workers`` calls ``stop``
+    before it waits, so the pool's workers finish the piece under way and take no more: the
+    wait is for one piece, not for the rest of the call."""
+    import time
+
+    next_piece, taken, pieces = np.zeros(1, dtype=np.int64), [], 1000
+
+    def call(w):
+        if w == 0:
+            time.sleep(0.05)
+            raise KeyboardInterrupt
+        while True:
+            piece = int(next_piece[0])  # the GIL makes this read-and-add atomic enough here
+            next_piece[0] += 1
+            if piece >= pieces:
+                return None
+            taken.append(piece)
+            time.sleep(0.01)
+
+    with pytest.raises(KeyboardInterrupt):
+        cpu._on_workers(call, 2, stop=lambda: next_piece.fill(cpu._NO_MORE_PIECES))
+    assert 0 < len(taken) < pieces // 10, len(taken)

@@ -330,19 +330,24 @@ def _compile_here(kernel, args: tuple) -> None:
         kernel.compile(signature)
 
 
-def _on_workers(call, nw: int) -> list:
+def _on_workers(call, nw: int, stop=None) -> list:
     """``[call(w) for w in range(nw)]``, worker 0 on this thread and the others on the pool
     (the kernels release the GIL). Returns only when every worker has returned, also on
     Ctrl-C, so no worker is still writing the arrays when the caller goes on (a checkpoint, an
-    error)."""
+    error). ``stop``: called when the caller's share ends in an exception (Ctrl-C), to tell the
+    others to take no more work, so that the wait is for the pieces under way only."""
     if nw == 1:
         return [call(0)]
     from concurrent.futures import wait
 
     futures = [_pool().submit(call, w) for w in range(1, nw)]
+    failed = True
     try:
         first = call(0)
+        failed = False
     finally:
+        if failed and stop is not None:
+            stop()
         interrupted = None
         while True:
             try:
@@ -353,6 +358,10 @@ def _on_workers(call, nw: int) -> list:
         if interrupted is not None:
             raise interrupted
     return [first, *(future.result() for future in futures)]
+
+
+#: A piece number past any call's last (``_take`` then hands out none): the workers stop.
+_NO_MORE_PIECES = 1 << 62
 
 
 def _with_workers(kernel, f_shape, u_shape, i_shape, items=None):
@@ -372,7 +381,7 @@ def _with_workers(kernel, f_shape, u_shape, i_shape, items=None):
         if nw > 1:
             _compile_here(kernel, (state, *args, (fs[0], us[0], js[0]), next_piece, nw))
         done = _on_workers(lambda w: kernel(state, *args, (fs[w], us[w], js[w]), next_piece, nw),
-                           nw)
+                           nw, stop=lambda: next_piece.fill(_NO_MORE_PIECES))
         return sum(d[0] for d in done), sum(d[1] for d in done)
 
     advance.kernel = kernel
