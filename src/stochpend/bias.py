@@ -241,27 +241,47 @@ def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | Non
 def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_pairs: int,
               backend: str, compile_clock: CompileClock) -> BiasEstimate:
     started = _time.perf_counter()
+    batch_size = -(-n_paths // min(BIAS_BATCHES, n_paths))
+    n_batches = -(-n_paths // batch_size)  # the batches that hold pairs
+    sums, path_steps = pair_sums(config, n_paths, n_batches, backend=backend, progress=progress,
+                                 chunk_pairs=chunk_pairs)
+    bias, coarse = _statistics(sums, observables.STATISTICS + observables.user_statistics(config.observables))
+    nonfinite = sums[:, :, 0, stats.S_NONFINITE].sum(axis=0).astype(np.int64)
+    return BiasEstimate(np.asarray(config.times, dtype=np.float64), bias, coarse, n_paths, path_steps,
+                        _time.perf_counter() - started - compile_clock.seconds, nonfinite, config.h_max,
+                        config.step_c, n_batches, _decorrelation(bias, coarse, len(config.times)))
+
+
+def pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, *, backend: str = "cpu",
+              progress: Progress | None = None, chunk_pairs: int = CHUNK_PAIRS,
+              what: str = "bias estimate") -> tuple[np.ndarray, int]:
+    """The coarse and fine members' per-batch sums, shape (n_batches, n_times, 2, n_sums)
+    (member 0 coarse, 1 fine; batches of ceil(n_pairs / n_batches) pairs), of ``n_pairs``
+    coupled pairs of ``config`` (pairs ``BIAS_PATH0 + i`` of its seed), and the path-steps they
+    took: the one host loop of the pairs, for the bias estimate and the multilevel target's
+    levels (:mod:`stochpend.multilevel`). In float64, on ``backend``'s pair driver, with the
+    run's Spec; the numbers do not depend on ``chunk_pairs`` or the threads. ``what``: the
+    progress bar's label."""
     spec = pair_spec(config, backend)
     from stochpend import integrator
     from stochpend._backends import cpu
 
+    progress = progress or NoProgress()
     accumulate = cpu.accumulate_kernel(spec, config.observables)  # the run's own (compiled once for both)
     n_tracks = len(observables.accumulators(observables.objects(config.observables)))
     times = np.asarray(config.times, dtype=np.float64)
-    n_batches = min(BIAS_BATCHES, n_paths)
-    batch_size = -(-n_paths // n_batches)
-    n_batches = -(-n_paths // batch_size)
+    batch_size = -(-n_pairs // n_batches)
     chunk_batches = max(1, chunk_pairs // batch_size)
     sums = np.zeros((n_batches, times.size, 2, observables.n_sums(config)))
     c = config
     draws = 0
-    progress.start(n_paths * c.t_max, "bias estimate")
+    progress.start(n_pairs * c.t_max, what)
     done_work = 0.0
     q = integrator.run_record(c)[1]  # the oscillator's record
     for b0 in range(0, n_batches, chunk_batches):
         b1 = min(b0 + chunk_batches, n_batches)
         p0 = b0 * batch_size
-        n = min(b1 * batch_size, n_paths) - p0
+        n = min(b1 * batch_size, n_pairs) - p0
         pairs = (_GpuPairs if backend == "cuda" else _CpuPairs)(config, spec, p0, n)
         max_steps = max(1000, _WORK_PER_CALL // max(n, 1))
         hist = np.zeros((b1 - b0, 2), dtype=np.int64)  # the run's kernel counts; not used
@@ -279,12 +299,7 @@ def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_
     progress.finish()
     # A coarse step is one draw, each fine half step one: draws count the fine steps, and
     # the coarse steps are half as many.
-    path_steps = draws + draws // 2
-    bias, coarse = _statistics(sums, observables.STATISTICS + observables.user_statistics(config.observables))
-    nonfinite = sums[:, :, 0, stats.S_NONFINITE].sum(axis=0).astype(np.int64)
-    return BiasEstimate(times, bias, coarse, n_paths, path_steps,
-                        _time.perf_counter() - started - compile_clock.seconds, nonfinite, c.h_max, c.step_c, n_batches,
-                        _decorrelation(bias, coarse, times.size))
+    return sums, draws + draws // 2
 
 
 class _CpuPairs:

@@ -299,7 +299,8 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, cols: n
         return Round(_counts(n, stop, T), stop, cfg.t_max, int(path_steps), seed, n_b, f, f_var,
                      nan, nan.copy(), f, f_var, nonfinite)
     cfg = replace(bias.refined(cfg, level - 1), seed=seed)
-    sums, path_steps = _pair_sums(cfg, n, n_b, backend, progress)  # (B, T', 2, n_sums)
+    sums, path_steps = bias.pair_sums(cfg, n, n_b, backend=backend, progress=progress,
+                                      what=f"level {level}")  # (B, T', 2, n_sums)
     f, f_var = _jackknife(sums, lambda m: _st(m[..., 1, cols]))
     c, c_var = _jackknife(sums, lambda m: _st(m[..., 0, cols]))
     y, y_var = _jackknife(sums, lambda m: _st(m[..., 1, cols] - m[..., 0, cols]))
@@ -336,45 +337,6 @@ def _target_config(config: SimulationConfig, target: Target) -> SimulationConfig
     return replace(config, step_c=0.0, paths=PILOT_SAMPLES, times=tuple(float(t) for t in target.times),
                    t_max=float(target.times[-1]), hist_E_max=tuple(config.hist_E_max[i] for i in idx),
                    joint_Omega_max=tuple(config.joint_Omega_max[i] for i in idx) if config.joint_Omega_max else ())
-
-
-def _pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, backend: str,
-               progress: Progress | None) -> tuple[np.ndarray, int]:
-    """The coarse and fine members' per-batch sums (n_batches, n_times, 2, n_sums) of
-    ``n_pairs`` coupled pairs of ``config`` and the path-steps they took: the loop of
-    :func:`stochpend.bias.estimate`, keeping the sums (its batches are the jackknife's)."""
-    from stochpend import integrator
-    from stochpend._backends import cpu
-    from stochpend.progress import NoProgress
-
-    progress = progress or NoProgress()
-    spec = bias.pair_spec(config, backend)
-    accumulate = cpu.accumulate_kernel(spec, config.observables)
-    n_tracks = len(observables.accumulators(observables.objects(config.observables)))
-    times = np.asarray(config.times, dtype=np.float64)
-    batch_size = -(-n_pairs // n_batches)
-    chunk_batches = max(1, bias.CHUNK_PAIRS // batch_size)
-    sums = np.zeros((n_batches, times.size, 2, observables.n_sums(config)))
-    q = integrator.run_record(config)[1]
-    draws = 0
-    for b0 in range(0, n_batches, chunk_batches):
-        b1 = min(b0 + chunk_batches, n_batches)
-        p0 = b0 * batch_size
-        n = min(b1 * batch_size, n_pairs) - p0
-        pairs = (bias._GpuPairs if backend == "cuda" else bias._CpuPairs)(config, spec, p0, n)
-        max_steps = max(1000, bias._WORK_PER_CALL // max(n, 1))
-        hist = np.zeros((b1 - b0, 2), dtype=np.int64)
-        tracks = np.zeros((n_tracks, n))
-        for j, t_target in enumerate(times):
-            while not pairs.advance(float(t_target), max_steps):
-                pass
-            x, Omega, xf, Omegaf, xi, t, status = pairs.members()
-            bias._accumulate_pairs(accumulate, x, Omega, xf, Omegaf, xi, t, status, config.omega**2, q,
-                                   batch_size, sums[b0:b1, j], hist, tracks)
-            pairs.set_status(status)
-        draws += pairs.draws()
-    # One draw a fine half step; the coarse steps are half as many (bias.estimate's count).
-    return sums, draws + draws // 2
 
 
 # -- a level's rounds together ----------------------------------------------------------------------
