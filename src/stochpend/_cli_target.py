@@ -23,7 +23,7 @@ def _times(text: str | None) -> list[float] | None:
 def simulate_target(config: Any, *, target_error: float, target_confidence: float, target_statistics: str | None,
                     target_times: Any, backend: str, precision: str, max_path_steps: Any, accuracy: str,
                     rtol: Any, out: Path | None, overwrite: bool, quiet: bool, config_file: Path | None,
-                    ctx: Any) -> None:
+                    ctx: Any, max_seconds: Any = None) -> None:
     """Validate (one line, exit 2, before any work), run, print the table, write ``out``."""
     from stochpend import io, multilevel
     from stochpend.simulate import resolve_backend
@@ -32,10 +32,10 @@ def simulate_target(config: Any, *, target_error: float, target_confidence: floa
         target_times = _times(target_times)
     target = multilevel.check_run(config, target_error, target_confidence, target_statistics, target_times,
                                   accuracy=accuracy, rtol=rtol, precision=precision,
-                                  max_path_steps=max_path_steps, cli=True)
+                                  max_path_steps=max_path_steps, max_seconds=max_seconds, cli=True)
     backend = resolve_backend(backend, note=note)
     ds = multilevel.target_run(config, target, backend=backend, max_path_steps=max_path_steps,
-                               note=None if quiet else note)
+                               max_seconds=max_seconds, note=None if quiet else note)
     ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
     if config_file is not None and ctx is not None:
         ds.attrs["config_file"] = str(config_file)

@@ -198,7 +198,7 @@ CONFIG_KEYS = ("noise", "D", "tau", "omega_noise", "omega", "potential", "n", "c
                "n_times", "times", "seed", "theta0", "Omega0", "h_max", "step_c", "hist_bins", "bias_paths",
                "accuracy", "rtol", "max_path_steps", "backend", "precision", "threads", "joint_bins",
                "joint_x_range", "joint_Omega_max", "additive_noise", "target_error", "target_confidence",
-               "target_statistics", "target_times")
+               "target_statistics", "target_times", "max_seconds")
 _CONFIG_REFUSED = {"out": "the output file is named on the command line (--out)",
                    "overwrite": "only the command line that runs may allow overwriting (--overwrite)",
                    "checkpoint": "the checkpoint file is named on the command line (--checkpoint)",
@@ -327,6 +327,7 @@ def simulate(
     target_confidence: Annotated[float, typer.Option("--target-confidence", help="Confidence of --target-error's total error, in (0.5, 1).")] = 0.95,
     target_statistics: Annotated[str | None, typer.Option("--target-statistics", metavar="NAMES", help="With --target-error: the means to control, comma-separated (mean_E, mean_E2, ... or mean_<observable>).", show_default="mean_E,mean_E2")] = None,
     target_times: Annotated[str | None, typer.Option("--target-times", metavar="TIMES", help="With --target-error: the output times to control, comma-separated, among the run's.", show_default="every output time")] = None,
+    max_seconds: Annotated[str | None, typer.Option("--max-seconds", metavar="DURATION", help="With --target-error: the wall-time budget (90, 30s, 5m, 1h30m); a target that would take longer at this machine's rate is refused before that work, saying what it would take.", show_default="none")] = None,
     config_file: Annotated[Path | None, typer.Option("--config", parser=file_name, is_eager=True, callback=_load_config,
                                                 help="A TOML file of physics and numerics options, by their names here "
                                                 "(noise, D, tau, t_max, paths, h_max, ...); options on the command "
@@ -370,6 +371,7 @@ def simulate(
         Omega0=Omega0, observables=tuple(observable or ()), **kwargs,
     )
     if target_error is not None:
+        from stochpend._cli_scale import parse_duration
         from stochpend._cli_target import simulate_target
 
         if checkpoint is not None or checkpoint_every is not None:
@@ -379,8 +381,12 @@ def simulate(
                         target_statistics=target_statistics, target_times=target_times,
                         backend=backend, precision=precision, max_path_steps=max_path_steps,
                         accuracy=accuracy, rtol=rtol, out=out, overwrite=overwrite, quiet=quiet,
-                        config_file=config_file, ctx=ctx)
+                        config_file=config_file, ctx=ctx,
+                        max_seconds=None if max_seconds is None else parse_duration(str(max_seconds), "max_seconds"))
         return
+    if max_seconds is not None:
+        raise ValueError(f"max_seconds={max_seconds!r} is not accepted without --target-error: the "
+                         "wall-time budget is a target run's (bound other runs' work with --max-path-steps)")
     from stochpend import bias as _bias
 
     accuracy, rtol = _bias.check_accuracy(accuracy, rtol)

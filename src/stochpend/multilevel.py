@@ -44,8 +44,15 @@ not send its many paths on to t_max.
 Honest at late times: where the finest level's pairs have decorrelated (sqrt(1 - r) > 1/2,
 :data:`stochpend.bias.DECORRELATED`: V_l no longer falls with h) the time is left out of the plan
 and reported *not certified*, with the cost that certifying it by this estimator would take
-(``<name>_cost_to_certify``). A time is certified only when it is coupled, its total error is at
-most eps |estimate|, no path went non-finite and the bias bound is finite.
+(``<name>_cost_to_certify``), unless independent ensembles at two steps certify it within
+what the budget leaves (:func:`_certify_by_independent_runs`, the time's ``<name>_route``). A
+time is certified only when its total error is at most eps |estimate|, no path went non-finite
+and the bias bound is finite.
+
+Budget: ``max_path_steps`` and, when given, the wall time ``max_seconds`` (:class:`Budget`: the
+seconds become path-steps at the rate measured here, then at the run's own). The pilot and every
+round's plan are checked against it first: a target the budget cannot buy is refused, saying
+what it would take, before the work it could not finish.
 
 Random streams: level l's samples of round k draw from the seed
 ``SeedSequence(seed, spawn_key=(SPAWN, l, k))`` (NumPy's, a fixed function), never the run's own
@@ -61,7 +68,7 @@ step before each output time, which both take but split differently: O(h**3) eac
 consistency check (Giles: level l-1's fine mean against level l's coarse mean, in sigma) reports
 it. What this version does not do: the nonlinear statistics (skewness, flatness: functions of
 means, by the jackknife), the Richardson-extrapolated (multilevel Richardson-Romberg) estimate,
-a fall-back to independent ensembles at late times, a wall-time budget, checkpoints, sweeps.
+the kurtosis of the level differences, checkpoints, sweeps.
 """
 
 from __future__ import annotations
@@ -104,6 +111,11 @@ ROUTE_ROUNDS = 4
 SPAWN = 35
 #: A level's mean counts as resolved for the rate fit beyond this many standard errors.
 RESOLVED_SE = 3.0
+#: Seconds of computing (compiling left out) after which a target run's own rate, not the
+#: machine's calibrated one, converts its wall-time budget into path-steps: a pilot of ~1e4
+#: path-steps lasts a fraction of a second, most of it loading kernels and starting calls, and
+#: its rate (1.8e4 path-steps/s measured, against ~2e7 in a run) would refuse targets that fit.
+RATE_MEASURED_AFTER_S = 2.0
 #: Giles' consistency check: |fine mean of level l-1 - coarse mean of level l| in sigma.
 CONSISTENCY_SIGMA = 3.0
 
@@ -177,14 +189,23 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
 
 
 # -- streams ----------------------------------------------------------------------------------------
+def check_max_seconds(max_seconds: Any) -> float | None:
+    """A target run's wall-time budget ``max_seconds`` (None: none), validated."""
+    if max_seconds is None:
+        return None
+    return _number("max_seconds", max_seconds, "a number of seconds > 0 (the target run's wall-time "
+                   "budget; None or inf: none)", lambda v: v > 0.0)
+
+
 def check_run(config: SimulationConfig, target_error: Any, target_confidence: Any, target_statistics: Any,
               target_times: Any, *, accuracy: Any, rtol: Any, precision: Any, max_path_steps: Any,
-              cli: bool = False) -> Target:
+              max_seconds: Any = None, cli: bool = False) -> Target:
     """Everything a target run is refused for, before any work (one line each): the target
     (:func:`check_target`), an accuracy setting beside it, a precision other than float64, a bad
-    work limit. ``cli``: name the options as the command line spells them."""
+    work limit or wall-time budget. ``cli``: name the options as the command line spells them."""
     from stochpend import resources
 
+    check_max_seconds(max_seconds)
     target = check_target(config, target_error, target_confidence, target_statistics, target_times)
     if accuracy != "fixed" or rtol is not None:
         leave = "leave --accuracy fixed and --rtol unset" if cli else "leave accuracy='fixed' and rtol unset"
@@ -649,6 +670,46 @@ def _cost_independent(st: State, eps: float, conf: float) -> tuple[np.ndarray, n
 
 
 # -- the run ------------------------------------------------------------------------------------
+@dataclass
+class Budget:
+    """What a target run may spend: ``path_steps`` (``max_path_steps``) and, when given, the
+    wall time ``seconds`` (``max_seconds``), counted from ``started`` (``time.perf_counter``).
+    The wall time becomes path-steps at the run's rate: the rate measured on this machine for
+    its kernel (:func:`stochpend.resources._rate`) until the run has computed for
+    :data:`RATE_MEASURED_AFTER_S`, then the run's own (path-steps over the seconds spent outside
+    compiling), and the compiling expected (``compile_s``) is set aside before the first. Every plan is checked against :meth:`limit`,
+    so a target that the budget cannot buy is refused before the work it would not finish."""
+
+    path_steps: float
+    seconds: float | None = None
+    rate: float = math.inf
+    compile_s: float = 0.0
+    started: float = 0.0
+
+    def limit(self, spent: float = 0.0, compiling_s: float = 0.0) -> float:
+        """The path-steps the run may reach in all, ``spent`` so far, ``compiling_s`` of the
+        seconds since the start spent compiling."""
+        if self.seconds is None:
+            return self.path_steps
+        elapsed = _time.perf_counter() - self.started
+        rate = self.rate
+        if spent > 0 and elapsed - compiling_s >= RATE_MEASURED_AFTER_S:
+            rate = spent / (elapsed - compiling_s)
+        left = self.seconds - elapsed - (self.compile_s if spent == 0 else 0.0)
+        return min(self.path_steps, spent + max(left, 0.0) * rate)
+
+    def exceeded(self, total: float, spent: float = 0.0, compiling_s: float = 0.0) -> str | None:
+        """None when ``total`` path-steps fit; else the limit that they break, for a message."""
+        if total <= self.path_steps and total <= self.limit(spent, compiling_s):
+            return None
+        if total > self.path_steps:
+            return (f"above the limit of {self.path_steps:.3g} path-steps; raise it with max_path_steps= "
+                    "(--max-path-steps)")
+        return (f"more than the wall-time budget max_seconds={self.seconds:g} leaves (about "
+                f"{self.limit(spent, compiling_s):.3g} path-steps in all at this machine's rate); "
+                "raise it with max_seconds= (--max-seconds)")
+
+
 def _path_steps_guess(config: SimulationConfig, level: int, n: int) -> float:
     """A priori path-steps of ``n`` samples of ``level``: t_max/h_0 a plain path, 3 t_max/h_{l-1}
     a pair (one coarse step and two fine half steps)."""
@@ -657,29 +718,33 @@ def _path_steps_guess(config: SimulationConfig, level: int, n: int) -> float:
 
 
 def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu",
-               max_path_steps: Any = None, progress: Progress | None = None,
+               max_path_steps: Any = None, max_seconds: Any = None, progress: Progress | None = None,
                note: Any = None) -> xr.Dataset:
     """Meet ``target`` (:func:`check_target`) for ``config`` by multilevel Monte Carlo (module
     docstring) and return the Dataset (see :func:`stochpend.simulate`, ``target_error``).
 
     ``config.paths`` is not used (the plan sets the samples); ``step_c`` is set to 0 (fixed
     steps h_max / 2**l). Refuses (``ValueError``, one line) before the pilot when the pilot alone
-    exceeds ``max_path_steps``, and before the main run when the plan does.
+    exceeds ``max_path_steps`` or the wall-time budget ``max_seconds`` (:class:`Budget`), and
+    before each round when the plan does.
     """
     from stochpend import resources
     from stochpend._jitcache import CompileClock
 
     note = note or (lambda _msg: None)
-    limit = resources.work_limit(max_path_steps)
     cfg = _target_config(config, target)
+    started = _time.perf_counter()
+    budget = Budget(resources.work_limit(max_path_steps), check_max_seconds(max_seconds), started=started)
+    if budget.seconds is not None:
+        budget.rate = resources._rate(backend == "cuda", None, resources.kernel_kind(cfg))[0]
+        budget.compile_s = resources.compile_seconds(cfg, backend=backend)
     pilot_cost = sum(_path_steps_guess(cfg, level, PILOT_SAMPLES) for level in range(PILOT_LEVELS))
-    if pilot_cost > limit:
+    broken = budget.exceeded(pilot_cost)
+    if broken is not None:
         raise ValueError(f"target_error={target.error:g} is not accepted: its pilot alone ({PILOT_SAMPLES} "
                          f"samples on each of levels 0..{PILOT_LEVELS - 1}) needs about {pilot_cost:.3g} "
-                         f"path-steps, above the limit of {limit:.3g}; use a larger h_max or a shorter "
-                         "t_max, or raise the limit with max_path_steps= (--max-path-steps)")
+                         f"path-steps, {broken}; or use a larger h_max or a shorter t_max")
     cols = _stat_columns(config, target.statistics)
-    started = _time.perf_counter()
     levels: list[Level] = []
     spent = 0
 
@@ -710,9 +775,9 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             L = len(levels) - 1
             step, need, least = _guarded_plan(st, eps, conf, active)
             more = np.maximum(step - st.N, 0)
-            if spent + _staircase_cost(np.maximum(least - st.N, 0), st.C) > limit:
-                _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), limit,
-                        "the plan")
+            if budget.exceeded(spent + _staircase_cost(np.maximum(least - st.N, 0), st.C), spent, clock.seconds):
+                _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), budget,
+                        "the plan", clock.seconds)
             more[0] = 0
             # a round adds at least a tenth of a level's samples: fewer rounds, each worth its start
             more = np.where(more > 0.1 * st.N, more, 0)
@@ -722,8 +787,8 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             extra = _extra_levels(st, 0.5 * eps * np.abs(st.estimate))
             if np.any(active & (extra > 0)) and L < MAX_LEVEL:
                 guess = _path_steps_guess(cfg, L + 1, PILOT_SAMPLES)
-                if spent + guess > limit:
-                    _refuse(target, spent, spent + guess, limit, f"level {L + 1}'s pilot")
+                if budget.exceeded(spent + guess, spent, clock.seconds):
+                    _refuse(target, spent, spent + guess, budget, f"level {L + 1}'s pilot", clock.seconds)
                 add(L + 1, PILOT_SAMPLES)
                 note(f"target: level {L + 1} added (h = {cfg.h_max * 0.5 ** (L + 1):.3g})")
                 continue
@@ -732,13 +797,14 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             more = np.where((more > 0) & (more < 0.05 * st.N), np.ceil(0.05 * st.N), more).astype(np.int64)
             if not np.any(more):
                 break
-            if spent + max(_staircase_cost(more, st.C), _staircase_cost(np.maximum(least - st.N, 0), st.C)) > limit:
-                _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), limit,
-                        "the plan")
+            if budget.exceeded(spent + max(_staircase_cost(more, st.C),
+                                           _staircase_cost(np.maximum(least - st.N, 0), st.C)), spent, clock.seconds):
+                _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), budget,
+                        "the plan", clock.seconds)
             _top_up(add, more, st, note)
         st = _state(levels, conf, times)
         route = _certify_by_independent_runs(cfg, target, st, sum(lv.nonfinite for lv in levels),
-                                             limit - spent, cols, backend, note)
+                                             budget.limit(spent, clock.seconds) - spent, cols, backend, note)
         if route is not None:
             spent += route.path_steps
     wall = _time.perf_counter() - started
@@ -754,11 +820,11 @@ def _top_up(add: Any, more: np.ndarray, st: State, note: Any) -> None:
             add(level, n, stop)
 
 
-def _refuse(target: Target, spent: int, total: float, limit: float, what: str) -> None:
+def _refuse(target: Target, spent: int, total: float, budget: Budget, what: str, compiling_s: float) -> None:
+    broken = budget.exceeded(total, spent, compiling_s) or f"above the limit of {budget.path_steps:.3g} path-steps"
     raise ValueError(f"target_error={target.error:g} is not accepted: {what} would bring the work to "
-                     f"{total:.3g} path-steps ({spent:.3g} already spent), above the limit of "
-                     f"{limit:.3g}; ask for a larger target_error, fewer target_times or statistics, "
-                     "or raise the limit with max_path_steps= (--max-path-steps)")
+                     f"{total:.3g} path-steps ({spent:.3g} already spent), {broken}; or ask for a larger "
+                     "target_error, fewer target_times or statistics")
 
 
 @dataclass

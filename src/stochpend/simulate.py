@@ -68,6 +68,7 @@ def simulate(
     target_confidence: float = 0.95,
     target_statistics: Any = None,
     target_times: Any = None,
+    max_seconds: float | None = None,
     **noise_params: float,
 ) -> xr.Dataset:
     r"""Simulate an ensemble of stochastic pendulums and return its energy statistics.
@@ -190,6 +191,10 @@ def simulate(
         user observable).
     target_times : array_like, optional
         Output times to control, among the run's ``times`` (default all of them).
+    max_seconds : float, optional
+        With ``target_error``: the wall-time budget (s). A target whose pilot or plan would take
+        longer, at the rate measured on this machine (then the run's own), is refused before
+        that work, with what it would take; ``max_path_steps`` bounds the work as ever.
 
     Returns
     -------
@@ -227,7 +232,10 @@ def simulate(
     if target_error is not None:
         return _target(config, target_error, target_confidence, target_statistics, target_times,
                        backend=backend, precision=precision, accuracy=accuracy, rtol=rtol,
-                       max_path_steps=max_path_steps)
+                       max_path_steps=max_path_steps, max_seconds=max_seconds)
+    if max_seconds is not None:
+        raise ValueError(f"max_seconds={max_seconds!r} is not accepted without target_error: the "
+                         "wall-time budget is a target run's (bound other runs' work with max_path_steps)")
     # Refused here, before any work (run validates again what it is handed: a few checks).
     settings = Run.build(config, backend=backend, precision=precision, threads=threads,
                          chunk_paths=chunk_paths, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
@@ -241,7 +249,7 @@ def simulate(
 
 def _target(config: SimulationConfig, target_error: Any, target_confidence: Any, target_statistics: Any,
             target_times: Any, *, backend: str, precision: str, accuracy: Any, rtol: Any,
-            max_path_steps: Any) -> xr.Dataset:
+            max_path_steps: Any, max_seconds: Any) -> xr.Dataset:
     """``simulate(target_error=...)``: validated before any work, then
     :func:`stochpend.multilevel.target_run`."""
     from stochpend import multilevel
@@ -249,8 +257,9 @@ def _target(config: SimulationConfig, target_error: Any, target_confidence: Any,
 
     target = multilevel.check_run(config, target_error, target_confidence, target_statistics, target_times,
                                   accuracy=accuracy, rtol=rtol, precision=precision,
-                                  max_path_steps=max_path_steps)
-    ds = multilevel.target_run(config, target, backend=resolve_backend(backend), max_path_steps=max_path_steps)
+                                  max_path_steps=max_path_steps, max_seconds=max_seconds)
+    ds = multilevel.target_run(config, target, backend=resolve_backend(backend), max_path_steps=max_path_steps,
+                               max_seconds=max_seconds)
     missed = int(ds.attrs["target_entries"]) - int(ds.attrs["target_certified"])
     if missed:
         warnings.warn(f"{missed} of {ds.attrs['target_entries']} (statistic, time) entries are not "

@@ -56,6 +56,10 @@ def _exact() -> dict[str, float]:
     (dict(target_error=0.01, target_times=[1.0, 1.0]), "target_times=[1.0, 1.0] is not accepted: distinct"),
     (dict(target_error=0.01, accuracy="auto"), "accuracy='auto' is not accepted with target_error"),
     (dict(target_error=0.01, max_path_steps=-1), "max_path_steps=-1 is not accepted"),
+    (dict(target_error=0.01, max_seconds=0), "max_seconds=0 is not accepted: a number of seconds > 0"),
+    (dict(target_error=0.01, max_seconds=math.nan), "max_seconds=nan is not accepted"),
+    (dict(target_error=0.01, max_seconds="1h"), "max_seconds='1h' is not accepted"),
+    (dict(max_seconds=60), "max_seconds=60 is not accepted without target_error"),
 ])
 def test_a_bad_target_is_refused_in_one_line(kwargs, needle):
     with pytest.raises(ValueError) as err:
@@ -81,7 +85,37 @@ def test_a_plan_over_the_work_limit_is_refused_with_what_it_would_take():
         stochpend.simulate(**CHEAP, target_error=1e-5, max_path_steps=1e6)
 
 
+def test_a_pilot_over_the_wall_time_budget_is_refused_before_any_work(monkeypatch):
+    def no_work(*_a, **_k):
+        raise AssertionError("a level ran")
+
+    monkeypatch.setattr(multilevel, "run_level", no_work)
+    with pytest.raises(ValueError, match=r"its pilot alone .* more than the wall-time budget max_seconds=1e-06 "
+                                         r"leaves .* raise it with max_seconds="):
+        stochpend.simulate(**CHEAP, target_error=0.01, max_seconds=1e-6)
+
+
+def test_a_plan_over_the_wall_time_budget_is_refused_with_what_it_would_take():
+    """The pilot (~1e4 path-steps) fits in 10 s on any machine; the plan for 1e-5 relative (over
+    1e10 path-steps, as the work-limit test's) does not, at the pilot's own measured rate."""
+    with pytest.raises(ValueError, match=r"target_error=1e-05 is not accepted: the plan would bring the work to "
+                                         r"[0-9.e+]+ path-steps \([0-9.e+]+ already spent\), more than the "
+                                         r"wall-time budget max_seconds=10 leaves"):
+        stochpend.simulate(**CHEAP, target_error=1e-5, max_seconds=10)
+
+
+def test_a_budget_the_run_fits_in_changes_no_number():
+    ds = stochpend.simulate(**CHEAP, seed=3, target_error=0.05)
+    budgeted = stochpend.simulate(**CHEAP, seed=3, target_error=0.05, max_seconds=3600)
+    for name in ("mean_E", "mean_E_total_error", "n_samples"):
+        assert np.array_equal(ds[name].values, budgeted[name].values), name
+
+
 @pytest.mark.parametrize(("args", "needle"), [
+    (["--target-error", "0.01", "--max-seconds", "0.000001"],
+     "--target-error 0.01 is not accepted: its pilot alone"),
+    (["--target-error", "0.01", "--max-seconds", "soon"], "--max-seconds 'soon' is not accepted: a duration"),
+    (["--max-seconds", "60"], "--max-seconds '60' is not accepted without --target-error"),
     (["--target-error", "0"], "--target-error 0.0 is not accepted"),
     (["--target-error", "nan"], "--target-error nan is not accepted"),
     (["--target-error", "0.01", "--target-statistics", "flatness"], "--target-statistics 'flatness' is not accepted"),
