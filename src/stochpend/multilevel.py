@@ -1,7 +1,8 @@
 """A total-error target met by multilevel Monte Carlo on coupled levels (issue 35, items 1-3).
 
 ``simulate(..., target_error=eps)`` asks for a statistic P (a mean: ``mean_E``, ``mean_E2``, any
-``mean_<name>``) at the output times with a relative *total* error below eps, statistical and
+``mean_<name>``; or the paper's skewness S or flatness F, functions of means, see below) at the
+output times with a relative *total* error below eps, statistical and
 discretisation together, at a stated confidence (default 95 %). It is met by the multilevel
 estimator of Giles (2008) on the step ladder h_l = h_max / 2**l, l = 0 .. L (fixed steps:
 step_c = 0, see below):
@@ -54,6 +55,13 @@ seconds become path-steps at the rate measured here, then at the run's own). The
 round's plan are checked against it first: a target the budget cannot buy is refused, saying
 what it would take, before the work it could not finish.
 
+Nonlinear statistics. S = <E^3>/<E^2>^(3/2) and F = <E^4>/<E^2>^2 are g(means): level 0's
+value is g of its paths' means, level l's difference Y_l = g(fine means) - g(coarse means) of
+its coupled samples, and every variance is the delete-one-batch jackknife's of those values
+(:func:`statistics_of`), so the plan, the rates and the bias bound are the means' machinery
+unchanged. g of a sample mean is biased by O(Var/N), a factor 1/sqrt(N) below its standard
+error (N >= 256 samples a level): not in the bound.
+
 Random streams: level l's samples of round k draw from the seed
 ``SeedSequence(seed, spawn_key=(SPAWN, l, k))`` (NumPy's, a fixed function), never the run's own
 seed: every level and round has its own Philox key, so they are independent of each other and of
@@ -66,9 +74,8 @@ coarse member would differ in law (by O(h**3)) and the telescope would not close
 every member is the fixed-step scheme at its h_l and the telescope is exact (up to the landing
 step before each output time, which both take but split differently: O(h**3) each); the
 consistency check (Giles: level l-1's fine mean against level l's coarse mean, in sigma) reports
-it. What this version does not do: the nonlinear statistics (skewness, flatness: functions of
-means, by the jackknife), the Richardson-extrapolated (multilevel Richardson-Romberg) estimate,
-the kurtosis of the level differences, checkpoints, sweeps.
+it. What this version does not do: the Richardson-extrapolated (multilevel Richardson-Romberg)
+estimate, the kurtosis of the level differences, checkpoints, sweeps.
 """
 
 from __future__ import annotations
@@ -76,7 +83,7 @@ from __future__ import annotations
 import math
 import textwrap
 import time as _time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -94,6 +101,9 @@ __all__ = ["DEFAULT_STATISTICS", "check_target", "level_seed", "plan_samples", "
 
 #: What ``target_error`` controls when no ``target_statistics`` are named.
 DEFAULT_STATISTICS = ("mean_E", "mean_E2")
+#: The paper's nonlinear statistics a target may name beside the means: functions of means
+#: (:func:`statistics_of`), S = <E^3>/<E^2>^(3/2) and F = <E^4>/<E^2>^2.
+NONLINEAR = ("skewness", "flatness")
 #: Batches of each level's round (the jackknife's units; its variance has batches - 1 degrees of
 #: freedom, the Student t of the half-width accounts for them).
 LEVEL_BATCHES = 64
@@ -150,7 +160,7 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
                   "(statistical and discretisation) of each statistic", lambda v: 0.0 < v < 1.0)
     conf = _number("target_confidence", target_confidence, "a number in (0.5, 1), e.g. 0.95",
                    lambda v: 0.5 < v < 1.0)
-    known = [s.name for s in observables.STATISTICS if s.name.startswith("mean_")]
+    known = [s.name for s in observables.STATISTICS if s.name.startswith("mean_")] + list(NONLINEAR)
     known += [f"mean_{u}" for u in config.observables]
     if target_statistics is None:
         names: tuple[str, ...] = DEFAULT_STATISTICS
@@ -164,7 +174,7 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
         bad = [s for s in names if s not in known]
         if not names or bad or len(set(names)) != len(names):
             raise ValueError(f"target_statistics={target_statistics!r} is not accepted: distinct names "
-                             f"among {', '.join(known)} (means; skewness and flatness are not yet targets)")
+                             f"among {', '.join(known)}")
     run_times = np.asarray(config.times, dtype=float)
     if target_times is None:
         index = np.arange(run_times.size)
@@ -282,14 +292,32 @@ def _user_column(config: SimulationConfig, name: str) -> int:
     raise KeyError(name)
 
 
-def _stat_columns(config: SimulationConfig, names: Sequence[str]) -> np.ndarray:
-    cols = []
-    for n in names:
-        try:
-            cols.append(observables.column(n.removeprefix("mean_")))
-        except KeyError:
-            cols.append(_user_column(config, n))
-    return np.array(cols, dtype=np.int64)
+def _column_of(column: int) -> Callable[[np.ndarray], np.ndarray]:
+    def of(m: np.ndarray) -> np.ndarray:
+        return m[..., column]
+
+    return of
+
+
+def statistics_of(config: SimulationConfig, names: Sequence[str]) -> Callable[[np.ndarray], np.ndarray]:
+    """The target statistics ``names`` as one function of the means ``m[..., column]`` (sums
+    over count, the run's columns): ``of(m)`` has shape ``(..., S)``. A mean is its column; the
+    paper's skewness and flatness their functions of the means (:data:`observables.STATISTICS`),
+    so a level's difference of them is S(fine means) - S(coarse means) of its coupled samples and
+    every error of the multilevel estimate is the jackknife's of those values."""
+    table = {s.name: s.of for s in observables.STATISTICS}
+    parts: list[Callable[[np.ndarray], np.ndarray]] = []
+    for name in names:
+        if name in table:
+            parts.append(table[name])
+        else:
+            parts.append(_column_of(_user_column(config, name)))
+
+    def of(m: np.ndarray) -> np.ndarray:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.stack([part(m) for part in parts], axis=-1)
+
+    return of
 
 
 def _batches(n: int) -> tuple[int, int]:
@@ -298,11 +326,12 @@ def _batches(n: int) -> tuple[int, int]:
     return -(-n // size), size
 
 
-def run_level(config: SimulationConfig, level: int, n: int, round_: int, cols: np.ndarray, stop: int,
+def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Callable[[np.ndarray], np.ndarray],
+              stop: int,
               *, backend: str = "cpu", progress: Progress | None = None) -> Round:
     """``n`` samples of ``level`` (0: an ordinary ensemble at ``config``'s step; l >= 1: coupled
     pairs at ``refined(config, l - 1)``) with the seed :func:`level_seed`, run to the output time
-    of index ``stop`` only, reduced to the means of the statistics' columns ``cols``."""
+    of index ``stop`` only, reduced to the statistics ``of`` (:func:`statistics_of`) of the means."""
     seed = level_seed(config.seed, level, round_)
     n_b, _ = _batches(n)
     T = len(config.times)
@@ -313,7 +342,7 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, cols: n
         cfg = replace(cfg, seed=seed, paths=n, n_batches=n_b)
         ens, path_steps = runner.run_batches(cfg, 0, n_b, backend=backend, progress=progress)
         sums = ens.sums  # (B, T', n_sums)
-        f, f_var = _jackknife(sums, lambda m: _st(m[..., cols]))
+        f, f_var = _jackknife(sums, lambda m: _st(of(m)))
         nonfinite = int(sums[:, -1, stats.S_NONFINITE].sum())
         f, f_var = _pad(f, T), _pad(f_var, T)
         nan = np.full_like(f, np.nan)
@@ -322,9 +351,9 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, cols: n
     cfg = replace(bias.refined(cfg, level - 1), seed=seed)
     sums, path_steps = bias.pair_sums(cfg, n, n_b, backend=backend, progress=progress,
                                       what=f"level {level}")  # (B, T', 2, n_sums)
-    f, f_var = _jackknife(sums, lambda m: _st(m[..., 1, cols]))
-    c, c_var = _jackknife(sums, lambda m: _st(m[..., 0, cols]))
-    y, y_var = _jackknife(sums, lambda m: _st(m[..., 1, cols] - m[..., 0, cols]))
+    f, f_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :])))
+    c, c_var = _jackknife(sums, lambda m: _st(of(m[..., 0, :])))
+    y, y_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :]) - of(m[..., 0, :])))
     nonfinite = int(sums[:, -1, 0, stats.S_NONFINITE].sum())
     return Round(_counts(n, stop, T), stop, cfg.t_max, int(path_steps), seed, n_b, _pad(f, T), _pad(f_var, T),
                  _pad(c, T), _pad(c_var, T), _pad(y, T), _pad(y_var, T), nonfinite)
@@ -744,7 +773,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
         raise ValueError(f"target_error={target.error:g} is not accepted: its pilot alone ({PILOT_SAMPLES} "
                          f"samples on each of levels 0..{PILOT_LEVELS - 1}) needs about {pilot_cost:.3g} "
                          f"path-steps, {broken}; or use a larger h_max or a shorter t_max")
-    cols = _stat_columns(config, target.statistics)
+    of = statistics_of(config, target.statistics)
     levels: list[Level] = []
     spent = 0
 
@@ -755,7 +784,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
         nonlocal spent
         if level == len(levels):
             levels.append(Level(level))
-        r = run_level(cfg, level, n, len(levels[level].rounds), cols, stop, backend=backend)
+        r = run_level(cfg, level, n, len(levels[level].rounds), of, stop, backend=backend)
         levels[level].rounds.append(r)
         spent += r.path_steps
 
@@ -804,7 +833,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             _top_up(add, more, st, note)
         st = _state(levels, conf, times)
         route = _certify_by_independent_runs(cfg, target, st, sum(lv.nonfinite for lv in levels),
-                                             budget.limit(spent, clock.seconds) - spent, cols, backend, note)
+                                             budget.limit(spent, clock.seconds) - spent, of, backend, note)
         if route is not None:
             spent += route.path_steps
     wall = _time.perf_counter() - started
@@ -877,8 +906,8 @@ class Route:
     nonfinite: int = 0
 
 
-def _ensemble(cfg: SimulationConfig, h: float, n: int, seed: int, stop: int, cols: np.ndarray,
-              backend: str) -> tuple[np.ndarray, np.ndarray, int, int]:
+def _ensemble(cfg: SimulationConfig, h: float, n: int, seed: int, stop: int,
+              of: Callable[[np.ndarray], np.ndarray], backend: str) -> tuple[np.ndarray, np.ndarray, int, int]:
     """An ordinary fixed-step ensemble of ``n`` paths at step ``h`` with ``seed`` to the output
     time of index ``stop``: the statistics' means and their variances (jackknife), (S, T'), the
     path-steps and the non-finite paths."""
@@ -887,12 +916,13 @@ def _ensemble(cfg: SimulationConfig, h: float, n: int, seed: int, stop: int, col
     n_b, _ = _batches(n)
     c = replace(_truncated(cfg, stop + 1), h_max=float(h), step_c=0.0, seed=seed, paths=n, n_batches=n_b)
     ens, path_steps = runner.run_batches(c, 0, n_b, backend=backend)
-    f, f_var = _jackknife(ens.sums, lambda m: _st(m[..., cols]))
+    f, f_var = _jackknife(ens.sums, lambda m: _st(of(m)))
     return f, f_var, int(path_steps), int(ens.sums[:, -1, stats.S_NONFINITE].sum())
 
 
 def _certify_by_independent_runs(cfg: SimulationConfig, target: Target, st: State, nonfinite: int,
-                                 room: float, cols: np.ndarray, backend: str, note: Any) -> Route | None:
+                                 room: float, of: Callable[[np.ndarray], np.ndarray], backend: str,
+                                 note: Any) -> Route | None:
     """Issue 35, item 3: each time that the levels could not certify and for which two
     independent ensembles at h_k and h_k/2 are the cheaper route (:func:`_cost_independent`) is
     run that way while the route fits in ``room`` path-steps: N paths at each step, the finer
@@ -941,7 +971,7 @@ def _certify_by_independent_runs(cfg: SimulationConfig, target: Target, st: Stat
             for j, hh in enumerate((h, 0.5 * h)):
                 seed = level_seed(cfg.seed, 1000 + j, 64 * t + round_)
                 seeds.append(seed)
-                f, f_var, steps, bad = _ensemble(cfg, hh, n_more, seed, t, cols, backend)
+                f, f_var, steps, bad = _ensemble(cfg, hh, n_more, seed, t, of, backend)
                 parts[j].append((n_more, f[:, t], f_var[:, t]))
                 route.path_steps += steps
                 route.nonfinite += bad

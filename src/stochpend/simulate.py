@@ -187,8 +187,9 @@ def simulate(
     target_confidence : float
         Confidence of the total error, in (0.5, 1); default 0.95.
     target_statistics : sequence of str, optional
-        Means to control (default ``("mean_E", "mean_E2")``; any ``mean_*`` of the table or of a
-        user observable).
+        Statistics to control (default ``("mean_E", "mean_E2")``): any ``mean_*`` of the table or
+        of a user observable, and the paper's ``"skewness"`` and ``"flatness"`` (functions of
+        means, errors by the jackknife).
     target_times : array_like, optional
         Output times to control, among the run's ``times`` (default all of them).
     max_seconds : float, optional

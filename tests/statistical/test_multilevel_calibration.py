@@ -15,6 +15,9 @@ its Boltzmann law exp(-E/T), T = D_a/(2 gamma), so that the exact law is station
   Stratonovich here), d/dt (<x^2>, <x Omega>, <Omega^2>) = M (...) with M
   family.random_frequency_moment_matrix, so <E>(t) = expm(M t) exactly; <E> only (<E^2> needs the
   fourth moments). At h_max = 0.5 level 0 alone is about 7 % high.
+* the paper's skewness S and flatness F of the same two Boltzmann laws (functions of means,
+  errors by the jackknife): E/T ~ Exp(1) gives S = 6/2^(3/2), F = 6 for the harmonic oscillator;
+  the pendulum's from its exact energy moments (family.boltzmann_pendulum_energy_moment).
 Each takes a few minutes on two cores (make test-slow).
 """
 
@@ -83,3 +86,30 @@ def test_the_reported_total_error_covers_the_true_error(potential):
         assert n >= COVERAGE * SEEDS, (potential, name, n)
     if potential == "harmonic":  # the bias is the point: level 0 alone misses the target
         assert level0_off == SEEDS
+
+
+def _exact_skewness_flatness(potential: str) -> dict[str, float]:
+    """The paper's S = <E^3>/<E^2>^(3/2) and F = <E^4>/<E^2>^2 of the Boltzmann law: E/T ~ Exp(1)
+    for the harmonic oscillator (<E^n> = n! T^n), the pendulum's from its energy moments."""
+    if potential == "harmonic":
+        return {"skewness": 6.0 / 2.0**1.5, "flatness": 6.0}
+    m2, m3, m4 = (family.boltzmann_pendulum_energy_moment(n, D_a=D_A, gamma=GAMMA, omega=OMEGA) for n in (2, 3, 4))
+    return {"skewness": m3 / m2**1.5, "flatness": m4 / m2**2}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("potential", ["pendulum", "harmonic"])
+def test_the_total_error_of_skewness_and_flatness_covers_the_true_error(potential):
+    """The nonlinear statistics as targets (functions of means, jackknife errors), the same two
+    Boltzmann cases as the means'."""
+    exact = _exact_skewness_flatness(potential)
+    covered = {name: 0 for name in exact}
+    for seed in range(SEEDS):
+        ds = stochpend.simulate(noise="white", D=0.0, omega=OMEGA, potential=potential, t_max=2.0, times=(2.0,),
+                                h_max=1.0, seed=seed, gamma=GAMMA, additive_D=D_A, initial_temperature=T,
+                                target_error=EPS, target_statistics=tuple(exact))
+        assert ds.attrs["path_steps"] == int(ds["level_path_steps"].sum()) + ds.attrs["target_route_path_steps"]
+        for name, want in exact.items():
+            covered[name] += abs(float(ds[name][0]) - want) <= float(ds[f"{name}_total_error"][0])
+    for name, n in covered.items():
+        assert n >= COVERAGE * SEEDS, (potential, name, n)

@@ -48,6 +48,27 @@ def test_pendulum_boltzmann_averages_by_quadrature(kappa: float) -> None:
     assert f.boltzmann_pendulum_mean_E(**kw) == pytest.approx(T / 2 - omega**2 * c1, rel=1e-10, abs=1e-12)
 
 
+@pytest.mark.parametrize("kappa", [0.05, 1.0, 7.0, 40.0])
+def test_pendulum_boltzmann_energy_moments_by_quadrature(kappa: float) -> None:
+    """<E**n>, n = 1..4 (the paper's S and F of the Boltzmann law), against a double quadrature
+    over the Maxwell velocity and the von Mises angle."""
+    gamma, omega = 0.5, 1.3
+    T = omega**2 / kappa
+    kw = {"D_a": 2 * gamma * T, "gamma": gamma, "omega": omega}
+    w = lambda x: math.exp(kappa * (math.cos(x) - 1.0))  # noqa: E731
+    Z = quad(w, -math.pi, math.pi, epsrel=1e-12)[0]
+    for n in range(1, 5):
+        def at_angle(x: float, n: int = n) -> float:
+            g = lambda v: (v * v / 2 - omega**2 * math.cos(x)) ** n * math.exp(-v * v / (2 * T))  # noqa: E731
+            return quad(g, -np.inf, np.inf, epsrel=1e-12)[0] / math.sqrt(2 * math.pi * T) * w(x)
+
+        exact = quad(at_angle, -math.pi, math.pi, epsrel=1e-11)[0] / Z
+        assert f.boltzmann_pendulum_energy_moment(n, **kw) == pytest.approx(exact, rel=1e-8, abs=1e-12 * T**n), n
+    assert f.boltzmann_pendulum_energy_moment(1, **kw) == pytest.approx(f.boltzmann_pendulum_mean_E(**kw), rel=1e-12)
+    with pytest.raises(ValueError, match="n=0 is not accepted"):
+        f.boltzmann_pendulum_energy_moment(0, **kw)
+
+
 def test_pendulum_boltzmann_limits_without_overflow() -> None:
     # kappa = 1e5: I1/I0 = 1 - 1/(2 kappa) - 1/(8 kappa^2) + ...; kappa -> 0: <cos> = kappa/2
     assert f.boltzmann_pendulum_mean_cos(D_a=2e-5, gamma=1.0, omega=1.0) == pytest.approx(1 - 5e-6 - 1.25e-11, rel=1e-12)

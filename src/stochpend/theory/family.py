@@ -70,6 +70,7 @@ __all__ = [
     "boltzmann_harmonic_mean_E",
     "boltzmann_harmonic_mean_x2",
     "boltzmann_mean_Omega2",
+    "boltzmann_pendulum_energy_moment",
     "boltzmann_pendulum_mean_E",
     "boltzmann_pendulum_mean_cos",
     "boltzmann_pendulum_mean_cos2",
@@ -214,6 +215,30 @@ def boltzmann_pendulum_mean_E(*, D_a: float, gamma: float, omega: float) -> floa
     """
     T, k = _kappa(D_a, gamma, omega)
     return float(0.5 * T - omega * omega * _ive(1, k) / _ive(0, k))
+
+
+def boltzmann_pendulum_energy_moment(n: int, *, D_a: float, gamma: float, omega: float) -> float:
+    """Pendulum in the Boltzmann state: <E**n>, E = Omega**2/2 - omega**2 cos x, n = 1, 2, ...
+
+    Omega ~ N(0, T) is independent of the von Mises angle, so <E**n> = sum_j C(n, j)
+    <(Omega**2/2)**j> <(-omega**2 cos x)**(n-j)>, with <(Omega**2/2)**j> = T**j (2j-1)!!/2**j and
+    <cos**m x> = 2**-m sum_k C(m, k) I_|m-2k|(kappa)/I_0(kappa) (cos**m as a sum of cos(l x)).
+    The paper's skewness and flatness of the Boltzmann law follow: S = <E^3>/<E^2>^(3/2), F =
+    <E^4>/<E^2>^2. Conditions as :func:`boltzmann_pendulum_mean_cos`. Units 1/time**(2n).
+    """
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ValueError(f"n={n!r} is not accepted: an integer >= 1")
+    T, k = _kappa(D_a, gamma, omega)
+    i0 = _ive(0, k)
+
+    def mean_cos_power(m: int) -> float:
+        return sum(math.comb(m, j) * float(_ive(abs(m - 2 * j), k)) for j in range(m + 1)) / (2.0**m * i0)
+
+    def kinetic(j: int) -> float:
+        return T**j * math.prod(range(1, 2 * j, 2)) / 2.0**j
+
+    return float(sum(math.comb(n, j) * kinetic(j) * (-omega * omega) ** (n - j) * mean_cos_power(n - j)
+                     for j in range(n + 1)))
 
 
 def _harmonic_T(D_a: float, gamma: float, omega: float) -> tuple[float, float]:
