@@ -869,7 +869,8 @@ def info() -> None:
 
     table = Table(title="stochpend info")
     table.add_column("item")
-    table.add_column("value")
+    # folded, never cut: a cache or calibration path is longer than an 80-column row leaves
+    table.add_column("value", overflow="fold")
     table.add_row("stochpend", __version__)
     table.add_row("python", platform.python_version())
     table.add_row("numpy / numba / xarray", f"{version('numpy')} / {version('numba')} / {version('xarray')}")
