@@ -165,6 +165,12 @@ def _invoke_before_work(args: list[str]):
     run, a resume, a bias estimate), a sweep's blocks and the B.F.P.E.'s time steps. A refusal
     must come before all of them (a bound on work, where these tests had wall-time limits that
     a busy machine could break: issue 37)."""
+    # Imported before the patches: a module first imported under them binds the patched
+    # run_batches by name (``from stochpend.runner import run_batches``) and keeps it for good,
+    # failing every later test of this process that does work.
+    import stochpend._blocks  # noqa: F401
+    import stochpend.sweep  # noqa: F401
+    import stochpend.theory.bfpe  # noqa: F401
     with mock.patch("stochpend.runner.run_batches", _work_started), \
             mock.patch("stochpend._blocks.run_batches", _work_started), \
             mock.patch("stochpend.sweep.run_block", _work_started), \
