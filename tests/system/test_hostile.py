@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import select
 import shutil
 import signal
 import stat
@@ -282,6 +283,31 @@ def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 120) -> None:
         assert proc.poll() is None, proc.communicate()
         assert time.monotonic() < deadline, f"{path} did not appear"
         time.sleep(0.05)
+
+
+def _first_line(args: list[str], cwd: Path, timeout: float) -> str:
+    """The first line the command prints on stderr within ``timeout`` seconds ('' if none; a
+    note of a first use's compilation skipped); then the command is killed. For runs that must
+    say what they will cost before they start: the old code printed nothing for minutes."""
+    proc = _start(args, cwd)
+    fd, text = proc.stderr.fileno(), b""  # type: ignore[union-attr]
+    deadline = time.monotonic() + timeout
+    try:
+        while True:
+            while b"\n" in text:
+                line, text = text.split(b"\n", 1)
+                if not line.startswith(b"compiling kernels for "):
+                    return line.decode()
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([fd], [], [], left)[0]:
+                return ""
+            chunk = os.read(fd, 65536)
+            if not chunk:
+                return text.decode()
+            text += chunk
+    finally:
+        proc.kill()
+        proc.communicate()
 
 
 def test_one_run_per_checkpoint_and_signals_save_it(tmp_path):
@@ -841,6 +867,32 @@ def test_an_unwritable_pseudo_filesystem_out_is_refused_before_any_work(tmp_path
     result = _invoke(["reproduce", "fig1", "--quick", "--out", "/sys/repro"])
     assert result.exit_code == 2, result.output
     assert "--out '/sys/repro' is not accepted" in _one_line(result.output)
+
+
+def test_a_long_bfpe_solve_says_so_before_it_starts(tmp_path):
+    """B01: 'bfpe --n-cells 1e7 --t-max 10' (accepted: about 6e9 cell-steps) printed nothing in
+    40 s, with or without --quiet. Its estimate is the first line, before the solve allocates."""
+    from stochpend import resources
+
+    if resources.available_memory() < 6 * 2**30:
+        pytest.skip("the solve needs 4.8 GiB: refused here before any estimate")
+    for quiet in ([], ["--quiet"]):
+        line = _first_line(["bfpe", "--n-cells", "1e7", "--t-max", "10", *quiet, "--out", "b.nc"], tmp_path, 60)
+        assert line.startswith("estimate: about 6.4e+09 cell-steps (n_cells x time steps = 10000000 x 640), "
+                               "roughly "), line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_sweep_of_many_tiny_sets_says_what_it_will_cost(tmp_path):
+    """NEW03: a grid of 99 999 sets of 2 paths (under the set and the size caps) passed the work
+    check with its 2e5 path-steps and printed nothing in the hour it would take: each set's own
+    cost (its tasks, statistics, bias estimate) was not counted. 20 000 sets: a minute at least."""
+    values = ", ".join(f"{1 + i * 1e-5:.5f}" for i in range(20_000))
+    (tmp_path / "g.toml").write_text(f"[base]\npaths = 2\nt_max = 0.05\nn_times = 1\n[grid]\nD = [{values}]\n")
+    line = _first_line(["sweep", "g.toml", "--out", "g.nc"], tmp_path, 120)
+    assert line.startswith("estimate: 20000 parameter sets, at least 4e+04 path-steps"), line
+    assert "~3 ms a set" in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.toml"]
 
 
 def test_a_name_whose_temporary_name_is_too_long_is_refused_before_any_work(tmp_path):
