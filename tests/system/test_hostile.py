@@ -953,12 +953,44 @@ def test_resume_advice_names_out_when_it_is_in_another_directory(tmp_path):
     assert ck.resume_advice("a/b.ckpt", "a/c.nc") == "stochpend resume a/b.ckpt"  # same directory: no --out
 
 
-@pytest.mark.parametrize("kind", ["hardlink", "fifo", "other-owner"])
+def test_resume_advice_after_a_failed_write_names_out_in_another_directory(tmp_path, monkeypatch):
+    """NEW40: --out's file system went read-only at the final write of a run whose --checkpoint is
+    in another directory: 'the finished run is kept in ...: `stochpend resume res/mid.ckpt` writes
+    it', and that command (the file system writable again) was refused, the checkpoint naming an
+    out outside its own directory. The advice printed is run as printed."""
+    import errno
+    import shlex
+
+    (tmp_path / "res").mkdir()
+    (tmp_path / "outdir").mkdir()
+    ckpt, out = tmp_path / "res" / "mid.ckpt", tmp_path / "outdir" / "mid.nc"
+    real = io.write_atomic
+
+    def read_only(path, data, **kwargs):
+        if Path(path).parent == out.parent:
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+        return real(path, data, **kwargs)
+
+    monkeypatch.setattr(io, "write_atomic", read_only)
+    result = _invoke(["simulate", *TINY, "--bias-paths", "0", "--quiet", "--checkpoint", str(ckpt), "--out", str(out)])
+    assert result.exit_code == 1, result.output
+    line = _one_line(result.output)
+    assert "Read-only file system" in line and f"the finished run is kept in {str(ckpt)!r}: `" in line, line
+    advice = line.split("`")[1]
+    assert advice == f"stochpend resume {ckpt} --out {out}", line
+    monkeypatch.setattr(io, "write_atomic", real)
+    result = _invoke([*shlex.split(advice)[1:], "--quiet"])
+    assert result.exit_code == 0, result.output
+    io.open_results(out)
+    assert not ckpt.exists()
+
+
+@pytest.mark.parametrize("kind", ["hardlink", "fifo", "device", "other-owner"])
 def test_a_planted_lock_file_is_refused_without_touching_it(tmp_path, kind):
     """NEW06: a hard link to a user's file planted at .NAME-lock had the file's content replaced
-    by 'pid N on host ...'; NEW07, NEW08: a FIFO or a device there gave 'error: [Errno 22]
-    Invalid argument'. The lock is created exclusively, and an existing one is used only when it
-    is a regular file with one link, owned by this user."""
+    by 'pid N on host ...'; NEW07, NEW08: a FIFO or a (character) device there gave 'error:
+    [Errno 22] Invalid argument'. The lock is created exclusively, and an existing one is used
+    only when it is a regular file with one link, owned by this user."""
     ckpt = tmp_path / "k.ckpt"
     lock = ck.lock_path(ckpt)
     notes = tmp_path / "notes.txt"
@@ -969,6 +1001,12 @@ def test_a_planted_lock_file_is_refused_without_touching_it(tmp_path, kind):
     elif kind == "fifo":
         os.mkfifo(lock)
         why = "is a FIFO (named pipe)"
+    elif kind == "device":
+        try:
+            os.mknod(lock, stat.S_IFCHR | 0o666, os.makedev(1, 3))  # /dev/null's numbers
+        except PermissionError:
+            pytest.skip("creating a device node needs root")
+        why = "is a device, not a regular file"
     else:
         if os.geteuid() != 0:
             pytest.skip("giving a file to another user needs root")
@@ -1022,6 +1060,27 @@ def test_text_from_a_file_is_shortened_for_the_terminal(tmp_path):
     assert result.exit_code == 0, result.output
     assert "(200000 characters in all, shortened)" in " ".join(result.output.split())
     assert len(result.output) < 20_000
+
+
+def test_a_long_sweep_description_is_shortened_for_the_terminal(tmp_path):
+    """NEW32: a 1 MB sweep description (the TOML under its cap) printed 11 773 lines of the
+    table's title."""
+    (tmp_path / "d.toml").write_text(SWEEP.replace('"tiny"', '"' + "y" * 200_000 + '"'))
+    result = _invoke(["sweep", str(tmp_path / "d.toml"), "--out", str(tmp_path / "d.nc")])
+    assert result.exit_code == 0, result.output
+    assert "(200000 characters in all, shortened)" in " ".join(result.output.split())
+    assert len(result.output) < 20_000
+
+
+def test_a_long_command_line_in_a_checkpoint_is_shortened_for_the_terminal(tmp_path, handed_over):
+    """NEW60: a crafted checkpoint's 1 MB command_line made resume print a 1 000 083-byte
+    'resuming ...' line (escaped, not shortened)."""
+    crafted = _crafted(handed_over, tmp_path / "long.ckpt", command_line="stochpend " + "z" * 200_000, out=None)
+    result = _invoke(["resume", str(crafted), "--out", str(tmp_path / "long.nc")])
+    assert result.exit_code == 0, result.output[:2000]
+    resuming = " ".join(result.output.split("resuming ", 1)[1].split("% done)", 1)[0].split())
+    assert "(200010 characters in all, shortened)" in resuming and len(resuming) < 2000, resuming[:2000]
+    assert (tmp_path / "long.nc").is_file()
 
 
 def test_a_checkpoint_directory_removed_after_saves_says_the_checkpoint_is_gone(tmp_path):
