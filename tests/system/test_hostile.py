@@ -911,21 +911,26 @@ def test_a_name_whose_temporary_name_is_too_long_is_refused_before_any_work(tmp_
     assert result.exit_code == 0, result.output and ok.is_file()
 
 
-def test_a_nul_in_text_a_result_would_store_is_refused_before_any_work(tmp_path, handed_over):
+def test_a_nul_in_text_a_result_would_store_is_refused_before_any_work(tmp_path):
     """NEW31a: a sweep description "fig\\u0000draft" ran the sweep, then 'VLEN strings do not
-    support embedded NULLs'; NEW35: a checkpoint's command_line with a NUL did the whole work
-    and advised a resume that failed the same way for ever."""
+    support embedded NULLs' (exit 2 after the work, naming neither file nor key)."""
     toml = tmp_path / "nul.toml"
     toml.write_text('description = "fig\\u0000draft"\n[base]\npaths = 100\nt_max = 1.0\nn_times = 2\n'
                     '[grid]\nD = [1.0]\n')
-    result = _invoke(["sweep", str(toml), "--quiet", "--out", str(tmp_path / "nul.nc")])
+    result = _invoke_before_work(["sweep", str(toml), "--quiet", "--out", str(tmp_path / "nul.nc")])
     assert result.exit_code == 2, result.output
     assert "nul.toml: description is not accepted: it holds a NUL character" in _one_line(result.output)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["nul.toml"]
+
+
+def test_a_nul_in_a_checkpoints_command_line_is_refused_before_any_work(tmp_path, handed_over):
+    """NEW35: a checkpoint's command_line with a NUL did the whole work, then failed to write
+    ('embedded NULLs') and advised a resume that failed the same way for ever."""
     crafted = _crafted(handed_over, tmp_path / "nul.ckpt", command_line="stochpend\u0000simulate", out=None)
-    result = _invoke(["resume", str(crafted), "--out", str(tmp_path / "nul.nc"), "--quiet"])
+    result = _invoke_before_work(["resume", str(crafted), "--out", str(tmp_path / "nul.nc"), "--quiet"])
     assert result.exit_code == 2, result.output
     assert "malformed header: command_line='stochpend\\x00simulate'" in _one_line(result.output)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["nul.ckpt", "nul.toml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["nul.ckpt"]
 
 
 def test_resume_advice_names_out_when_it_is_in_another_directory(tmp_path):
@@ -1119,17 +1124,27 @@ def test_stdout_on_a_full_device_names_standard_output(tmp_path, handed_over):
     assert r.returncode == 1, r.stderr
     assert _one_line(r.stderr) == ("error: cannot write the results to standard output: No space left on "
                                    "device (files the command wrote before this are complete)")
+    with open("/dev/full", "w") as full:  # the report's command: its result is written, then the table
+        r = subprocess.run(_cmd("simulate", *TINY, "--bias-paths", "0", "--out", "n20.nc"), stdout=full,
+                           stderr=subprocess.PIPE, text=True, cwd=tmp_path, env=_env(), timeout=300)
+    assert r.returncode == 1, r.stderr
+    assert _one_line(r.stderr) == ("error: cannot write the results to standard output: No space left on "
+                                   "device (files the command wrote before this are complete)")
+    io.open_results(tmp_path / "n20.nc")
 
 
-def test_numba_disable_jit_is_one_line(monkeypatch):
+def test_numba_disable_jit_is_one_line(tmp_path):
     """NEW23: NUMBA_DISABLE_JIT=1 gave a 71-line traceback ('<intrinsic _take> is not usable in
-    pure-python'); commands that compile nothing still run."""
-    monkeypatch.setenv("NUMBA_DISABLE_JIT", "1")
-    result = _invoke(["simulate", "--paths", "2", "--t-max", "0.1", "--n-times", "1", "--bias-paths", "0"])
-    assert result.exit_code == 2, result.output
-    assert _one_line(result.output) == ("error: NUMBA_DISABLE_JIT='1' is not accepted: stochpend's kernels "
-                                        "run only compiled (the environment variable; unset it or set it to 0)")
-    assert _invoke(["scaling"]).exit_code == 0
+    pure-python'); commands that compile nothing still run. A fresh process: Numba reads the
+    variable once, when it is imported."""
+    env = {**_env(), "NUMBA_DISABLE_JIT": "1"}
+    r = subprocess.run(_cmd("simulate", "--paths", "2", "--t-max", "0.1", "--n-times", "1", "--bias-paths", "0"),
+                       capture_output=True, text=True, cwd=tmp_path, env=env, timeout=300)
+    assert r.returncode == 2, r.stderr
+    assert _one_line(r.stderr) == ("error: NUMBA_DISABLE_JIT='1' is not accepted: stochpend's kernels "
+                                   "run only compiled (the environment variable; unset it or set it to 0)")
+    r = subprocess.run(_cmd("scaling"), capture_output=True, text=True, cwd=tmp_path, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
 
 
 def test_a_config_file_setting_one_option_twice_is_refused(tmp_path):
@@ -1157,6 +1172,11 @@ def test_the_checkpoint_read_guard_covers_its_measured_peak(tmp_path, handed_ove
         _, peak = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
+    # Less memory than the read was just measured to take: refused before reading (the guard
+    # asked for 2 times the file, and let it through).
+    monkeypatch.setattr(resources, "available_memory", lambda: peak - 1)
+    with pytest.raises(ValueError, match="and reading it needs"):
+        ck.read(path)
     assert peak <= ck.READ_PEAK * size, (peak, size)
     monkeypatch.setattr(resources, "available_memory", lambda: int(2.5 * size))
     with pytest.raises(ValueError, match="reading it needs 3 times that"):
