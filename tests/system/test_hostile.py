@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import select
 import shutil
 import signal
 import stat
@@ -165,6 +166,12 @@ def _invoke_before_work(args: list[str]):
     run, a resume, a bias estimate), a sweep's blocks and the B.F.P.E.'s time steps. A refusal
     must come before all of them (a bound on work, where these tests had wall-time limits that
     a busy machine could break: issue 37)."""
+    # Imported before the patches: a module first imported under them binds the patched
+    # run_batches by name (``from stochpend.runner import run_batches``) and keeps it for good,
+    # failing every later test of this process that does work.
+    import stochpend._blocks  # noqa: F401
+    import stochpend.sweep  # noqa: F401
+    import stochpend.theory.bfpe  # noqa: F401
     with mock.patch("stochpend.runner.run_batches", _work_started), \
             mock.patch("stochpend._blocks.run_batches", _work_started), \
             mock.patch("stochpend.sweep.run_block", _work_started), \
@@ -276,6 +283,31 @@ def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 120) -> None:
         assert proc.poll() is None, proc.communicate()
         assert time.monotonic() < deadline, f"{path} did not appear"
         time.sleep(0.05)
+
+
+def _first_line(args: list[str], cwd: Path, timeout: float) -> str:
+    """The first line the command prints on stderr within ``timeout`` seconds ('' if none; a
+    note of a first use's compilation skipped); then the command is killed. For runs that must
+    say what they will cost before they start: the old code printed nothing for minutes."""
+    proc = _start(args, cwd)
+    fd, text = proc.stderr.fileno(), b""  # type: ignore[union-attr]
+    deadline = time.monotonic() + timeout
+    try:
+        while True:
+            while b"\n" in text:
+                line, text = text.split(b"\n", 1)
+                if not line.startswith(b"compiling kernels for "):
+                    return line.decode()
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([fd], [], [], left)[0]:
+                return ""
+            chunk = os.read(fd, 65536)
+            if not chunk:
+                return text.decode()
+            text += chunk
+    finally:
+        proc.kill()
+        proc.communicate()
 
 
 def test_one_run_per_checkpoint_and_signals_save_it(tmp_path):
@@ -837,6 +869,32 @@ def test_an_unwritable_pseudo_filesystem_out_is_refused_before_any_work(tmp_path
     assert "--out '/sys/repro' is not accepted" in _one_line(result.output)
 
 
+def test_a_long_bfpe_solve_says_so_before_it_starts(tmp_path):
+    """B01: 'bfpe --n-cells 1e7 --t-max 10' (accepted: about 6e9 cell-steps) printed nothing in
+    40 s, with or without --quiet. Its estimate is the first line, before the solve allocates."""
+    from stochpend import resources
+
+    if resources.available_memory() < 6 * 2**30:
+        pytest.skip("the solve needs 4.8 GiB: refused here before any estimate")
+    for quiet in ([], ["--quiet"]):
+        line = _first_line(["bfpe", "--n-cells", "1e7", "--t-max", "10", *quiet, "--out", "b.nc"], tmp_path, 60)
+        assert line.startswith("estimate: about 6.4e+09 cell-steps (n_cells x time steps = 10000000 x 640), "
+                               "roughly "), line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_sweep_of_many_tiny_sets_says_what_it_will_cost(tmp_path):
+    """NEW03: a grid of 99 999 sets of 2 paths (under the set and the size caps) passed the work
+    check with its 2e5 path-steps and printed nothing in the hour it would take: each set's own
+    cost (its tasks, statistics, bias estimate) was not counted. 20 000 sets: a minute at least."""
+    values = ", ".join(f"{1 + i * 1e-5:.5f}" for i in range(20_000))
+    (tmp_path / "g.toml").write_text(f"[base]\npaths = 2\nt_max = 0.05\nn_times = 1\n[grid]\nD = [{values}]\n")
+    line = _first_line(["sweep", "g.toml", "--out", "g.nc"], tmp_path, 120)
+    assert line.startswith("estimate: 20000 parameter sets, at least 4e+04 path-steps"), line
+    assert "~3 ms a set" in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.toml"]
+
+
 def test_a_name_whose_temporary_name_is_too_long_is_refused_before_any_work(tmp_path):
     """NEW27, NEW30c: a valid 242-byte --out (or 244-byte --checkpoint) name was refused only
     when written: the temporary '.NAME.XXXXXXXX.tmp' is 14 bytes longer than NAME_MAX allows."""
@@ -853,21 +911,26 @@ def test_a_name_whose_temporary_name_is_too_long_is_refused_before_any_work(tmp_
     assert result.exit_code == 0, result.output and ok.is_file()
 
 
-def test_a_nul_in_text_a_result_would_store_is_refused_before_any_work(tmp_path, handed_over):
+def test_a_nul_in_text_a_result_would_store_is_refused_before_any_work(tmp_path):
     """NEW31a: a sweep description "fig\\u0000draft" ran the sweep, then 'VLEN strings do not
-    support embedded NULLs'; NEW35: a checkpoint's command_line with a NUL did the whole work
-    and advised a resume that failed the same way for ever."""
+    support embedded NULLs' (exit 2 after the work, naming neither file nor key)."""
     toml = tmp_path / "nul.toml"
     toml.write_text('description = "fig\\u0000draft"\n[base]\npaths = 100\nt_max = 1.0\nn_times = 2\n'
                     '[grid]\nD = [1.0]\n')
-    result = _invoke(["sweep", str(toml), "--quiet", "--out", str(tmp_path / "nul.nc")])
+    result = _invoke_before_work(["sweep", str(toml), "--quiet", "--out", str(tmp_path / "nul.nc")])
     assert result.exit_code == 2, result.output
     assert "nul.toml: description is not accepted: it holds a NUL character" in _one_line(result.output)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["nul.toml"]
+
+
+def test_a_nul_in_a_checkpoints_command_line_is_refused_before_any_work(tmp_path, handed_over):
+    """NEW35: a checkpoint's command_line with a NUL did the whole work, then failed to write
+    ('embedded NULLs') and advised a resume that failed the same way for ever."""
     crafted = _crafted(handed_over, tmp_path / "nul.ckpt", command_line="stochpend\u0000simulate", out=None)
-    result = _invoke(["resume", str(crafted), "--out", str(tmp_path / "nul.nc"), "--quiet"])
+    result = _invoke_before_work(["resume", str(crafted), "--out", str(tmp_path / "nul.nc"), "--quiet"])
     assert result.exit_code == 2, result.output
     assert "malformed header: command_line='stochpend\\x00simulate'" in _one_line(result.output)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["nul.ckpt", "nul.toml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["nul.ckpt"]
 
 
 def test_resume_advice_names_out_when_it_is_in_another_directory(tmp_path):
@@ -895,12 +958,44 @@ def test_resume_advice_names_out_when_it_is_in_another_directory(tmp_path):
     assert ck.resume_advice("a/b.ckpt", "a/c.nc") == "stochpend resume a/b.ckpt"  # same directory: no --out
 
 
-@pytest.mark.parametrize("kind", ["hardlink", "fifo", "other-owner"])
+def test_resume_advice_after_a_failed_write_names_out_in_another_directory(tmp_path, monkeypatch):
+    """NEW40: --out's file system went read-only at the final write of a run whose --checkpoint is
+    in another directory: 'the finished run is kept in ...: `stochpend resume res/mid.ckpt` writes
+    it', and that command (the file system writable again) was refused, the checkpoint naming an
+    out outside its own directory. The advice printed is run as printed."""
+    import errno
+    import shlex
+
+    (tmp_path / "res").mkdir()
+    (tmp_path / "outdir").mkdir()
+    ckpt, out = tmp_path / "res" / "mid.ckpt", tmp_path / "outdir" / "mid.nc"
+    real = io.write_atomic
+
+    def read_only(path, data, **kwargs):
+        if Path(path).parent == out.parent:
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+        return real(path, data, **kwargs)
+
+    monkeypatch.setattr(io, "write_atomic", read_only)
+    result = _invoke(["simulate", *TINY, "--bias-paths", "0", "--quiet", "--checkpoint", str(ckpt), "--out", str(out)])
+    assert result.exit_code == 1, result.output
+    line = _one_line(result.output)
+    assert "Read-only file system" in line and f"the finished run is kept in {str(ckpt)!r}: `" in line, line
+    advice = line.split("`")[1]
+    assert advice == f"stochpend resume {ckpt} --out {out}", line
+    monkeypatch.setattr(io, "write_atomic", real)
+    result = _invoke([*shlex.split(advice)[1:], "--quiet"])
+    assert result.exit_code == 0, result.output
+    io.open_results(out)
+    assert not ckpt.exists()
+
+
+@pytest.mark.parametrize("kind", ["hardlink", "fifo", "device", "other-owner"])
 def test_a_planted_lock_file_is_refused_without_touching_it(tmp_path, kind):
     """NEW06: a hard link to a user's file planted at .NAME-lock had the file's content replaced
-    by 'pid N on host ...'; NEW07, NEW08: a FIFO or a device there gave 'error: [Errno 22]
-    Invalid argument'. The lock is created exclusively, and an existing one is used only when it
-    is a regular file with one link, owned by this user."""
+    by 'pid N on host ...'; NEW07, NEW08: a FIFO or a (character) device there gave 'error:
+    [Errno 22] Invalid argument'. The lock is created exclusively, and an existing one is used
+    only when it is a regular file with one link, owned by this user."""
     ckpt = tmp_path / "k.ckpt"
     lock = ck.lock_path(ckpt)
     notes = tmp_path / "notes.txt"
@@ -911,6 +1006,12 @@ def test_a_planted_lock_file_is_refused_without_touching_it(tmp_path, kind):
     elif kind == "fifo":
         os.mkfifo(lock)
         why = "is a FIFO (named pipe)"
+    elif kind == "device":
+        try:
+            os.mknod(lock, stat.S_IFCHR | 0o666, os.makedev(1, 3))  # /dev/null's numbers
+        except PermissionError:
+            pytest.skip("creating a device node needs root")
+        why = "is a device, not a regular file"
     else:
         if os.geteuid() != 0:
             pytest.skip("giving a file to another user needs root")
@@ -966,6 +1067,27 @@ def test_text_from_a_file_is_shortened_for_the_terminal(tmp_path):
     assert len(result.output) < 20_000
 
 
+def test_a_long_sweep_description_is_shortened_for_the_terminal(tmp_path):
+    """NEW32: a 1 MB sweep description (the TOML under its cap) printed 11 773 lines of the
+    table's title."""
+    (tmp_path / "d.toml").write_text(SWEEP.replace('"tiny"', '"' + "y" * 200_000 + '"'))
+    result = _invoke(["sweep", str(tmp_path / "d.toml"), "--out", str(tmp_path / "d.nc")])
+    assert result.exit_code == 0, result.output
+    assert "(200000 characters in all, shortened)" in " ".join(result.output.split())
+    assert len(result.output) < 20_000
+
+
+def test_a_long_command_line_in_a_checkpoint_is_shortened_for_the_terminal(tmp_path, handed_over):
+    """NEW60: a crafted checkpoint's 1 MB command_line made resume print a 1 000 083-byte
+    'resuming ...' line (escaped, not shortened)."""
+    crafted = _crafted(handed_over, tmp_path / "long.ckpt", command_line="stochpend " + "z" * 200_000, out=None)
+    result = _invoke(["resume", str(crafted), "--out", str(tmp_path / "long.nc")])
+    assert result.exit_code == 0, result.output[:2000]
+    resuming = " ".join(result.output.split("resuming ", 1)[1].split("% done)", 1)[0].split())
+    assert "(200010 characters in all, shortened)" in resuming and len(resuming) < 2000, resuming[:2000]
+    assert (tmp_path / "long.nc").is_file()
+
+
 def test_a_checkpoint_directory_removed_after_saves_says_the_checkpoint_is_gone(tmp_path):
     """F09b: the directory of the checkpoint removed after checkpoints were written: 'no
     checkpoint was written before', which was false."""
@@ -1002,17 +1124,27 @@ def test_stdout_on_a_full_device_names_standard_output(tmp_path, handed_over):
     assert r.returncode == 1, r.stderr
     assert _one_line(r.stderr) == ("error: cannot write the results to standard output: No space left on "
                                    "device (files the command wrote before this are complete)")
+    with open("/dev/full", "w") as full:  # the report's command: its result is written, then the table
+        r = subprocess.run(_cmd("simulate", *TINY, "--bias-paths", "0", "--out", "n20.nc"), stdout=full,
+                           stderr=subprocess.PIPE, text=True, cwd=tmp_path, env=_env(), timeout=300)
+    assert r.returncode == 1, r.stderr
+    assert _one_line(r.stderr) == ("error: cannot write the results to standard output: No space left on "
+                                   "device (files the command wrote before this are complete)")
+    io.open_results(tmp_path / "n20.nc")
 
 
-def test_numba_disable_jit_is_one_line(monkeypatch):
+def test_numba_disable_jit_is_one_line(tmp_path):
     """NEW23: NUMBA_DISABLE_JIT=1 gave a 71-line traceback ('<intrinsic _take> is not usable in
-    pure-python'); commands that compile nothing still run."""
-    monkeypatch.setenv("NUMBA_DISABLE_JIT", "1")
-    result = _invoke(["simulate", "--paths", "2", "--t-max", "0.1", "--n-times", "1", "--bias-paths", "0"])
-    assert result.exit_code == 2, result.output
-    assert _one_line(result.output) == ("error: NUMBA_DISABLE_JIT='1' is not accepted: stochpend's kernels "
-                                        "run only compiled (the environment variable; unset it or set it to 0)")
-    assert _invoke(["scaling"]).exit_code == 0
+    pure-python'); commands that compile nothing still run. A fresh process: Numba reads the
+    variable once, when it is imported."""
+    env = {**_env(), "NUMBA_DISABLE_JIT": "1"}
+    r = subprocess.run(_cmd("simulate", "--paths", "2", "--t-max", "0.1", "--n-times", "1", "--bias-paths", "0"),
+                       capture_output=True, text=True, cwd=tmp_path, env=env, timeout=300)
+    assert r.returncode == 2, r.stderr
+    assert _one_line(r.stderr) == ("error: NUMBA_DISABLE_JIT='1' is not accepted: stochpend's kernels "
+                                   "run only compiled (the environment variable; unset it or set it to 0)")
+    r = subprocess.run(_cmd("scaling"), capture_output=True, text=True, cwd=tmp_path, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
 
 
 def test_a_config_file_setting_one_option_twice_is_refused(tmp_path):
@@ -1040,6 +1172,11 @@ def test_the_checkpoint_read_guard_covers_its_measured_peak(tmp_path, handed_ove
         _, peak = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
+    # Less memory than the read was just measured to take: refused before reading (the guard
+    # asked for 2 times the file, and let it through).
+    monkeypatch.setattr(resources, "available_memory", lambda: peak - 1)
+    with pytest.raises(ValueError, match="and reading it needs"):
+        ck.read(path)
     assert peak <= ck.READ_PEAK * size, (peak, size)
     monkeypatch.setattr(resources, "available_memory", lambda: int(2.5 * size))
     with pytest.raises(ValueError, match="reading it needs 3 times that"):

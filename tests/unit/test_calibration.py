@@ -166,6 +166,29 @@ def test_a_long_sweep_has_an_estimate_line(monkeypatch, tmp_path):
     assert "rate measured here" in line
 
 
+def test_a_sweep_of_many_tiny_sets_counts_each_sets_own_cost(monkeypatch, tmp_path):
+    """NEW03 (hostile-turn4): 99 999 sets of 2 paths ran for about an hour with no estimate line:
+    their 2e5 path-steps are 0.03 s of work, each set's own cost (its tasks, statistics and bias
+    estimate) was not counted."""
+    from types import SimpleNamespace
+
+    from stochpend._cli_scale import SET_SECONDS, SET_SECONDS_WITH_BIAS, sweep_estimate
+    from stochpend.params import SimulationConfig
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(cal, "current_load", lambda: 0.0)
+    monkeypatch.setattr(resources, "compile_seconds", lambda *a, **k: 0.0)  # the sets' cost alone
+    config = SimulationConfig.build(paths=2, t_max=0.05, n_times=1)
+    few = SimpleNamespace(configs=[config] * 100)
+    assert sweep_estimate(few, pairs=True) is None
+    many = SimpleNamespace(configs=[config] * 20_000)
+    line = sweep_estimate(many, pairs=True)
+    assert line is not None and line.startswith("20000 parameter sets, at least 4e+04 path-steps"), line
+    assert f"roughly {resources.format_seconds(20_000 * SET_SECONDS_WITH_BIAS)} on " in line, line
+    assert line.endswith("and ~3 ms a set"), line
+    assert sweep_estimate(many, pairs=False) is not None and 20_000 * SET_SECONDS > resources.LONG_RUN_S
+
+
 def test_a_kernels_own_rate_never_another_kernels(monkeypatch, tmp_path):
     """A quartic oscillator's runs do far more than the lower bound's work (its energy grows, its
     steps shrink): its samples set its own estimates, never the pendulum's."""
