@@ -10,7 +10,8 @@ from typing import Any
 from stochpend._cli_common import console, note, results
 
 
-def _times(text: str | None) -> list[float] | None:
+def parse_target_times(text: str | None) -> list[float] | None:
+    """``--target-times`` as a list of times (None: not given); one line for text that is not."""
     if text is None:
         return None
     try:
@@ -29,7 +30,7 @@ def simulate_target(config: Any, *, target_error: float, target_confidence: floa
     from stochpend.simulate import resolve_backend
 
     if isinstance(target_times, str):
-        target_times = _times(target_times)
+        target_times = parse_target_times(target_times)
     target = multilevel.check_run(config, target_error, target_confidence, target_statistics, target_times,
                                   accuracy=accuracy, rtol=rtol, precision=precision,
                                   max_path_steps=max_path_steps, max_seconds=max_seconds, cli=True)

@@ -512,8 +512,8 @@ def result_kind(ds: Any) -> str | None:
     B.F.P.E.'s solution), "reduced" (the reduced dynamics), "simulation" (simulate, a
     checkpointed run, resume, reproduce's runs), or None (not a file of stochpend's)."""
     title = str(ds.attrs.get("title", ""))
-    if "target_error" in ds.attrs and "n_samples" in ds:
-        return "target"  # simulate --target-error (stochpend.multilevel)
+    if "target_error" in ds.attrs and "n_samples" in ds:  # simulate --target-error (stochpend.multilevel)
+        return "sweep" if title == "stochpend parameter sweep" else "target"  # or a sweep of them
     if "mean_E" not in ds:
         return None
     if title == "stochpend parameter sweep" or any(d not in ("time", "E_bin", "E_bin_edge", "batch")

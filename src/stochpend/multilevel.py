@@ -75,7 +75,8 @@ every member is the fixed-step scheme at its h_l and the telescope is exact (up 
 step before each output time, which both take but split differently: O(h**3) each); the
 consistency check (Giles: level l-1's fine mean against level l's coarse mean, in sigma) reports
 it. What this version does not do: the Richardson-extrapolated (multilevel Richardson-Romberg)
-estimate, the kurtosis of the level differences, checkpoints, sweeps.
+estimate, the kurtosis of the level differences, checkpoints (sweeps: :func:`stochpend.sweep.sweep`
+runs every set as this run).
 """
 
 from __future__ import annotations
@@ -746,6 +747,28 @@ def _path_steps_guess(config: SimulationConfig, level: int, n: int) -> float:
     return float(n) * (steps if level == 0 else 3.0 * steps * 2.0 ** (level - 1))
 
 
+def check_pilot(config: SimulationConfig, target: Target, *, backend: str = "cpu", max_path_steps: Any = None,
+                max_seconds: Any = None, started: float | None = None) -> Budget:
+    """The :class:`Budget` of a target run of ``config`` (its wall time counted from ``started``,
+    default now), refusing (``ValueError``, one line) a pilot that it cannot buy: what
+    :func:`target_run` checks first, and a sweep of targets for every set before any work."""
+    from stochpend import resources
+
+    cfg = _target_config(config, target)
+    budget = Budget(resources.work_limit(max_path_steps), check_max_seconds(max_seconds),
+                    started=_time.perf_counter() if started is None else started)
+    if budget.seconds is not None:
+        budget.rate = resources._rate(backend == "cuda", None, resources.kernel_kind(cfg))[0]
+        budget.compile_s = resources.compile_seconds(cfg, backend=backend)
+    pilot_cost = sum(_path_steps_guess(cfg, level, PILOT_SAMPLES) for level in range(PILOT_LEVELS))
+    broken = budget.exceeded(pilot_cost)
+    if broken is not None:
+        raise ValueError(f"target_error={target.error:g} is not accepted: its pilot alone ({PILOT_SAMPLES} "
+                         f"samples on each of levels 0..{PILOT_LEVELS - 1}) needs about {pilot_cost:.3g} "
+                         f"path-steps, {broken}; or use a larger h_max or a shorter t_max")
+    return budget
+
+
 def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu",
                max_path_steps: Any = None, max_seconds: Any = None, progress: Progress | None = None,
                note: Any = None) -> xr.Dataset:
@@ -757,22 +780,13 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
     exceeds ``max_path_steps`` or the wall-time budget ``max_seconds`` (:class:`Budget`), and
     before each round when the plan does.
     """
-    from stochpend import resources
     from stochpend._jitcache import CompileClock
 
     note = note or (lambda _msg: None)
     cfg = _target_config(config, target)
     started = _time.perf_counter()
-    budget = Budget(resources.work_limit(max_path_steps), check_max_seconds(max_seconds), started=started)
-    if budget.seconds is not None:
-        budget.rate = resources._rate(backend == "cuda", None, resources.kernel_kind(cfg))[0]
-        budget.compile_s = resources.compile_seconds(cfg, backend=backend)
-    pilot_cost = sum(_path_steps_guess(cfg, level, PILOT_SAMPLES) for level in range(PILOT_LEVELS))
-    broken = budget.exceeded(pilot_cost)
-    if broken is not None:
-        raise ValueError(f"target_error={target.error:g} is not accepted: its pilot alone ({PILOT_SAMPLES} "
-                         f"samples on each of levels 0..{PILOT_LEVELS - 1}) needs about {pilot_cost:.3g} "
-                         f"path-steps, {broken}; or use a larger h_max or a shorter t_max")
+    budget = check_pilot(config, target, backend=backend, max_path_steps=max_path_steps, max_seconds=max_seconds,
+                         started=started)
     of = statistics_of(config, target.statistics)
     levels: list[Level] = []
     spent = 0
