@@ -86,11 +86,25 @@ def simulate_with_checkpoint(
     (SIGTERM) saves the state, prints where and exits with code 130 (143). On success the result is written
     to ``out`` (with ``command_line`` in its attributes) and the checkpoint file is removed.
     """
-    from stochpend import checkpoint, io
+    from stochpend import checkpoint
     from stochpend.simulate import check_precision, resolve_backend
 
     backend = resolve_backend(backend)
     check_precision(precision, backend)
+    return checkpointed(checkpoint.run_checkpointed, config, checkpoint_path=checkpoint_path, every_s=every_s,
+                        out=out, overwrite=overwrite, threads=threads, progress=progress, command_line=command_line,
+                        backend=backend, precision=precision, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
+                        max_path_steps=max_path_steps)
+
+
+def checkpointed(run: Any, *args: Any, checkpoint_path: Path, out: Path | None, overwrite: bool,
+                 command_line: str | None = None, **kwargs: Any) -> Any:
+    """``run(*args, checkpoint_path=..., out=..., ...)``, a run that checkpoints
+    (:func:`stochpend.checkpoint.run_checkpointed`, ``run_target_checkpointed``), after the checks
+    every such run needs before any work (``out`` writable, the checkpoint a new file, its lock
+    held) and with Ctrl-C's exit (:func:`_interruptible`)."""
+    from stochpend import checkpoint, io
+
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
     # The name and the place first (the lock file goes beside it); whether it exists is checked
@@ -100,12 +114,8 @@ def simulate_with_checkpoint(
         checkpoint.check_checkpoint_path(checkpoint_path, out=out)
         if command_line is None:
             command_line = " ".join(["stochpend", *sys.argv[1:]])
-        return _interruptible(
-            checkpoint.run_checkpointed, config, checkpoint_path=checkpoint_path, every_s=every_s,
-            out=out, overwrite=overwrite, threads=threads, progress=progress, command_line=command_line,
-            backend=backend, precision=precision, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
-            max_path_steps=max_path_steps,
-        )
+        return _interruptible(run, *args, checkpoint_path=checkpoint_path, out=out, overwrite=overwrite,
+                              command_line=command_line, **kwargs)
 
 
 def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) -> Any:
@@ -165,7 +175,9 @@ def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: 
     from stochpend import checkpoint as ck
     from stochpend import io
     state = ck.read(checkpoint)  # verifies checksum, version and configuration first
-    ck.check_work(state, max_path_steps)
+    targeted = isinstance(state, ck.TargetCheckpoint)  # simulate --target-error's (stochpend.multilevel)
+    if not isinstance(state, ck.TargetCheckpoint):
+        ck.check_work(state, max_path_steps)
     # The checkpoint names its output only within its own directory, and never overwrites by
     # its own say: --overwrite must be on this command line.
     target = out if out is not None else (None if state.out is None else ck.own_out(checkpoint, state.out))
@@ -181,10 +193,19 @@ def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: 
     # The real destination, before any work (the recorded command line is only a reminder).
     dest = "writing no file" if target is None else f"writing {markup(target)}"
     if not quiet:
-        st = state.state
-        done = (st.done_work + float(st.t.sum())) / (state.config.paths * state.config.t_max)
+        if isinstance(state, ck.TargetCheckpoint):
+            done = f"{len(state.journal.rounds)} rounds done"
+        else:
+            st = state.state
+            done = f"{100 * (st.done_work + float(st.t.sum())) / (state.config.paths * state.config.t_max):.0f}% done"
         common.console.print(f"resuming {markup(state.command_line or 'run')} from {markup(checkpoint)} "
-                          f"({100 * done:.0f}% done); {dest}", highlight=False, soft_wrap=True)
+                          f"({done}); {dest}", highlight=False, soft_wrap=True)
+    if targeted:
+        from stochpend._cli_target import report
+
+        kwargs["note"] = None if quiet else common.note
+        report(_interruptible(_resume, checkpoint_path=checkpoint, **kwargs), target, quiet)
+        return
     progress = common.RichProgress(enabled=not quiet and common.console.is_terminal, long_run=True)
     ds = _interruptible(_resume, checkpoint_path=checkpoint, progress=progress, **kwargs)
     if not quiet:
