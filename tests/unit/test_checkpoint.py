@@ -557,6 +557,36 @@ def test_a_target_run_interrupted_at_a_round_boundary_resumes_bit_for_bit(tmp_pa
     _assert_same_target_result(ref, io.open_results(tmp_path / "t.nc"))
 
 
+def test_a_target_run_interrupted_in_its_late_time_route_resumes_bit_for_bit(tmp_path):
+    """The OU pendulum's t = 100, where the levels decorrelate and two independent ensembles
+    certify the time (tests/unit/test_multilevel.py): stopped after the route's first ensemble,
+    the resumed run replays the levels' rounds and that ensemble and runs the rest."""
+    import warnings
+
+    from stochpend import multilevel
+
+    run_ = dict(noise="ou", t_max=100.0, times=(1.0, 100.0), seed=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = simulate(**run_, target_error=0.05, target_statistics=["mean_E"], progress=False)
+    assert ref["mean_E_route"].values.tolist() == [0, 1]
+    config = SimulationConfig.build(**run_)
+    target = multilevel.check_target(config, 0.05, 0.95, ["mean_E"])
+
+    class AfterTheFirstEnsemble(ck.TargetCheckpointer):
+        def round_done(self, journal):
+            if len(journal.ensembles) == 1:
+                self.request_stop()
+            super().round_done(journal)
+
+    path = tmp_path / "late.ckpt"
+    with pytest.raises(ck.CheckpointInterrupt):
+        ck.run_target_checkpointed(config, target, checkpoint_path=path, every_s=None,
+                                   checkpointer=AfterTheFirstEnsemble(path, None, config=config, target=target))
+    assert len(ck.read(path).journal.ensembles) == 1
+    _assert_same_target_result(ref, ck.resume(path))
+
+
 def test_ctrl_c_in_a_checkpointed_target_run_saves_it_and_resume_finishes_it_bit_for_bit(
         tmp_path, target_reference, app, monkeypatch):
     """A real SIGINT during the first round boundary's save: deferred (deferred_signals), saved,
