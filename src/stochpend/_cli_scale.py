@@ -14,6 +14,7 @@ import math
 import os
 import re
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -85,11 +86,25 @@ def simulate_with_checkpoint(
     (SIGTERM) saves the state, prints where and exits with code 130 (143). On success the result is written
     to ``out`` (with ``command_line`` in its attributes) and the checkpoint file is removed.
     """
-    from stochpend import checkpoint, io
+    from stochpend import checkpoint
     from stochpend.simulate import check_precision, resolve_backend
 
     backend = resolve_backend(backend)
     check_precision(precision, backend)
+    return checkpointed(checkpoint.run_checkpointed, config, checkpoint_path=checkpoint_path, every_s=every_s,
+                        out=out, overwrite=overwrite, threads=threads, progress=progress, command_line=command_line,
+                        backend=backend, precision=precision, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
+                        max_path_steps=max_path_steps)
+
+
+def checkpointed(run: Any, *args: Any, checkpoint_path: Path, out: Path | None, overwrite: bool,
+                 command_line: str | None = None, **kwargs: Any) -> Any:
+    """``run(*args, checkpoint_path=..., out=..., ...)``, a run that checkpoints
+    (:func:`stochpend.checkpoint.run_checkpointed`, ``run_target_checkpointed``), after the checks
+    every such run needs before any work (``out`` writable, the checkpoint a new file, its lock
+    held) and with Ctrl-C's exit (:func:`_interruptible`)."""
+    from stochpend import checkpoint, io
+
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
     # The name and the place first (the lock file goes beside it); whether it exists is checked
@@ -99,12 +114,8 @@ def simulate_with_checkpoint(
         checkpoint.check_checkpoint_path(checkpoint_path, out=out)
         if command_line is None:
             command_line = " ".join(["stochpend", *sys.argv[1:]])
-        return _interruptible(
-            checkpoint.run_checkpointed, config, checkpoint_path=checkpoint_path, every_s=every_s,
-            out=out, overwrite=overwrite, threads=threads, progress=progress, command_line=command_line,
-            backend=backend, precision=precision, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
-            max_path_steps=max_path_steps,
-        )
+        return _interruptible(run, *args, checkpoint_path=checkpoint_path, out=out, overwrite=overwrite,
+                              command_line=command_line, **kwargs)
 
 
 def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) -> Any:
@@ -164,7 +175,9 @@ def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: 
     from stochpend import checkpoint as ck
     from stochpend import io
     state = ck.read(checkpoint)  # verifies checksum, version and configuration first
-    ck.check_work(state, max_path_steps)
+    targeted = isinstance(state, ck.TargetCheckpoint)  # simulate --target-error's (stochpend.multilevel)
+    if not isinstance(state, ck.TargetCheckpoint):
+        ck.check_work(state, max_path_steps)
     # The checkpoint names its output only within its own directory, and never overwrites by
     # its own say: --overwrite must be on this command line.
     target = out if out is not None else (None if state.out is None else ck.own_out(checkpoint, state.out))
@@ -180,10 +193,19 @@ def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: 
     # The real destination, before any work (the recorded command line is only a reminder).
     dest = "writing no file" if target is None else f"writing {markup(target)}"
     if not quiet:
-        st = state.state
-        done = (st.done_work + float(st.t.sum())) / (state.config.paths * state.config.t_max)
+        if isinstance(state, ck.TargetCheckpoint):
+            done = f"{len(state.journal.rounds)} rounds done"
+        else:
+            st = state.state
+            done = f"{100 * (st.done_work + float(st.t.sum())) / (state.config.paths * state.config.t_max):.0f}% done"
         common.console.print(f"resuming {markup(state.command_line or 'run')} from {markup(checkpoint)} "
-                          f"({100 * done:.0f}% done); {dest}", highlight=False, soft_wrap=True)
+                          f"({done}); {dest}", highlight=False, soft_wrap=True)
+    if targeted:
+        from stochpend._cli_target import report
+
+        kwargs["note"] = None if quiet else common.note
+        report(_interruptible(_resume, checkpoint_path=checkpoint, **kwargs), target, quiet)
+        return
     progress = common.RichProgress(enabled=not quiet and common.console.is_terminal, long_run=True)
     ds = _interruptible(_resume, checkpoint_path=checkpoint, progress=progress, **kwargs)
     if not quiet:
@@ -251,6 +273,8 @@ def sweep_table(ds: Any) -> Table:
     fmt = common._fmt
     sets = flat_sets(ds)
     swept = list(sets[0]["params"]) if sets else []
+    if "target_error" in ds.attrs and "n_samples" in ds:
+        return _target_sweep_table(ds, sets, swept)
     noise = ds.attrs.get("noise")
     table = Table(title=f"stochpend sweep: {len(sets)} parameter sets"
                         + (f" ({markup(ds.attrs['description'])})" if ds.attrs.get("description") else ""))
@@ -297,6 +321,31 @@ def sweep_table(ds: Any) -> Table:
     return table
 
 
+def _target_sweep_table(ds: Any, sets: Sequence[dict[str, Any]], swept: list[str]) -> Table:
+    """A sweep of targets: per set, each statistic at the last time with its total error and
+    how many of its times are certified; the set's path-steps."""
+    names = [n for n in str(ds.attrs.get("target_statistics", "")).split(",") if n and n in ds]
+    table = Table(title=f"stochpend sweep: {len(sets)} parameter sets, target {float(ds.attrs['target_error']):g} "
+                        f"at {100 * float(ds.attrs['target_confidence']):g} %"
+                        + (f" ({markup(ds.attrs['description'])})" if ds.attrs.get("description") else ""))
+    for col in (*swept, "t", *(c for name in names for c in (name, "rel err", "cert")), "path-steps"):
+        table.add_column(col, justify="right", no_wrap=True)
+    for s in sets:
+        row = ds.isel(s["index"])
+        last = row.isel(time=-1)
+        t = float(last["times"] if "times" in last.coords else last["time"])
+        cells = []
+        for name in names:
+            cells += [f"{float(last[name]):.6g}", f"{float(last[f'{name}_relative_total_error']):.2e}",
+                      f"{int(row[f'{name}_certified'].sum())}/{row.sizes['time']}"]
+        table.add_row(*(f"{v:g}" if isinstance(v, float) else str(v) for v in s["params"].values()),
+                      f"{t:.4g}", *cells, f"{float(row['path_steps']):.3g}")
+    table.caption = (f"rel err: the total error (statistical + discretisation bias bound) over |estimate| at "
+                     f"the last time; cert: the times certified to the target. Wall time "
+                     f"{float(ds.attrs['wall_time_s']):.3g} s, {float(ds.attrs['path_steps']):.3g} path-steps.")
+    return table
+
+
 @handles_errors
 def sweep_command(
     spec: Annotated[Path, typer.Argument(parser=file_name, help="The sweep, a TOML file: [base], then [grid] or [[case]] (docs/scale-out.md).")],
@@ -309,13 +358,17 @@ def sweep_command(
     backend: Annotated[str, typer.Option(help="Where each block runs: cpu, cuda (the GPU of the process or Dask worker running it) or auto.")] = "cpu",
     precision: Annotated[str, typer.Option(help="float64 or float32 (float32 needs --backend cuda).")] = "float64",
     bias_paths: Annotated[int | None, typer.Option("--bias-paths", parser=integer, help="Coupled coarse/fine pairs estimating each set's discretisation bias, in this process after the blocks (0: none).", show_default="each set's paths/48, at least 64")] = None,
+    target_error: Annotated[float | None, typer.Option("--target-error", help="Run every set as 'simulate --target-error' runs it (its own seed), one after another in this process: the relative total error of each target statistic at each output time (--scheduler, --tasks-per-set, --bias-paths are not used; --max-path-steps bounds each set).", show_default="the file's target_error; none")] = None,
+    target_confidence: Annotated[float | None, typer.Option("--target-confidence", help="Confidence of --target-error's total error, in (0.5, 1).", show_default="the file's; 0.95")] = None,
+    target_statistics: Annotated[str | None, typer.Option("--target-statistics", metavar="NAMES", help="With --target-error: the statistics to control, comma-separated.", show_default="the file's; mean_E,mean_E2")] = None,
+    target_times: Annotated[str | None, typer.Option("--target-times", metavar="TIMES", help="With --target-error: the output times to control, comma-separated, among every set's.", show_default="the file's; every output time")] = None,
     plugin: Annotated[list[str] | None, typer.Option("--plugin", metavar="NAME", help="Load a plugin first (an installed stochpend plugin or a module's dotted name); the Dask workers load it too. A sweep file names pieces, it never loads them.", show_default="none")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no table.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks.")] = False,
 ) -> None:
     """Run a grid or list of parameter sets (TOML) as one job; save one NetCDF with the swept dims."""
     from stochpend import io
-    from stochpend.sweep import check_scheduler, load_spec, sweep
+    from stochpend.sweep import check_scheduler, load_spec, sweep, targets
     common.load_plugins(plugin)  # before the file is read: it names pieces, never loads them
     if out is not None:
         io.check_output_path(out, overwrite=overwrite)
@@ -324,10 +377,15 @@ def sweep_command(
         from stochpend.bias import check_bias_paths
 
         check_bias_paths(bias_paths, 0)
-    _check_resources(plan, spec, max_path_steps)
-    check_scheduler(scheduler)
+    from stochpend._cli_target import parse_target_times
     from stochpend.simulate import check_precision, resolve_backend
 
+    given: dict[str, Any] = {"target_error": target_error, "target_confidence": target_confidence,
+             "target_statistics": target_statistics, "target_times": parse_target_times(target_times)}
+    sets = targets(plan, given, precision=precision, max_path_steps=max_path_steps)
+    if sets is None:  # a target run's work is its plan's (checked by the sweep, set by set), not paths x steps
+        _check_resources(plan, spec, max_path_steps)
+        check_scheduler(scheduler)
     backend = resolve_backend(backend, note=common.note)
     check_precision(precision, backend)
     # Processes or threads on this machine: no more than it has CPUs (--workers 1e6 would start a
@@ -336,14 +394,15 @@ def sweep_command(
     most = os.cpu_count() or 1
     if workers is not None and (workers < 1 or (local and workers > most)):
         common.fail(f"workers={workers!r} is not accepted: an integer in [1, {most}] (this machine's CPUs)")
-    if local and backend == "cpu":  # a long sweep says what it will cost before it starts (as simulate)
+    if local and backend == "cpu" and sets is None:  # a long sweep says what it will cost before it starts (as simulate)
         line = sweep_estimate(plan, pairs=bias_paths != 0)
         if line is not None:
             common.console.print(f"estimate: {markup(line)}", highlight=False, soft_wrap=True)
     progress = SweepProgressBar(enabled=not quiet and common.console.is_terminal, quiet=quiet)
     try:
         ds = sweep(plan, scheduler=scheduler, workers=workers, progress=progress,
-                   tasks_per_set=tasks_per_set, backend=backend, precision=precision, bias_paths=bias_paths)
+                   tasks_per_set=tasks_per_set, backend=backend, precision=precision, bias_paths=bias_paths,
+                   max_path_steps=max_path_steps, **given)
     except KeyboardInterrupt:
         progress.finish()
         raise

@@ -10,7 +10,8 @@ from typing import Any
 from stochpend._cli_common import console, note, results
 
 
-def _times(text: str | None) -> list[float] | None:
+def parse_target_times(text: str | None) -> list[float] | None:
+    """``--target-times`` as a list of times (None: not given); one line for text that is not."""
     if text is None:
         return None
     try:
@@ -23,17 +24,29 @@ def _times(text: str | None) -> list[float] | None:
 def simulate_target(config: Any, *, target_error: float, target_confidence: float, target_statistics: str | None,
                     target_times: Any, backend: str, precision: str, max_path_steps: Any, accuracy: str,
                     rtol: Any, out: Path | None, overwrite: bool, quiet: bool, config_file: Path | None,
-                    ctx: Any, max_seconds: Any = None) -> None:
-    """Validate (one line, exit 2, before any work), run, print the table, write ``out``."""
+                    ctx: Any, max_seconds: Any = None, checkpoint: Path | None = None,
+                    checkpoint_every: float | None = None) -> None:
+    """Validate (one line, exit 2, before any work), run, print the table, write ``out``.
+    ``checkpoint``: save the run at its round boundaries every ``checkpoint_every`` seconds and
+    on Ctrl-C (:func:`stochpend.checkpoint.run_target_checkpointed`; ``stochpend resume``)."""
     from stochpend import io, multilevel
     from stochpend.simulate import resolve_backend
 
     if isinstance(target_times, str):
-        target_times = _times(target_times)
+        target_times = parse_target_times(target_times)
     target = multilevel.check_run(config, target_error, target_confidence, target_statistics, target_times,
                                   accuracy=accuracy, rtol=rtol, precision=precision,
                                   max_path_steps=max_path_steps, max_seconds=max_seconds, cli=True)
     backend = resolve_backend(backend, note=note)
+    if checkpoint is not None:  # writes `out` itself, then removes the checkpoint (as simulate --checkpoint)
+        from stochpend import checkpoint as ck
+        from stochpend._cli_scale import checkpointed
+
+        ds = checkpointed(ck.run_target_checkpointed, config, target, checkpoint_path=checkpoint,
+                          every_s=checkpoint_every, out=out, overwrite=overwrite, backend=backend,
+                          max_path_steps=max_path_steps, max_seconds=max_seconds, note=None if quiet else note)
+        report(ds, out, quiet)
+        return
     ds = multilevel.target_run(config, target, backend=backend, max_path_steps=max_path_steps,
                                max_seconds=max_seconds, note=None if quiet else note)
     ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
@@ -42,6 +55,14 @@ def simulate_target(config: Any, *, target_error: float, target_confidence: floa
         ds.attrs["config_text"] = ctx.meta.get("stochpend.config_text", "")
     if out is not None:
         io.to_netcdf(ds, out, overwrite=overwrite)
+    report(ds, out, quiet)
+
+
+def report(ds: Any, out: Path | None, quiet: bool) -> None:
+    """A target result's table on stdout (unless ``quiet``), the entries not certified and the
+    file written on stderr."""
+    from stochpend import multilevel
+
     if not quiet:
         for line in multilevel.summary_lines(ds):
             results.print(line, markup=False, highlight=False, soft_wrap=True)

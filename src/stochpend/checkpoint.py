@@ -31,6 +31,14 @@ rebuilds the level choice from them (:func:`stochpend.bias.level_choice`, which 
 saved level and configuration back) and reports the same bias, without running the pilot again.
 A checkpoint without ``bias_paths`` or ``accuracy`` (written before they were recorded) resumes
 with the default pairs at the fixed step, as it was run.
+
+A target run's checkpoint (``simulate(target_error=...)``, :mod:`stochpend.multilevel`; header
+``kind = "target"``, :class:`TargetCheckpoint`) is the same file around another state: the
+journal of the rounds and ensembles the run has done (:class:`stochpend.multilevel.Journal`),
+saved at round boundaries (:class:`TargetCheckpointer`). Its record is checked field by field
+and its target as a new one is; resuming replays the journal, each round checked against the
+one the loop asks for, and goes on (:func:`run_target_checkpointed`), to the uninterrupted
+run's numbers to the last bit.
 """
 
 from __future__ import annotations
@@ -53,7 +61,7 @@ import numba
 import numpy as np
 import xarray as xr
 
-from stochpend import _cputarget, _files, bias, io, observables
+from stochpend import _cputarget, _files, bias, io, multilevel, observables
 from stochpend._backends.layout import path_dtypes
 from stochpend._sources import BUILD
 from stochpend._version import __version__
@@ -69,13 +77,17 @@ __all__ = [
     "Checkpoint",
     "CheckpointInterrupt",
     "FileCheckpointer",
+    "TargetCheckpoint",
+    "TargetCheckpointer",
     "config_from_json",
     "config_hash",
     "config_to_json",
     "read",
     "resume",
     "run_checkpointed",
+    "run_target_checkpointed",
     "write",
+    "write_target",
 ]
 
 MAGIC = b"STOCHPEND-CKPT\x00\x01"
@@ -110,6 +122,18 @@ _PILOT_ARRAYS = {"pilot_bias": "<f8", "pilot_coarse": "<f8", "pilot_nonfinite": 
                  "pilot_decorrelation": "<f8"}
 #: The header's ``accuracy`` record: the chosen level and rtol, the pilot's sizes and cost.
 _PILOT_KEYS = ("level", "rtol", "pilot_paths", "pilot_path_steps", "pilot_wall_time_s", "pilot_batches")
+#: A target run's checkpoint (header ``kind = "target"``): per round of its journal
+#: (:class:`stochpend.multilevel.Journal`), in order, the samples at each time (R, T) and the six
+#: (S, T) arrays of :class:`stochpend.multilevel.Round` (:data:`_ROUND_MEANS`), (R, 6, S, T); per
+#: ensemble of the independent route its means and their variances, (Q, 2, S, T), NaN after its
+#: last time. The header's ``target`` record holds the target, the limits and each round's and
+#: ensemble's scalars (:data:`_ROUND_KEYS`, :data:`_ENSEMBLE_KEYS`).
+_TARGET_ARRAYS = {"target_n": "<i8", "target_means": "<f8", "target_ensembles": "<f8"}
+_ROUND_MEANS = ("f", "f_var", "c", "c_var", "y", "y_var")
+_ROUND_KEYS = ("level", "stop", "seed", "batches", "path_steps", "nonfinite")
+_ENSEMBLE_KEYS = ("seed", "h", "n", "stop", "path_steps", "nonfinite")
+_TARGET_KEYS = ("error", "confidence", "statistics", "times", "max_path_steps", "max_seconds", "rounds",
+                "ensembles")
 
 
 class CheckpointInterrupt(KeyboardInterrupt):
@@ -159,27 +183,47 @@ def config_hash(config: SimulationConfig) -> str:
 
 
 # -- the checkpoint object ------------------------------------------------------------------
-@dataclass
-class Checkpoint:
-    """A run's state plus what is needed to finish it as the original command would have."""
+@dataclass(kw_only=True)
+class _Saved:
+    """What every checkpoint holds beside its run's own state: the configuration, where the
+    result goes, the interval and the sessions so far."""
 
     config: SimulationConfig
-    state: RunState
     out: Path | None = None
     overwrite: bool = False
     every_s: float | None = None
-    threads: int | None = None
-    chunk_paths: int | None = None
     elapsed_s: float = 0.0
     resumed: int = 0
     command_line: str | None = None
     created: str = ""
     stochpend_version: str = __version__
+
+
+@dataclass(kw_only=True)
+class Checkpoint(_Saved):
+    """A run's state plus what is needed to finish it as the original command would have."""
+
+    state: RunState
+    threads: int | None = None
+    chunk_paths: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)
     #: Pairs of the bias estimate (0: none); None: not recorded (the default).
     bias_paths: int | None = None
     #: The level ``accuracy="auto"`` chose, with its pilot; None: the step as given.
     choice: bias.LevelChoice | None = None
+
+
+@dataclass(kw_only=True)
+class TargetCheckpoint(_Saved):
+    """A target run (:func:`stochpend.multilevel.target_run`) between two rounds: its target,
+    the journal of the rounds and ensembles it has run, the limits it was given (the work
+    limit, None: none; the wall-time budget) and where its result goes."""
+
+    target: multilevel.Target
+    journal: multilevel.Journal
+    backend: str = "cpu"
+    max_path_steps: float | None = None
+    max_seconds: float | None = None
 
 
 def _statistic_names(config: SimulationConfig) -> list[str]:
@@ -261,16 +305,31 @@ def _state_arrays(state: RunState) -> dict[str, np.ndarray]:
 
 def write(path: str | os.PathLike, ckpt: Checkpoint) -> Path:
     """Write ``ckpt`` to ``path`` atomically (temporary file, fsync, ``os.replace``)."""
-    p = Path(path)
+    # The arrays first: pulling them (state.pull) brings the run's position up to date
     arrays = {**_state_arrays(ckpt.state), **_pilot_arrays(ckpt.choice)}
-    table = []
-    offset = 0
-    for name, a in arrays.items():
-        table.append({"name": name, "dtype": a.dtype.str, "shape": list(a.shape), "offset": offset,
-                      "nbytes": a.nbytes})
-        offset += a.nbytes
     st = ckpt.state
     header = {
+        **_common_header(ckpt),
+        "run": {
+            "first_batch": int(st.first_batch), "stop_batch": int(st.stop_batch), "b0": int(st.b0),
+            "b1": int(st.b1), "j": int(st.j), "path_steps": int(st.path_steps),
+            "done_work": float(st.done_work),
+        },
+        "backend": st.backend,
+        "precision": st.precision,
+        "threads": ckpt.threads,
+        "chunk_paths": ckpt.chunk_paths,
+        "extra": ckpt.extra,
+        "bias_paths": ckpt.bias_paths,
+        "accuracy": _pilot_record(ckpt.choice),
+    }
+    return _write_file(Path(path), header, arrays)
+
+
+def _common_header(ckpt: _Saved) -> dict[str, Any]:
+    """What every checkpoint's header holds: the format, the versions and build, the
+    configuration and its hash, and where the result goes."""
+    return {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
         "stochpend_version": ckpt.stochpend_version,
@@ -281,27 +340,25 @@ def write(path: str | os.PathLike, ckpt: Checkpoint) -> Path:
         "created": _time.strftime("%Y-%m-%dT%H:%M:%SZ", _time.gmtime()),
         "config": config_to_json(ckpt.config),
         "config_sha256": config_hash(ckpt.config),
-        "run": {
-            "first_batch": int(st.first_batch), "stop_batch": int(st.stop_batch), "b0": int(st.b0),
-            "b1": int(st.b1), "j": int(st.j), "path_steps": int(st.path_steps),
-            "done_work": float(st.done_work),
-        },
-        "backend": st.backend,
-        "precision": st.precision,
         "out": None if ckpt.out is None else str(ckpt.out),
         "overwrite": bool(ckpt.overwrite),
         "every_s": ckpt.every_s,
-        "threads": ckpt.threads,
-        "chunk_paths": ckpt.chunk_paths,
         "elapsed_s": float(ckpt.elapsed_s),
         "resumed": int(ckpt.resumed),
         "command_line": ckpt.command_line,
-        "extra": ckpt.extra,
-        "bias_paths": ckpt.bias_paths,
-        "accuracy": _pilot_record(ckpt.choice),
-        "arrays": table,
     }
-    head = json.dumps(header, sort_keys=True, allow_nan=False).encode()
+
+
+def _write_file(p: Path, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Path:
+    """The file of the module docstring: ``header`` with the table of ``arrays``, their bytes,
+    the checksum; written atomically."""
+    table = []
+    offset = 0
+    for name, a in arrays.items():
+        table.append({"name": name, "dtype": a.dtype.str, "shape": list(a.shape), "offset": offset,
+                      "nbytes": a.nbytes})
+        offset += a.nbytes
+    head = json.dumps({**header, "arrays": table}, sort_keys=True, allow_nan=False).encode()
 
     def put(fd: int) -> None:
         digest = hashlib.sha256()
@@ -317,6 +374,41 @@ def write(path: str | os.PathLike, ckpt: Checkpoint) -> Path:
     return p
 
 
+def write_target(path: str | os.PathLike, ckpt: TargetCheckpoint) -> Path:
+    """Write a target run's checkpoint to ``path`` atomically (as :func:`write`)."""
+    t, journal = ckpt.target, ckpt.journal
+    S, T = len(t.statistics), len(t.times)
+    means = np.full((len(journal.rounds), len(_ROUND_MEANS), S, T), np.nan, dtype="<f8")
+    counts = np.zeros((len(journal.rounds), T), dtype="<i8")
+    for i, (_, r) in enumerate(journal.rounds):
+        counts[i] = r.n
+        for k, name in enumerate(_ROUND_MEANS):
+            means[i, k] = getattr(r, name)
+    ensembles = np.full((len(journal.ensembles), 2, S, T), np.nan, dtype="<f8")
+    for q, e in enumerate(journal.ensembles):
+        ensembles[q, 0, :, :e.stop + 1], ensembles[q, 1, :, :e.stop + 1] = e.f, e.f_var
+    limit = ckpt.max_path_steps
+    header = {
+        **_common_header(ckpt),
+        "kind": "target",
+        "backend": ckpt.backend,
+        "target": {
+            "error": t.error, "confidence": t.confidence, "statistics": list(t.statistics),
+            "times": [float(x) for x in t.times],
+            "max_path_steps": None if limit is None or not math.isfinite(limit) else float(limit),
+            "max_seconds": ckpt.max_seconds,
+            "rounds": [{"level": int(level), "stop": int(r.stop), "seed": int(r.seed), "batches": int(r.batches),
+                        "path_steps": int(r.path_steps), "nonfinite": int(r.nonfinite)}
+                       for level, r in journal.rounds],
+            "ensembles": [{"seed": int(e.seed), "h": float(e.h), "n": int(e.n), "stop": int(e.stop),
+                           "path_steps": int(e.path_steps), "nonfinite": int(e.nonfinite)}
+                          for e in journal.ensembles],
+        },
+    }
+    return _write_file(Path(path), header, {"target_n": counts, "target_means": means,
+                                            "target_ensembles": ensembles})
+
+
 def _refuse(path: Path, why: str) -> ValueError:
     return ValueError(f"checkpoint={str(path)!r} is not accepted: {why}")
 
@@ -327,8 +419,9 @@ def _refuse(path: Path, why: str) -> ValueError:
 READ_PEAK = 3
 
 
-def read(path: str | os.PathLike) -> Checkpoint:
-    """Read and verify a checkpoint; refuse (``ValueError``, one line) anything doubtful.
+def read(path: str | os.PathLike) -> Checkpoint | TargetCheckpoint:
+    """Read and verify a checkpoint (a target run's: :class:`TargetCheckpoint`); refuse
+    (``ValueError``, one line) anything doubtful.
 
     Order: magic, SHA-256 over the whole file (truncation or corruption), format, stochpend
     version, configuration hash, then the array table against the configuration.
@@ -407,20 +500,35 @@ def _check_settings(p: Path, header: dict[str, Any]) -> None:
         "out": header.get("out") is None or (isinstance(header.get("out"), str) and "\x00" not in header["out"]),
         "command_line": header.get("command_line") is None
         or (isinstance(header.get("command_line"), str) and "\x00" not in header["command_line"]),
-        "done_work": number(header["run"].get("done_work"), none=False),
-        # None: a checkpoint from before bias_paths was recorded (the default pairs)
-        "bias_paths": header.get("bias_paths") is None or integer(header.get("bias_paths"), 0, 0)
-        or integer(header.get("bias_paths"), 2, 1 << 40),
-        "accuracy": pilot(header.get("accuracy")),
     }
+    if "run" in header:  # an ordinary run's (a target run's are checked with its record)
+        checks.update({
+            "done_work": number(header["run"].get("done_work"), none=False),
+            # None: a checkpoint from before bias_paths was recorded (the default pairs)
+            "bias_paths": header.get("bias_paths") is None or integer(header.get("bias_paths"), 0, 0)
+            or integer(header.get("bias_paths"), 2, 1 << 40),
+            "accuracy": pilot(header.get("accuracy")),
+        })
     bad = [k for k, ok in checks.items() if not ok]
     if bad:
         from stochpend._terminal import short
 
-        raise _refuse(p, f"malformed header: {bad[0]}={short(repr(header.get(bad[0], header['run'].get(bad[0]))))}")
+        shown = header.get(bad[0], header.get("run", {}).get(bad[0]))
+        raise _refuse(p, f"malformed header: {bad[0]}={short(repr(shown))}")
 
 
-def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkpoint:
+def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkpoint | TargetCheckpoint:
+    config = _origin(p, header)
+    if header.get("kind", "run") != "run":
+        if header["kind"] != "target":
+            raise _refuse(p, f"unknown kind {header['kind']!r}")
+        return _target_from_header(p, header, payload, config)
+    return _run_from_header(p, header, payload, config)
+
+
+def _origin(p: Path, header: dict[str, Any]) -> SimulationConfig:
+    """The format, the stochpend that wrote the file, and its configuration (rebuilt, and so
+    validated, to the hash it was saved with)."""
     if header.get("format") != FORMAT:
         raise _refuse(p, f"unknown format {header.get('format')!r}")
     if header.get("format_version") != FORMAT_VERSION:
@@ -441,7 +549,11 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     if config_hash(config) != header.get("config_sha256"):
         raise _refuse(p, "configuration hash mismatch: the stored configuration does not rebuild "
                          "to the configuration that ran")
+    return config
 
+
+def _run_from_header(p: Path, header: dict[str, Any], payload: memoryview, config: SimulationConfig) -> Checkpoint:
+    version = header["stochpend_version"]
     run = header["run"]
     r = {k: run[k] for k in _RUN_FIELDS}
     n_times = len(config.times)
@@ -484,6 +596,103 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     # '|b1' status, same size, was accepted and reinterpreted as garbage).
     fixed: dict[str, Any] = {**_CHUNK_ARRAYS, **_ACC_ARRAYS, **_PILOT_ARRAYS, **_TRACK_ARRAYS,
                              **path_dtypes(backend, precision), **_ADDITIVE_ARRAYS}
+    arrays = _arrays(p, header, payload, shapes, fixed)
+
+    acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"], config.observables,
+                       arrays.get("acc_passage"))
+    fields_read: dict[str, Any] = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
+    fields_read.update({name: arrays[name] for name in _PATH_ARRAYS})
+    state = RunState(**fields_read,
+                     chunk_sums=arrays["chunk_sums"], chunk_hist=arrays["chunk_hist"], acc=acc,
+                     backend=backend, precision=precision, tracks=arrays.get("tracks"),
+                     xi_a=arrays.get("xi_a"), aux_a=arrays.get("aux_a"))
+    out = header.get("out")
+    return Checkpoint(
+        config=config, state=state, out=None if out is None else Path(out),
+        overwrite=bool(header.get("overwrite", False)), every_s=header.get("every_s"),
+        threads=header.get("threads"), chunk_paths=header.get("chunk_paths"),
+        elapsed_s=float(header.get("elapsed_s", 0.0)), resumed=int(header.get("resumed", 0)),
+        command_line=header.get("command_line"), created=str(header.get("created", "")),
+        stochpend_version=version, extra=dict(header.get("extra") or {}),
+        bias_paths=header.get("bias_paths"),
+        choice=None if record is None else _level_choice(p, config, record, arrays),
+    )
+
+
+def _target_from_header(p: Path, header: dict[str, Any], payload: memoryview,
+                        config: SimulationConfig) -> TargetCheckpoint:
+    """A target run's checkpoint: its record and arrays checked as hostile, field by field, the
+    target validated against the configuration as a new one is; whether each round is the one
+    the run makes is checked as it replays (:class:`stochpend.multilevel.Journal`)."""
+    from stochpend import resources
+
+    _check_settings(p, header)
+    rec = header["target"]
+    if not isinstance(rec, dict) or sorted(rec) != sorted(_TARGET_KEYS):
+        raise _refuse(p, "malformed header: target")
+    try:
+        target = multilevel.check_target(config, rec["error"], rec["confidence"], rec["statistics"], rec["times"])
+        limit = None if rec["max_path_steps"] is None else resources.work_limit(rec["max_path_steps"])
+        max_seconds = multilevel.check_max_seconds(rec["max_seconds"])
+    except ValueError as exc:
+        raise _refuse(p, f"its target no longer validates ({exc})") from None
+    if not isinstance(rec["statistics"], list) or not isinstance(rec["times"], list):
+        raise _refuse(p, "malformed header: target")
+    backend = header.get("backend")
+    if backend not in BACKENDS:
+        raise _refuse(p, f"unknown backend {backend!r}")
+    S, T = len(target.statistics), len(target.times)
+
+    def integer(v: Any, lo: int, hi: int) -> bool:
+        return isinstance(v, int) and not isinstance(v, bool) and lo <= v < hi
+
+    rounds, ensembles = rec["rounds"], rec["ensembles"]
+    if not isinstance(rounds, list) or not isinstance(ensembles, list):
+        raise _refuse(p, "malformed header: target.rounds")
+    for i, r in enumerate(rounds):
+        if not (isinstance(r, dict) and sorted(r) == sorted(_ROUND_KEYS)
+                and integer(r["level"], 0, multilevel.MAX_LEVEL + 1) and integer(r["stop"], 0, T)
+                and integer(r["seed"], 0, 2**64) and integer(r["batches"], 1, multilevel.LEVEL_BATCHES + 1)
+                and integer(r["path_steps"], 0, 2**63) and integer(r["nonfinite"], 0, 2**63)):
+            raise _refuse(p, f"malformed header: target.rounds[{i}]")
+    for q, e in enumerate(ensembles):
+        if not (isinstance(e, dict) and sorted(e) == sorted(_ENSEMBLE_KEYS) and integer(e["seed"], 0, 2**64)
+                and isinstance(e["h"], float) and math.isfinite(e["h"]) and e["h"] > 0
+                and integer(e["n"], 1, 1 << 40) and integer(e["stop"], 0, T)
+                and integer(e["path_steps"], 0, 2**63) and integer(e["nonfinite"], 0, 2**63)):
+            raise _refuse(p, f"malformed header: target.ensembles[{q}]")
+    shapes = {"target_n": (len(rounds), T), "target_means": (len(rounds), len(_ROUND_MEANS), S, T),
+              "target_ensembles": (len(ensembles), 2, S, T)}
+    arrays = _arrays(p, header, payload, shapes, _TARGET_ARRAYS)
+    journal = multilevel.Journal(source=f"checkpoint={str(p)!r}", elapsed_s=float(header.get("elapsed_s", 0.0)))
+    for i, r in enumerate(rounds):
+        n, stop = arrays["target_n"][i], r["stop"]
+        # a round's samples reach every time up to its last, none after (multilevel._counts)
+        if not (n[0] >= 1 and np.all(n[:stop + 1] == n[0]) and np.all(n[stop + 1:] == 0)):
+            raise _refuse(p, f"array 'target_n' row {i} is not a round's samples to time index {stop}")
+        means = {name: arrays["target_means"][i, k] for k, name in enumerate(_ROUND_MEANS)}
+        journal.rounds.append((r["level"], multilevel.Round(
+            n=n, stop=stop, t_stop=float(target.times[stop]), path_steps=r["path_steps"], seed=r["seed"],
+            batches=r["batches"], nonfinite=r["nonfinite"], **means)))
+    for q, e in enumerate(ensembles):
+        stop = e["stop"]
+        journal.ensembles.append(multilevel.Ensemble(
+            e["seed"], e["h"], e["n"], stop, arrays["target_ensembles"][q, 0, :, :stop + 1].copy(),
+            arrays["target_ensembles"][q, 1, :, :stop + 1].copy(), e["path_steps"], e["nonfinite"]))
+    out = header.get("out")
+    return TargetCheckpoint(
+        config=config, target=target, journal=journal, backend=backend, max_path_steps=limit,
+        max_seconds=max_seconds, out=None if out is None else Path(out),
+        overwrite=bool(header.get("overwrite", False)), every_s=header.get("every_s"),
+        elapsed_s=float(header.get("elapsed_s", 0.0)), resumed=int(header.get("resumed", 0)),
+        command_line=header.get("command_line"), created=str(header.get("created", "")),
+        stochpend_version=header["stochpend_version"])
+
+
+def _arrays(p: Path, header: dict[str, Any], payload: memoryview, shapes: dict[str, tuple[int, ...]],
+            fixed: dict[str, Any]) -> dict[str, np.ndarray]:
+    """The arrays of the header's table, each of the one dtype ``fixed`` and shape ``shapes``
+    give its name and within the payload; every one of ``shapes`` present, no other."""
     arrays: dict[str, np.ndarray] = {}
     entry: Any
     for entry in header["arrays"]:
@@ -506,26 +715,7 @@ def _from_header(p: Path, header: dict[str, Any], payload: memoryview) -> Checkp
     missing = set(shapes) - set(arrays)
     if missing:
         raise _refuse(p, f"missing arrays {sorted(missing)}")
-
-    acc = EnsembleSums(arrays["acc_sums"], arrays["acc_hist"], arrays["acc_filled"], config.observables,
-                       arrays.get("acc_passage"))
-    fields_read: dict[str, Any] = {k: (float(v) if k == "done_work" else int(v)) for k, v in r.items()}
-    fields_read.update({name: arrays[name] for name in _PATH_ARRAYS})
-    state = RunState(**fields_read,
-                     chunk_sums=arrays["chunk_sums"], chunk_hist=arrays["chunk_hist"], acc=acc,
-                     backend=backend, precision=precision, tracks=arrays.get("tracks"),
-                     xi_a=arrays.get("xi_a"), aux_a=arrays.get("aux_a"))
-    out = header.get("out")
-    return Checkpoint(
-        config=config, state=state, out=None if out is None else Path(out),
-        overwrite=bool(header.get("overwrite", False)), every_s=header.get("every_s"),
-        threads=header.get("threads"), chunk_paths=header.get("chunk_paths"),
-        elapsed_s=float(header.get("elapsed_s", 0.0)), resumed=int(header.get("resumed", 0)),
-        command_line=header.get("command_line"), created=str(header.get("created", "")),
-        stochpend_version=version, extra=dict(header.get("extra") or {}),
-        bias_paths=header.get("bias_paths"),
-        choice=None if record is None else _level_choice(p, config, record, arrays),
-    )
+    return arrays
 
 
 # -- saving during a run ---------------------------------------------------------------------
@@ -593,8 +783,12 @@ class FileCheckpointer:
             elapsed_s=self.elapsed_s(), resumed=self.resumed, command_line=self.command_line,
             bias_paths=self.bias_paths, choice=self.choice,
         )
+        return self._written(lambda: write(self.path, ckpt))
+
+    def _written(self, write_file: Any) -> Path:
+        """Call ``write_file()``; a failure in one line that says what is kept (see :meth:`save`)."""
         try:
-            write(self.path, ckpt)
+            write_file()
         except (OSError, ValueError) as exc:
             # ValueError: something not a regular file appeared at the path while the run worked
             # (NEW12, a symlink); it is not replaced, and mid-run that is a failure (exit 1), not
@@ -625,6 +819,39 @@ class FileCheckpointer:
             # The last kernel boundary: save, so that a result that cannot be written (full
             # disk, a crash in the write, an output taken meanwhile) costs no recomputation.
             self.save(state)
+
+
+class TargetCheckpointer(FileCheckpointer):
+    """Saves a target run's journal (:class:`stochpend.multilevel.Journal`) at its round
+    boundaries: every ``every_s`` seconds, and on a deferred Ctrl-C or SIGTERM, after which it
+    raises :class:`CheckpointInterrupt` (a round under way when the signal comes is finished
+    first: its work is kept)."""
+
+    def __init__(self, path: str | os.PathLike, every_s: float | None, *, config: SimulationConfig,
+                 target: multilevel.Target, backend: str = "cpu", max_path_steps: float | None = None,
+                 max_seconds: float | None = None, out: Path | None = None, overwrite: bool = False,
+                 command_line: str | None = None, elapsed_before_s: float = 0.0, resumed: int = 0) -> None:
+        super().__init__(path, every_s, config=config, out=out, overwrite=overwrite, command_line=command_line,
+                         elapsed_before_s=elapsed_before_s, resumed=resumed)
+        self.target, self.backend = target, backend
+        self.max_path_steps, self.max_seconds = max_path_steps, max_seconds
+
+    def save_journal(self, journal: multilevel.Journal) -> Path:
+        """Write the run as it stands (a failed write as :meth:`FileCheckpointer.save`'s)."""
+        ckpt = TargetCheckpoint(
+            config=self.config, target=self.target, journal=journal, backend=self.backend,
+            max_path_steps=self.max_path_steps, max_seconds=self.max_seconds, out=self.out,
+            overwrite=self.overwrite, every_s=self.every_s, elapsed_s=self.elapsed_s(), resumed=self.resumed,
+            command_line=self.command_line)
+        return self._written(lambda: write_target(self.path, ckpt))
+
+    def round_done(self, journal: multilevel.Journal) -> None:
+        """A round boundary (the journal's ``saved``): save when asked to stop, or when due."""
+        if self.stop_requested:
+            self.save_journal(journal)
+            raise CheckpointInterrupt(self.path, self.stop_signal)
+        if self.every_s is not None and _time.monotonic() - self.last_save >= self.every_s:
+            self.save_journal(journal)
 
 
 @contextlib.contextmanager
@@ -927,6 +1154,13 @@ def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, 
                     bias_paths=bias_paths, accuracy=accuracy, rtol=rtol, max_path_steps=max_path_steps,
                     checkpointing=saving)
     ds, _ = execute(run, progress=progress)
+    _write_result(ds, out_p, overwrite, checkpointer)
+    return ds
+
+
+def _write_result(ds: xr.Dataset, out_p: Path | None, overwrite: bool, checkpointer: FileCheckpointer) -> None:
+    """Write a checkpointed run's result to ``out_p`` (None: nothing), then remove its
+    checkpoint; a write that fails says in one line what is kept and how to finish it."""
     if out_p is not None:
         try:
             io.to_netcdf(ds, out_p, overwrite=overwrite)
@@ -949,7 +1183,53 @@ def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, 
             raise io.WriteError(f"{exc}{keep}", getattr(exc, "errno", None)) from None
     with contextlib.suppress(FileNotFoundError):
         os.unlink(checkpointer.path)
-    return ds
+
+
+def run_target_checkpointed(
+    config: SimulationConfig,
+    target: multilevel.Target,
+    *,
+    checkpoint_path: str | os.PathLike,
+    every_s: float | None,
+    out: str | os.PathLike | None = None,
+    overwrite: bool = False,
+    backend: str = "cpu",
+    max_path_steps: float | None = None,
+    max_seconds: float | None = None,
+    note: Any = None,
+    command_line: str | None = None,
+    checkpointer: TargetCheckpointer | None = None,
+    _resume: TargetCheckpoint | None = None,
+    break_lock: bool = False,
+) -> xr.Dataset:
+    """:func:`stochpend.multilevel.target_run` saving its journal to ``checkpoint_path`` at
+    round boundaries (:class:`TargetCheckpointer`); write ``out``; return the result.
+
+    As :func:`run_checkpointed`: Ctrl-C or SIGTERM saves and raises :class:`CheckpointInterrupt`;
+    the finished run is saved once more before its result is written, then the checkpoint is
+    removed; the checkpoint's lock is held throughout. A resumed run (``_resume``) replays the
+    saved journal and goes on: its numbers are those of the uninterrupted run, to the last bit.
+    """
+    with owned(checkpoint_path, break_lock=break_lock):
+        out_p = None if out is None else Path(out).absolute()
+        if out_p is not None:
+            io.check_output_path(out_p, overwrite=overwrite)
+            check_not_checkpoint(out_p, checkpoint_path)
+        if checkpointer is None:
+            checkpointer = TargetCheckpointer(
+                checkpoint_path, every_s, config=config, target=target, backend=backend,
+                max_path_steps=max_path_steps, max_seconds=max_seconds, out=out_p, overwrite=overwrite,
+                command_line=command_line, elapsed_before_s=0.0 if _resume is None else _resume.elapsed_s,
+                resumed=0 if _resume is None else _resume.resumed + 1)
+        journal = multilevel.Journal(source=f"checkpoint={str(checkpoint_path)!r}") if _resume is None else _resume.journal
+        journal.saved = checkpointer.round_done
+        with checkpointer.signals():
+            ds = multilevel.target_run(config, target, backend=backend, max_path_steps=max_path_steps,
+                                       max_seconds=max_seconds, note=note, journal=journal)
+            checkpointer.save_journal(journal)  # a result that cannot be written costs no recomputation
+        ds.attrs.update(checkpointer.attrs())
+        _write_result(ds, out_p, overwrite, checkpointer)
+        return ds
 
 
 _KEEP = object()
@@ -965,6 +1245,7 @@ def resume(
     progress: Progress | None = None,
     break_lock: bool = False,
     max_path_steps: float | None = None,
+    note: Any = None,
 ) -> xr.Dataset:
     """Continue the run saved in ``path``; write its result where the original command would have.
 
@@ -973,34 +1254,65 @@ def resume(
     nothing); an existing output is replaced only with ``overwrite=True`` given here, never on
     the checkpoint's say. The checkpoint is locked (:func:`owned`) while this runs. The run's
     memory and work are checked first (:func:`check_work`, ``max_path_steps``). Checkpoints keep being written to ``path`` at the same
-    interval; the file is removed once the result is written.
+    interval; the file is removed once the result is written. A target run's checkpoint
+    (:class:`TargetCheckpoint`) goes on as :func:`run_target_checkpointed`, its notes to
+    ``note``, within the smaller of ``max_path_steps`` and the limit it was started with.
     """
     with owned(path, break_lock=break_lock):
         ckpt = read(path)
+        if isinstance(ckpt, TargetCheckpoint):
+            return _resume_target(path, ckpt, out=out, overwrite=overwrite, every_s=every_s,
+                                  max_path_steps=max_path_steps, note=note)
         check_work(ckpt, max_path_steps)
         return _resume_owned(path, ckpt, out=out, overwrite=overwrite, every_s=every_s,
                              threads=threads, progress=progress, max_path_steps=max_path_steps)
 
 
+def _check_backend(path: str | os.PathLike, backend: str) -> None:
+    """Continue where the run ran, or say in one line why not."""
+    if backend != "cpu":
+        from stochpend.simulate import resolve_backend
+
+        try:
+            resolve_backend(backend)
+        except ValueError as exc:
+            raise _refuse(Path(path), f"it ran on backend={backend!r}, which is not usable here ({exc})") from None
+
+
+def _result_path(path: str | os.PathLike, recorded: Path | None, out: Any) -> Path | None:
+    """Where a resumed run's result goes: ``out`` when given (None: nowhere), else the one the
+    checkpoint records, trusted only as a name in its own directory (:func:`own_out`)."""
+    if out is _KEEP:
+        return None if recorded is None else own_out(path, recorded)
+    return None if out is None else Path(out)
+
+
+def _resume_target(path: str | os.PathLike, ckpt: TargetCheckpoint, *, out: Any, overwrite: bool | None,
+                   every_s: Any, max_path_steps: float | None, note: Any) -> xr.Dataset:
+    from stochpend import resources
+
+    _check_backend(path, ckpt.backend)
+    # The limit the run was started with, or a smaller one given now: the file may lower it, never
+    # raise it (a crafted limit must not buy unbounded work).
+    limit = resources.work_limit(max_path_steps)
+    if ckpt.max_path_steps is not None:
+        limit = min(limit, ckpt.max_path_steps)
+    return run_target_checkpointed(
+        ckpt.config, ckpt.target, checkpoint_path=path, every_s=ckpt.every_s if every_s is _KEEP else every_s,
+        out=_result_path(path, ckpt.out, out), overwrite=bool(overwrite), backend=ckpt.backend,
+        max_path_steps=limit, max_seconds=ckpt.max_seconds, note=note, command_line=ckpt.command_line,
+        _resume=ckpt)
+
+
 def _resume_owned(path: str | os.PathLike, ckpt: Checkpoint, *, out: Any, overwrite: bool | None,
                   every_s: Any, threads: Any, progress: Progress | None,
                   max_path_steps: float | None) -> xr.Dataset:
-    if ckpt.state.backend != "cpu":
-        from stochpend.simulate import resolve_backend
-
-        try:  # continue where it ran, or say in one line why not
-            resolve_backend(ckpt.state.backend)
-        except ValueError as exc:
-            raise _refuse(Path(path), f"it ran on backend={ckpt.state.backend!r}, which is not "
-                                      f"usable here ({exc})") from None
+    _check_backend(path, ckpt.state.backend)
     if threads is _KEEP:  # the machine that resumes may have fewer threads
         threads = None if ckpt.threads is None else min(ckpt.threads, numba.config.NUMBA_NUM_THREADS)
     # The trust boundary: the checkpoint's own `out` only as a name in its own directory, and
     # never an overwrite on its say (only the caller's `overwrite`).
-    if out is _KEEP:
-        out_p = None if ckpt.out is None else own_out(path, ckpt.out)
-    else:
-        out_p = None if out is None else Path(out)
+    out_p = _result_path(path, ckpt.out, out)
     ow = bool(overwrite)
     return run_checkpointed(
         ckpt.config, checkpoint_path=path,

@@ -374,15 +374,16 @@ def simulate(
         from stochpend._cli_scale import parse_duration
         from stochpend._cli_target import simulate_target
 
-        if checkpoint is not None or checkpoint_every is not None:
-            raise ValueError(f"checkpoint={str(checkpoint)!r} is not accepted with --target-error: "
-                             "a target run is not checkpointed yet")
+        if checkpoint_every is not None and checkpoint is None:
+            raise ValueError(f"checkpoint_every={checkpoint_every!r} is not accepted: it needs --checkpoint FILE")
         simulate_target(config, target_error=target_error, target_confidence=target_confidence,
                         target_statistics=target_statistics, target_times=target_times,
                         backend=backend, precision=precision, max_path_steps=max_path_steps,
                         accuracy=accuracy, rtol=rtol, out=out, overwrite=overwrite, quiet=quiet,
                         config_file=config_file, ctx=ctx,
-                        max_seconds=None if max_seconds is None else parse_duration(str(max_seconds), "max_seconds"))
+                        max_seconds=None if max_seconds is None else parse_duration(str(max_seconds), "max_seconds"),
+                        checkpoint=checkpoint,
+                        checkpoint_every=parse_duration("5m" if checkpoint_every is None else checkpoint_every))
         return
     if max_seconds is not None:
         raise ValueError(f"max_seconds={max_seconds!r} is not accepted without --target-error: the "
@@ -512,8 +513,8 @@ def result_kind(ds: Any) -> str | None:
     B.F.P.E.'s solution), "reduced" (the reduced dynamics), "simulation" (simulate, a
     checkpointed run, resume, reproduce's runs), or None (not a file of stochpend's)."""
     title = str(ds.attrs.get("title", ""))
-    if "target_error" in ds.attrs and "n_samples" in ds:
-        return "target"  # simulate --target-error (stochpend.multilevel)
+    if "target_error" in ds.attrs and "n_samples" in ds:  # simulate --target-error (stochpend.multilevel)
+        return "sweep" if title == "stochpend parameter sweep" else "target"  # or a sweep of them
     if "mean_E" not in ds:
         return None
     if title == "stochpend parameter sweep" or any(d not in ("time", "E_bin", "E_bin_edge", "batch")

@@ -75,7 +75,9 @@ every member is the fixed-step scheme at its h_l and the telescope is exact (up 
 step before each output time, which both take but split differently: O(h**3) each); the
 consistency check (Giles: level l-1's fine mean against level l's coarse mean, in sigma) reports
 it. What this version does not do: the Richardson-extrapolated (multilevel Richardson-Romberg)
-estimate, the kurtosis of the level differences, checkpoints, sweeps.
+estimate, the kurtosis of the level differences. A sweep (:func:`stochpend.sweep.sweep`) runs
+every set as this run; a checkpointed run saves its :class:`Journal` at round boundaries and
+replays it when resumed (:func:`stochpend.checkpoint.run_target_checkpointed`).
 """
 
 from __future__ import annotations
@@ -85,6 +87,7 @@ import textwrap
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -746,24 +749,16 @@ def _path_steps_guess(config: SimulationConfig, level: int, n: int) -> float:
     return float(n) * (steps if level == 0 else 3.0 * steps * 2.0 ** (level - 1))
 
 
-def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu",
-               max_path_steps: Any = None, max_seconds: Any = None, progress: Progress | None = None,
-               note: Any = None) -> xr.Dataset:
-    """Meet ``target`` (:func:`check_target`) for ``config`` by multilevel Monte Carlo (module
-    docstring) and return the Dataset (see :func:`stochpend.simulate`, ``target_error``).
-
-    ``config.paths`` is not used (the plan sets the samples); ``step_c`` is set to 0 (fixed
-    steps h_max / 2**l). Refuses (``ValueError``, one line) before the pilot when the pilot alone
-    exceeds ``max_path_steps`` or the wall-time budget ``max_seconds`` (:class:`Budget`), and
-    before each round when the plan does.
-    """
+def check_pilot(config: SimulationConfig, target: Target, *, backend: str = "cpu", max_path_steps: Any = None,
+                max_seconds: Any = None, started: float | None = None) -> Budget:
+    """The :class:`Budget` of a target run of ``config`` (its wall time counted from ``started``,
+    default now), refusing (``ValueError``, one line) a pilot that it cannot buy: what
+    :func:`target_run` checks first, and a sweep of targets for every set before any work."""
     from stochpend import resources
-    from stochpend._jitcache import CompileClock
 
-    note = note or (lambda _msg: None)
     cfg = _target_config(config, target)
-    started = _time.perf_counter()
-    budget = Budget(resources.work_limit(max_path_steps), check_max_seconds(max_seconds), started=started)
+    budget = Budget(resources.work_limit(max_path_steps), check_max_seconds(max_seconds),
+                    started=_time.perf_counter() if started is None else started)
     if budget.seconds is not None:
         budget.rate = resources._rate(backend == "cuda", None, resources.kernel_kind(cfg))[0]
         budget.compile_s = resources.compile_seconds(cfg, backend=backend)
@@ -773,6 +768,102 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
         raise ValueError(f"target_error={target.error:g} is not accepted: its pilot alone ({PILOT_SAMPLES} "
                          f"samples on each of levels 0..{PILOT_LEVELS - 1}) needs about {pilot_cost:.3g} "
                          f"path-steps, {broken}; or use a larger h_max or a shorter t_max")
+    return budget
+
+
+@dataclass
+class Ensemble:
+    """One ensemble of the independent route (:func:`_ensemble`): ``n`` paths at step ``h``
+    with ``seed`` to the output time of index ``stop``; the statistics' means and their
+    variances, (S, stop + 1), the path-steps and the non-finite paths."""
+
+    seed: int
+    h: float
+    n: int
+    stop: int
+    f: np.ndarray
+    f_var: np.ndarray
+    path_steps: int
+    nonfinite: int
+
+
+@dataclass
+class Journal:
+    """The work of a target run in the order it was done: every level's round and every
+    ensemble of the independent route. The loop is a fixed function of these (the plan of each
+    round is made from the rounds before it), so a run handed the journal of an interrupted
+    one replays it, taking each recorded round where the loop asks for that round (checked:
+    the same level, seed, samples and last time, else a ``ValueError`` of one line naming
+    ``source``) instead of running it, and goes on from where it stopped with the numbers an
+    uninterrupted run has, to the last bit. ``saved`` is called after each new round or
+    ensemble (a checkpointed run's round boundary, :mod:`stochpend.checkpoint`);
+    ``elapsed_s``: the seconds of the sessions before, counted in the wall time and the
+    wall-time budget."""
+
+    rounds: list[tuple[int, Round]] = field(default_factory=list)
+    ensembles: list[Ensemble] = field(default_factory=list)
+    saved: Callable[[Journal], None] | None = None
+    source: str = "journal"
+    elapsed_s: float = 0.0
+    _next: list[int] = field(default_factory=lambda: [0, 0])
+
+    def _refuse(self, what: str) -> ValueError:
+        return ValueError(f"{self.source} is not accepted: its {what} is not the one this run makes "
+                          "(the configuration or the target differs from the run that wrote it)")
+
+    def round(self, level: int, n: int, round_: int, stop: int, seed: int, run: Callable[[], Round]) -> Round:
+        """Level ``level``'s round ``round_`` of ``n`` samples to time ``stop``: the recorded
+        one while there are, else ``run()`` (recorded, then ``saved``)."""
+        i = self._next[0]
+        self._next[0] += 1
+        if i < len(self.rounds):
+            lv, r = self.rounds[i]
+            if (lv, r.seed, r.stop, int(r.n[stop])) != (level, seed, stop, n):
+                raise self._refuse(f"round {i} (level {lv}, seed {r.seed}, {int(r.n[r.stop])} samples to "
+                                   f"time index {r.stop})")
+            return r
+        r = run()
+        self.rounds.append((level, r))
+        if self.saved is not None:
+            self.saved(self)
+        return r
+
+    def ensemble(self, seed: int, h: float, n: int, stop: int, run: Callable[[], Ensemble]) -> Ensemble:
+        """An ensemble of the independent route: the recorded one while there are, else ``run()``."""
+        i = self._next[1]
+        self._next[1] += 1
+        if i < len(self.ensembles):
+            e = self.ensembles[i]
+            if (e.seed, e.h, e.n, e.stop) != (seed, h, n, stop):
+                raise self._refuse(f"ensemble {i} (seed {e.seed}, h = {e.h!r}, {e.n} paths to time index {e.stop})")
+            return e
+        e = run()
+        self.ensembles.append(e)
+        if self.saved is not None:
+            self.saved(self)
+        return e
+
+
+def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu",
+               max_path_steps: Any = None, max_seconds: Any = None, progress: Progress | None = None,
+               note: Any = None, journal: Journal | None = None) -> xr.Dataset:
+    """Meet ``target`` (:func:`check_target`) for ``config`` by multilevel Monte Carlo (module
+    docstring) and return the Dataset (see :func:`stochpend.simulate`, ``target_error``).
+
+    ``config.paths`` is not used (the plan sets the samples); ``step_c`` is set to 0 (fixed
+    steps h_max / 2**l). Refuses (``ValueError``, one line) before the pilot when the pilot alone
+    exceeds ``max_path_steps`` or the wall-time budget ``max_seconds`` (:class:`Budget`), and
+    before each round when the plan does. ``journal``: where the rounds are recorded, and
+    replayed from when it holds an interrupted run's (:class:`Journal`).
+    """
+    from stochpend._jitcache import CompileClock
+
+    note = note or (lambda _msg: None)
+    journal = journal or Journal()
+    cfg = _target_config(config, target)
+    started = _time.perf_counter() - journal.elapsed_s  # the budget and the wall time span the sessions
+    budget = check_pilot(config, target, backend=backend, max_path_steps=max_path_steps, max_seconds=max_seconds,
+                         started=started)
     of = statistics_of(config, target.statistics)
     levels: list[Level] = []
     spent = 0
@@ -784,7 +875,9 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
         nonlocal spent
         if level == len(levels):
             levels.append(Level(level))
-        r = run_level(cfg, level, n, len(levels[level].rounds), of, stop, backend=backend)
+        round_ = len(levels[level].rounds)
+        r = journal.round(level, n, round_, stop, level_seed(cfg.seed, level, round_),
+                          lambda: run_level(cfg, level, n, round_, of, stop, backend=backend))
         levels[level].rounds.append(r)
         spent += r.path_steps
 
@@ -833,7 +926,8 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             _top_up(add, more, st, note)
         st = _state(levels, conf, times)
         route = _certify_by_independent_runs(cfg, target, st, sum(lv.nonfinite for lv in levels),
-                                             budget.limit(spent, clock.seconds) - spent, of, backend, note)
+                                             budget.limit(spent, clock.seconds) - spent, of, backend, note,
+                                             journal)
         if route is not None:
             spent += route.path_steps
     wall = _time.perf_counter() - started
@@ -907,22 +1001,21 @@ class Route:
 
 
 def _ensemble(cfg: SimulationConfig, h: float, n: int, seed: int, stop: int,
-              of: Callable[[np.ndarray], np.ndarray], backend: str) -> tuple[np.ndarray, np.ndarray, int, int]:
+              of: Callable[[np.ndarray], np.ndarray], backend: str) -> Ensemble:
     """An ordinary fixed-step ensemble of ``n`` paths at step ``h`` with ``seed`` to the output
-    time of index ``stop``: the statistics' means and their variances (jackknife), (S, T'), the
-    path-steps and the non-finite paths."""
+    time of index ``stop``: the statistics' means and their variances (jackknife), (S, T')."""
     from stochpend import runner
 
     n_b, _ = _batches(n)
     c = replace(_truncated(cfg, stop + 1), h_max=float(h), step_c=0.0, seed=seed, paths=n, n_batches=n_b)
     ens, path_steps = runner.run_batches(c, 0, n_b, backend=backend)
     f, f_var = _jackknife(ens.sums, lambda m: _st(of(m)))
-    return f, f_var, int(path_steps), int(ens.sums[:, -1, stats.S_NONFINITE].sum())
+    return Ensemble(seed, float(h), n, stop, f, f_var, int(path_steps), int(ens.sums[:, -1, stats.S_NONFINITE].sum()))
 
 
 def _certify_by_independent_runs(cfg: SimulationConfig, target: Target, st: State, nonfinite: int,
                                  room: float, of: Callable[[np.ndarray], np.ndarray], backend: str,
-                                 note: Any) -> Route | None:
+                                 note: Any, journal: Journal) -> Route | None:
     """Issue 35, item 3: each time that the levels could not certify and for which two
     independent ensembles at h_k and h_k/2 are the cheaper route (:func:`_cost_independent`) is
     run that way while the route fits in ``room`` path-steps: N paths at each step, the finer
@@ -971,11 +1064,12 @@ def _certify_by_independent_runs(cfg: SimulationConfig, target: Target, st: Stat
             for j, hh in enumerate((h, 0.5 * h)):
                 seed = level_seed(cfg.seed, 1000 + j, 64 * t + round_)
                 seeds.append(seed)
-                f, f_var, steps, bad = _ensemble(cfg, hh, n_more, seed, t, of, backend)
-                parts[j].append((n_more, f[:, t], f_var[:, t]))
-                route.path_steps += steps
-                route.nonfinite += bad
-                room -= steps
+                e = journal.ensemble(seed, float(hh), n_more, t,
+                                     partial(_ensemble, cfg, hh, n_more, seed, t, of, backend))
+                parts[j].append((n_more, e.f[:, t], e.f_var[:, t]))
+                route.path_steps += e.path_steps
+                route.nonfinite += e.nonfinite
+                room -= e.path_steps
             n_done += n_more
             (mc, vc), (mf, vf) = (_pooled(p) for p in parts)
             d = mc - mf

@@ -31,6 +31,15 @@ or, instead of ``[grid]``, a list of cases (each overrides ``[base]``)::
     [[case]]
     D = 10
     tau = 1
+
+A total-error target, as ``stochpend.simulate``'s (issue 35), runs every set as a target run
+(:func:`stochpend.multilevel.target_run`, with the set's own seed) instead of its blocks; top-level
+keys, or :func:`sweep`'s keywords of the same names (which override them)::
+
+    target_error = 0.01             # the relative total error of each statistic and time
+    target_confidence = 0.95        # optional
+    target_statistics = "mean_E"    # optional: names, comma-separated or a list
+    target_times = [1.0, 10.0]      # optional: among every set's output times
 """
 
 from __future__ import annotations
@@ -43,14 +52,14 @@ import math
 import os
 import time as _time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import xarray as xr
 
-from stochpend import bias
+from stochpend import bias, multilevel
 from stochpend._blocks import BlockResult, Task, run_block
 from stochpend._docs import documented
 from stochpend._sources import BUILD
@@ -82,9 +91,12 @@ def _declared() -> tuple[str, ...]:
 
 #: Parameters whose value is a list: settable in [base] and [[case]], not a grid axis.
 LIST_PARAMETERS = ("times", "hist_E_max", "observables", "joint_bins", "joint_x_range", "joint_Omega_max")
-TOP_LEVEL = ("description", "base", "grid", "case")
+#: A sweep's target: simulate's keywords (stochpend.multilevel), top-level keys of a sweep file.
+TARGET_KEYS = ("target_error", "target_confidence", "target_statistics", "target_times")
+TOP_LEVEL = ("description", "base", "grid", "case", *TARGET_KEYS)
 #: Attributes that differ between runs of the same numbers (never data variables).
-_RUN_ATTRS = ("backend", "threads", "wall_time_s", "path_steps", "path_steps_per_s", "created", "bias_wall_time_s")
+_RUN_ATTRS = ("backend", "threads", "wall_time_s", "path_steps", "path_steps_per_s", "created", "bias_wall_time_s",
+              "compile_time_s", "total_wall_time_s")
 SCHEDULER_HELP = "sync, threads, local, or a scheduler address such as tcp://HOST:8786"
 
 
@@ -101,6 +113,8 @@ class SweepSpec:
     description: str
     source: str
     text: str
+    #: The file's target keys (:data:`TARGET_KEYS`) as given; empty: none.
+    target: dict[str, Any] = field(default_factory=dict)
 
     @property
     def n_sets(self) -> int:
@@ -297,8 +311,41 @@ def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepSpec) -> SweepS
     if len(bins) > 1:
         raise ValueError(f"{source}: hist_bins is not accepted: it differs between sets ({sorted(bins)}); "
                          f"every set must have the same number of histogram bins")
-    return SweepSpec(kind=kind, dims=dims, shape=shape, coords=coords, configs=tuple(configs),
-                     swept=tuple(swept), description=description, source=source, text=text)
+    target = {k: data[k] for k in TARGET_KEYS if k in data}
+    spec_ = SweepSpec(kind=kind, dims=dims, shape=shape, coords=coords, configs=tuple(configs),
+                      swept=tuple(swept), description=description, source=source, text=text, target=target)
+    targets(spec_)  # a bad target in the file is refused here, with everything else
+    return spec_
+
+
+def targets(spec: SweepSpec, given: Mapping[str, Any] | None = None, *, precision: str = "float64",
+            max_path_steps: Any = None) -> list[multilevel.Target] | None:
+    """Each set's validated target (None: the sweep has none): the file's :data:`TARGET_KEYS`,
+    overridden by those ``given`` that are not None (:func:`sweep`'s keywords), with what
+    :func:`stochpend.multilevel.check_run` refuses beside a target (``precision``,
+    ``max_path_steps``). Refused in one line naming the key (and the set whose output times a
+    ``target_times`` misses)."""
+    ours = {k: v for k, v in (given or {}).items() if v is not None}
+    keys = {**spec.target, **ours}
+    if keys.get("target_error") is None:
+        if keys:
+            name = next(iter(keys))
+            source = "" if name in ours else f"{spec.source}: "
+            raise ValueError(f"{source}{name}={keys[name]!r} is not accepted without target_error")
+        return None
+    out = []
+    for i, config in enumerate(spec.configs):
+        try:
+            out.append(multilevel.check_run(config, keys["target_error"], keys.get("target_confidence", 0.95),
+                                            keys.get("target_statistics"), keys.get("target_times"),
+                                            accuracy="fixed", rtol=None, precision=precision,
+                                            max_path_steps=max_path_steps))
+        except ValueError as exc:
+            # the file named only for its own values: a keyword's is the caller's (the CLI's option)
+            source = "" if str(exc).split("=", 1)[0] in ours else f"{spec.source}: "
+            where = f" (parameter set {i + 1} of {spec.n_sets})" if spec.n_sets > 1 and i > 0 else ""
+            raise ValueError(f"{source}{exc}{where}") from None
+    return out
 
 
 def _set_name(kind: str, i: int, raw_sets: list[dict[str, Any]]) -> str:
@@ -436,6 +483,11 @@ def sweep(
     backend: str = "cpu",
     precision: str = "float64",
     bias_paths: int | None = None,
+    target_error: float | None = None,
+    target_confidence: float | None = None,
+    target_statistics: Any = None,
+    target_times: Any = None,
+    max_path_steps: float | None = None,
 ) -> xr.Dataset:
     """Run every parameter set of a sweep and return one Dataset.
 
@@ -468,6 +520,16 @@ def sweep(
         estimates run after the blocks, one set after another in this process on ``backend``
         (whatever the scheduler: about 6 % of the sweep's work by default, so not worth shipping
         to workers), with a note to ``progress`` and no bar.
+    target_error, target_confidence, target_statistics, target_times
+        A total-error target, as :func:`stochpend.simulate`'s (default: the sweep file's keys
+        of these names; none). Every set is then run as :func:`stochpend.simulate` runs it with
+        ``target_error`` and the set's parameters (its own seed), one set after another in this
+        process: the numbers of each set are those of that run, to the last bit. Every set's
+        target and pilot are checked before any work; a ``scheduler`` is refused (a target
+        run plans each round from the last, so its sets are not cut into blocks), and
+        ``tasks_per_set`` and ``bias_paths`` are not used.
+    max_path_steps : float, optional
+        With a target: the limit of each set's target run, as :func:`stochpend.simulate`'s.
 
     Returns
     -------
@@ -478,7 +540,13 @@ def sweep(
         and ``<name>_bias_verdict`` of each set (unless ``bias_paths=0``), equal to those
         ``stochpend.simulate`` gives for the set alone. ``path_steps`` per set; parameters
         and bias attributes common to every set are attributes, the others variables over the
-        sweep dimensions.
+        sweep dimensions. With a target: each set's variables of :func:`stochpend.simulate`
+        with ``target_error`` (estimates, ``<name>_stat_error``, ``<name>_bias_bound``,
+        ``<name>_total_error``, ``<name>_certified``, ``<name>_cost_to_certify``, the levels'
+        diagnostics, ``n_samples``, ...) with the swept dimensions first; the ``level``
+        dimension is the most levels any set used, the others' padded (NaN; 0 samples and
+        path-steps); per-set attributes (``target_levels``, ``target_level_seeds``, ...) are
+        variables over the sweep dimensions where the sets differ.
     """
     from stochpend.simulate import check_precision, resolve_backend
 
@@ -489,6 +557,12 @@ def sweep(
     tasks_per_set = _check_positive_int("tasks_per_set", tasks_per_set)
     if bias_paths is not None:
         bias_paths = bias.check_bias_paths(bias_paths, 0)
+    sets = targets(spec, {"target_error": target_error, "target_confidence": target_confidence,
+                          "target_statistics": target_statistics, "target_times": target_times},
+                   precision=precision, max_path_steps=max_path_steps)
+    if sets is not None:
+        return _target_sweep(spec, sets, scheduler=scheduler, backend=backend, precision=precision,
+                             max_path_steps=max_path_steps, progress=progress)
     check_scheduler(scheduler)
     started = _time.perf_counter()
 
@@ -533,6 +607,44 @@ def _bias_estimates(spec: SweepSpec, bias_paths: int | None, backend: str,
                           backend=backend) for c in spec.configs]
 
 
+def _target_sweep(spec: SweepSpec, sets: list[multilevel.Target], *, scheduler: Any, backend: str,
+                  precision: str, max_path_steps: Any, progress: Progress | None) -> xr.Dataset:
+    """Every set as a target run (:func:`stochpend.multilevel.target_run`), in this process."""
+    if scheduler is not None:
+        shown = scheduler if isinstance(scheduler, str) else type(scheduler).__name__
+        raise ValueError(f"scheduler={shown!r} is not accepted with target_error: a target run plans each "
+                         "round from the last, so a target sweep runs its sets one after another in this "
+                         "process; leave the scheduler unset")
+    for i, (config, target) in enumerate(zip(spec.configs, sets, strict=True)):
+        try:  # every set's pilot within the limit, before the first set's work
+            multilevel.check_pilot(config, target, backend=backend, max_path_steps=max_path_steps)
+        except ValueError as exc:
+            raise ValueError(f"{spec.source}: {exc} (parameter set {i + 1} of {spec.n_sets})") from None
+    started = _time.perf_counter()
+    tracker = _Tracker(progress or NoProgress(), 0, spec.n_sets)
+    tracker.progress.start(float(spec.n_sets), "sweep")
+    datasets = []
+    try:
+        for i, (config, target) in enumerate(zip(spec.configs, sets, strict=True)):
+            def note(text: str, i: int = i) -> None:
+                tracker.note(f"set {i + 1} of {spec.n_sets}: {text}")
+
+            datasets.append(multilevel.target_run(config, target, backend=backend, max_path_steps=max_path_steps,
+                                                  note=note))
+            tracker.progress.update(float(i + 1))
+    finally:
+        tracker.finish()
+    n_levels = max(ds.sizes["level"] for ds in datasets)
+    padded = [ds.reindex(level=np.arange(n_levels), fill_value={
+        name: 0 if np.issubdtype(var.dtype, np.integer) else np.nan
+        for name, var in ds.data_vars.items() if "level" in var.dims}) for ds in datasets]
+    info = {"engine": "in-process", "scheduler": "none", "workers": 1, "backend": backend, "precision": precision}
+    return _stacked(spec, padded, [dict(ds.attrs) for ds in datasets],
+                    [int(ds.attrs["path_steps"]) for ds in datasets], info=info, n_tasks=spec.n_sets,
+                    wall_time_s=_time.perf_counter() - started,
+                    compute_s=float(sum(ds.attrs["total_wall_time_s"] for ds in datasets)))
+
+
 def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[str, Any], n_tasks: int,
               wall_time_s: float, estimates: list[bias.BiasEstimate] | None = None) -> xr.Dataset:
     datasets = []
@@ -559,10 +671,18 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
                                            precision=info.get("precision", "float64"), threads=0,
                                            wall_time_s=0.0, path_steps=steps), **ds.attrs})
         path_steps.append(steps)
+    return _stacked(spec, datasets, per_set_attrs, path_steps, info=info, n_tasks=n_tasks,
+                    wall_time_s=wall_time_s, compute_s=compute_s)
 
+
+def _stacked(spec: SweepSpec, datasets: list[xr.Dataset], per_set_attrs: list[dict[str, Any]],
+             path_steps: list[int], *, info: dict[str, Any], n_tasks: int, wall_time_s: float,
+             compute_s: float) -> xr.Dataset:
+    """The sets' Datasets (alike in variables and shapes) as one, the swept dimensions first;
+    attributes common to every set stay attributes, the others become variables."""
     shape = spec.shape
     first = datasets[0]
-    times = np.stack([np.asarray(c.times) for c in spec.configs])
+    times = np.stack([np.asarray(ds.time.values) for ds in datasets])
     same_times = bool(np.all(times == times[0]))
     data_vars: dict[str, Any] = {}
     for name, var in first.data_vars.items():

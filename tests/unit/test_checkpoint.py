@@ -237,9 +237,11 @@ def _rewrite(path, header, payload):
     path.write_bytes(body + hashlib.sha256(body).digest())
 
 
-def _refused(path, needle):
+def _refused(path, needle, *, read=True):
+    """Refused in one line by ``read`` (and so by ``resume``); ``read=False``: by ``resume``, which
+    may find it only as it replays a target run's rounds."""
     with pytest.raises(ValueError) as info:
-        ck.read(path)
+        (ck.read if read else ck.resume)(path)
     message = str(info.value)
     assert message.startswith(f"checkpoint={str(path)!r} is not accepted: ") and needle in message, message
     assert "\n" not in message
@@ -490,3 +492,196 @@ def test_ctrl_c_or_sigterm_writes_checkpoint(tmp_path, signum, code):
     assert ckpt.stat().st_mtime_ns >= before and not out.exists()
     saved = ck.read(ckpt)
     assert 0 < saved.state.path_steps and saved.out == out and saved.every_s == pytest.approx(0.2)
+
+
+# -- a target run's checkpoint (issue 35: "a checkpointed target-error run resumes bit for bit") ---
+#: The damped pendulum started in its Boltzmann law (tests/unit/test_multilevel.py's cheap case):
+#: a pilot of 3 rounds, then 2 more, the whole in a fraction of a second once compiled.
+TARGET_RUN = dict(noise="white", D=0.0, omega=1.0, t_max=2.0, times=(1.0, 2.0), h_max=0.5, seed=3)
+TARGET_OWN = dict(gamma=0.5, additive_D=0.4, initial_temperature=0.4)
+TARGET_ARGS = ["simulate", "--noise", "white", "--D", "0", "--t-max", "2", "--times", "1,2", "--h-max", "0.5",
+               "--seed", "3", "-p", "gamma=0.5", "-p", "additive_D=0.4", "-p", "initial_temperature=0.4",
+               "--target-error", "0.05"]
+
+
+@pytest.fixture(scope="module")
+def target_reference():
+    import warnings
+
+    from stochpend import multilevel
+
+    config = SimulationConfig.build(**TARGET_RUN, noise_params=TARGET_OWN)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = simulate(**TARGET_RUN, **TARGET_OWN, target_error=0.05)
+    return config, multilevel.check_target(config, 0.05), ref
+
+
+def _assert_same_target_result(ref, ds):
+    assert set(ds.data_vars) == set(ref.data_vars)
+    for name, var in ref.data_vars.items():
+        assert ds[name].dtype == var.dtype and np.array_equal(ds[name].values, var.values, equal_nan=True), name
+    for key in ("target_level_seeds", "target_levels", "target_certified", "path_steps", "target_route_seeds"):
+        assert ds.attrs[key] == ref.attrs[key], key
+
+
+class _StopAtRound(ck.TargetCheckpointer):
+    """Asks to stop once the journal holds ``at`` rounds (as a Ctrl-C during the next would)."""
+
+    at = 1
+
+    def round_done(self, journal):
+        if len(journal.rounds) == self.at:
+            self.request_stop()
+        super().round_done(journal)
+
+
+def _target_interrupted(tmp_path, config, target, at, out=None, name="t.ckpt"):
+    path = tmp_path / name
+    saver = type("Stop", (_StopAtRound,), {"at": at})(path, None, config=config, target=target, out=out)
+    with pytest.raises(ck.CheckpointInterrupt):
+        ck.run_target_checkpointed(config, target, checkpoint_path=path, every_s=None, out=out, checkpointer=saver)
+    assert path.is_file() and (out is None or not out.exists())
+    return path
+
+
+@pytest.mark.parametrize("at", [1, 4])
+def test_a_target_run_interrupted_at_a_round_boundary_resumes_bit_for_bit(tmp_path, target_reference, at):
+    config, target, ref = target_reference
+    path = _target_interrupted(tmp_path, config, target, at, out=tmp_path / "t.nc")
+    saved = ck.read(path)
+    assert isinstance(saved, ck.TargetCheckpoint) and len(saved.journal.rounds) == at
+    ds = ck.resume(path)
+    assert not path.exists() and ds.attrs["resumed"] == 1
+    _assert_same_target_result(ref, ds)
+    _assert_same_target_result(ref, io.open_results(tmp_path / "t.nc"))
+
+
+def test_a_target_run_interrupted_in_its_late_time_route_resumes_bit_for_bit(tmp_path):
+    """The OU pendulum's t = 100, where the levels decorrelate and two independent ensembles
+    certify the time (tests/unit/test_multilevel.py): stopped after the route's first ensemble,
+    the resumed run replays the levels' rounds and that ensemble and runs the rest."""
+    import warnings
+
+    from stochpend import multilevel
+
+    run_ = dict(noise="ou", t_max=100.0, times=(1.0, 100.0), seed=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = simulate(**run_, target_error=0.05, target_statistics=["mean_E"], progress=False)
+    assert ref["mean_E_route"].values.tolist() == [0, 1]
+    config = SimulationConfig.build(**run_)
+    target = multilevel.check_target(config, 0.05, 0.95, ["mean_E"])
+
+    class AfterTheFirstEnsemble(ck.TargetCheckpointer):
+        def round_done(self, journal):
+            if len(journal.ensembles) == 1:
+                self.request_stop()
+            super().round_done(journal)
+
+    path = tmp_path / "late.ckpt"
+    with pytest.raises(ck.CheckpointInterrupt):
+        ck.run_target_checkpointed(config, target, checkpoint_path=path, every_s=None,
+                                   checkpointer=AfterTheFirstEnsemble(path, None, config=config, target=target))
+    assert len(ck.read(path).journal.ensembles) == 1
+    _assert_same_target_result(ref, ck.resume(path))
+
+
+def test_ctrl_c_in_a_checkpointed_target_run_saves_it_and_resume_finishes_it_bit_for_bit(
+        tmp_path, target_reference, app, monkeypatch):
+    """A real SIGINT during the first round boundary's save: deferred (deferred_signals), saved,
+    exit 130; `stochpend resume` writes the uninterrupted run's numbers."""
+    _, _, ref = target_reference
+    monkeypatch.chdir(tmp_path)
+    done = ck.TargetCheckpointer.round_done
+
+    def signalled(self, journal):
+        if len(journal.rounds) == 1:
+            os.kill(os.getpid(), signal.SIGINT)
+        done(self, journal)
+
+    monkeypatch.setattr(ck.TargetCheckpointer, "round_done", signalled)
+    result = CliRunner().invoke(app, [*TARGET_ARGS, "--checkpoint", "t.ckpt", "--out", "t.nc"])
+    assert result.exit_code == 130, result.output
+    assert "state saved to" in result.output and "stochpend resume t.ckpt" in result.output
+    assert (tmp_path / "t.ckpt").is_file() and not (tmp_path / "t.nc").exists()
+    monkeypatch.setattr(ck.TargetCheckpointer, "round_done", done)
+    result = CliRunner().invoke(app, ["resume", "t.ckpt"])
+    assert result.exit_code == 0, result.output
+    assert "resuming" in result.output and "1 rounds done" in result.output and "mean_E2 " in result.stdout
+    assert not (tmp_path / "t.ckpt").exists()
+    ds = io.open_results(tmp_path / "t.nc")
+    _assert_same_target_result(ref, ds)
+    assert ds.attrs["command_line"].startswith("stochpend") and ds.attrs["resumed"] == 1
+
+
+def test_an_uninterrupted_checkpointed_target_run_is_the_target_run(tmp_path, target_reference, app, monkeypatch):
+    _, _, ref = target_reference
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(app, [*TARGET_ARGS, "--checkpoint", "t.ckpt", "--checkpoint-every", "0.001s",
+                                      "--out", "t.nc"])
+    assert result.exit_code == 0, result.output
+    assert not (tmp_path / "t.ckpt").exists()
+    _assert_same_target_result(ref, io.open_results(tmp_path / "t.nc"))
+
+
+def _crafted(path, edit):
+    header, payload = _split(path.read_bytes())
+    edit(header)
+    _rewrite(path, header, payload)
+
+
+@pytest.mark.parametrize(("edit", "needle"), [
+    (lambda h: h["target"].update(error=0.0), "its target no longer validates (target_error=0.0 is not accepted"),
+    (lambda h: h["target"].update(times=[3.0]), "its target no longer validates (target_times=[3.0]"),
+    (lambda h: h["target"]["rounds"][0].update(seed=12345), "its round 0 (level 0, seed 12345, 256 samples"),
+    (lambda h: h["target"]["rounds"][0].update(level=1), "its round 0 (level 1,"),
+    (lambda h: h["target"]["rounds"][0].update(batches=0), "malformed header: target.rounds[0]"),
+    (lambda h: h["target"]["rounds"][0].update(stop=True), "malformed header: target.rounds[0]"),
+    (lambda h: h["target"].pop("ensembles"), "malformed header: target"),
+    (lambda h: h.update(kind="other"), "unknown kind 'other'"),
+    (lambda h: h["arrays"][0].update(shape=[2, 3]), "array 'target_n' has dtype <i8 and shape (2, 3), expected"),
+])
+def test_a_damaged_or_crafted_target_checkpoint_is_refused_in_one_line(tmp_path, target_reference, edit, needle):
+    config, target, _ = target_reference
+    path = _target_interrupted(tmp_path, config, target, 2, out=tmp_path / "t.nc")
+    _crafted(path, edit)
+    _refused(path, needle, read=False)
+    assert not (tmp_path / "t.nc").exists()
+
+
+def test_a_target_checkpoints_samples_that_no_round_has_are_refused(tmp_path, target_reference):
+    config, target, _ = target_reference
+    path = _target_interrupted(tmp_path, config, target, 1)
+    data = bytearray(path.read_bytes())
+    header, payload = _split(bytes(data))
+    counts = np.frombuffer(payload[:16], dtype="<i8").copy()
+    counts[1] = 7  # 256 samples at time 0, 7 at time 1: not what one round runs
+    _rewrite(path, header, counts.tobytes() + payload[16:])
+    _refused(path, "array 'target_n' row 0 is not a round's samples to time index 1")
+
+
+def test_a_damaged_target_checkpoint_is_refused_by_resume_exit_2(tmp_path, target_reference, app):
+    config, target, _ = target_reference
+    path = _target_interrupted(tmp_path, config, target, 1, out=tmp_path / "t.nc")
+    path.write_bytes(path.read_bytes()[:-10])
+    result = CliRunner().invoke(app, ["resume", str(path)])
+    assert result.exit_code == 2 and "checksum mismatch" in result.output, result.output
+    assert len(result.output.strip().splitlines()) == 1 and not (tmp_path / "t.nc").exists()
+
+
+def test_the_journal_replays_the_independent_routes_ensembles_and_refuses_another():
+    from stochpend import multilevel
+
+    made = []
+
+    def run():
+        made.append(1)
+        return multilevel.Ensemble(7, 0.25, 100, 1, np.zeros((1, 2)), np.zeros((1, 2)), 500, 0)
+
+    journal = multilevel.Journal(source="checkpoint='x'")
+    first = journal.ensemble(7, 0.25, 100, 1, run)
+    again = multilevel.Journal(ensembles=list(journal.ensembles), source="checkpoint='x'")
+    assert again.ensemble(7, 0.25, 100, 1, run) is first and len(made) == 1
+    with pytest.raises(ValueError, match=r"checkpoint='x' is not accepted: its ensemble 0 \(seed 7, h = 0.25"):
+        multilevel.Journal(ensembles=list(journal.ensembles), source="checkpoint='x'").ensemble(7, 0.125, 100, 1, run)

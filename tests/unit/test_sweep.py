@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 import textwrap
 
@@ -316,3 +317,90 @@ def test_run_block_refuses_another_build():
     assert run_block(config, 0, 0, 1, expect_version=BUILD).paths == 1
     with pytest.raises(ValueError, match=r"a worker runs stochpend .* \(code [0-9a-f]{12}\), the client stochpend 0.0.0"):
         run_block(config, 0, 0, 1, expect_version="0.0.0 (code 000000000000)")
+
+
+# -- a sweep of targets (issue 35: "sweeps accept a target") ---------------------------------------
+GAMMA, D_A = 0.5, 0.4
+#: The damped pendulum started in its Boltzmann law (tests/unit/test_multilevel.py's cheap case);
+#: the last set's coarse step needs 8 levels where the others need 3 (the level dimension padded).
+TARGET_BASE = dict(noise="white", D=0.0, omega=1.0, t_max=2.0, times=[1.0, 2.0], h_max=0.5, gamma=GAMMA,
+                   additive_D=D_A, initial_temperature=0.4)
+TARGET_CASES = [dict(seed=3), dict(seed=5, h_max=0.25), dict(seed=4, h_max=2.0)]
+
+
+def _target_spec(**target):
+    return {"base": TARGET_BASE, "case": TARGET_CASES, **target}
+
+
+def test_a_sweep_of_targets_gives_each_set_the_numbers_of_its_own_target_run():
+    import warnings
+
+    ds = sweep(_target_spec(target_error=0.05))
+    assert ds.attrs["title"] == "stochpend parameter sweep" and ds.attrs["target_error"] == 0.05
+    assert ds.sizes["case"] == 3 and ds.sizes["level"] == 8
+    for i, case in enumerate(TARGET_CASES):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", stochpend.StochpendWarning)
+            one = stochpend.simulate(**{**TARGET_BASE, **case}, target_error=0.05)
+        n_levels = one.sizes["level"]
+        row = ds.isel(case=i)
+        for name, var in one.data_vars.items():
+            got = row[name].isel(level=slice(0, n_levels)) if "level" in var.dims else row[name]
+            assert got.dtype == var.dtype and np.array_equal(got.values, var.values, equal_nan=True), (i, name)
+        pad = row.isel(level=slice(n_levels, None))
+        assert np.all(pad["n_samples"].values == 0) and np.all(np.isnan(pad["mean_E_level_mean"].values))
+        for key in ("target_level_seeds", "target_levels", "target_certified", "path_steps"):
+            got = row[key].item() if key in row else ds.attrs[key]
+            assert got == one.attrs[key], (i, key)
+    assert int(ds.path_steps.sum()) == ds.attrs["path_steps"]
+    assert sum(n_levels > 3 for n_levels in ds["target_levels"].values) == 1
+
+
+@pytest.mark.parametrize(("spec", "kwargs", "needle"), [
+    (_target_spec(target_error=0.0), {}, "sweep: target_error=0.0 is not accepted: a number in (0, 1)"),
+    (_target_spec(target_error=0.05), {"target_error": math.nan}, "target_error=nan is not accepted"),
+    (_target_spec(target_confidence=0.9), {}, "sweep: target_confidence=0.9 is not accepted without target_error"),
+    (_target_spec(target_error=0.05, target_statistics="kurtosis"), {}, "target_statistics='kurtosis' is not accepted"),
+    ({**_target_spec(target_error=0.05, target_times=[2.0]), "case": [dict(seed=3), dict(seed=5, times=[1.0, 3.0], t_max=3.0)]},
+     {}, "target_times=[2.0] is not accepted: times among the run's output times (2 from 1 to 3; set them "
+         "with times=) (parameter set 2 of 2)"),
+    (_target_spec(target_error=0.05), {"scheduler": "sync"},
+     "scheduler='sync' is not accepted with target_error: a target run plans each round from the last"),
+    (_target_spec(target_error=0.05), {"max_path_steps": 1e4}, "its pilot alone (256 samples on each of levels "
+                                                                "0..2) needs about"),
+])
+def test_a_bad_target_in_a_sweep_is_refused_before_any_work(spec, kwargs, needle, monkeypatch):
+    from stochpend import multilevel
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("a level ran")
+
+    monkeypatch.setattr(multilevel, "run_level", no_work)
+    with pytest.raises(ValueError) as info:
+        sweep(spec, **kwargs)
+    assert needle in str(info.value) and "\n" not in str(info.value)
+
+
+def test_cli_sweep_of_targets_writes_prints_and_shows(tmp_path, app):
+    text = BASE.replace('noise = "ou"', 'noise = "white"\ngamma = 0.5\nadditive_D = 0.4\ninitial_temperature = 0.4\n'
+                                          'D = 0.0\nh_max = 0.5\ntimes = [1.0, 2.0]').replace("n_times = 4\n", "")
+    p = _write(tmp_path, text + "[[case]]\nseed = 3\n[[case]]\nseed = 5\nh_max = 0.25\n")
+    out = tmp_path / "s.nc"
+    wide = {"COLUMNS": "250", "TERMINAL_WIDTH": "250"}
+    result = CliRunner().invoke(app, ["sweep", str(p), "--target-error", "0.05", "--target-statistics", "mean_E",
+                                      "--out", str(out)], env=wide)
+    assert result.exit_code == 0, result.output
+    assert "2 parameter sets, target 0.05 at 95 %" in result.output and "2/2" in result.output
+    back = io.open_results(out)
+    ref = sweep(p, target_error=0.05, target_statistics="mean_E")
+    for name, var in ref.data_vars.items():  # target_level_seeds: strings
+        assert np.array_equal(back[name].values, var.values, equal_nan=var.dtype.kind == "f"), name
+    shown = CliRunner().invoke(app, ["show", str(out)], env=wide)
+    assert shown.exit_code == 0 and "2 parameter sets, target 0.05" in shown.output, shown.output
+    for args, needle in ((["--target-error", "0"], "--target-error 0.0 is not accepted"),
+                         (["--target-error", "0.05", "--target-times", "x"], "--target-times 'x' is not accepted"),
+                         (["--target-error", "0.05", "--scheduler", "threads"], "--scheduler 'threads' is not accepted"),
+                         (["--target-confidence", "0.9"], "--target-confidence 0.9 is not accepted without target_error")):
+        refused = CliRunner().invoke(app, ["sweep", str(p), "--out", str(tmp_path / "r.nc"), *args])
+        assert refused.exit_code == 2 and needle in " ".join(refused.output.split()), refused.output
+        assert len(refused.output.strip().splitlines()) == 1 and not (tmp_path / "r.nc").exists()
