@@ -100,7 +100,59 @@ def _escape_help(command: Any) -> None:
             setattr(command, attr, escape(getattr(command, attr)))
 
 
-class HelpCommand(TyperCommand):
+class _Deferred(type):
+    """The type of a stand-in for a class not imported yet: calling it or reading an attribute
+    of it imports the real class (``_real``: its module and name)."""
+
+    _real: tuple[str, str]
+
+    def _load(cls) -> Any:
+        import importlib
+
+        module, name = cls._real
+        return getattr(importlib.import_module(module), name)
+
+    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
+        return cls._load()(*args, **kwargs)
+
+    def __getattr__(cls, attr: str) -> Any:
+        return getattr(cls._load(), attr)
+
+
+#: What Typer's help renderer (typer.rich_utils) imports for what this app does not use: Markdown
+#: help text (rich_markup_mode="markdown") and Rich tracebacks (pretty_exceptions_enable=False);
+#: with markdown-it and Pygments, 0.05 s of --help's 0.2 s on a 2-core machine (issue 36, item 1).
+_NOT_FOR_HELP = {"rich.markdown": "Markdown", "rich.traceback": "Traceback"}
+
+
+def _import_help_renderer() -> None:
+    """Import typer.rich_utils without :data:`_NOT_FOR_HELP`: stand-ins (:class:`_Deferred`) sit
+    in ``sys.modules`` during that import only, so any later import of those modules gets the
+    real ones, as does the renderer if it ever uses one."""
+    if "typer.rich_utils" in sys.modules or any(m in sys.modules for m in _NOT_FOR_HELP):
+        return
+    import types
+
+    for module, name in _NOT_FOR_HELP.items():
+        stand_in = types.ModuleType(module)
+        setattr(stand_in, name, _Deferred(name, (), {"_real": (module, name)}))
+        sys.modules[module] = stand_in
+    try:
+        import typer.rich_utils  # noqa: F401
+    finally:
+        for module in _NOT_FOR_HELP:
+            del sys.modules[module]
+
+
+class _LightHelp:
+    """The help of a command or the group, rendered by Typer without :data:`_NOT_FOR_HELP`."""
+
+    def format_help(self, ctx: Any, formatter: Any) -> None:
+        _import_help_renderer()
+        super().format_help(ctx, formatter)  # type: ignore[misc]
+
+
+class HelpCommand(_LightHelp, TyperCommand):
     """Every subcommand's class: literal help text and flags without a metavar."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -111,7 +163,7 @@ class HelpCommand(TyperCommand):
         return _plain_flags(super().get_params(ctx))
 
 
-class OneLineErrorsGroup(TyperGroup):
+class OneLineErrorsGroup(_LightHelp, TyperGroup):
     """The app's command group: usage errors become the project's one red line and exit
     code 2, instead of Typer's usage block and boxed message (``--help`` is unchanged).
 

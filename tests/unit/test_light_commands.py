@@ -160,3 +160,25 @@ def test_a_file_xarray_decodes_further_is_left_to_xarray(small_result, tmp_path)
     back = io.open_results(tmp_path / "flag.nc", plain=True)
     assert not isinstance(back, _plain.Plain) and back["flag"].dtype == bool
     assert isinstance(io.open_results(small_result, plain=True), _plain.Plain)
+
+
+def test_help_imports_neither_markdown_nor_pygments(small_result):
+    """Typer's help renderer imports rich.markdown and rich.traceback (markdown-it, Pygments)
+    for Markdown help and Rich tracebacks, which the app does not use (stochpend.cli._NOT_FOR_HELP)."""
+    for args in (["--help"], ["simulate", "--help"]):
+        top, done = _imported(args, small_result.parent)
+        assert done.returncode == 0 and "Usage" in done.stdout, done.stderr[-2000:]
+        assert not top & {"markdown_it", "pygments"}, f"stochpend {' '.join(args)} imported {sorted(top)}"
+
+
+def test_the_help_renderers_stand_ins_are_the_real_classes_when_used():
+    """After the help, the modules left out import as themselves, and the renderer's names for
+    them build the real objects."""
+    code = ("from stochpend import cli; cli._import_help_renderer(); import typer.rich_utils as r;"
+            "import rich.markdown, rich.traceback;"
+            "assert r.Markdown is not rich.markdown.Markdown;"
+            "assert isinstance(r.Markdown('*x*'), rich.markdown.Markdown);"
+            "assert r.Traceback.from_exception == rich.traceback.Traceback.from_exception; print('ok')")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [SRC, os.environ.get("PYTHONPATH")]))}
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0 and done.stdout == "ok\n", done.stderr[-2000:]
