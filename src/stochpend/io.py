@@ -23,7 +23,7 @@ import numpy as np
 
 from stochpend._files import WriteError, check_output, reason, write_atomic
 
-if TYPE_CHECKING:  # pragma: no cover
+if TYPE_CHECKING:  # pragma: no cover - xarray is imported where used: `show` reads a run without it
     import xarray as xr
 
     from stochpend._plain import Plain
@@ -142,7 +142,7 @@ def to_netcdf(ds: xr.Dataset, path: str | os.PathLike, *, overwrite: bool = Fals
     # Written once, with a stand-in checksum (the checksum leaves its own attribute out).
     ds.attrs[CHECKSUM_ATTR] = _STAND_IN
     first = ds.to_netcdf(engine="h5netcdf")
-    import xarray as xr
+    import xarray as xr  # imported already by whoever built ds
 
     # The checksum is taken over the file as a reader decodes it (encodings, fill values and
     # string types as xarray reads them back), so that what open_results recomputes is the same.

@@ -24,8 +24,17 @@ SRC = str(Path(stochpend.__file__).resolve().parents[1])
 HEAVY = ("numba", "llvmlite", "dask", "distributed")
 
 
+def _env() -> dict[str, str]:
+    """The environment of a fresh process that imports this checkout's stochpend."""
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [SRC, os.environ.get("PYTHONPATH")]))}
+
+
+def _python(code: str, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", code, *args], env=_env(), capture_output=True, text=True, timeout=300)
+
+
 def _imported(args: list[str], cwd: Path) -> tuple[set[str], subprocess.CompletedProcess]:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [SRC, os.environ.get("PYTHONPATH")]))}
+    env = _env()
     env.pop("NUMBA_ENABLE_CUDASIM", None)
     done = subprocess.run([sys.executable, "-X", "importtime", "-c", "from stochpend.cli import main; main()", *args],
                           cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
@@ -104,9 +113,7 @@ def test_xarray_reads_and_builds_without_dask(small_result):
             "print('dask' in sys.modules);"
             "import dask.array as da; d = xr.Dataset({'a': ('t', da.arange(3, chunks=2))});"
             "print(type(d.a.data).__module__.split('.')[0], d.chunks['t'])")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [SRC, os.environ.get("PYTHONPATH")]))}
-    done = subprocess.run([sys.executable, "-c", code, str(small_result)], env=env, capture_output=True, text=True,
-                          timeout=300)
+    done = _python(code, str(small_result))
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split("\n")[:2] == ["False", "dask (2, 1)"]
 
@@ -179,6 +186,5 @@ def test_the_help_renderers_stand_ins_are_the_real_classes_when_used():
             "assert r.Markdown is not rich.markdown.Markdown;"
             "assert isinstance(r.Markdown('*x*'), rich.markdown.Markdown);"
             "assert r.Traceback.from_exception == rich.traceback.Traceback.from_exception; print('ok')")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [SRC, os.environ.get("PYTHONPATH")]))}
-    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    done = _python(code)
     assert done.returncode == 0 and done.stdout == "ok\n", done.stderr[-2000:]
