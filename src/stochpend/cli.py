@@ -49,6 +49,7 @@ from stochpend._cli_common import (  # the shared layer; several are also used a
     summary_table,
 )
 from stochpend._cli_types import fast_coercion, file_name, integer, usage_message
+from stochpend._plain import Plain
 from stochpend._terminal import markup
 from stochpend.paper import eq
 
@@ -99,7 +100,59 @@ def _escape_help(command: Any) -> None:
             setattr(command, attr, escape(getattr(command, attr)))
 
 
-class HelpCommand(TyperCommand):
+class _Deferred(type):
+    """The type of a stand-in for a class not imported yet: calling it or reading an attribute
+    of it imports the real class (``_real``: its module and name)."""
+
+    _real: tuple[str, str]
+
+    def _load(cls) -> Any:
+        import importlib
+
+        module, name = cls._real
+        return getattr(importlib.import_module(module), name)
+
+    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
+        return cls._load()(*args, **kwargs)
+
+    def __getattr__(cls, attr: str) -> Any:
+        return getattr(cls._load(), attr)
+
+
+#: What Typer's help renderer (typer.rich_utils) imports for what this app does not use: Markdown
+#: help text (rich_markup_mode="markdown") and Rich tracebacks (pretty_exceptions_enable=False);
+#: with markdown-it and Pygments, 0.05 s of --help's 0.2 s on a 2-core machine (issue 36, item 1).
+_NOT_FOR_HELP = {"rich.markdown": "Markdown", "rich.traceback": "Traceback"}
+
+
+def _import_help_renderer() -> None:
+    """Import typer.rich_utils without :data:`_NOT_FOR_HELP`: stand-ins (:class:`_Deferred`) sit
+    in ``sys.modules`` during that import only, so any later import of those modules gets the
+    real ones, as does the renderer if it ever uses one."""
+    if "typer.rich_utils" in sys.modules or any(m in sys.modules for m in _NOT_FOR_HELP):
+        return
+    import types
+
+    for module, name in _NOT_FOR_HELP.items():
+        stand_in = types.ModuleType(module)
+        setattr(stand_in, name, _Deferred(name, (), {"_real": (module, name)}))
+        sys.modules[module] = stand_in
+    try:
+        import typer.rich_utils  # noqa: F401
+    finally:
+        for module in _NOT_FOR_HELP:
+            del sys.modules[module]
+
+
+class _LightHelp:
+    """The help of a command or the group, rendered by Typer without :data:`_NOT_FOR_HELP`."""
+
+    def format_help(self, ctx: Any, formatter: Any) -> None:
+        _import_help_renderer()
+        super().format_help(ctx, formatter)  # type: ignore[misc]
+
+
+class HelpCommand(_LightHelp, TyperCommand):
     """Every subcommand's class: literal help text and flags without a metavar."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -110,7 +163,7 @@ class HelpCommand(TyperCommand):
         return _plain_flags(super().get_params(ctx))
 
 
-class OneLineErrorsGroup(TyperGroup):
+class OneLineErrorsGroup(_LightHelp, TyperGroup):
     """The app's command group: usage errors become the project's one red line and exit
     code 2, instead of Typer's usage block and boxed message (``--help`` is unchanged).
 
@@ -527,9 +580,9 @@ def result_kind(ds: Any) -> str | None:
     return "reduced" if title.startswith("stochpend reduced dynamics") else "simulation"
 
 
-def open_result(path: Path) -> tuple[Any, list[str]]:
-    """:func:`stochpend.io.open_results` and its notes (a file without a checksum), for the
-    caller to print once it knows the file is one it can use."""
+def open_result(path: Path, plain: bool = False) -> tuple[Any, list[str]]:
+    """:func:`stochpend.io.open_results` (``plain``: without xarray where it can) and its notes
+    (a file without a checksum), for the caller to print once it knows the file is one it can use."""
     import warnings
 
     from stochpend import io
@@ -537,7 +590,7 @@ def open_result(path: Path) -> tuple[Any, list[str]]:
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", StochpendWarning)
-        ds = io.open_results(path)
+        ds = io.open_results(path, plain=plain)
     return ds, [str(w.message) for w in caught if issubclass(w.category, StochpendWarning)]
 
 
@@ -605,13 +658,17 @@ def show(
         raise ValueError(f"rows={rows!r} is not accepted: an integer >= 1")
     if format not in SHOW_FORMATS:
         raise ValueError(f"--format={format!r} is not accepted: one of {', '.join(SHOW_FORMATS)}")
-    ds, notes = open_result(path)
+    # A run's table is shown without xarray where the file allows (stochpend._plain: 0.45 s
+    # less to start); a sweep's, a solution's and the CSV and JSON texts use the Dataset.
+    ds, notes = open_result(path, plain=format == "table")
     kind = result_kind(ds)
     if kind is None:
         raise ValueError(f"path={str(path)!r} is not accepted: not a file stochpend writes (a simulation, "
                          "checkpointed run, sweep, reduced run or B.F.P.E. solution)")
     for line in notes:
         note(line)
+    if isinstance(ds, Plain) and kind not in ("simulation", "reduced"):
+        ds = ds.to_xarray()
     if format != "table":
         try:
             if format == "json":
@@ -628,9 +685,33 @@ def show(
             note(f"the CSV holds the variables over ({', '.join(ds['mean_E'].dims)}); "
                  f"{', '.join(left_out)} are in --format json")
         return
+    try:
+        shown = _shown(path, ds, kind, rows)
+    except Exception:
+        if not isinstance(ds, Plain):
+            raise
+        # What a file lacks is said in xarray's words, as before: the Dataset says it again.
+        ds = ds.to_xarray()
+        shown = _shown(path, ds, kind, rows)
+    tables, lines, warned, notes = shown
+    for table in tables:
+        results.print(table)
+    for line in lines:
+        results.print(line, markup=False, highlight=False)
+    for line in warned:
+        console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
+    for line in notes:
+        note(line)
+    if kind in ("simulation", "reduced"):
+        nonfinite_line(ds)
+
+
+def _shown(path: Path, ds: Any, kind: str, rows: int) -> tuple[list[Any], list[str], list[str], list[str]]:
+    """What ``show`` prints of ``ds`` (a result of ``kind``), built whole before anything is
+    printed: its tables, the joint histogram's lines, the bias warnings and notes."""
     warned: list[str] = []
     tables: list[Any]
-    try:  # the tables are built whole before anything is printed
+    try:
         if kind == "target":
             from stochpend.multilevel import summary_lines
 
@@ -658,16 +739,8 @@ def show(
         why = " ".join(str(exc).split()) or type(exc).__name__
         raise ValueError(f"path={str(path)!r} is not accepted: not a stochpend result this "
                          f"command can show ({why})") from None
-    for table in tables:
-        results.print(table)
-    for line in joint_lines(ds) if kind not in ("sweep", "target") else ():
-        results.print(line, markup=False, highlight=False)
-    for line in warned:
-        console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
-    for line in bias_notes(ds):
-        note(line)
-    if kind in ("simulation", "reduced"):
-        nonfinite_line(ds)
+    lines = joint_lines(ds) if kind not in ("sweep", "target") else []
+    return tables, lines, warned, bias_notes(ds)
 
 
 def nonfinite_line(ds: Any) -> None:

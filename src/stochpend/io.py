@@ -17,12 +17,16 @@ import os
 import shlex
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
-import xarray as xr
 
 from stochpend._files import WriteError, check_output, reason, write_atomic
+
+if TYPE_CHECKING:  # pragma: no cover - xarray is imported where used: `show` reads a run without it
+    import xarray as xr
+
+    from stochpend._plain import Plain
 
 __all__ = ["CHECKSUM_ATTR", "DamagedResults", "WriteError", "check_output_path", "checksum", "open_results",
            "reason", "to_netcdf"]
@@ -70,7 +74,7 @@ def _attr_value(value: object) -> tuple[bytes, bytes]:
     return _canonical(a.ravel().astype(np.complex128 if a.dtype.kind == "c" else np.float64))
 
 
-def checksum(ds: xr.Dataset) -> str:
+def checksum(ds: xr.Dataset | Plain) -> str:
     """``"sha256:<hex>"`` over ``ds``'s variables (data and coordinates: name, dimensions,
     dtype, shape, values, attributes) and its attributes, :data:`CHECKSUM_ATTR` excepted."""
     h = hashlib.sha256(_CHECKSUM_SCHEME)
@@ -138,6 +142,8 @@ def to_netcdf(ds: xr.Dataset, path: str | os.PathLike, *, overwrite: bool = Fals
     # Written once, with a stand-in checksum (the checksum leaves its own attribute out).
     ds.attrs[CHECKSUM_ATTR] = _STAND_IN
     first = ds.to_netcdf(engine="h5netcdf")
+    import xarray as xr  # imported already by whoever built ds
+
     # The checksum is taken over the file as a reader decodes it (encodings, fill values and
     # string types as xarray reads them back), so that what open_results recomputes is the same.
     with xr.open_dataset(_io.BytesIO(first), engine="h5netcdf") as back:
@@ -272,14 +278,34 @@ def _load_netcdf(p: Path) -> xr.Dataset:
     reading, measured); here each variable keeps the one it found (:class:`_ReadOnceFile`).
     Any other h5netcdf than this subclass knows: xarray's own path."""
     import h5netcdf  # type: ignore[import-untyped]
+    import xarray as xr
 
     file_cls = _ReadOnceFile.make(h5netcdf)
     if file_cls is None:
         with xr.open_dataset(p, engine="h5netcdf") as ds:
             return ds.load()
-    with file_cls(p, "r", decode_vlen_strings=True, phony_dims="access") as f, \
-            xr.open_dataset(xr.backends.H5NetCDFStore(f)) as ds:
+    with _open_h5netcdf(file_cls, p) as f, xr.open_dataset(xr.backends.H5NetCDFStore(f)) as ds:
         return ds.load()
+
+
+def _open_h5netcdf(file_cls: Any, p: Path) -> Any:
+    """``p`` opened as xarray's h5netcdf backend opens it (text as ``str``, dimensions without a
+    variable named as they are met)."""
+    return file_cls(p, "r", decode_vlen_strings=True, phony_dims="access")
+
+
+def _read_plain(p: Path) -> Plain | None:
+    """:func:`stochpend._plain.read` of ``p``, from the file :func:`_load_netcdf` would read;
+    None where xarray must read it."""
+    import h5netcdf
+
+    from stochpend import _plain
+
+    file_cls = _ReadOnceFile.make(h5netcdf)
+    if file_cls is None:
+        return None
+    with _open_h5netcdf(file_cls, p) as f:
+        return _plain.read(f)
 
 
 class _ReadOnceFile:
@@ -312,7 +338,15 @@ class _ReadOnceFile:
         return cls._cls or None
 
 
-def open_results(path: str | os.PathLike, *, verify: bool = True) -> xr.Dataset:
+@overload
+def open_results(path: str | os.PathLike, *, verify: bool = True, plain: Literal[False] = False) -> xr.Dataset: ...
+
+
+@overload
+def open_results(path: str | os.PathLike, *, verify: bool = True, plain: bool) -> xr.Dataset | Plain: ...
+
+
+def open_results(path: str | os.PathLike, *, verify: bool = True, plain: bool = False) -> xr.Dataset | Plain:
     """Open a results file written by :func:`to_netcdf` (loaded into memory, file closed).
 
     Only a regular file is read (a FIFO or device would hang or never end), and only after
@@ -321,7 +355,9 @@ def open_results(path: str | os.PathLike, *, verify: bool = True) -> xr.Dataset:
     (the default) the file's checksum is recomputed: a mismatch raises :class:`DamagedResults`
     (an ``OSError``), a file without one (written before checksums existed) opens with a
     :class:`~stochpend.StochpendWarning`. Verifying costs one SHA-256 pass over the decoded
-    data (docs/cli.md gives the figure for a large sweep file).
+    data (docs/cli.md gives the figure for a large sweep file). With ``plain``, a file read
+    without xarray where it can be (a :class:`stochpend._plain.Plain`, for ``show``), else the
+    Dataset.
     """
     p = Path(path)
     if p.is_dir():
@@ -339,7 +375,11 @@ def open_results(path: str | os.PathLike, *, verify: bool = True) -> xr.Dataset:
                              "writes its results as NetCDF-4 (simulate, sweep, bfpe or reduced --out FILE.nc)")
     try:
         _check_hdf5(p)
-        ds = _load_netcdf(p)
+        ds: xr.Dataset | Plain | None = None
+        if plain:
+            ds = _read_plain(p)
+        if ds is None:
+            ds = _load_netcdf(p)
     except (ValueError, OSError, KeyError, TypeError, RuntimeError, RecursionError) as exc:
         if isinstance(exc, ValueError) and str(exc).startswith(f"path={str(p)!r}"):
             raise
@@ -350,7 +390,7 @@ def open_results(path: str | os.PathLike, *, verify: bool = True) -> xr.Dataset:
     return ds
 
 
-def _verify(p: Path, ds: xr.Dataset) -> None:
+def _verify(p: Path, ds: xr.Dataset | Plain) -> None:
     stored = ds.attrs.get(CHECKSUM_ATTR)
     if stored is None:
         from stochpend._warnings import StochpendWarning

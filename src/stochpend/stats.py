@@ -16,11 +16,14 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from types import SimpleNamespace
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from stochpend import observables as _table
+
+if TYPE_CHECKING:  # pragma: no cover
+    import xarray as xr
 
 __all__ = ["EnsembleSums", "N_SUMS", "STATISTICS", "passage_slots"]
 
@@ -237,6 +240,8 @@ class EnsembleSums:
                 more, more_coords = _passage.variables(o, row, t_end, nonfinite)
                 data_vars.update(more)
                 coords.update(more_coords)
+        import xarray as xr  # here: `show` reads the statistics' names from this module, without xarray
+
         return xr.Dataset(data_vars, coords=coords, attrs=attrs)
 
 

@@ -16,7 +16,7 @@ from tests.unit.test_imports import import_graph
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("foundations: numbers, random streams, files, text, the paper's labels", (
         "_version", "_hostmath", "_notation", "_terminal", "_toml", "_warnings", "_docs",
-        "_xarray_nodask", "_files", "_sources", "io", "paper", "mathlib", "fastmath", "rng",
+        "_xarray_nodask", "_files", "_sources", "io", "_plain", "paper", "mathlib", "fastmath", "rng",
         "parameters", "progress", "_cputarget", "_jitcache", "_jitable", "_calibration")),
     ("model pieces: noises, oscillators, the family's terms, observables, settings", (
         "noises", "noises.base", "noises.white", "noises.ou", "noises.dichotomous",

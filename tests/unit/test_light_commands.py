@@ -24,8 +24,17 @@ SRC = str(Path(stochpend.__file__).resolve().parents[1])
 HEAVY = ("numba", "llvmlite", "dask", "distributed")
 
 
+def _env() -> dict[str, str]:
+    """The environment of a fresh process that imports this checkout's stochpend."""
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [SRC, os.environ.get("PYTHONPATH")]))}
+
+
+def _python(code: str, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", code, *args], env=_env(), capture_output=True, text=True, timeout=300)
+
+
 def _imported(args: list[str], cwd: Path) -> tuple[set[str], subprocess.CompletedProcess]:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [SRC, os.environ.get("PYTHONPATH")]))}
+    env = _env()
     env.pop("NUMBA_ENABLE_CUDASIM", None)
     done = subprocess.run([sys.executable, "-X", "importtime", "-c", "from stochpend.cli import main; main()", *args],
                           cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
@@ -104,8 +113,78 @@ def test_xarray_reads_and_builds_without_dask(small_result):
             "print('dask' in sys.modules);"
             "import dask.array as da; d = xr.Dataset({'a': ('t', da.arange(3, chunks=2))});"
             "print(type(d.a.data).__module__.split('.')[0], d.chunks['t'])")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [SRC, os.environ.get("PYTHONPATH")]))}
-    done = subprocess.run([sys.executable, "-c", code, str(small_result)], env=env, capture_output=True, text=True,
-                          timeout=300)
+    done = _python(code, str(small_result))
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split("\n")[:2] == ["False", "dask (2, 1)"]
+
+
+def test_show_of_a_run_imports_no_xarray(small_result):
+    """``show`` of a run's table reads the file without xarray and pandas (0.45 s to import:
+    stochpend._plain); its CSV still goes through the Dataset."""
+    top, done = _imported(["show", "r.nc"], small_result.parent)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "<E>" in done.stdout
+    assert not top & {"xarray", "pandas"}, f"stochpend show imported {sorted(top & {'xarray', 'pandas'})}"
+    top, done = _imported(["show", "r.nc", "--format", "csv"], small_result.parent)
+    assert done.returncode == 0 and "xarray" in top, done.stderr[-2000:]
+
+
+@pytest.mark.parametrize("name", ["r.nc", "sweep.nc"])
+def test_the_plain_reader_reads_what_xarray_reads(small_result, name):
+    """The same variables, coordinates, values and attributes, so the file's checksum verifies it."""
+    from stochpend import _plain
+
+    path = small_result.parent / name
+    plain, ds = io.open_results(path, plain=True), io._load_netcdf(path)
+    assert isinstance(plain, _plain.Plain)
+    assert plain.to_xarray().identical(ds)
+    assert io.checksum(plain) == io.checksum(ds) == ds.attrs[io.CHECKSUM_ATTR]
+
+
+@pytest.mark.parametrize("args", [[], ["--rows", "2"]])
+def test_show_prints_the_same_without_xarray(small_result, monkeypatch, args):
+    from typer.testing import CliRunner
+
+    from stochpend import _plain, cli
+
+    def shown() -> tuple[int, str, str]:
+        done = CliRunner().invoke(cli.app, ["show", str(small_result), *args])
+        return done.exit_code, done.stdout, done.stderr
+
+    plain = shown()
+    monkeypatch.setattr(_plain, "read", lambda *args: None)  # every file to xarray, as before
+    assert shown() == plain and plain[0] == 0
+
+
+def test_a_file_xarray_decodes_further_is_left_to_xarray(small_result, tmp_path):
+    """A boolean variable (stored as int8 with a dtype attribute, which xarray decodes): the
+    plain reader declines, xarray reads the file."""
+    from stochpend import _plain
+
+    ds = io.open_results(small_result)
+    ds["flag"] = ("time", ds["nonfinite_paths"].values > 0)
+    io.to_netcdf(ds, tmp_path / "flag.nc")
+    back = io.open_results(tmp_path / "flag.nc", plain=True)
+    assert not isinstance(back, _plain.Plain) and back["flag"].dtype == bool
+    assert isinstance(io.open_results(small_result, plain=True), _plain.Plain)
+
+
+def test_help_imports_neither_markdown_nor_pygments(small_result):
+    """Typer's help renderer imports rich.markdown and rich.traceback (markdown-it, Pygments)
+    for Markdown help and Rich tracebacks, which the app does not use (stochpend.cli._NOT_FOR_HELP)."""
+    for args in (["--help"], ["simulate", "--help"]):
+        top, done = _imported(args, small_result.parent)
+        assert done.returncode == 0 and "Usage" in done.stdout, done.stderr[-2000:]
+        assert not top & {"markdown_it", "pygments"}, f"stochpend {' '.join(args)} imported {sorted(top)}"
+
+
+def test_the_help_renderers_stand_ins_are_the_real_classes_when_used():
+    """After the help, the modules left out import as themselves, and the renderer's names for
+    them build the real objects."""
+    code = ("from stochpend import cli; cli._import_help_renderer(); import typer.rich_utils as r;"
+            "import rich.markdown, rich.traceback;"
+            "assert r.Markdown is not rich.markdown.Markdown;"
+            "assert isinstance(r.Markdown('*x*'), rich.markdown.Markdown);"
+            "assert r.Traceback.from_exception == rich.traceback.Traceback.from_exception; print('ok')")
+    done = _python(code)
+    assert done.returncode == 0 and done.stdout == "ok\n", done.stderr[-2000:]
