@@ -22,6 +22,7 @@ import typer
 from rich.table import Table
 
 from stochpend import _cli_common as common
+from stochpend._cli_checkpoint import checkpointed, interruptible
 from stochpend._cli_common import handles_errors
 from stochpend._cli_types import file_name, integer
 from stochpend._terminal import markup
@@ -97,59 +98,6 @@ def simulate_with_checkpoint(
                         max_path_steps=max_path_steps)
 
 
-def checkpointed(run: Any, *args: Any, checkpoint_path: Path, out: Path | None, overwrite: bool,
-                 command_line: str | None = None, **kwargs: Any) -> Any:
-    """``run(*args, checkpoint_path=..., out=..., ...)``, a run that checkpoints
-    (:func:`stochpend.checkpoint.run_checkpointed`, ``run_target_checkpointed``), after the checks
-    every such run needs before any work (``out`` writable, the checkpoint a new file, its lock
-    held) and with Ctrl-C's exit (:func:`_interruptible`)."""
-    from stochpend import checkpoint, io
-
-    if out is not None:
-        io.check_output_path(out, overwrite=overwrite)
-    # The name and the place first (the lock file goes beside it); whether it exists is checked
-    # under the lock, so that of two runs started together the second hears who holds it.
-    io.check_output_path(checkpoint_path, overwrite=True, name="checkpoint")
-    with checkpoint.owned(checkpoint_path):  # a second run on this checkpoint is refused
-        checkpoint.check_checkpoint_path(checkpoint_path, out=out)
-        if command_line is None:
-            command_line = " ".join(["stochpend", *sys.argv[1:]])
-        return _interruptible(run, *args, checkpoint_path=checkpoint_path, out=out, overwrite=overwrite,
-                              command_line=command_line, **kwargs)
-
-
-def _interruptible(fn: Any, *args: Any, checkpoint_path: Path, **kwargs: Any) -> Any:
-    from stochpend._files import placed
-    from stochpend.checkpoint import CheckpointInterrupt, resume_advice
-    progress = kwargs.get("progress")
-    try:
-        return fn(*args, checkpoint_path=checkpoint_path, **kwargs)
-    except CheckpointInterrupt as exc:
-        common._stop_listening()  # saved: a second Ctrl-C now only repeats the exit (I3)
-        if progress is not None:
-            progress.finish()
-        advice = resume_advice(exc.path, kwargs.get("out"))
-        common.console.print(f"[yellow]interrupted:[/] state saved to {markup(exc.path)}; continue with: "
-                          f"{markup(advice)}", highlight=False, soft_wrap=True)
-        raise typer.Exit(exc.exit_code) from None
-    except KeyboardInterrupt as exc:
-        common._stop_listening()
-        if progress is not None:
-            progress.finish()
-        last = (f"; the last checkpoint is kept: continue with: {markup(resume_advice(checkpoint_path, kwargs.get('out')))}"
-                if Path(checkpoint_path).exists() else "")
-        signum = getattr(exc, "signum", 2)
-        out = kwargs.get("out")
-        if out is not None and placed(out) and not Path(checkpoint_path).exists():
-            common.console.print(f"[yellow]interrupted[/] by signal {signum} after the result was written: "
-                                 f"{markup(out)} is complete (its checkpoint is removed)",
-                                 highlight=False, soft_wrap=True)
-            raise typer.Exit(128 + signum) from None
-        common.console.print(f"[yellow]interrupted[/] by signal {signum} (no new checkpoint){last}",
-                          highlight=False, soft_wrap=True)
-        raise typer.Exit(128 + signum) from None
-
-
 @handles_errors
 def resume_command(
     checkpoint: Annotated[Path, typer.Argument(parser=file_name, help="A checkpoint written by 'stochpend simulate --checkpoint'.")],
@@ -204,10 +152,10 @@ def _resume_owned(checkpoint: Path, out: Path | None, overwrite: bool, threads: 
         from stochpend._cli_target import report
 
         kwargs["note"] = None if quiet else common.note
-        report(_interruptible(_resume, checkpoint_path=checkpoint, **kwargs), target, quiet)
+        report(interruptible(_resume, checkpoint_path=checkpoint, **kwargs), target, quiet)
         return
     progress = common.RichProgress(enabled=not quiet and common.console.is_terminal, long_run=True)
-    ds = _interruptible(_resume, checkpoint_path=checkpoint, progress=progress, **kwargs)
+    ds = interruptible(_resume, checkpoint_path=checkpoint, progress=progress, **kwargs)
     if not quiet:
         common.results.print(common.summary_table(ds, width=common.results.width, more=common.rows_hint(target)))
         if target is not None:

@@ -40,7 +40,7 @@ def simulate_target(config: Any, *, target_error: float, target_confidence: floa
     backend = resolve_backend(backend, note=note)
     if checkpoint is not None:  # writes `out` itself, then removes the checkpoint (as simulate --checkpoint)
         from stochpend import checkpoint as ck
-        from stochpend._cli_scale import checkpointed
+        from stochpend._cli_checkpoint import checkpointed
 
         ds = checkpointed(ck.run_target_checkpointed, config, target, checkpoint_path=checkpoint,
                           every_s=checkpoint_every, out=out, overwrite=overwrite, backend=backend,

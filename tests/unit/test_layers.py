@@ -36,7 +36,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
         "figures.family_random_frequency", "figures.family_washboard", "figures.fig1",
         "figures.fig2", "figures.fig3", "figures.fig4", "report", "reproduce")),
     ("the public face and the command line", (
-        "", "__main__", "cli", "_cli_common", "_cli_reproduce", "_cli_scale", "_cli_target",
+        "", "__main__", "cli", "_cli_checkpoint", "_cli_common", "_cli_reproduce", "_cli_scale", "_cli_target",
         "_cli_theory", "_cli_types")),
 )
 
