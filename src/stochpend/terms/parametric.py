@@ -1,0 +1,37 @@
+"""A deterministic modulation beside the parametric noise, -eps cos(nu_p t) G(x) in dOmega/dt:
+its kick is the exact integral of eps cos(nu_p t) over the step, 2 eps/nu_p cos(nu_p t_mid)
+sin(nu_p h/2), without cancellation, times G(x_half) as the noise's; it bounds h <= c/nu_p."""
+
+from __future__ import annotations
+
+import math
+
+from stochpend.parameters import Parameter
+from stochpend.terms.base import Term
+
+
+def kick(real, mathlib, at):
+    EPS, NU_P = at["parametric_amplitude"], at["parametric_frequency"]
+    sincos = mathlib.sincos
+
+    def parametric(x_half, t0, h_clock, d):
+        nu_p = d[NU_P]
+        s_half, _ = sincos(0.5 * nu_p * h_clock)
+        _, c_mid = sincos(nu_p * (t0 + 0.5 * h_clock))
+        return real(2.0 * d[EPS] / nu_p * c_mid * s_half)
+
+    return parametric
+
+
+PARAMETRIC = Term(
+    name="parametric",
+    parameters=(
+        Parameter("parametric_amplitude", 0.0, "amplitude eps of the modulation eps cos(nu_p t) G(x)"),
+        Parameter("parametric_frequency", 1.0, "frequency nu_p of the modulation", low=0.0, low_open=True),
+    ),
+    switch="parametric_amplitude",
+    rate="parametric_frequency",
+    coupling="noise",
+    kick=kick,
+    integrand=lambda t, v: v["parametric_amplitude"] * math.cos(v["parametric_frequency"] * t),
+)
