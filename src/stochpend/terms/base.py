@@ -52,3 +52,23 @@ class Term:
         """Whether the term pushes a path at rest: a force (a term beside the noise vanishes where
         G does, and the damping where Omega does)."""
         return self.kick is not None and self.coupling == "force"
+
+
+def cosine_kick(real: Any, mathlib: Any, amplitude: int, frequency: int, phase: int | None = None) -> Any:
+    """The kick of a term A cos(nu t + phi) (record positions ``amplitude``, ``frequency``,
+    ``phase``; None: no phase, not even + 0): its exact integral over [t0, t0 + h], 2 A/nu
+    cos(nu t_mid + phi) sin(nu h/2), without cancellation."""
+    sincos = mathlib.sincos
+    PHASED = phase is not None
+    PHI = phase if phase is not None else 0
+
+    def kick(x_half, t0, h_clock, d):
+        nu = d[frequency]
+        s_half, _ = sincos(0.5 * nu * h_clock)
+        arg = nu * (t0 + 0.5 * h_clock)
+        if PHASED:
+            arg = arg + d[PHI]
+        _, c_mid = sincos(arg)
+        return real(2.0 * d[amplitude] / nu * c_mid * s_half)
+
+    return kick

@@ -6,20 +6,11 @@ from __future__ import annotations
 import math
 
 from stochpend.parameters import Parameter
-from stochpend.terms.base import Term
+from stochpend.terms.base import Term, cosine_kick
 
 
 def kick(real, mathlib, at):
-    A, NU, PHI = at["drive_amplitude"], at["drive_frequency"], at["drive_phase"]
-    sincos = mathlib.sincos
-
-    def drive(x_half, t0, h_clock, d):
-        nu = d[NU]
-        s_half, _ = sincos(0.5 * nu * h_clock)
-        _, c_mid = sincos(nu * (t0 + 0.5 * h_clock) + d[PHI])
-        return real(2.0 * d[A] / nu * c_mid * s_half)
-
-    return drive
+    return cosine_kick(real, mathlib, at["drive_amplitude"], at["drive_frequency"], at["drive_phase"])
 
 
 DRIVE = Term(

@@ -7,20 +7,11 @@ from __future__ import annotations
 import math
 
 from stochpend.parameters import Parameter
-from stochpend.terms.base import Term
+from stochpend.terms.base import Term, cosine_kick
 
 
 def kick(real, mathlib, at):
-    EPS, NU_P = at["parametric_amplitude"], at["parametric_frequency"]
-    sincos = mathlib.sincos
-
-    def parametric(x_half, t0, h_clock, d):
-        nu_p = d[NU_P]
-        s_half, _ = sincos(0.5 * nu_p * h_clock)
-        _, c_mid = sincos(nu_p * (t0 + 0.5 * h_clock))
-        return real(2.0 * d[EPS] / nu_p * c_mid * s_half)
-
-    return parametric
+    return cosine_kick(real, mathlib, at["parametric_amplitude"], at["parametric_frequency"])
 
 
 PARAMETRIC = Term(
