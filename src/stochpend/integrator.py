@@ -183,9 +183,9 @@ class Spec:
     precision: str = "float64"
     adaptive: bool = True
     fast_math: bool = False
-    #: The family's terms that are on (:data:`stochpend.dynamics.TERMS`: the names of the
-    #: table :data:`stochpend.terms.TABLE` and the additive channel's "additive", "additive_ou",
-    #: "additive_noise"); empty: the paper's model, today's kernels.
+    #: The family's terms that are on (:mod:`stochpend.dynamics`: "damping", "torque", "drive",
+    #: "parametric", "additive", "additive_ou", "additive_noise"); empty: the paper's model,
+    #: today's kernels.
     terms: frozenset = frozenset()
     #: The generic additive channel's noise (term "additive_noise"; :mod:`stochpend.dynamics`):
     #: the kernel calls its device functions, so each channel noise compiles its own kernel.
@@ -229,6 +229,17 @@ class Spec:
 
 
 # -- the integrator ------------------------------------------------------------------------------
+def _copy(function: Any, name: str) -> Any:
+    """A second function object with ``function``'s code and closure (so that Numba can compile
+    it with other options), named ``name``."""
+    import types
+
+    copy = types.FunctionType(function.__code__, function.__globals__, name, function.__defaults__,
+                              function.__closure__)
+    copy.__qualname__ = function.__qualname__.replace(function.__name__, name)
+    return copy
+
+
 @register_jitable
 def _no_dyn(run):
     return (0.0,)
@@ -239,10 +250,11 @@ def _dyn_of(run):
     return run[4]
 
 
-#: Where the kernels read the family's record d (:data:`stochpend.dynamics.RECORD`); the
-#: table's terms read their own parameters (:func:`_term_kicks`, :func:`_term_bounds`).
+#: Where the kernels read the family's record d (:data:`stochpend.dynamics.RECORD`).
 _AT = _dynamics.POSITION
 _GAMMA, _D_A, _SIGMA_A, _TAU_A = _AT["gamma"], _AT["additive_D"], _AT["sigma_a"], _AT["additive_tau"]
+_TORQUE, _A, _NU, _PHI = _AT["torque"], _AT["drive_amplitude"], _AT["drive_frequency"], _AT["drive_phase"]
+_EPS, _NU_P = _AT["parametric_amplitude"], _AT["parametric_frequency"]
 
 
 @register_jitable
@@ -351,52 +363,8 @@ def _member_tree(depth: int, step: Any, combine: Any, half: Any) -> Any:
 
 
 @register_jitable
-def _no_kick(kick, x_half, g, t0, h_clock, d):
-    """The kick of no term (:func:`_term_kicks`)."""
-    return kick
-
-
-@register_jitable(inline="always")
-def _no_kick_inline(kick, x_half, g, t0, h_clock, d):
-    """:func:`_no_kick`, inlined by Numba."""
-    return kick
-
-
-@register_jitable
 def _no_bound(h, c, d):
     return h
-
-
-def _kick_link(kick_of: Any, coupling: str, rest: Any, jit: Any, name: str) -> Any:
-    """One link of :func:`_term_kicks`: a term's kick ``kick_of`` added to the step's kick, then
-    the ``rest`` of the chain."""
-    if coupling == "noise":
-        def link(kick, x_half, g, t0, h_clock, d):
-            return rest(kick + kick_of(x_half, t0, h_clock, d) * g, x_half, g, t0, h_clock, d)
-    else:
-        def link(kick, x_half, g, t0, h_clock, d):
-            return rest(kick - kick_of(x_half, t0, h_clock, d), x_half, g, t0, h_clock, d)
-    return jit(_named(link, name))
-
-
-def _term_kicks(terms: tuple, real: Any, mathlib: Any, inline: bool = False) -> Any:
-    """``kicks(kick, x_half, g, t0, h_clock, d) -> kick``: the table's ``terms``' kicks over the
-    step from ``t0`` (``h_clock`` long, ``g = G(x_half)``) added to the step's kick, composed at
-    compile time as a chain of one function per term (a term that is off is not in it): those
-    beside the parametric noise first, ``kick += k * g``, then the forces, ``kick -= k``, each in
-    the table's order (:mod:`stochpend.terms`).
-
-    ``inline``: every link and kick inlined by Numba (``family_step_inline``, the lane machine:
-    a call in the lane loop stops its vectorization), else plain device functions (numba-cuda
-    cannot type a Numba-inlined function; NVVM and LLVM inline these). The chain has no
-    compile-time branch, so the two compile the same operations in the same order."""
-    jit = register_jitable(inline="always") if inline else register_jitable
-    suffix = "_inline" if inline else ""
-    chain = _no_kick_inline if inline else _no_kick
-    for term in reversed(sorted(terms, key=lambda term: term.coupling != "noise")):
-        kick_of = jit(_named(term.kick(real, mathlib, _AT), f"{term.name}_kick{suffix}"))
-        chain = _kick_link(kick_of, term.coupling, chain, jit, f"{term.name}_kicks{suffix}")
-    return chain
 
 
 def _bound_link(R: int, rest: Any, name: str) -> Any:
@@ -869,9 +837,15 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         return wrap(x_new), Omega_new
 
     FAMILY = bool(spec.terms)
-    # The damping and the additive channel are the step's Ornstein-Uhlenbeck flow of Omega, not
-    # kicks: the step writes them (below); the table's other terms are kicks and step bounds.
+    # The table's terms (stochpend.terms): their bounds are composed from it (family_bounds);
+    # their kicks are written in family_step, under compile-time flags, because a kick composed
+    # from per-term functions stays a call in the lane loop and stops its vectorization
+    # (stochpend.terms). The damping and the additive channel are the Ornstein-Uhlenbeck flow of
+    # Omega, not kicks: they stay special in any case.
     DAMPED = "damping" in spec.terms
+    TORQUE = "torque" in spec.terms
+    DRIVE = "drive" in spec.terms
+    PARAMETRIC = "parametric" in spec.terms
     ADDITIVE = "additive" in spec.terms
     ADDITIVE_OU = "additive_ou" in spec.terms
     O_STEP = DAMPED or ADDITIVE
@@ -914,62 +888,65 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         a_next_event = next_event
         a_at_event = at_event
 
-    # The table's terms that are on, their kicks and bounds composed for this Spec.
-    terms_on = tuple(term for term in _terms.TABLE if term.name in spec.terms)
-    family_bounds = _term_bounds(terms_on)
-    kicking = tuple(term for term in terms_on if term.kick is not None)
+    # The step control's bounds of the table's terms that are on (h <= c/gamma, c/nu, c/nu_p).
+    family_bounds = _term_bounds(tuple(term for term in _terms.TABLE if term.name in spec.terms))
 
-    def family_step_with(kicks: Any) -> Any:
-        """:func:`family_step` with the table's terms' ``kicks`` (plain or inlined)."""
-        def family_step(x, Omega, h, omega2, noise_integral, q, t0, h_clock, za, d):
-            """One step with the family's terms (``d``: ``stochpend.dynamics.record``): drift h/2,
-            half the kick, the exact Ornstein-Uhlenbeck flow of Omega over h (damping and the
-            additive white noise, normal ``za``), the other half of the kick, drift h/2. The kick
-            holds the force, the parametric noise's exact integral, the ``kicks`` of the table's
-            terms that are on (their exact integrals over the step from ``t0``, float64:
-            :func:`_term_kicks`), and with the additive OU noise its exact integral over the step
-            (then ``za`` is that integral, not a normal), as the parametric noise's. With the O
-            flow in the middle the harmonic oscillator's stationary x is Boltzmann's exactly for
-            every gamma h, and Omega's has the O(h^2) error of Stormer-Verlet, independent of
-            gamma (docs/numerics.md); half-step damping factors around the kick would not (their
-            error grows with gamma h)."""
-            x_half = x + half * h * Omega
-            g = G(x_half, q)
-            kick = omega2 * h * force(x_half, q)
-            kick += noise_integral * g
-            kick = kicks(kick, x_half, g, t0, h_clock, d)  # the table's terms (_term_kicks)
-            if ADDITIVE_OU or ADN:  # za: the exact integral of xi_a over the step (its noise's update)
-                kick -= za
-            if O_STEP:
-                Omega_mid = Omega - half * kick
-                if DAMPED:
-                    # One expm1: 1 - e^2 = -m (2 + m), m = e - 1, without cancellation.
-                    m = mathlib_expm1(-d[_GAMMA] * h_clock)
-                    e = 1.0 + m
-                    spread = d[_SIGMA_A] * math.sqrt(-m * (2.0 + m))
-                else:
-                    e = 1.0
-                    spread = d[_SIGMA_A] * math.sqrt(h_clock)
-                if ADDITIVE:
-                    Omega_mid = real(e * Omega_mid + spread * za)
-                else:
-                    Omega_mid = real(e * Omega_mid)
-                Omega_new = Omega_mid - half * kick
+    def family_step(x, Omega, h, omega2, noise_integral, q, t0, h_clock, za, d):
+        """One step with the family's terms (``d``: ``stochpend.dynamics.record``): drift h/2,
+        half the kick, the exact Ornstein-Uhlenbeck flow of Omega over h (damping and the
+        additive white noise, normal ``za``), the other half of the kick, drift h/2. The kick
+        holds the force, the parametric noise's exact integral and the drives' exact integrals
+        over the step (``t0``: its start, float64), and with the additive OU noise its exact
+        integral over the step (then ``za`` is that integral, not a normal), as the parametric
+        noise's. With the O flow in the middle the harmonic
+        oscillator's stationary x is Boltzmann's exactly for every gamma h, and Omega's has the
+        O(h^2) error of Stormer-Verlet, independent of gamma (docs/numerics.md); half-step
+        damping factors around the kick would not (their error grows with gamma h)."""
+        x_half = x + half * h * Omega
+        g = G(x_half, q)
+        kick = omega2 * h * force(x_half, q)
+        kick += noise_integral * g
+        if PARAMETRIC:  # eps int cos(nu_p s) ds over [t0, t0 + h], without cancellation
+            nu_p = d[_NU_P]
+            s_half, _ = mathlib_sincos(0.5 * nu_p * h_clock)
+            _, c_mid = mathlib_sincos(nu_p * (t0 + 0.5 * h_clock))
+            kick += real(2.0 * d[_EPS] / nu_p * c_mid * s_half) * g
+        if TORQUE:
+            kick -= real(d[_TORQUE] * h_clock)
+        if DRIVE:  # A int cos(nu s + phi) ds
+            nu = d[_NU]
+            s_half, _ = mathlib_sincos(0.5 * nu * h_clock)
+            _, c_mid = mathlib_sincos(nu * (t0 + 0.5 * h_clock) + d[_PHI])
+            kick -= real(2.0 * d[_A] / nu * c_mid * s_half)
+        if ADDITIVE_OU or ADN:  # za: the exact integral of xi_a over the step (its noise's update)
+            kick -= za
+        if O_STEP:
+            Omega_mid = Omega - half * kick
+            if DAMPED:
+                # One expm1: 1 - e^2 = -m (2 + m), m = e - 1, without cancellation.
+                m = mathlib_expm1(-d[_GAMMA] * h_clock)
+                e = 1.0 + m
+                spread = d[_SIGMA_A] * math.sqrt(-m * (2.0 + m))
             else:
-                Omega_new = Omega - kick
-            x_new = x_half + half * h * Omega_new
-            return wrap(x_new), Omega_new
+                e = 1.0
+                spread = d[_SIGMA_A] * math.sqrt(h_clock)
+            if ADDITIVE:
+                Omega_mid = real(e * Omega_mid + spread * za)
+            else:
+                Omega_mid = real(e * Omega_mid)
+            Omega_new = Omega_mid - half * kick
+        else:
+            Omega_new = Omega - kick
+        x_new = x_half + half * h * Omega_new
+        return wrap(x_new), Omega_new
 
-        return family_step
-
-    # Two compilations of the one step: the lane machine's inlined into its IR with its terms'
-    # kicks (as a call, with the damping's expm1 polynomial, the function is too large for LLVM
-    # to inline into the lane loop, and a call in that loop stops its vectorization: damped
-    # lanes were 4-7x slower per step), the others' a plain device function (numba-cuda cannot
-    # type the inlined IR of its compile-time branches: "mul(omitted, omitted)").
-    family_step_inline = register_jitable(inline="always")(
-        _named(family_step_with(_term_kicks(kicking, real, mathlib, inline=True)), "family_step_inline"))
-    family_step = register_jitable(family_step_with(_term_kicks(kicking, real, mathlib)))
+    # Two compilations of the one step: the lane machine's inlined into its IR (as a call, with
+    # the damping's expm1 polynomial, the function is too large for LLVM to inline into the lane
+    # loop, and a call in that loop stops its vectorization: damped lanes were 4-7x slower per
+    # step), the others' a plain device function (numba-cuda cannot type the inlined IR of its
+    # compile-time branches: "mul(omitted, omitted)").
+    family_step_inline = register_jitable(inline="always")(_copy(family_step, "family_step_inline"))
+    family_step = register_jitable(family_step)
 
     @register_jitable
     def additive_normal(key0, key1, path, n):

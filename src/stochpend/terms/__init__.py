@@ -1,10 +1,13 @@
 """The family's terms, one file each, in one table (as the statistics are ``observables.SUMS``).
 
-Each entry (:class:`~stochpend.terms.base.Term`) declares its parameters, its kick over a step
-and its step bound; :mod:`stochpend.dynamics` declares the family's parameters and record from
-the table, and :func:`stochpend.integrator.build` composes the kick and the bound of the terms
-that are on at compile time. A new term is one file here, its entry in :data:`TABLE` and its
-test (tests/unit/test_terms.py walks the table: each kick against its integrand's integral).
+Each entry (:class:`~stochpend.terms.base.Term`) declares its parameters, how it enters the
+step and its step bound; :mod:`stochpend.dynamics` declares the family's parameters, terms and
+kernel record from the table, the step control composes the bounds of the terms that are on at
+compile time (:func:`stochpend.integrator.build`), params and the CUDA backend's variants read
+it. Each term's kick is still written in the step (``family_step``): composed from per-term
+functions, the kicks of the drive and the modulation stayed calls in the SIMD lane loop (Numba
+does not inline a function called from a function it inlines), which stopped its vectorization
+(5x slower per step); docs/numerics.md, "The family's terms".
 
 The additive noise channel is not in the table: like the damping, it is part of the step's
 Ornstein-Uhlenbeck flow or has a state of its own (:mod:`stochpend.dynamics`).
@@ -20,6 +23,6 @@ from stochpend.terms.torque import TORQUE
 
 __all__ = ["COUPLINGS", "TABLE", "Term"]
 
-#: The terms in the order of their parameters, of the step bounds (each bound is taken on the
-#: step the previous left) and, among the terms of one coupling, of their kicks.
+#: The terms in the order of their parameters and of the step bounds (each bound is taken on the
+#: step the previous left).
 TABLE: tuple[Term, ...] = (DAMPING, TORQUE, DRIVE, PARAMETRIC)

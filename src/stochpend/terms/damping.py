@@ -12,4 +12,5 @@ DAMPING = Term(
     parameters=(Parameter("gamma", 0.0, "linear damping gamma, -gamma Omega in dOmega/dt", low=0.0),),
     switch="gamma",
     rate="gamma",
+    coupling="flow",
 )

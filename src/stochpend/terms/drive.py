@@ -3,15 +3,8 @@ step, 2 A/nu cos(nu t_mid + phi) sin(nu h/2), without cancellation; it bounds h 
 
 from __future__ import annotations
 
-import math
-
 from stochpend.parameters import Parameter
-from stochpend.terms.base import Term, cosine_kick
-
-
-def kick(real, mathlib, at):
-    return cosine_kick(real, mathlib, at["drive_amplitude"], at["drive_frequency"], at["drive_phase"])
-
+from stochpend.terms.base import Term
 
 DRIVE = Term(
     name="drive",
@@ -22,6 +15,4 @@ DRIVE = Term(
     ),
     switch="drive_amplitude",
     rate="drive_frequency",
-    kick=kick,
-    integrand=lambda t, v: v["drive_amplitude"] * math.cos(v["drive_frequency"] * t + v["drive_phase"]),
 )

@@ -4,15 +4,8 @@ sin(nu_p h/2), without cancellation, times G(x_half) as the noise's; it bounds h
 
 from __future__ import annotations
 
-import math
-
 from stochpend.parameters import Parameter
-from stochpend.terms.base import Term, cosine_kick
-
-
-def kick(real, mathlib, at):
-    return cosine_kick(real, mathlib, at["parametric_amplitude"], at["parametric_frequency"])
-
+from stochpend.terms.base import Term
 
 PARAMETRIC = Term(
     name="parametric",
@@ -23,6 +16,4 @@ PARAMETRIC = Term(
     switch="parametric_amplitude",
     rate="parametric_frequency",
     coupling="noise",
-    kick=kick,
-    integrand=lambda t, v: v["parametric_amplitude"] * math.cos(v["parametric_frequency"] * t),
 )

@@ -5,20 +5,8 @@ from __future__ import annotations
 from stochpend.parameters import Parameter
 from stochpend.terms.base import Term
 
-
-def kick(real, mathlib, at):
-    F = at["torque"]
-
-    def torque(x_half, t0, h_clock, d):
-        return real(d[F] * h_clock)
-
-    return torque
-
-
 TORQUE = Term(
     name="torque",
     parameters=(Parameter("torque", 0.0, "constant force F (the tilted washboard)"),),
     switch="torque",
-    kick=kick,
-    integrand=lambda t, v: v["torque"],
 )
