@@ -4,7 +4,10 @@
     dOmega/dt = -gamma Omega - omega**2 U'(x) - (xi(t) + eps cos(nu_p t)) G(x)
                 + F + A cos(nu t + phi) + xi_a(t)
 
-Each term is a :class:`stochpend.parameters.Parameter` of :data:`FAMILY`, so the Python API takes
+The terms damping, torque, drive and parametric are the entries of :data:`stochpend.terms.TABLE`
+(one file each: its parameters, its kick over a step, its step bound); the additive noise xi_a
+is the channel below. Each parameter is a :class:`stochpend.parameters.Parameter` of
+:data:`FAMILY` (the table's, then the channel's), so the Python API takes
 it as a keyword (``simulate(gamma=0.5, additive_D=0.2)``), the command line as ``--param
 gamma=0.5``, a sweep file as a key, and the configuration (``SimulationConfig.dyn_params``, the
 values that differ from their defaults), checkpoints, NetCDF attributes, ``show`` and ``list``
@@ -49,8 +52,9 @@ from types import SimpleNamespace
 from typing import Any
 
 from stochpend.parameters import Parameter
+from stochpend.terms import TABLE
 
-__all__ = ["FAMILY", "TERMS", "additive_arrays", "additive_ou", "channel", "channel_parameters",
+__all__ = ["FAMILY", "MOVES_REST", "POSITION", "RECORD", "TERMS", "additive_arrays", "additive_ou", "channel", "channel_parameters",
            "channel_record", "names", "record", "terms_of", "terms_of_config"]
 
 
@@ -62,14 +66,9 @@ class Dynamics:
     parameters: tuple[Parameter, ...]
 
 
-FAMILY = Dynamics("family", (
-    Parameter("gamma", 0.0, "linear damping gamma, -gamma Omega in dOmega/dt", low=0.0),
-    Parameter("torque", 0.0, "constant force F (the tilted washboard)"),
-    Parameter("drive_amplitude", 0.0, "amplitude A of the external force A cos(nu t + phi)"),
-    Parameter("drive_frequency", 1.0, "frequency nu of the external force", low=0.0, low_open=True),
-    Parameter("drive_phase", 0.0, "phase phi of the external force"),
-    Parameter("parametric_amplitude", 0.0, "amplitude eps of the modulation eps cos(nu_p t) G(x)"),
-    Parameter("parametric_frequency", 1.0, "frequency nu_p of the modulation", low=0.0, low_open=True),
+#: The additive noise channel's parameters and the initial temperature (the table's terms'
+#: parameters come first: :data:`stochpend.terms.TABLE`).
+_CHANNEL = (
     Parameter("additive_D", 0.0, "intensity D_a of the additive noise, S(0) = D_a (white: <xi_a xi_a'> = "
               "D_a delta; see additive_tau)", low=0.0),
     Parameter("initial_temperature", 0.0, "start from the Boltzmann law at this temperature (0: theta0, "
@@ -78,9 +77,10 @@ FAMILY = Dynamics("family", (
               "Ornstein-Uhlenbeck, <xi_a xi_a'> = D_a/(2 tau_a) exp(-|t - t'|/tau_a)", low=0.0),
     Parameter("additive_omega_noise", 0.0, "the additive noise's frequency W_a, a noise that takes "
               "omega_noise (additive_noise='harmonic'); 0: its default (2/tau_a)", low=0.0),
-))
+)
 
-#: The record's order (what the kernels read, by index).
+FAMILY = Dynamics("family", (*(p for term in TABLE for p in term.parameters), *_CHANNEL))
+
 _ORDER = tuple(p.name for p in FAMILY.parameters)
 _DEFAULTS = {p.name: p.default for p in FAMILY.parameters}
 
@@ -88,9 +88,12 @@ _DEFAULTS = {p.name: p.default for p in FAMILY.parameters}
 #: additive noise is one of three terms: "additive" (white, additive_tau = 0) or "additive_ou"
 #: (additive_tau > 0) when ``additive_noise`` is unset, "white" or "ou"; "additive_noise" (the
 #: generic channel) for any other registered noise, by :func:`terms_of`.
-TERMS = {"damping": "gamma", "torque": "torque", "drive": "drive_amplitude",
-         "parametric": "parametric_amplitude", "additive": "additive_D", "additive_ou": "additive_D",
+TERMS = {**{term.name: term.switch for term in TABLE}, "additive": "additive_D", "additive_ou": "additive_D",
          "additive_noise": "additive_D"}
+
+#: The terms that push a path at rest: the table's forces and the additive channel.
+MOVES_REST = frozenset({term.name for term in TABLE if term.moves_rest} | {"additive", "additive_ou",
+                                                                         "additive_noise"})
 
 #: ``additive_noise`` names that select today's two terms (white, OU) rather than the generic
 #: channel: their numbers stay those of a run without the setting.
@@ -152,20 +155,25 @@ def terms_of_config(config: Any) -> frozenset[str]:
     return terms_of(getattr(config, "dyn_params", ()), getattr(config, "additive_noise", None))
 
 
-#: The parameters the kernels read (the initial temperature is used on the host, stochpend.initial).
-_KERNEL_ORDER = _ORDER[:8]
+#: The names of the kernels' record of the family's terms (:func:`record`): the table's
+#: parameters, then the additive channel's D_a, sigma_a and tau_a (the initial temperature is
+#: used on the host, stochpend.initial).
+RECORD = (*(p.name for term in TABLE for p in term.parameters), "additive_D", "sigma_a", "additive_tau")
+
+#: Where the kernels read each of :data:`RECORD` in the record (``d[POSITION["gamma"]]``).
+POSITION = {name: i for i, name in enumerate(RECORD)}
 
 
 def record(config: Any) -> tuple[float, ...]:
-    """The kernels' record of the family's terms, ``(gamma, torque, A, nu, phi, eps, nu_p, D_a,
-    sigma_a, tau_a)``: the parameters in declared order, then sigma_a = sqrt(D_a / (2 gamma))
-    (the additive white noise's stationary velocity scale, sqrt(T); sqrt(D_a) without damping),
-    then the additive noise's correlation time tau_a (0: white)."""
+    """The kernels' record of the family's terms, the values of :data:`RECORD`: the table's
+    parameters in declared order, D_a, then sigma_a = sqrt(D_a / (2 gamma)) (the additive white
+    noise's stationary velocity scale, sqrt(T); sqrt(D_a) without damping), then the additive
+    noise's correlation time tau_a (0: white)."""
     pairs = getattr(config, "dyn_params", ())
-    values = tuple(float(value(pairs, name)) for name in _KERNEL_ORDER)
-    gamma, D_a = values[0], values[-1]
+    gamma, D_a = float(value(pairs, "gamma")), float(value(pairs, "additive_D"))
     sigma = math.sqrt(D_a / (2.0 * gamma)) if gamma > 0 else math.sqrt(D_a)
-    return (*values, sigma, float(value(pairs, "additive_tau")))
+    derived = {"sigma_a": sigma}
+    return tuple(derived[name] if name in derived else float(value(pairs, name)) for name in RECORD)
 
 
 def additive_ou(config: Any) -> bool:

@@ -49,6 +49,7 @@ from stochpend import dynamics as _dynamics
 from stochpend import noises as _noises
 from stochpend import observables, rng
 from stochpend import oscillators as _oscillators
+from stochpend import terms as _terms
 from stochpend._jitcache import name_closures
 from stochpend.mathlib import FAST, LIBM
 from stochpend.noises.base import Noise
@@ -249,10 +250,17 @@ def _dyn_of(run):
     return run[4]
 
 
+#: Where the kernels read the family's record d (:data:`stochpend.dynamics.RECORD`).
+_AT = _dynamics.POSITION
+_GAMMA, _D_A, _SIGMA_A, _TAU_A = _AT["gamma"], _AT["additive_D"], _AT["sigma_a"], _AT["additive_tau"]
+_TORQUE, _A, _NU, _PHI = _AT["torque"], _AT["drive_amplitude"], _AT["drive_frequency"], _AT["drive_phase"]
+_EPS, _NU_P = _AT["parametric_amplitude"], _AT["parametric_frequency"]
+
+
 @register_jitable
 def _ou_record(d):
     """The additive OU noise's record (D_a, tau_a) from the family's record d."""
-    return (d[7], d[9])
+    return (d[_D_A], d[_TAU_A])
 
 
 @register_jitable
@@ -352,6 +360,31 @@ def _member_tree(depth: int, step: Any, combine: Any, half: Any) -> Any:
         return (x, Om, rest), I, z
 
     return register_jitable(_named(members, f"{step.__name__}_members{depth + 1}"))
+
+
+@register_jitable
+def _no_bound(h, c, d):
+    return h
+
+
+def _bound_link(R: int, rest: Any, name: str) -> Any:
+    """One link of :func:`_term_bounds`: h <= c/d[R], then the ``rest`` of the chain."""
+    def bound(h, c, d):
+        if d[R] * h > c:
+            h = c / d[R]
+        return rest(h, c, d)
+
+    return register_jitable(_named(bound, name))
+
+
+def _term_bounds(terms: tuple) -> Any:
+    """``bounds(h, c, d) -> h``: the step control's bounds of the ``terms``' rates, h <= c/rate
+    (:attr:`stochpend.terms.Term.rate`), each on the step the previous left, in the table's
+    order, as a chain of one function per term with a rate."""
+    chain = _no_bound
+    for term in reversed([term for term in terms if term.rate is not None]):
+        chain = _bound_link(_AT[term.rate], chain, f"{term.name}_bounds")
+    return chain
 
 
 #: The most members a step loop carries (:data:`LEVELS`): the arrays it takes from the state.
@@ -804,6 +837,11 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         return wrap(x_new), Omega_new
 
     FAMILY = bool(spec.terms)
+    # The table's terms (stochpend.terms): their bounds are composed from it (family_bounds);
+    # their kicks are written in family_step, under compile-time flags, because a kick composed
+    # from per-term functions stays a call in the lane loop and stops its vectorization
+    # (stochpend.terms). The damping and the additive channel are the Ornstein-Uhlenbeck flow of
+    # Omega, not kicks: they stay special in any case.
     DAMPED = "damping" in spec.terms
     TORQUE = "torque" in spec.terms
     DRIVE = "drive" in spec.terms
@@ -850,16 +888,8 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         a_next_event = next_event
         a_at_event = at_event
 
-    @register_jitable
-    def family_bounds(h, c, d):
-        """The step control's bounds of the family's time scales: h <= c/gamma, c/nu, c/nu_p."""
-        if DAMPED and d[0] * h > c:
-            h = c / d[0]
-        if DRIVE and d[3] * h > c:
-            h = c / d[3]
-        if PARAMETRIC and d[6] * h > c:
-            h = c / d[6]
-        return h
+    # The step control's bounds of the table's terms that are on (h <= c/gamma, c/nu, c/nu_p).
+    family_bounds = _term_bounds(tuple(term for term in _terms.TABLE if term.name in spec.terms))
 
     def family_step(x, Omega, h, omega2, noise_integral, q, t0, h_clock, za, d):
         """One step with the family's terms (``d``: ``stochpend.dynamics.record``): drift h/2,
@@ -877,29 +907,29 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         kick = omega2 * h * force(x_half, q)
         kick += noise_integral * g
         if PARAMETRIC:  # eps int cos(nu_p s) ds over [t0, t0 + h], without cancellation
-            nu_p = d[6]
+            nu_p = d[_NU_P]
             s_half, _ = mathlib_sincos(0.5 * nu_p * h_clock)
             _, c_mid = mathlib_sincos(nu_p * (t0 + 0.5 * h_clock))
-            kick += real(2.0 * d[5] / nu_p * c_mid * s_half) * g
+            kick += real(2.0 * d[_EPS] / nu_p * c_mid * s_half) * g
         if TORQUE:
-            kick -= real(d[1] * h_clock)
+            kick -= real(d[_TORQUE] * h_clock)
         if DRIVE:  # A int cos(nu s + phi) ds
-            nu = d[3]
+            nu = d[_NU]
             s_half, _ = mathlib_sincos(0.5 * nu * h_clock)
-            _, c_mid = mathlib_sincos(nu * (t0 + 0.5 * h_clock) + d[4])
-            kick -= real(2.0 * d[2] / nu * c_mid * s_half)
+            _, c_mid = mathlib_sincos(nu * (t0 + 0.5 * h_clock) + d[_PHI])
+            kick -= real(2.0 * d[_A] / nu * c_mid * s_half)
         if ADDITIVE_OU or ADN:  # za: the exact integral of xi_a over the step (its noise's update)
             kick -= za
         if O_STEP:
             Omega_mid = Omega - half * kick
             if DAMPED:
                 # One expm1: 1 - e^2 = -m (2 + m), m = e - 1, without cancellation.
-                m = mathlib_expm1(-d[0] * h_clock)
+                m = mathlib_expm1(-d[_GAMMA] * h_clock)
                 e = 1.0 + m
-                spread = d[8] * math.sqrt(-m * (2.0 + m))
+                spread = d[_SIGMA_A] * math.sqrt(-m * (2.0 + m))
             else:
                 e = 1.0
-                spread = d[8] * math.sqrt(h_clock)
+                spread = d[_SIGMA_A] * math.sqrt(h_clock)
             if ADDITIVE:
                 Omega_mid = real(e * Omega_mid + spread * za)
             else:
@@ -941,7 +971,7 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         flows, (e z1 + z2)/sqrt(1 + e^2), e = exp(-gamma hc)."""
         if ADDITIVE_OU or ADN:
             return z1 + z2
-        e1 = 1.0 + mathlib_expm1(-d[0] * hc) if DAMPED else 1.0
+        e1 = 1.0 + mathlib_expm1(-d[_GAMMA] * hc) if DAMPED else 1.0
         return real((e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1))
 
     @register_jitable
@@ -1470,7 +1500,7 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                         hc = 0.5 * h_clock
                         z1 = additive_keyed(rk0, rk1, c2, c3, kk)
                         z2 = additive_keyed(rk0, rk1, c2, c3, kk + _U64(1))
-                        e1 = 1.0 + expm1(-d[0] * hc) if DAMPED else 1.0
+                        e1 = 1.0 + expm1(-d[_GAMMA] * hc) if DAMPED else 1.0
                         zc = real((e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1))
                     if FAMILY:
                         xf1, Of1 = family_step(xs2, Om2, hh, omega2_r, I1, q, tt, hc, z1, d)

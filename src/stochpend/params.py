@@ -263,8 +263,7 @@ class SimulationConfig:
             potential, coupling, power_n, noise_piece,
             SimpleNamespace(noise_params=noise_params, osc_params=osc_params, dyn_params=dyn_params),
             channel, additive_noise)
-        leaves = (_dynamics.terms_of(dyn_params_v, additive_noise)
-                  & {"additive", "additive_ou", "additive_noise", "torque", "drive"})
+        leaves = _dynamics.terms_of(dyn_params_v, additive_noise) & _dynamics.MOVES_REST
         boltzmann_T = _dynamics.value(dyn_params_v, "initial_temperature")
         if boltzmann_T > 0.0:
             from stochpend import initial as _initial

@@ -21,7 +21,8 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("model pieces: noises, oscillators, the family's terms, observables, settings", (
         "noises", "noises.base", "noises.white", "noises.ou", "noises.dichotomous",
         "noises.harmonic", "oscillators", "oscillators.base", "oscillators.harmonic",
-        "oscillators.pendulum", "oscillators.power", "dynamics", "observables", "passage",
+        "oscillators.pendulum", "oscillators.power", "terms", "terms.base", "terms.damping",
+        "terms.torque", "terms.drive", "terms.parametric", "dynamics", "observables", "passage",
         "models", "plugins", "stats", "initial", "params")),
     ("engine: the step, its loops, the backends' drivers", (
         "integrator", "_backends", "_backends.cpu", "_backends.cuda", "_backends.cuda_probe",

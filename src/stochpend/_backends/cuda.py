@@ -52,6 +52,7 @@ from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
 from stochpend.observables import N_SUMS, S_COUNT, S_NONFINITE
 from stochpend.params import SimulationConfig
+from stochpend.terms import TABLE
 
 try:  # a module global: the CUDA simulator swaps it in the kernels' globals
     from numba import cuda
@@ -1016,7 +1017,7 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
     # white noise, every term on, and damping with the additive OU noise; then the generic channel.
     pendulum = oscillators.BUILTIN["pendulum"]
     for terms in (frozenset({"damping", "additive"}),
-                  frozenset({"damping", "additive", "torque", "drive", "parametric"}),
+                  frozenset({"additive", *(term.name for term in TABLE)}),
                   frozenset({"damping", "additive_ou"})):
         for precision in precisions:
             for noise in noises.BUILTIN:
@@ -1058,7 +1059,7 @@ def _levels_kernels() -> list[tuple[str, object, tuple]]:
     specs = [(Spec(pendulum, "force", noise, "float64", True), ()) for noise in noises.BUILTIN]
     specs.append((Spec(pendulum, "force", builtin["ou"], "float64", False), ()))
     for terms in (frozenset({"damping", "additive"}),
-                  frozenset({"damping", "additive", "torque", "drive", "parametric"}),
+                  frozenset({"additive", *(term.name for term in TABLE)}),
                   frozenset({"damping", "additive_ou"})):
         specs.append((Spec(pendulum, "force", builtin["white"], "float64", True, False, terms), ()))
     for channel_name in ("harmonic", "dichotomous"):
