@@ -68,14 +68,20 @@ def test_a_bad_target_is_refused_in_one_line(kwargs, needle):
     assert "\n" not in str(err.value)
 
 
-def test_a_pilot_over_the_work_limit_is_refused_before_any_work(monkeypatch):
+@pytest.mark.parametrize(("limit", "needle"), [
+    (dict(max_path_steps=1000), r"target_error=0\.01 is not accepted: its pilot alone .* needs about "
+                                r"[0-9.e+]+ path-steps, above the limit of 1e\+03"),
+    (dict(max_seconds=1e-6), r"its pilot alone .* more than the wall-time budget max_seconds=1e-06 "
+                             r"leaves .* raise it with max_seconds="),
+])
+def test_a_pilot_over_the_work_limit_or_the_wall_time_budget_is_refused_before_any_work(monkeypatch, limit,
+                                                                                         needle):
     def no_work(*_a, **_k):
         raise AssertionError("a level ran")
 
     monkeypatch.setattr(multilevel, "run_level", no_work)
-    with pytest.raises(ValueError, match=r"target_error=0\.01 is not accepted: its pilot alone .* needs about "
-                                         r"[0-9.e+]+ path-steps, above the limit of 1e\+03"):
-        stochpend.simulate(**CHEAP, target_error=0.01, max_path_steps=1000)
+    with pytest.raises(ValueError, match=needle):
+        stochpend.simulate(**CHEAP, target_error=0.01, **limit)
 
 
 def test_a_plan_over_the_work_limit_is_refused_with_what_it_would_take():
@@ -83,16 +89,6 @@ def test_a_plan_over_the_work_limit_is_refused_with_what_it_would_take():
     with pytest.raises(ValueError, match=r"target_error=1e-05 is not accepted: the plan would bring the work to "
                                          r"[0-9.e+]+ path-steps \([0-9.e+]+ already spent\), above the limit"):
         stochpend.simulate(**CHEAP, target_error=1e-5, max_path_steps=1e6)
-
-
-def test_a_pilot_over_the_wall_time_budget_is_refused_before_any_work(monkeypatch):
-    def no_work(*_a, **_k):
-        raise AssertionError("a level ran")
-
-    monkeypatch.setattr(multilevel, "run_level", no_work)
-    with pytest.raises(ValueError, match=r"its pilot alone .* more than the wall-time budget max_seconds=1e-06 "
-                                         r"leaves .* raise it with max_seconds="):
-        stochpend.simulate(**CHEAP, target_error=0.01, max_seconds=1e-6)
 
 
 def test_a_plan_over_the_wall_time_budget_is_refused_with_what_it_would_take():
