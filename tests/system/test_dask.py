@@ -92,7 +92,7 @@ def test_killed_worker_changes_nothing(reference):
     """SIGKILL one of two worker processes mid-sweep: Dask reschedules, the bits are the same."""
     spec = load_spec(SPEC)
     cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                       dashboard_address=None)
+                                       dashboard_address=":0")  # a free port: 8787 may be a parallel test's
     client = distributed.Client(cluster)
     try:
         pids = client.run(os.getpid)
@@ -133,8 +133,9 @@ def test_killed_worker_changes_nothing(reference):
 
 
 def test_given_client_is_left_open(reference, monkeypatch):
+    # a free dashboard port: 8787 may be a parallel test's (a warning, an error under pytest)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
-                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+                                  dashboard_address=":0") as cluster, distributed.Client(cluster) as client:
         ds = sweep(SPEC, scheduler=client, tasks_per_set=2)
         _assert_identical(reference, ds)
         assert client.status == "running"
