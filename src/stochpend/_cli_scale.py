@@ -276,19 +276,21 @@ def _target_sweep_table(ds: Any, sets: Sequence[dict[str, Any]], swept: list[str
     table = Table(title=f"stochpend sweep: {len(sets)} parameter sets, target {float(ds.attrs['target_error']):g} "
                         f"at {100 * float(ds.attrs['target_confidence']):g} %"
                         + (f" ({markup(ds.attrs['description'])})" if ds.attrs.get("description") else ""))
-    for col in (*swept, "t", *(c for name in names for c in (name, "rel err", "cert")), "path-steps"):
-        table.add_column(col, justify="right", no_wrap=True)
+    # "rel" as a percentage (4.9%, not 4.90e-02): one swept parameter and two statistics fit 80
+    # columns; more wrap within their cells (folded), never cut to "…"
+    for col in (*swept, "t", *(c for name in names for c in (name, "rel", "cert")), "path-steps"):
+        table.add_column(col, justify="right", overflow="fold")
     for s in sets:
         row = ds.isel(s["index"])
         last = row.isel(time=-1)
         t = float(last["times"] if "times" in last.coords else last["time"])
         cells = []
         for name in names:
-            cells += [f"{float(last[name]):.6g}", f"{float(last[f'{name}_relative_total_error']):.2e}",
+            cells += [f"{float(last[name]):.6g}", f"{100.0 * float(last[f'{name}_relative_total_error']):.3g}%",
                       f"{int(row[f'{name}_certified'].sum())}/{row.sizes['time']}"]
         table.add_row(*(f"{v:g}" if isinstance(v, float) else str(v) for v in s["params"].values()),
                       f"{t:.4g}", *cells, f"{float(row['path_steps']):.3g}")
-    table.caption = (f"rel err: the total error (statistical + discretisation bias bound) over |estimate| at "
+    table.caption = (f"rel: the total error (statistical + discretisation bias bound) over |estimate| at "
                      f"the last time; cert: the times certified to the target. Wall time "
                      f"{float(ds.attrs['wall_time_s']):.3g} s, {float(ds.attrs['path_steps']):.3g} path-steps.")
     return table

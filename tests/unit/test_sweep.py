@@ -2,18 +2,20 @@
 
 from __future__ import annotations
 
+import io as io_text
 import math
 import sys
 import textwrap
 
 import numpy as np
 import pytest
+from rich.console import Console
 from typer.testing import CliRunner
 
 import stochpend
 from stochpend import _cli_common as common
 from stochpend import cli, io
-from stochpend._cli_scale import resume_command, sweep_command
+from stochpend._cli_scale import resume_command, sweep_command, sweep_table
 from stochpend._sources import BUILD
 from stochpend.params import SimulationConfig
 from stochpend.simulate import run
@@ -397,6 +399,13 @@ def test_cli_sweep_of_targets_writes_prints_and_shows(tmp_path, app):
         assert np.array_equal(back[name].values, var.values, equal_nan=var.dtype.kind == "f"), name
     shown = CliRunner().invoke(app, ["show", str(out)], env=wide)
     assert shown.exit_code == 0 and "2 parameter sets, target 0.05" in shown.output, shown.output
+    # two statistics in 80 columns: every value whole ('4.90e-02' had been cut to '4.90e-…')
+    two = sweep(p, target_error=0.05)
+    console = Console(width=80, record=True, file=io_text.StringIO())
+    console.print(sweep_table(two))
+    screen = console.export_text()
+    assert "…" not in screen and max(len(line) for line in screen.splitlines()) <= 80, screen
+    assert "%" in screen
     for args, needle in ((["--target-error", "0"], "--target-error 0.0 is not accepted"),
                          (["--target-error", "0.05", "--target-times", "x"], "--target-times 'x' is not accepted"),
                          (["--target-error", "0.05", "--scheduler", "threads"], "--scheduler 'threads' is not accepted"),
