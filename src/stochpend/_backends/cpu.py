@@ -716,14 +716,22 @@ class Engine:
             self.joint_counts = np.empty((n_chunk_batches, params.joint_cells(config)), dtype=np.int64)
         self.p0 = 0
         self.n = 0
+        self._buffers: dict[str, np.ndarray] | None = None
 
     @staticmethod
     def default_chunk_paths(precision: str) -> int:
         return DEFAULT_CHUNK_PATHS
 
     def _allocate(self, n: int, nb: int) -> None:
-        for name, dtype in path_dtypes("cpu", "float64").items():
-            setattr(self, name, np.empty(n, dtype=dtype))
+        # The per-path arrays are views of buffers allocated once per engine: a fresh array a
+        # chunk is fresh pages from the kernel, and their first touch (in init) cost about
+        # 30 ns a path, a quarter of a five-step path's whole cost (issue 35, level 0). A view
+        # is only ever read through this chunk: a checkpoint writes the arrays when pulled.
+        dtypes = path_dtypes("cpu", "float64")
+        if self._buffers is None or self._buffers["x"].shape[0] < n:
+            self._buffers = {name: np.empty(n, dtype=dtype) for name, dtype in dtypes.items()}
+        for name in dtypes:
+            setattr(self, name, self._buffers[name][:n])
         for name in ("xi_a", "aux_a"):  # only for a run with the additive channel's state
             if name not in self.additive:
                 setattr(self, name, np.empty(0))
