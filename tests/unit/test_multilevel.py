@@ -149,6 +149,51 @@ def test_giles_allocation_meets_its_constraint_at_the_least_cost():
         assert np.sum(other * C) >= least * (1 - 1e-12)
 
 
+def _state_of(V, C, N, m, bound, alpha=2.0) -> multilevel.State:
+    """A State of one statistic at one time from per-level arrays (what _least_cost reads)."""
+    col = lambda a: np.asarray(a, dtype=float).reshape(-1, 1, 1)  # noqa: E731
+    one = lambda x: np.full((1, 1), float(x))  # noqa: E731
+    L1 = len(V)
+    return multilevel.State(
+        estimate=one(1.0), stat_var=one(0.0), stat_dof=one(math.inf), m=col(m),
+        m_var=col(np.asarray(V) / np.asarray(N)), V=col(V), C=np.asarray(C, dtype=float).reshape(-1, 1),
+        N=np.asarray(N, dtype=np.int64).reshape(-1, 1), decorrelation=np.full((L1, 1, 1), 0.01),
+        consistency=np.zeros((L1, 1, 1)), alpha=one(alpha), beta=one(2.0), gamma=1.0, alpha_used=one(alpha),
+        bias_bound=one(bound), coupled=np.ones((1, 1), bool))
+
+
+def test_the_plan_splits_the_target_between_bias_and_statistics_at_least_cost():
+    # Level 0 dear in variance, the pair levels cheap (the OU pendulum at t = 1: V_0 = 0.48,
+    # V_1 = 1.3e-5, V_2 = 7.6e-7 per sample; 5, 15, 30 path-steps; a fourth level at the rates
+    # alpha = beta = 2): a fixed half of the target for the bias bound costs level 0 about four
+    # times the samples that a small share does.
+    z, z_b, aim = 1.96, 2.24, 3e-4
+    V, C, N = [0.48, 1.3e-5, 7.6e-7, 4.7e-8], [5.0, 15.0, 30.0, 60.0], [256, 256, 256, 256]
+    m = [0.085, -6.8e-4, -1.7e-4, -4.2e-5]
+    bound_now = (abs(m[-1]) + z_b * math.sqrt(V[-1] / N[-1])) / 3.0
+    st = _state_of(V, C, N, m, bound_now)
+    cost, n = multilevel._least_cost(st, 0, 0, aim, z, z_b, 0)
+    # the plan meets the target: statistical half-width + the bound at its samples
+    bound = min(bound_now, (abs(m[-1]) + z_b * math.sqrt(V[-1] / n[-1])) / 3.0)
+    assert z * math.sqrt(np.sum(np.array(V) / n)) + bound <= aim * (1 + 1e-9)
+    assert cost == pytest.approx(float(np.sum(np.maximum(n - np.array(N), 0) * np.array(C))))
+    # ... and costs well under half of the half-and-half plan
+    half_half = multilevel.plan_samples(np.array(V), np.array(C), 0.5 * aim, z)
+    assert cost < 0.45 * float(np.sum(half_half * np.array(C)))
+    # three levels: the bound is a third of the target (under half: no level more by Giles'
+    # rule), yet the fourth level (extrapolated) makes the whole plan cheaper, and is wanted
+    three = _state_of(V[:3], C[:3], N[:3], m[:3], (abs(m[2]) + z_b * math.sqrt(V[2] / N[2])) / 3.0)
+    assert 0.25 * aim < three.bias_bound[0, 0] < 0.5 * aim
+    assert multilevel._levels_wanted(three, aim, 0.95, np.ones((1, 1), bool))
+    # a bias bound that no share of the target covers: no plan at these levels, a level more wanted
+    far = _state_of(V, C, N, [0.085, -6.8e-4, -1.7e-4, -1e-3], 1e-3 / 3.0)
+    assert multilevel._least_cost(far, 0, 0, aim, z, z_b, 0) == (math.inf, None)
+    assert multilevel._levels_wanted(far, aim, 0.95, np.ones((1, 1), bool))
+    # with the bias well inside the target and no cheaper level beyond, none is added
+    near = _state_of(V, C, [10**6, 10**5, 10**5, 10**5], [0.085, -1e-7, -2.5e-8, -6e-9], 1e-8)
+    assert not multilevel._levels_wanted(near, 1e-3 / 0.085, 0.95, np.ones((1, 1), bool))
+
+
 @pytest.mark.parametrize(("deficit", "rounds"), [
     ([5, 3, 7, 0], [(2, 7)]),
     ([5, 3, 1], [(0, 2), (1, 2), (2, 1)]),
