@@ -71,12 +71,13 @@ def _simulate(**kwargs):
     return stochpend.simulate(progress=False, **kwargs)
 
 
-def method_a(case: dict, t: float, eps: float, budget: float, seed: int, h_max: float) -> Row:
+def method_a(case: dict, t: float, eps: float, budget: float, seed: int, h_max: float,
+             budget_s: float | None = None) -> Row:
     started = time.perf_counter()
     label = f"(a) target_error, h_max {h_max:g}"
     try:
         ds = _simulate(**case, t_max=t, times=[t], target_error=eps, seed=seed, max_path_steps=budget,
-                       h_max=h_max)
+                       max_seconds=budget_s, h_max=h_max)
     except ValueError as exc:
         m = re.search(r"([0-9.]+e\+?[0-9]+) path-steps", str(exc))
         return Row("", t, eps, label, math.nan, float(m.group(1)) if m else math.nan,
@@ -204,14 +205,15 @@ def method_e(case_name: str, t: float, eps: float, best: Pilot | None, n: float,
 
 
 def run(case_names: list[str], times: list[float], targets: list[float], *, pilot_paths: int,
-        budget: float, h0: float, n_h: int, seed: int, a_h_max: list[float], log) -> list[Row]:
+        budget: float, h0: float, n_h: int, seed: int, a_h_max: list[float], log,
+        budget_s: float | None = None) -> list[Row]:
     rows: list[Row] = []
     for name in case_names:
         case = CASES[name]
         for t in times:
             pilots = [pilot(case, t, h0 / 2**k, pilot_paths, seed + 1 + k) for k in range(n_h)]
             for eps in targets:
-                block = [method_a(case, t, eps, budget, seed, h) for h in a_h_max]
+                block = [method_a(case, t, eps, budget, seed, h, budget_s) for h in a_h_max]
                 b, best, n = method_b(case, t, eps, pilots)
                 block += [b, method_c(case, t, eps, pilot_paths, seed + 99), method_d(name, t, eps, best, n),
                           method_e(name, t, eps, best, n, pilot_paths)]
@@ -249,6 +251,28 @@ def table(rows: list[Row]) -> str:
     return "\n".join(out)
 
 
+def speedups(rows: list[Row]) -> str:
+    """Issue 35's "Fast" criterion per (case, t, eps): (a)'s wall time against the best of
+    (b)-(e), and whether (a) certified (a refused or projected (a) is not a result)."""
+    out = ["| case | t | ε | (a) | best of (b)–(e) | speed-up |", "|---|---|---|---|---|---|"]
+    keys = sorted({(r.case, r.t, r.eps) for r in rows}, key=lambda k: (list(CASES).index(k[0]), k[1], -k[2]))
+    for key in keys:
+        block = [r for r in rows if (r.case, r.t, r.eps) == key]
+        a = min((r for r in block if r.method.startswith("(a)")), key=lambda r: r.seconds
+                if math.isfinite(r.seconds) else math.inf)
+        others = [r for r in block if not r.method.startswith("(a)") and math.isfinite(r.seconds)]
+        best = min(others, key=lambda r: r.seconds) if others else None
+        certified = a.how == "run" and "NOT" not in a.note
+        what = f"{_fmt_s(a.seconds)} ({a.how}{', certified' if certified else ''})"
+        if best is None:
+            out.append(f"| {key[0]} | {key[1]:g} | {key[2]:g} | {what} | none meets the target | – |")
+            continue
+        ratio = best.seconds / a.seconds if math.isfinite(a.seconds) and a.seconds > 0 else math.nan
+        out.append(f"| {key[0]} | {key[1]:g} | {key[2]:g} | {what} | {_fmt_s(best.seconds)} {best.method[:3]} | "
+                   f"{'–' if math.isnan(ratio) else f'{ratio:.3g}×'} |")
+    return "\n".join(out)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a smoke run: eps 1e-2, t = 1, 10, small pilots")
@@ -256,11 +280,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--times", default="1,10,100")
     ap.add_argument("--targets", default="1e-3,3e-4")
     ap.add_argument("--pilot-paths", type=int, default=20_000)
-    ap.add_argument("--budget-path-steps", type=float, default=3e10)
+    ap.add_argument("--budget-path-steps", type=float, default=1e12)
+    ap.add_argument("--budget-seconds", type=float, default=600.0,
+                    help="(a)'s wall-time budget (max_seconds): a run that would take longer is refused "
+                         "before its work and its row projected")
     ap.add_argument("--h0", type=float, default=0.2)
     ap.add_argument("--n-h", type=int, default=5)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--a-h-max", default="0.05,0.2", help="(a)'s coarsest steps, one row each")
+    ap.add_argument("--a-h-max", default="0.2", help="(a)'s coarsest steps, one row each")
     ap.add_argument("--out", default=str(Path(__file__).with_name("RESULTS_ACCURACY.md")))
     args = ap.parse_args(argv)
     if args.quick:
@@ -270,7 +297,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = run(args.cases.split(","), [float(x) for x in args.times.split(",")],
                [float(x) for x in args.targets.split(",")], pilot_paths=args.pilot_paths,
                budget=args.budget_path_steps, h0=args.h0, n_h=args.n_h, seed=args.seed,
-               a_h_max=[float(x) for x in args.a_h_max.split(",")],
+               a_h_max=[float(x) for x in args.a_h_max.split(",")], budget_s=args.budget_seconds,
                log=lambda s: print(s, file=sys.stderr, flush=True))
     text = "\n".join([
         "# Time to a stated accuracy (issue 35, item 5)", "",
@@ -281,6 +308,7 @@ def main(argv: list[str] | None = None) -> int:
         "Relative total error ε (95 %: statistical half-width + bias bound) on both ⟨E⟩ and ⟨E²⟩ "
         "at the one output time t. (a) is a run; (b), (c), (e) are projections from measured "
         "variances and rates (module docstring). Compare rows of this table only.", "",
+        "Speed-up of (a) over the best of (b)–(e) (issue 35, \"Fast\"):", "", speedups(rows), "",
         table(rows), ""])
     if args.quick:
         print(text)
