@@ -44,8 +44,8 @@ Giles' samples for (1 - theta) eps |P|, level 0 taking the variance the pair lev
 fixed half for the bias (Giles' own choice) costs level 0, the dearest in variance, up to four
 times the samples: on the OU pendulum at t = 1 and eps = 3e-3 the half-and-half loop spent
 5.0e8 path-steps, this one 2.7e8 (same seed, both certified). Samples are counted per output
-time, and a round runs only as far as the latest time that needs it (:func:`staircase`): a relative target at an early time, where <E> is small, does
-not send its many paths on to t_max.
+time, and a round runs only as far as the latest time that needs it (:func:`staircase`): a
+relative target at an early time, where <E> is small, does not send its many paths on to t_max.
 
 Honest at late times: where the finest level's pairs have decorrelated (sqrt(1 - r) > 1/2,
 :data:`stochpend.bias.DECORRELATED`: V_l no longer falls with h) the time is left out of the plan
