@@ -114,7 +114,7 @@ DEFAULT_STATISTICS = ("mean_E", "mean_E2")
 NONLINEAR = ("skewness", "flatness")
 #: Batches of each level's round (the jackknife's units; its variance has batches - 1 degrees of
 #: freedom, the Student t of the half-width accounts for them).
-LEVEL_BATCHES = 64
+LEVEL_BATCHES = 256
 #: Samples of each level's pilot round.
 PILOT_SAMPLES = 256
 #: Levels piloted at the start (0, 1, 2: two differences, enough for a first rate).
@@ -682,6 +682,25 @@ def _levels_wanted(st: State, eps: float, conf: float, active: np.ndarray) -> bo
     return False
 
 
+def _level0_floor(st: State, eps: float, conf: float, active: np.ndarray) -> np.ndarray:
+    """Level 0's samples at each time, (T,), that no plan goes below: V_0 (z / (eps |P|))**2 with
+    |P| two standard errors up and V_0 at its lower bound (level 0's variance alone taking the
+    whole target), the largest over the active statistics; 0 where none is active."""
+    from scipy.special import chdtri
+
+    z = _quantile((1.0 - conf) / 2.0, st.stat_dof)
+    dof = np.where(np.isfinite(st.stat_dof) & (st.stat_dof > 1), st.stat_dof, 1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        aim = eps * (np.abs(st.estimate) + 2.0 * np.sqrt(np.maximum(st.stat_var, 0.0)))
+        # V_0 at its lower 97.5 % bound (chi-square at the estimate's degrees of freedom): a
+        # batch variance is itself noisy (+-18 % at 63 degrees of freedom), and a floor drawn
+        # from a high one overshoots (the OU pendulum's first round put V_0 at 0.88 for 0.66).
+        low = chdtri(dof, 0.975) / dof
+        n = np.ceil(np.maximum(st.V[0], 0.0) * low * (z / aim) ** 2)
+    n = np.where(active & np.isfinite(n), n, 0.0)
+    return np.max(n, axis=0).astype(np.int64)
+
+
 def _guarded_plan(st: State, eps: float, conf: float, active: np.ndarray, *,
                   slack: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`_plan`, approached from below: a relative target planned from a few hundred pilot
@@ -972,10 +991,17 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             L = len(levels) - 1
             step, need, least = _guarded_plan(st, eps, conf, active)
             more = np.maximum(step - st.N, 0)
-            if budget.exceeded(spent + _staircase_cost(np.maximum(least - st.N, 0), st.C), spent, clock.seconds):
-                _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), budget,
+            # refused on the least-cost plan (the half-and-half one may ask four times the work)
+            _, need_lc, least_lc = _guarded_plan(st, eps, conf, active, slack=True)
+            if budget.exceeded(spent + _staircase_cost(np.maximum(least_lc - st.N, 0), st.C), spent, clock.seconds):
+                _refuse(target, spent, spent + _staircase_cost(np.maximum(need_lc - st.N, 0), st.C), budget,
                         "the plan", clock.seconds)
-            more[0] = 0
+            # Level 0 up to the samples that every plan gives it (its variance alone filling the
+            # target at |P| two standard errors up): a relative target needs |P|, and the pilot's
+            # 256 paths may put it at a fifth of its value (OU pendulum, t = 1: 0.019 for 0.085),
+            # so that the pair levels' plan, made for that |P|, grew round after round while
+            # level 0, never sampled, kept the estimate where it was.
+            more[0] = np.maximum(_level0_floor(st, eps, conf, active) - st.N[0], 0)
             # a round adds at least a tenth of a level's samples: fewer rounds, each worth its start
             more = np.where(more > 0.1 * st.N, more, 0)
             if np.any(more):

@@ -194,6 +194,25 @@ def test_the_plan_splits_the_target_between_bias_and_statistics_at_least_cost():
     assert not multilevel._levels_wanted(near, 1e-3 / 0.085, 0.95, np.ones((1, 1), bool))
 
 
+def test_level_0_is_sampled_from_the_start_up_to_what_every_plan_gives_it():
+    # The pilot's 256 paths put the OU pendulum's <E> at t = 1 at 0.019 for 0.085: the pair
+    # levels, planned for that |P|, grew round after round while level 0 (left to the last
+    # phase) kept the estimate where it was, and 32 rounds ended uncertified (5.4 relative).
+    # Level 0 now goes at once to the samples every plan gives it, and no further.
+    V, C, N, m = [0.52, 1.3e-5, 7.6e-7, 4.7e-8], [5.0, 15.0, 30.0, 60.0], [10**6, 10**4, 10**4, 10**4], \
+        [0.085, -6.8e-4, -1.7e-4, -4.2e-5]
+    st = _state_of(V, C, N, m, 1e-5)
+    st.estimate[:] = sum(m)
+    st.stat_var[:] = V[0] / N[0]
+    st.stat_dof[:] = 255.0
+    eps = 1e-3
+    floor = int(multilevel._level0_floor(st, eps, 0.95, np.ones((1, 1), bool))[0])
+    z = float(multilevel._quantile(0.05, 255.0))
+    least = multilevel._least_cost(st, 0, 0, eps * sum(m), z, 2.24, 0)[1]
+    assert 0.6 * least[0] < floor <= least[0]
+    assert multilevel._level0_floor(st, eps, 0.95, np.zeros((1, 1), bool))[0] == 0
+
+
 @pytest.mark.parametrize(("deficit", "rounds"), [
     ([5, 3, 7, 0], [(2, 7)]),
     ([5, 3, 1], [(0, 2), (1, 2), (2, 1)]),
