@@ -254,20 +254,23 @@ def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_
 
 def pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, *, backend: str = "cpu",
               progress: Progress | None = None, chunk_pairs: int = CHUNK_PAIRS,
-              what: str = "bias estimate") -> tuple[np.ndarray, int]:
+              what: str = "bias estimate", differences: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """The coarse and fine members' per-batch sums, shape (n_batches, n_times, 2, n_sums)
     (member 0 coarse, 1 fine; batches of ceil(n_pairs / n_batches) pairs), of ``n_pairs``
     coupled pairs of ``config`` (pairs ``BIAS_PATH0 + i`` of its seed), and the path-steps they
     took: the one host loop of the pairs, for the bias estimate and the multilevel target's
     levels (:mod:`stochpend.multilevel`). In float64, on ``backend``'s pair driver, with the
     run's Spec; the numbers do not depend on ``chunk_pairs`` or the threads. ``what``: the
-    progress bar's label."""
+    progress bar's label. ``differences``: (n_times, 4, N_SUMS) float64, where the raw power
+    sums of the members' differences are added (``cpu.difference_kernel``; the kurtosis of a
+    level's differences), from the host arrays on every backend."""
     spec = pair_spec(config, backend)
     from stochpend import integrator
     from stochpend._backends import cpu
 
     progress = progress or NoProgress()
     accumulate = cpu.accumulate_kernel(spec, config.observables)  # the run's own (compiled once for both)
+    diff = cpu.difference_kernel(spec) if differences is not None else None
     n_tracks = len(observables.accumulators(observables.objects(config.observables)))
     times = np.asarray(config.times, dtype=np.float64)
     batch_size = -(-n_pairs // n_batches)
@@ -293,6 +296,8 @@ def pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, *, backend
             _accumulate_pairs(accumulate, x, Omega, xf, Omegaf, xi, t, status, c.omega**2, q,
                               batch_size, sums[b0:b1, j], hist, tracks)
             pairs.set_status(status)  # pairs whose moments overflowed stay excluded
+            if diff is not None and differences is not None:
+                diff(x, Omega, xf, Omegaf, status, c.omega**2, q, differences[j])
             progress.update(done_work + n * float(t_target))
         draws += pairs.draws()
         done_work += n * c.t_max

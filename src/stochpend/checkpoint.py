@@ -129,7 +129,7 @@ _PILOT_KEYS = ("level", "rtol", "pilot_paths", "pilot_path_steps", "pilot_wall_t
 #: last time. The header's ``target`` record holds the target, the limits and each round's and
 #: ensemble's scalars (:data:`_ROUND_KEYS`, :data:`_ENSEMBLE_KEYS`).
 _TARGET_ARRAYS = {"target_n": "<i8", "target_means": "<f8", "target_ensembles": "<f8"}
-_ROUND_MEANS = ("f", "f_var", "c", "c_var", "y", "y_var")
+_ROUND_MEANS = ("f", "f_var", "c", "c_var", "y", "y_var", "d1", "d2", "d3", "d4")
 _ROUND_KEYS = ("level", "stop", "seed", "batches", "path_steps", "nonfinite")
 _ENSEMBLE_KEYS = ("seed", "h", "n", "stop", "path_steps", "nonfinite")
 _TARGET_KEYS = ("error", "confidence", "statistics", "times", "max_path_steps", "max_seconds", "rounds",

@@ -79,8 +79,12 @@ coarse member would differ in law (by O(h**3)) and the telescope would not close
 every member is the fixed-step scheme at its h_l and the telescope is exact (up to the landing
 step before each output time, which both take but split differently: O(h**3) each); the
 consistency check (Giles: level l-1's fine mean against level l's coarse mean, in sigma) reports
-it. What this version does not do: the Richardson-extrapolated (multilevel Richardson-Romberg)
-estimate, the kurtosis of the level differences. A sweep (:func:`stochpend.sweep.sweep`) runs
+it. The kurtosis of each pair level's differences (Giles' check of the variances the plan rests
+on, ``<name>_level_kurtosis``, above :data:`KURTOSIS_WARN` named by ``show``) comes from the raw
+power sums of the members' differences, summed on the host beside the pairs' statistics
+(``bias.pair_sums(differences=...)``), for the statistics that are means of the table (NaN for
+S, F and users' observables). What this version does not do: the Richardson-extrapolated
+(multilevel Richardson-Romberg) estimate. A sweep (:func:`stochpend.sweep.sweep`) runs
 every set as this run; a checkpointed run saves its :class:`Journal` at round boundaries and
 replays it when resumed (:func:`stochpend.checkpoint.run_target_checkpointed`).
 """
@@ -134,6 +138,9 @@ RESOLVED_SE = 3.0
 #: path-steps lasts a fraction of a second, most of it loading kernels and starting calls, and
 #: its rate (1.8e4 path-steps/s measured, against ~2e7 in a run) would refuse targets that fit.
 RATE_MEASURED_AFTER_S = 2.0
+#: Giles' kurtosis check: a level's differences with a kurtosis above this have a variance
+#: estimate that rests on a few rare pairs (reported by ``show``; the plan is made from it).
+KURTOSIS_WARN = 100.0
 #: Giles' consistency check: |fine mean of level l-1 - coarse mean of level l| in sigma.
 CONSISTENCY_SIGMA = 3.0
 
@@ -267,6 +274,22 @@ class Round:
     y: np.ndarray
     y_var: np.ndarray
     nonfinite: int
+    #: Per-sample raw moments E[Y^k], k = 1..4, of the pairs' difference Y of each statistic that
+    #: is a mean of the statistics table (for the kurtosis of the level's differences), (S, T);
+    #: NaN at level 0 and for the others (the skewness S, the flatness F, a user's observable).
+    d1: np.ndarray | None = None
+    d2: np.ndarray | None = None
+    d3: np.ndarray | None = None
+    d4: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        for name in _MOMENTS:
+            if getattr(self, name) is None:
+                setattr(self, name, np.full_like(self.f, np.nan))
+
+
+#: The raw moments of a round's differences (:class:`Round`).
+_MOMENTS = ("d1", "d2", "d3", "d4")
 
 
 def _jackknife(sums: np.ndarray, g: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -328,6 +351,13 @@ def statistics_of(config: SimulationConfig, names: Sequence[str]) -> Callable[[n
     return of
 
 
+def _table_columns(config: SimulationConfig, names: Sequence[str]) -> list[int | None]:
+    """Each target statistic's column in the statistics table's sums when it is one of its
+    means (``mean_E``, ``mean_E2``, ...), else None."""
+    table = {s.name for s in observables.SUMS}
+    return [observables.column(n[5:]) if n.startswith("mean_") and n[5:] in table else None for n in names]
+
+
 def _batches(n: int) -> tuple[int, int]:
     b = min(LEVEL_BATCHES, n)
     size = -(-n // b)
@@ -336,10 +366,13 @@ def _batches(n: int) -> tuple[int, int]:
 
 def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Callable[[np.ndarray], np.ndarray],
               stop: int,
-              *, backend: str = "cpu", progress: Progress | None = None) -> Round:
+              *, backend: str = "cpu", progress: Progress | None = None,
+              columns: Sequence[int | None] = ()) -> Round:
     """``n`` samples of ``level`` (0: an ordinary ensemble at ``config``'s step; l >= 1: coupled
     pairs at ``refined(config, l - 1)``) with the seed :func:`level_seed`, run to the output time
-    of index ``stop`` only, reduced to the statistics ``of`` (:func:`statistics_of`) of the means."""
+    of index ``stop`` only, reduced to the statistics ``of`` (:func:`statistics_of`) of the means.
+    ``columns``: each statistic's column in the table's sums, or None (:func:`_table_columns`):
+    a pair level's raw moments of the differences of those (``Round.d1`` .. ``d4``)."""
     seed = level_seed(config.seed, level, round_)
     n_b, _ = _batches(n)
     T = len(config.times)
@@ -357,14 +390,21 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
         return Round(_counts(n, stop, T), stop, cfg.t_max, int(path_steps), seed, n_b, f, f_var,
                      nan, nan.copy(), f, f_var, nonfinite)
     cfg = replace(bias.refined(cfg, level - 1), seed=seed)
+    dsums = np.zeros((len(cfg.times), 4, stats.N_SUMS))
     sums, path_steps = bias.pair_sums(cfg, n, n_b, backend=backend, progress=progress,
-                                      what=f"level {level}")  # (B, T', 2, n_sums)
+                                      what=f"level {level}", differences=dsums)  # (B, T', 2, n_sums)
     f, f_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :])))
     c, c_var = _jackknife(sums, lambda m: _st(of(m[..., 0, :])))
     y, y_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :]) - of(m[..., 0, :])))
     nonfinite = int(sums[:, -1, 0, stats.S_NONFINITE].sum())
+    moments = np.full((4, f.shape[0], dsums.shape[0]), np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for i, col in enumerate(columns):
+            if col is not None:
+                moments[:, i, :] = (dsums[:, :, col] / dsums[:, :, 0]).T
     return Round(_counts(n, stop, T), stop, cfg.t_max, int(path_steps), seed, n_b, _pad(f, T), _pad(f_var, T),
-                 _pad(c, T), _pad(c_var, T), _pad(y, T), _pad(y_var, T), nonfinite)
+                 _pad(c, T), _pad(c_var, T), _pad(y, T), _pad(y_var, T), nonfinite,
+                 *(_pad(moments[k], T) for k in range(4)))
 
 
 def _counts(n: int, stop: int, T: int) -> np.ndarray:
@@ -438,6 +478,18 @@ class Level:
             var = var + np.where(w > 0, w * w * v, 0.0)
         return np.asarray(mean), np.asarray(var)
 
+    def kurtosis(self) -> np.ndarray:
+        """The kurtosis of the level's differences Y, E[(Y - m)^4] / V^2 from the rounds' raw
+        moments combined (weights: samples), (S, T); NaN where not known (level 0, a statistic
+        that is no mean of the table)."""
+        w = self._weights()
+        zero = np.zeros_like(self.rounds[0].f)
+        m1, m2, m3, m4 = (sum((np.where(wk > 0, wk * getattr(r, name), 0.0)
+                               for wk, r in zip(w, self.rounds, strict=True)), start=zero) for name in _MOMENTS)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            var = m2 - m1 * m1
+            return np.asarray((m4 - 4.0 * m1 * m3 + 6.0 * m1 * m1 * m2 - 3.0 * m1**4) / (var * var))
+
     def dof(self, what: str = "y") -> np.ndarray:
         """Satterthwaite's degrees of freedom of the combined variance, (S, T)."""
         num = np.zeros_like(self.rounds[0].f)
@@ -505,6 +557,7 @@ class State:
     alpha_used: np.ndarray
     bias_bound: np.ndarray
     coupled: np.ndarray
+    kurtosis: np.ndarray | None = None  # (L+1, S, T) of the level differences (Level.kurtosis)
 
 
 def _state(levels: list[Level], conf: float, times: np.ndarray) -> State:
@@ -559,7 +612,7 @@ def _state(levels: list[Level], conf: float, times: np.ndarray) -> State:
                     bound[s, t] = min(finite) if finite else math.inf
     coupled = ~(decor[L] > bias.DECORRELATED) if L >= 1 else np.ones((S, T), bool)
     return State(estimate, stat_var, stat_dof, m_a, m_var_a, V, C, N, decor, consist, alpha, beta,
-                 gamma, alpha_used, bound, coupled)
+                 gamma, alpha_used, bound, coupled, np.array([lv.kurtosis() for lv in levels]))
 
 
 def _extra_levels(st: State, budget: np.ndarray) -> np.ndarray:
@@ -959,6 +1012,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
     budget = check_pilot(config, target, backend=backend, max_path_steps=max_path_steps, max_seconds=max_seconds,
                          started=started)
     of = statistics_of(config, target.statistics)
+    columns = _table_columns(config, target.statistics)
     levels: list[Level] = []
     spent = 0
 
@@ -971,7 +1025,8 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             levels.append(Level(level))
         round_ = len(levels[level].rounds)
         r = journal.round(level, n, round_, stop, level_seed(cfg.seed, level, round_),
-                          lambda: run_level(cfg, level, n, round_, of, stop, backend=backend))
+                          lambda: run_level(cfg, level, n, round_, of, stop, backend=backend,
+                                                            columns=columns))
         levels[level].rounds.append(r)
         spent += r.path_steps
 
@@ -1260,6 +1315,11 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
             "long_name": f"per-sample variance V_l of Y_l for {name}"})
         data[f"{name}_level_decorrelation"] = (("level", "time"), st.decorrelation[:, s], {
             "long_name": "sqrt(1 - r) of the level's pairs (0 coupled, 1 independent)"})
+        kurtosis = st.kurtosis if st.kurtosis is not None else np.full_like(st.m, np.nan)
+        data[f"{name}_level_kurtosis"] = (("level", "time"), kurtosis[:, s], {
+            "long_name": f"kurtosis E[(Y_l - m_l)^4]/V_l^2 of the level's differences for {name} (NaN: "
+                         f"level 0, or not a mean of the table); above {KURTOSIS_WARN:g} the variance "
+                         "V_l, and the plan made from it, rest on rare pairs (Giles)"})
         data[f"{name}_consistency"] = (("level", "time"), st.consistency[:, s], {
             "long_name": "|fine mean of level l-1 - coarse mean of level l| in sigma (Giles' check, "
                          f"fails above {CONSISTENCY_SIGMA:g})"})
@@ -1347,6 +1407,13 @@ def summary_lines(ds: Any) -> list[str]:
                  + (f" (+ {compiling:.3g} s compiling)" if compiling > 0 else ""))
     lines += textwrap.wrap(f"samples per level: {first} at the first time, {last} at the last", 78,
                            subsequent_indent="  ")
+    worst = [(float(np.nanmax(ds[f"{name}_level_kurtosis"].values)), name) for name in names
+             if f"{name}_level_kurtosis" in ds and np.any(np.isfinite(ds[f"{name}_level_kurtosis"].values))]
+    if worst:
+        k, name = max(worst)
+        lines += textwrap.wrap(f"kurtosis of the level differences: at most {k:.3g} ({name})"
+                               + (f", above {KURTOSIS_WARN:g}: the levels' variances rest on rare pairs"
+                                  if k > KURTOSIS_WARN else ""), 78, subsequent_indent="  ")
     fails = int(ds.attrs.get("target_consistency_failures", 0))
     if fails:
         lines.append(f"consistency check: {fails} (level, statistic, time) entries beyond "

@@ -213,9 +213,10 @@ def simulate(
         statistic ``<name>``, ``<name>_stat_error``, ``<name>_bias_bound``,
         ``<name>_total_error``, ``<name>_relative_total_error``, ``<name>_certified``,
         ``<name>_cost_to_certify`` (time), the per-level ``<name>_level_mean``,
-        ``<name>_level_variance``, ``<name>_level_decorrelation``, ``<name>_consistency``
-        (level, time), the rates ``<name>_alpha``, ``<name>_beta``; ``n_samples``,
-        ``cost_per_sample``, ``h`` (level); attributes ``target_*`` and the path-steps spent.
+        ``<name>_level_variance``, ``<name>_level_decorrelation``, ``<name>_level_kurtosis``
+        (of the pairs' differences, Giles' check), ``<name>_consistency`` (level, time), the
+        rates ``<name>_alpha``, ``<name>_beta``; ``n_samples``, ``cost_per_sample``, ``h`` (level);
+        attributes ``target_*`` and the path-steps spent.
 
     Raises
     ------

@@ -280,6 +280,13 @@ def test_a_cheap_case_meets_its_target_and_covers_the_exact_value():
     assert ds.attrs["target_error"] == eps and ds.attrs["target_confidence"] == 0.95
     assert ds.sizes["level"] >= 3 and np.all(np.diff(ds["h"].values) < 0)
     assert ds.attrs["step_c"] == 0.0
+    # Giles' kurtosis of the pair levels' differences: measured (a law's kurtosis is at least 1),
+    # unknown at level 0; show prints its largest
+    for name in ("mean_E", "mean_E2"):
+        kurt = ds[f"{name}_level_kurtosis"].values
+        assert np.all(np.isnan(kurt[0])) and np.all(kurt[1:] >= 1.0), (name, kurt)
+    assert any(line.startswith("kurtosis of the level differences: at most")
+               for line in multilevel.summary_lines(ds))
     # the same seed gives the same numbers
     again = stochpend.simulate(**CHEAP, seed=7, target_error=eps)
     assert np.array_equal(again["mean_E"].values, ds["mean_E"].values)
@@ -406,3 +413,46 @@ def test_a_decorrelated_late_time_is_certified_by_two_independent_runs():
                                seed=5, bias_paths=0, progress=False)
     diff = abs(float(ds["mean_E"].values[-1]) - float(plain["mean_E"].values[-1]))
     assert diff <= float(ds["mean_E_total_error"].values[-1]) + 4 * float(plain["mean_E_stderr"].values[-1])
+
+
+# -- the kurtosis of the level differences (Giles' diagnostic) ------------------------------------
+def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
+    from stochpend import bias, integrator, stats
+    from stochpend._backends import cpu
+
+    cfg = SimulationConfig.build(noise="white", D=0.5, omega=OMEGA, t_max=1.0, times=[1.0])
+    spec = bias.pair_spec(cfg, "cpu")
+    q = integrator.run_record(cfg)[1]
+    rng = np.random.default_rng(35)
+    n = 2000
+    x, Omega = rng.uniform(-3.0, 3.0, n), rng.normal(size=n)
+    xf, Omegaf = x + 0.1 * rng.normal(size=n), Omega + 0.1 * rng.standard_t(3, size=n)
+    status = np.zeros(n, dtype=np.uint8)
+    status[[7, 99]] = 1  # pairs the accumulate kernel marked: not summed
+    out = np.zeros((4, stats.N_SUMS))
+    cpu.difference_kernel(spec)(x, Omega, xf, Omegaf, status, OMEGA**2, q, out)
+    values = integrator.statistics(spec.oscillator, spec.coupling)  # the kernels' own, called from Python
+    d = np.array([np.subtract(values(xf[i], Omegaf[i], OMEGA**2, q)[2], values(x[i], Omega[i], OMEGA**2, q)[2])
+                  for i in range(n) if status[i] == 0])
+    assert np.all(out[:, 0] == n - 2)
+    for k in range(4):
+        np.testing.assert_allclose(out[k, 1:1 + d.shape[1]], np.sum(d ** (k + 1), axis=0), rtol=1e-10)
+
+
+def test_a_levels_kurtosis_combines_its_rounds_raw_moments():
+    # Y normal in each round (mean mu, variance s2): raw moments combined by samples give the
+    # normal law's kurtosis, 3, when the rounds agree; a round of another variance makes the
+    # mixture's kurtosis above 3 (the value of a scale mixture of normals).
+    def round_of(n, mu, s2):
+        shape = (1, 1)
+        raw = [mu, mu**2 + s2, mu**3 + 3 * mu * s2, mu**4 + 6 * mu**2 * s2 + 3 * s2**2]
+        z = np.zeros(shape)
+        return multilevel.Round(np.array([n]), 0, 1.0, n, 1, 8, z, z, z, z, z, z, 0,
+                                *(np.full(shape, r) for r in raw))
+
+    same = multilevel.Level(1, [round_of(300, 0.2, 1.5), round_of(700, 0.2, 1.5)])
+    assert same.kurtosis()[0, 0] == pytest.approx(3.0, rel=1e-9)
+    mixed = multilevel.Level(1, [round_of(500, 0.0, 1.0), round_of(500, 0.0, 4.0)])
+    assert mixed.kurtosis()[0, 0] == pytest.approx(3.0 * (1 + 16) / 2 / ((1 + 4) / 2) ** 2, rel=1e-9)
+    assert np.isnan(multilevel.Level(0, [multilevel.Round(np.array([5]), 0, 1.0, 5, 1, 5, *(np.zeros((1, 1)),) * 6,
+                                                          0)]).kurtosis()[0, 0])

@@ -640,6 +640,41 @@ def _accumulate_kernel(spec: Spec, user: tuple):
 
 
 @functools.cache
+def difference_kernel(spec: Spec):
+    """``differences(x, Omega, xf, Omegaf, status, omega2, q, out)``: over the pairs whose
+    ``status`` is 0 (both members finite, after the accumulate kernel marked the rest), the raw
+    power sums of each summed value's difference between the fine and the coarse member,
+    d = v(xf, Omegaf) - v(x, Omega): ``out[k, 1 + c]`` += sum d_c**(k + 1), k = 0..3, for the
+    columns c of the statistics table (:data:`stochpend.observables.SUMS`), and ``out[:, 0]`` +=
+    the pairs summed. For the kurtosis of a multilevel estimator's level differences (Giles'
+    diagnostic, :mod:`stochpend.multilevel`). Float64; depends on the oscillator and coupling."""
+    path_values = integrator.statistics(spec.oscillator, spec.coupling)
+    n_values = len(observables_.SUMS)
+
+    @numba.njit(nogil=True, cache=spec.oscillator.builtin, error_model="numpy")
+    @own_index(f"differences/{spec.oscillator.name}/{spec.coupling}/{observables_.TABLE_KEY}")
+    def differences(x, Omega, xf, Omegaf, status, omega2, q, out):  # pragma: no cover - compiled
+        for i in range(x.shape[0]):
+            if status[i] != 0:
+                continue
+            ok_c, _, vc = path_values(np.float64(x[i]), np.float64(Omega[i]), omega2, q)
+            ok_f, _, vf = path_values(np.float64(xf[i]), np.float64(Omegaf[i]), omega2, q)
+            if not (ok_c and ok_f):
+                continue
+            for k in range(4):
+                out[k, 0] += 1.0
+            for c in range(n_values):
+                d = vf[c] - vc[c]
+                d2 = d * d
+                out[0, 1 + c] += d
+                out[1, 1 + c] += d2
+                out[2, 1 + c] += d2 * d
+                out[3, 1 + c] += d2 * d2
+
+    return differences
+
+
+@functools.cache
 def joint_kernel(periodic: bool):
     """``joint(x, Omega, status, batch_size, x_lo, x_hi, nx, O_lo, O_hi, nO, counts)``: the
     joint (x, Omega) histogram of each batch's finite paths (status 0, after ``accumulate``
