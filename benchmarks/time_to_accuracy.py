@@ -263,11 +263,13 @@ def speedups(rows: list[Row]) -> str:
         others = [r for r in block if not r.method.startswith("(a)") and math.isfinite(r.seconds)]
         best = min(others, key=lambda r: r.seconds) if others else None
         certified = a.how == "run" and "NOT" not in a.note
-        what = f"{_fmt_s(a.seconds)} ({a.how}{', certified' if certified else ''})"
+        state = ", certified" if certified else ", NOT certified" if a.how == "run" else ""
+        what = f"{_fmt_s(a.seconds)} ({a.how}{state})"
         if best is None:
             out.append(f"| {key[0]} | {key[1]:g} | {key[2]:g} | {what} | none meets the target | – |")
             continue
-        ratio = best.seconds / a.seconds if math.isfinite(a.seconds) and a.seconds > 0 else math.nan
+        # only a certified (a) met the target: an uncertified or refused one has no speed-up
+        ratio = best.seconds / a.seconds if certified and a.seconds > 0 else math.nan
         out.append(f"| {key[0]} | {key[1]:g} | {key[2]:g} | {what} | {_fmt_s(best.seconds)} {best.method[:3]} | "
                    f"{'–' if math.isnan(ratio) else f'{ratio:.3g}×'} |")
     return "\n".join(out)

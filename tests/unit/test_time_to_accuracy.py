@@ -1,0 +1,22 @@
+"""benchmarks/time_to_accuracy.py's speed-up table (issue 35, "Fast"): a speed-up only where the
+target run certified its target, against the best of the other routes."""
+
+from __future__ import annotations
+
+from benchmarks.time_to_accuracy import Row, speedups
+
+
+def _rows(a_how: str, a_note: str) -> list[Row]:
+    return [Row("ou-pendulum", 1.0, 1e-3, "(a) target_error, h_max 0.2", 40.0, 2e9, a_how, a_note),
+            Row("ou-pendulum", 1.0, 1e-3, "(b) best fixed step", 120.0, 1.6e10, "projected"),
+            Row("ou-pendulum", 1.0, 1e-3, "(e) C reference", 90.0, 1.6e10, "projected"),
+            Row("ou-pendulum", 1.0, 1e-3, "(d) diffrax", float("nan"), float("nan"), "not available")]
+
+
+def test_the_speed_up_is_against_the_best_other_route_and_only_for_a_certified_run():
+    line = speedups(_rows("run", "levels 6, worst relative total 0.00098, certified")).splitlines()[-1]
+    assert "40 s (run, certified)" in line and "90 s (e)" in line and line.endswith("| 2.25× |")
+    line = speedups(_rows("run", "levels 3, worst relative total 0.64, NOT certified")).splitlines()[-1]
+    assert "(run, NOT certified)" in line and line.endswith("| – |")
+    line = speedups(_rows("refused", "target_error=0.001 is not accepted")).splitlines()[-1]
+    assert line.endswith("| – |")
