@@ -96,11 +96,11 @@ def spec_for(config, precision: str = "float64") -> Spec:
 
 
 #: The initial angle's Philox counter words (draw rng.N_INIT_THETA) and the constants its
-#: vectorized draw in init_kernel uses.
+#: vectorized draw in init_kernel uses (the path's words split as rng.draw_words splits them).
 _THETA_C0 = np.uint64(rng.N_INIT_THETA & 0xFFFFFFFF)
 _THETA_C1 = np.uint64(rng.N_INIT_THETA >> 32)
-_MASK32 = np.uint64(0xFFFFFFFF)
-_SHIFT32 = np.uint64(32)
+_MASK32 = rng._MASK32
+_SHIFT32 = rng._SHIFT32
 _TWO_PI = 2.0 * math.pi
 
 
