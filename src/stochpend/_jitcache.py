@@ -43,7 +43,8 @@ def tag(key: str) -> str:
 
 def name_closures(functions: Iterable[Any], key: str) -> None:
     """Append :func:`tag` (``key``) to the qualname of every closure reachable from
-    ``functions`` (through closure cells and tuples) that has no such name yet; functions defined at module level keep theirs.
+    ``functions`` (through closure cells, tuples and Numba dispatchers' ``py_func``) that has no
+    such name yet; functions defined at module level keep theirs.
 
     ``key`` must name everything that decides the closures' code besides the sources (e.g.
     ``"ou/float64/libm"`` for a noise's device functions, a Spec's label for the
@@ -60,6 +61,8 @@ def name_closures(functions: Iterable[Any], key: str) -> None:
         seen.add(id(obj))
         if isinstance(obj, (tuple, list)):
             stack.extend(obj)
+        elif hasattr(obj, "py_func") and isinstance(obj.py_func, types.FunctionType):
+            stack.append(obj.py_func)  # a Numba dispatcher (an inlined piece): its function
         elif isinstance(obj, types.FunctionType):
             if "<locals>" in obj.__qualname__ and not getattr(obj, "_stochpend_named", False):
                 obj.__qualname__ += suffix

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import Any
 
+import numba
 import numpy as np
 from numba.extending import register_jitable
 
@@ -240,6 +241,17 @@ def _copy(function: Any, name: str) -> Any:
     return copy
 
 
+def _inline(function: Any) -> Any:
+    """``function`` inlined by Numba into its callers' IR before typing (``numba.njit(inline=
+    "always")``), for the CPU's step loops, where a call left to LLVM stayed a call (and stopped
+    the lane loop's vectorization). Not ``register_jitable(inline="always")``: an overload is
+    inlined after typing, and a tree of them typed its lower levels again at every level (the
+    lane machine of two members with the family's terms took 30 s to compile, four members over
+    2 minutes). numba-cuda cannot type a Numba-inlined function, so the CUDA kernels take the
+    plain pieces (NVVM inlines them)."""
+    return numba.njit(inline="always")(function)
+
+
 @register_jitable
 def _no_dyn(run):
     return (0.0,)
@@ -324,12 +336,12 @@ def _draw_tree(depth: int, leaf: Any, inline: bool = False) -> Any:
         return (I1, I2), a, b, S
 
     if inline:
-        return register_jitable(inline="always")(_named(draws, f"{leaf.__name__}_tree{depth}_inline"))
+        return _inline(_named(draws, f"{leaf.__name__}_tree{depth}_inline"))
     return register_jitable(_named(draws, f"{leaf.__name__}_tree{depth}"))
 
 
 @functools.cache
-def _member_tree(depth: int, step: Any, combine: Any, half: Any) -> Any:
+def _member_tree(depth: int, step: Any, combine: Any, half: Any, inline: bool = False) -> Any:
     """``members(mem, h, h_clock, t0, It, zt, omega2, q, d) -> (mem, I, z)``: ``depth + 1``
     coupled members over one step of the coarsest, ``mem = (x, Omega)`` (depth 0) or ``(x,
     Omega, finer)``, ``finer`` the next ``depth`` members' ``mem``.
@@ -340,14 +352,19 @@ def _member_tree(depth: int, step: Any, combine: Any, half: Any) -> Any:
     ``step(x, Omega, h, omega2, I, q, t0, h_clock, z, d)`` (``verlet`` or ``family_step``) with
     ``I`` the sum of its two halves' integrals (the exact integral over its step) and ``z`` their
     additive draws combined (``combine(z1, z2, h_clock/2, d)``). Returns the members after the
-    step, with the coarsest member's ``I`` and ``z`` (its parent's halves)."""
+    step, with the coarsest member's ``I`` and ``z`` (its parent's halves).
+
+    ``inline``: the nodes inlined by Numba (the lane machine's: a call left in its lane loop
+    stops the loop's vectorization), as :func:`_draw_tree`'s."""
+    jit = _inline if inline else register_jitable
+    tail = "_inline" if inline else ""
     if depth == 0:
         def one(mem, h, h_clock, t0, It, zt, omega2, q, d):
             x, Om = step(mem[0], mem[1], h, omega2, It, q, t0, h_clock, zt, d)
             return (x, Om), It, zt
 
-        return register_jitable(_named(one, f"{step.__name__}_members1"))
-    finer = _member_tree(depth - 1, step, combine, half)
+        return jit(_named(one, f"{step.__name__}_members1{tail}"))
+    finer = _member_tree(depth - 1, step, combine, half, inline)
 
     def members(mem, h, h_clock, t0, It, zt, omega2, q, d):
         hh = half * h
@@ -359,7 +376,7 @@ def _member_tree(depth: int, step: Any, combine: Any, half: Any) -> Any:
         x, Om = step(mem[0], mem[1], h, omega2, I, q, t0, h_clock, z, d)
         return (x, Om, rest), I, z
 
-    return register_jitable(_named(members, f"{step.__name__}_members{depth + 1}"))
+    return jit(_named(members, f"{step.__name__}_members{depth + 1}{tail}"))
 
 
 @register_jitable
@@ -414,6 +431,64 @@ def _member_tuples(levels: int) -> tuple[Any, Any]:
             return (mem[0], mem[1], rest[0], rest[1], rest[2], rest[3], rest[4], rest[5])
 
     return register_jitable(_named(nest, f"nest_members{levels}")), register_jitable(_named(flat, f"flat_members{levels}"))
+
+
+def the_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNamespace,
+             channel: SimpleNamespace, *, inline: bool = False) -> Any:
+    """**The step**, written once for every loop (the one-path and coupled-level loops of
+    :func:`_step_loop`, the CPU's SIMD lanes of :func:`_lane_machine`, the CUDA thread):
+    ``step(mem, noise_state, channel_state, keys, path, n, h, h_clock, t0, coef, omega2, q, d)
+    -> (mem, noise_state, channel_state)`` advances ``LEVELS`` coupled members ``mem``
+    (:func:`_member_tree`) over one step of the coarsest, of length h (``h_clock`` in float64,
+    from time ``t0``), with draws ``n .. n + 2**(LEVELS-1) - 1``.
+
+    The finest member's steps draw the noise (``draws.noise``, a leaf of :func:`_draw_tree`;
+    ``noise_state = (xi, aux, S)``) and the additive channel (``channel_state = (xi_a, aux_a,
+    S_a)``: the OU channel ``draws.ou``, the generic channel ``draws.channel`` under its own
+    keys, else the white channel's normals ``draws.white``); each coarser member uses its
+    halves' integrals summed (``members``). ``keys = (k0, k1, ka0, ka1)`` the noise's and the
+    generic channel's keys and ``path`` the path, in the form the leaves take them (the
+    one-path loops: Philox keys and the path number; the lanes: round keys and the path's
+    counter words); ``coef = (C, C_a, C_an)`` the noise's, the OU channel's and the generic
+    channel's coefficients at the finest member's step. What stays in the loops: loading,
+    the step control, the landing and the events, the clock, the finiteness check, masking and
+    write-back. ``inline``: the draw trees and this function inlined by Numba (the CPU's)."""
+    DEPTH = LEVELS - 1
+    FAMILY = family.FAMILY
+    ADDITIVE_OU = family.ADDITIVE_OU
+    ADN = channel.ADN
+    noise_path = _draw_tree(DEPTH, draws.noise, inline)
+    ou_path = _draw_tree(DEPTH, draws.ou, inline)
+    white_path = _draw_tree(DEPTH, draws.white, inline)
+    channel_path = _draw_tree(DEPTH, draws.channel, inline)
+
+    def step(mem, noise_state, channel_state, keys, path, n, h, h_clock, t0, coef, omega2, q, d):
+        xn = noise_state[0]
+        xa = noise_state[1]
+        S = noise_state[2]
+        xc = channel_state[0]
+        xca = channel_state[1]
+        Sa = channel_state[2]
+        It, xn, xa, S = noise_path(keys[0], keys[1], path, n, xn, xa, S, coef[0])
+        if FAMILY:
+            # The additive noise likewise: the finest member's steps draw it, a coarser member's
+            # step uses its halves' integrals summed (the OU and the generic channel) or the
+            # normal of the exact composition of their two O flows (white).
+            if ADDITIVE_OU:
+                zt, xc, _, _ = ou_path(keys[0], keys[1], path, n, xc, xc, Sa, coef[1])
+            elif ADN:  # the channel's noise under its own key
+                zt, xc, xca, Sa = channel_path(keys[2], keys[3], path, n, xc, xca, Sa, coef[2])
+            else:
+                zt, _, _, _ = white_path(keys[0], keys[1], path, n, xc, xc, Sa, coef[1])
+        else:
+            zt = It  # not read: Stormer-Verlet has no additive noise
+        mem, _, _ = members(mem, h, h_clock, t0, It, zt, omega2, q, d)
+        return mem, (xn, xa, S), (xc, xca, Sa)
+
+    name = f"{draws.noise.__name__}_step{LEVELS}" + ("_inline" if inline else "")
+    if inline:
+        return _inline(_named(step, name))
+    return register_jitable(_named(step, name))
 
 
 def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace, family: SimpleNamespace,
@@ -471,14 +546,13 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         def finest(h):
             return FINEST * h
     finest = register_jitable(_named(finest, f"finest_of{LEVELS}"))
-    noise_path = _draw_tree(DEPTH, noise.step, inline)
-    ou_path = _draw_tree(DEPTH, family.ou_step, inline)
-    white_path = _draw_tree(DEPTH, family.additive_step, inline)
-    channel_path = _draw_tree(DEPTH, channel.step, inline)
     if FAMILY:
         members_step = _member_tree(DEPTH, family.family_step, family.additive_sum, half)
     else:
         members_step = _member_tree(DEPTH, oscillator.verlet_step, _first, half)
+    draws = SimpleNamespace(noise=noise.step, ou=family.ou_step, white=family.additive_step,
+                            channel=channel.step)
+    step = the_step(LEVELS, draws, members_step, family, channel, inline=inline)
     nest, flat = _member_tuples(LEVELS)
     assert LEVELS <= _MAX_LEVELS
     # Member m's x and Omega: the state's arrays 2 m and 2 m + 1 (level_positions); x's and
@@ -543,18 +617,22 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             tracks = state[I_TRK]
         else:
             tracks = 0
+        # The additive channel's state (xi_a and, for the generic channel, aux_a), the OU
+        # channel's record, the generic channel's record and key; t_ev, t_ev_a the noise's and
+        # the generic channel's next events (noises with events).
         xa_arr = state[I_ADD]
-        xad = real(xa_arr[i]) if ADDITIVE_OU else real(0.0)
-        pa = ou_record(d)
-        # The generic channel: (xi_a, aux_a), its record and key; t_ev, t_ev_a the two
-        # channels' next events (a noise with events).
         aux_arr = state[I_AUXA]
-        pan, kan = channel_of(run)
-        ka0 = kan[0]
-        ka1 = kan[1]
+        if ADDITIVE_OU or ADN:
+            xc = real(xa_arr[i])
+        else:
+            xc = real(0.0)
         if ADN:
-            xan = real(xa_arr[i])
-            xaa = a_load_aux(aux_arr[i])
+            xca = a_load_aux(aux_arr[i])
+        else:
+            xca = real(0.0)
+        pa = ou_record(d)
+        pan, kan = channel_of(run)
+        keys = (key0, key1, kan[0], kan[1])
         Sa = a_scratch0()
         t_ev = math.inf
         t_ev_a = math.inf
@@ -581,7 +659,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             h_clock = h_max if h == h_max_r else np.float64(h)
             if A_EVENTS:  # cut at the earlier of the two channels' next events
                 t_ev = next_event(xn, xa)
-                t_ev_a = a_next_event(xan, xaa)
+                t_ev_a = a_next_event(xc, xca)
                 h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
                                                                  min(t_ev, t_ev_a))
             elif HAS_EVENTS:
@@ -607,25 +685,19 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             # The finest member's steps draw the noise (draws kk .. kk + DRAWS - 1); each
             # coarser member's kick uses the sum of its two halves' integrals, the exact
             # integral over its step (one member: one draw, its own step).
-            It, xn, xa, S = noise_path(key0, key1, path, kk, xn, xa, S, C)
-            if FAMILY:
-                # The additive noise likewise: the finest member's steps draw it, a coarser
-                # member's step uses its halves' integrals summed (the OU and the generic
-                # channel) or the normal of the exact composition of their two O flows (white).
-                if ADDITIVE_OU:
-                    zt, xad, _, _ = ou_path(key0, key1, path, kk, xad, xad, Sa, Ca)
-                elif ADN:  # the channel's noise under its own key
-                    zt, xan, xaa, Sa = channel_path(ka0, ka1, path, kk, xan, xaa, Sa, Can)
-                else:
-                    zt, _, _, _ = white_path(key0, key1, path, kk, xad, xad, Sa, Ca)
-            else:
-                zt = It  # not read: Stormer-Verlet has no additive noise
-            mem, _, _ = members_step(mem, h, h_clock, tt, It, zt, omega2_r, q, d)
+            mem, ns, cs = step(mem, (xn, xa, S), (xc, xca, Sa), keys, path, kk, h, h_clock, tt,
+                               (C, Ca, Can), omega2_r, q, d)
+            xn = ns[0]
+            xa = ns[1]
+            S = ns[2]
+            xc = cs[0]
+            xca = cs[1]
+            Sa = cs[2]
             if A_EVENTS:  # the event of the channel(s) whose time the step landed on
                 if HAS_EVENTS and event and t_land == t_ev:
                     xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
                 if event and t_land == t_ev_a:
-                    xan, xaa = a_at_event(xan, xaa, ka0, ka1, path, kk, pan)
+                    xc, xca = a_at_event(xc, xca, keys[2], keys[3], path, kk, pan)
             elif HAS_EVENTS and event:
                 xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
             kk += _U64(DRAWS)
@@ -662,11 +734,10 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             Omega3[i] = out[7]
         xi[i] = xn
         xi_aux[i] = xa
-        if ADDITIVE_OU:
-            xa_arr[i] = xad
+        if ADDITIVE_OU or ADN:
+            xa_arr[i] = xc
         if ADN:
-            xa_arr[i] = xan
-            aux_arr[i] = xaa
+            aux_arr[i] = xca
         t[i] = tt
         t_comp[i] = tc
         k[i] = kk
@@ -945,7 +1016,7 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     # loop, and a call in that loop stops its vectorization: damped lanes were 4-7x slower per
     # step), the others' a plain device function (numba-cuda cannot type the inlined IR of its
     # compile-time branches: "mul(omitted, omitted)").
-    family_step_inline = register_jitable(inline="always")(_copy(family_step, "family_step_inline"))
+    family_step_inline = _inline(_copy(family_step, "family_step_inline"))
     family_step = register_jitable(family_step)
 
     @register_jitable
@@ -963,7 +1034,6 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         draw n; no state (``a, b, S`` passed through) and no coefficients."""
         return additive_normal(key0, key1, path, n), a, b, S
 
-    @register_jitable
     def additive_sum(z1, z2, hc, d):
         """A coarser member's additive draw from its two halves' (each of clock length ``hc``):
         the OU and the generic channel's integrals summed (the exact integral over the step), the
@@ -973,6 +1043,10 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
             return z1 + z2
         e1 = 1.0 + mathlib_expm1(-d[_GAMMA] * hc) if DAMPED else 1.0
         return real((e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1))
+
+    # Inlined by Numba for the lane machines, as family_step_inline (the expm1 polynomial).
+    additive_sum_inline = _inline(_copy(additive_sum, "additive_sum_inline"))
+    additive_sum = register_jitable(additive_sum)
 
     @register_jitable
     def additive_ou_step(key0, key1, path, n, xa, Ca):
@@ -1093,14 +1167,15 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     # helper (pairs alone) and the one this process looks up (lanes first) would differ in name
     # and never share a cache entry.
     name_closures([G, step_size, verlet, *advance_levels.values(), *device_levels.values(), advance_lanes,
-                   family_step_inline],
+                   family_step_inline, additive_sum_inline],
                   spec.label if track is None else f"{spec.label}/track/{id(track):x}")
     return SimpleNamespace(
         spec=spec, real=real, G=G, step_size=step_size, verlet=verlet, family_step=family_step,
         family_step_inline=family_step_inline, family_bounds=family_bounds,
         ou_coefficients=ou_coefficients, ou_update=ou_update, ou_record=ou_record,
         noise_step=noise_step, additive_step=additive_step, ou_step=ou_step,
-        additive_sum=additive_sum, channel_step=channel_step, a_coefficients=a_coefficients,
+        additive_sum=additive_sum, additive_sum_inline=additive_sum_inline, channel_step=channel_step,
+        a_coefficients=a_coefficients, pieces=pieces,
         a_scratch0=a_scratch0, init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
         advance_levels=advance_levels, device_levels=device_levels, advance_lanes=advance_lanes,
         path_values=statistics(spec.oscillator, spec.coupling),
@@ -1212,7 +1287,7 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
     over the lanes without a branch (the conditions are selects), which LLVM vectorizes; a
     lane whose path has landed on ``t_target``, used up ``max_steps``, escaped or become
     non-finite is masked (its state is not changed), written back, and refilled with the next
-    path of the range. The arithmetic is ``advance_path``'s, operation for operation, so a
+    path of the range. The step is :func:`the_step`, with keyed draws of the same numbers, so a
     path's numbers are the same in any lane, at any time, next to any other paths: a function
     of (seed, path) alone, as for every driver. Needs :func:`lanes_supported`.
 
@@ -1222,137 +1297,146 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
     (``rng.round_keys``); ``scratch = (fs, us, js)`` the thread's scratch, shapes
     (``LANE_F_ROWS``, ``LANE_COUNT``), (``LANE_U_ROWS``, ...), (``LANE_I_ROWS``, ...).
     """
-    return _lane_machine(spec, False)
+    return build_level_lanes(spec, 1)
 
 
-#: Rows of the pair lane machine's float64 scratch: the lane machine's, then the fine
-#: member's x and Omega.
-PAIR_LANE_F_ROWS = LANE_F_ROWS + 2
+def lane_f_rows(levels: int) -> int:
+    """Rows of the float64 scratch of the lane machine of ``levels`` members: the one-path
+    machine's ``LANE_F_ROWS``, then members 1 .. levels - 1's x and Omega."""
+    return LANE_F_ROWS + 2 * (levels - 1)
+
+
+#: Rows of the pair lane machine's float64 scratch (:func:`lane_f_rows` of 2).
+PAIR_LANE_F_ROWS = lane_f_rows(2)
 
 
 @functools.cache
 def build_pair_lanes(spec: Spec) -> SimpleNamespace:
     """:func:`build`'s ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate)
-    for ``LANE_COUNT`` pairs side by side, as :func:`build_lanes` runs ``advance_path``.
+    for ``LANE_COUNT`` pairs side by side, as :func:`build_lanes` runs ``advance_path``
+    (:func:`build_level_lanes` of 2 members). ``k`` counts draws (two per coarse step)."""
+    return build_level_lanes(spec, 2)
 
-    Each lane carries one pair: the coarse member takes the step control's step h on its own
-    state, the fine member the same step as two halves, both driven by draws ``k`` and
-    ``k + 1`` of the pair's stream (the coarse kick uses the sum of the two half-step
-    integrals). The arithmetic is ``advance_pair``'s of the same fast-math Spec, operation for
-    operation, so a pair's numbers do not depend on its lane or its neighbours (tests), and the
-    coarse member has the law of the run's own paths (which run :func:`build_lanes` with the same
-    math). Needs :func:`lanes_supported`.
+
+@functools.cache
+def build_level_lanes(spec: Spec, levels: int) -> SimpleNamespace:
+    """:func:`build`'s ``advance_levels[levels]`` (``levels`` coupled members at steps h, h/2,
+    ..., h/2**(levels-1) driven by one noise path) for ``LANE_COUNT`` paths side by side, as
+    :func:`build_lanes` runs ``advance_path``: the same numbers, operation for operation, so a
+    member's numbers do not depend on its lane or its neighbours, and member 0 has the law of
+    the run's own paths. Needs :func:`lanes_supported`.
 
     ``advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch) ->
-    (draws_taken, unfinished)``, ``state`` the pair arrays of ``advance_pair``; ``scratch =
-    (fs, us, js)``, ``fs`` of shape (``PAIR_LANE_F_ROWS``, ``LANE_COUNT``), ``us`` and ``js``
-    as for :func:`build_lanes`. ``k`` counts draws (two per coarse step).
+    (draws_taken, unfinished)``, ``state`` the arrays of ``advance_levels[levels]``
+    (:func:`level_positions`); ``scratch = (fs, us, js)``, ``fs`` of shape
+    (:func:`lane_f_rows` ``(levels)``, ``LANE_COUNT``), ``us`` and ``js`` as for
+    :func:`build_lanes`.
     """
-    return _lane_machine(spec, True)
-
-
-def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
-    """The lane machine of :func:`build_lanes` (``PAIR`` False: one path a lane) and of
-    :func:`build_pair_lanes` (True: a coupled pair a lane), written once: the lanes' loading,
-    masking, step control, landing, clock, write-back and refill are shared; what a step
-    advances (one member and one draw, or two members and two draws) differs. ``PAIR`` is a
-    compile-time constant, so each machine compiles to its own branch-free lane loop."""
-    kind = "pair lane" if PAIR else "lane"
+    if levels not in LEVELS:
+        raise ValueError(f"levels={levels!r} is not accepted: one of {', '.join(map(str, LEVELS))}")
     if not lanes_supported(spec):
-        raise ValueError(f"spec {spec.label} is not accepted: the {kind} machine needs "
+        raise ValueError(f"spec {spec.label} is not accepted: the lane machine needs "
                          "integrator.lanes_supported(spec)")
-    steps = build(spec)
+    return _lane_machine(spec, levels)
+
+
+def _keyed_draws(spec: Spec, steps: SimpleNamespace) -> SimpleNamespace:
+    """The lane machine's leaves of the draw trees (:func:`_draw_tree`): :func:`build`'s
+    ``noise_step``, ``ou_step``, ``additive_step`` and ``channel_step`` with the same numbers,
+    drawn by ``draw_keyed`` and ``rng.normals_keyed_with`` from the seed's round keys and the
+    path's counter words ``cw = (c2, c3)``, with no loop-carried scratch (``S`` passes through),
+    inlined by Numba (a call left in the lane loop stops its vectorization)."""
     real = steps.real
     nz = spec.noise.kernel(real, FAST)
-    verlet = steps.verlet
-    step_size = steps.step_size
-    coefficients = nz.coefficients
     draw_keyed = nz.draw_keyed
     update = nz.update
-    load_aux = nz.load_aux
-    ADAPTIVE = spec.adaptive
-    lanes = LANE_COUNT
-    half = real(0.5)
-    escape = real(ESCAPE_STEP_FRACTION)
-    slack = 1.0 + LANDING_SLACK
-    I_XI, I_XA, I_T, I_TC, I_K, I_ST = state_positions(PAIR)
-    DRAWS = 2 if PAIR else 1
-    FAMILY = bool(spec.terms)
-    DAMPED = "damping" in spec.terms
-    family_step = steps.family_step_inline
-    family_bounds = steps.family_bounds
-    dyn_of = _dyn_of if FAMILY else _no_dyn
     normals_keyed = rng.normals_keyed_with(FAST)
-    expm1 = FAST.expm1
-    ADDITIVE = "additive" in spec.terms
-    ADDITIVE_OU = "additive_ou" in spec.terms
-    ou_coefficients = steps.ou_coefficients
     ou_update = steps.ou_update
-    ou_record = steps.ou_record
-    I_ADD = I_ST + 1 if ADDITIVE_OU else 0  # xi_a's array in the state (x's when there is none: unused)
+    ADDITIVE = "additive" in spec.terms
     zero_r = real(0.0)
-    # The generic additive channel (a noise with draw_keyed and no events: lanes_supported): its
-    # fast-math functions, keyed by the channel's round keys; xi_a, aux_a after the others.
-    ADN = "additive_noise" in spec.terms
-    channel_of = _channel_of if ADN else _no_channel
-    if ADN:
-        assert spec.additive is not None
-        nza = spec.additive.kernel(real, FAST)
-        a_coefficients = nza.coefficients
-        a_draw_keyed = nza.draw_keyed
-        a_update = nza.update
-        a_load_aux = nza.load_aux
-        I_ADD = I_ST + 1
-    else:
-        a_coefficients = ou_coefficients
-        a_draw_keyed = draw_keyed
-        a_update = update
-        a_load_aux = load_aux
-    I_AUXA = I_ADD + 1 if ADN else 0
-    F_XF = LANE_F_ROWS  # the pair's fine member's x, Omega: the rows after the lane machine's
-    F_OF = LANE_F_ROWS + 1
+    nza = nz if spec.additive is None else spec.additive.kernel(real, FAST)
+    a_draw_keyed = nza.draw_keyed
+    a_update = nza.update
 
-    @register_jitable(inline="always")  # as family_step: a call would stop the lane loop's vectorization
-    def additive_keyed(rk0, rk1, c2, c3, n):
-        """The path loop's ``additive_normal`` of draw n, keyed (the same number)."""
+    @_inline
+    def noise_keyed(rk0, rk1, cw, n, xn, xa, S, C):
+        I, xn, xa = update(xn, xa, C, draw_keyed(rk0, rk1, cw[0], cw[1], n))
+        return I, xn, xa, S
+
+    @_inline
+    def ou_keyed(rk0, rk1, cw, n, xc, b, S, Ca):
+        w1, w2 = normals_keyed(rk0, rk1, cw[0], cw[1], _U64(rng.N_ADDITIVE) + n)
+        Ia, xc, _ = ou_update(xc, zero_r, Ca, (real(w1), real(w2)))
+        return Ia, xc, b, S
+
+    @_inline
+    def white_keyed(rk0, rk1, cw, n, a, b, S, coef):
         if ADDITIVE:
-            z, _ = normals_keyed(rk0, rk1, c2, c3, _U64(rng.N_ADDITIVE) + n)
-            return z
-        return real(0.0)
+            z, _ = normals_keyed(rk0, rk1, cw[0], cw[1], _U64(rng.N_ADDITIVE) + n)
+            return z, a, b, S
+        return zero_r, a, b, S
+
+    @_inline
+    def channel_keyed(rk0, rk1, cw, n, xc, xca, S, C):
+        I, xc, xca = a_update(xc, xca, C, a_draw_keyed(rk0, rk1, cw[0], cw[1], n))
+        return I, xc, xca, S
+
+    return SimpleNamespace(noise=noise_keyed, ou=ou_keyed, white=white_keyed, channel=channel_keyed)
+
+
+def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleNamespace:
+    """The lane machine's scalar part: ``fill(lane, nxt, hi, state, t_target, path0, scratch)
+    -> (nxt, loaded)`` loads the next path of ``nxt .. hi - 1`` that is neither frozen nor
+    finished into ``lane``; ``store(lane, state, scratch, t_target) -> (draws, unfinished)``
+    writes the lane's path back; ``idle(scratch, t_target)`` sets every lane idle (harmless
+    numbers that are never written back). The scratch's rows: ``fs`` x, Omega, xi, aux, t,
+    t_comp, xi_a, aux_a, then members 1.. 's x and Omega; ``us`` k and the path's counter
+    words; ``js`` the path's index (-1: none), steps in this call, active, escaped or
+    non-finite."""
+    load_aux = spec.noise.kernel(steps.real, FAST).load_aux
+    channel = steps.pieces["channel"]
+    a_load_aux = channel.a_load_aux
+    ADN = channel.ADN
+    XC = steps.pieces["family"].ADDITIVE_OU or ADN
+    I_XI, I_XA, I_T, I_TC, I_K, I_ST = level_positions(LEVELS)
+    I_ADD = I_ST + 1 if XC else 0
+    I_AUXA = I_ADD + 1 if ADN else 0
+    F_ROWS = lane_f_rows(LEVELS)
+    DRAWS = 2 ** (LEVELS - 1)
+    # Member m's x in the state (2 m) and in fs (row R_m; Omega the next of each); members beyond
+    # LEVELS take member 0's, never touched (every use is under HAS_m).
+    X1, X2, X3 = (2 * m if m < LEVELS else 0 for m in range(1, _MAX_LEVELS))
+    O1, O2, O3 = (2 * m + 1 if m < LEVELS else 1 for m in range(1, _MAX_LEVELS))
+    R1, R2, R3 = (LANE_F_ROWS + 2 * (m - 1) if m < LEVELS else 0 for m in range(1, _MAX_LEVELS))
+    HAS_1, HAS_2, HAS_3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
 
     @register_jitable
     def load(lane, i, state, path0, scratch):
-        x = state[0]
-        Omega = state[1]
-        xi = state[I_XI]
-        xi_aux = state[I_XA]
-        t = state[I_T]
-        t_comp = state[I_TC]
-        k = state[I_K]
         fs = scratch[0]
         us = scratch[1]
         js = scratch[2]
-        fs[0, lane] = x[i]
-        fs[1, lane] = Omega[i]
-        fs[2, lane] = xi[i]
-        fs[3, lane] = load_aux(xi_aux[i])
-        fs[4, lane] = t[i]
-        fs[5, lane] = t_comp[i]
-        if PAIR:
-            xf = state[2]
-            Omegaf = state[3]
-            fs[F_XF, lane] = xf[i]
-            fs[F_OF, lane] = Omegaf[i]
-        if ADDITIVE_OU:
-            xa_arr = state[I_ADD]
-            fs[6, lane] = xa_arr[i]
+        # The state's arrays by constant index (a tuple of arrays of several types).
+        fs[0, lane] = state[0][i]
+        fs[1, lane] = state[1][i]
+        if HAS_1:
+            fs[R1, lane] = state[X1][i]
+            fs[R1 + 1, lane] = state[O1][i]
+        if HAS_2:
+            fs[R2, lane] = state[X2][i]
+            fs[R2 + 1, lane] = state[O2][i]
+        if HAS_3:
+            fs[R3, lane] = state[X3][i]
+            fs[R3 + 1, lane] = state[O3][i]
+        fs[2, lane] = state[I_XI][i]
+        fs[3, lane] = load_aux(state[I_XA][i])
+        fs[4, lane] = state[I_T][i]
+        fs[5, lane] = state[I_TC][i]
+        if XC:
+            fs[6, lane] = state[I_ADD][i]
         if ADN:
-            xa_arr = state[I_ADD]
-            aux_arr = state[I_AUXA]
-            fs[6, lane] = xa_arr[i]
-            fs[7, lane] = a_load_aux(aux_arr[i])
+            fs[7, lane] = a_load_aux(state[I_AUXA][i])
         path = _U64(path0 + i)
-        us[0, lane] = k[i]
+        us[0, lane] = state[I_K][i]
         us[1, lane] = path & rng._MASK32
         us[2, lane] = path >> rng._SHIFT32
         js[0, lane] = i
@@ -1361,15 +1445,112 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
         js[3, lane] = 0
 
     @register_jitable
-    def advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch):
-        x = state[0]
-        Omega = state[1]
-        xi = state[I_XI]
-        xi_aux = state[I_XA]
+    def fill(lane, nxt, hi, state, t_target, path0, scratch):
         t = state[I_T]
-        t_comp = state[I_TC]
-        k = state[I_K]
         status = state[I_ST]
+        while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
+            nxt += 1
+        if nxt < hi:
+            load(lane, nxt, state, path0, scratch)
+            return nxt + 1, 1
+        return nxt, 0
+
+    @register_jitable
+    def store(lane, state, scratch, t_target):
+        fs = scratch[0]
+        us = scratch[1]
+        js = scratch[2]
+        i = js[0, lane]
+        state[0][i] = fs[0, lane]
+        state[1][i] = fs[1, lane]
+        if HAS_1:
+            state[X1][i] = fs[R1, lane]
+            state[O1][i] = fs[R1 + 1, lane]
+        if HAS_2:
+            state[X2][i] = fs[R2, lane]
+            state[O2][i] = fs[R2 + 1, lane]
+        if HAS_3:
+            state[X3][i] = fs[R3, lane]
+            state[O3][i] = fs[R3 + 1, lane]
+        state[I_XI][i] = fs[2, lane]
+        state[I_XA][i] = fs[3, lane]
+        state[I_T][i] = fs[4, lane]
+        state[I_TC][i] = fs[5, lane]
+        if XC:
+            state[I_ADD][i] = fs[6, lane]
+        if ADN:
+            state[I_AUXA][i] = fs[7, lane]
+        state[I_K][i] = us[0, lane]
+        js[0, lane] = -1
+        if js[3, lane] != 0:
+            state[I_ST][i] = 1
+            return DRAWS * js[1, lane], 0
+        return DRAWS * js[1, lane], (1 if fs[4, lane] < t_target else 0)
+
+    @register_jitable
+    def idle(scratch, t_target):
+        fs = scratch[0]
+        us = scratch[1]
+        js = scratch[2]
+        for lane in range(LANE_COUNT):
+            for r in range(F_ROWS):
+                fs[r, lane] = 0.0
+            fs[4, lane] = t_target
+            for r in range(LANE_U_ROWS):
+                us[r, lane] = 0
+            for r in range(LANE_I_ROWS):
+                js[r, lane] = 0
+            js[0, lane] = -1
+
+    return SimpleNamespace(fill=fill, store=store, idle=idle)
+
+
+def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
+    """The lane machine of :func:`build_level_lanes`: the lanes' loading, masking, step control,
+    landing, clock, write-back and refill around :func:`the_step` of ``LEVELS`` members with
+    keyed draws (:func:`_keyed_draws`). ``LEVELS`` is a compile-time constant, so each machine
+    compiles to its own branch-free lane loop."""
+    steps = build(spec)
+    real = steps.real
+    oscillator = steps.pieces["oscillator"]
+    family = steps.pieces["family"]
+    channel = steps.pieces["channel"]
+    nz = spec.noise.kernel(real, FAST)
+    coefficients = nz.coefficients
+    step_size = steps.step_size
+    family_bounds = steps.family_bounds
+    ou_coefficients = steps.ou_coefficients
+    a_coefficients = steps.a_coefficients
+    ou_record = steps.ou_record
+    dyn_of = family.dyn_of
+    channel_of = channel.channel_of
+    ADAPTIVE = spec.adaptive
+    FAMILY = family.FAMILY
+    XC = family.ADDITIVE_OU or channel.ADN
+    ADN = channel.ADN
+    lanes = LANE_COUNT
+    escape = real(ESCAPE_STEP_FRACTION)
+    slack = 1.0 + LANDING_SLACK
+    zero_r = real(0.0)
+    DRAWS = 2 ** (LEVELS - 1)
+    FINEST = real(0.5 ** (LEVELS - 1))
+    if FAMILY:
+        members = _member_tree(LEVELS - 1, steps.family_step_inline, steps.additive_sum_inline,
+                               oscillator.half, True)
+    else:
+        members = _member_tree(LEVELS - 1, oscillator.verlet_step, _first, oscillator.half, True)
+    step = the_step(LEVELS, _keyed_draws(spec, steps), members, family, channel, inline=True)
+    nest, flat = _member_tuples(LEVELS)
+    scalar = _lane_load_store(spec, LEVELS, steps)
+    fill = scalar.fill
+    store = scalar.store
+    idle = scalar.idle
+    # Member m's rows in fs (row 0 for members beyond LEVELS: read by nest, never written).
+    R1, R2, R3 = (LANE_F_ROWS + 2 * (m - 1) if m < LEVELS else 0 for m in range(1, _MAX_LEVELS))
+    HAS_1, HAS_2, HAS_3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
+
+    @register_jitable
+    def advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch):
         fs = scratch[0]
         us = scratch[1]
         js = scratch[2]
@@ -1381,63 +1562,39 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         c_r = real(step_c)
-        bx = fs[0]
-        bO = fs[1]
+        bx0 = fs[0]
+        bO0 = fs[1]
+        bx1 = fs[R1]
+        bO1 = fs[R1 + 1]
+        bx2 = fs[R2]
+        bO2 = fs[R2 + 1]
+        bx3 = fs[R3]
+        bO3 = fs[R3 + 1]
         bxi = fs[2]
         bxa = fs[3]
         bt = fs[4]
         btc = fs[5]
+        bxc = fs[6]
+        bxca = fs[7]
         bk = us[0]
         bc2 = us[1]
         bc3 = us[2]
-        bi = js[0]
         bs = js[1]
         ba = js[2]
         bbad = js[3]
-        bxad = fs[6]
-        bxaa = fs[7]
-        xa_arr = state[I_ADD]
-        aux_arr = state[I_AUXA]
         pa = ou_record(d)
         pan, kan = channel_of(run)
         rka0, rka1 = rng.round_keys(kan[0], kan[1])  # the channel's, the same for every path
-        if PAIR:
-            xf = state[2]
-            Omegaf = state[3]
-            bxf = fs[F_XF]
-            bOf = fs[F_OF]
-        # Idle lanes compute on harmless numbers and are never written back.
-        for lane in range(lanes):
-            bx[lane] = 0.0
-            bO[lane] = 0.0
-            if PAIR:
-                bxf[lane] = 0.0
-                bOf[lane] = 0.0
-            bxi[lane] = 0.0
-            bxa[lane] = 0.0
-            bxad[lane] = 0.0
-            bxaa[lane] = 0.0
-            bt[lane] = t_target
-            btc[lane] = 0.0
-            bk[lane] = 0
-            bc2[lane] = 0
-            bc3[lane] = 0
-            bi[lane] = -1
-            bs[lane] = 0
-            ba[lane] = 0
-            bbad[lane] = 0
+        keys = (rk0, rk1, rka0, rka1)
+        idle(scratch, t_target)
         steps_taken = 0
         unfinished = 0
         nxt = lo
         n_active = 0
         if max_steps > 0:
             for lane in range(lanes):
-                while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
-                    nxt += 1
-                if nxt < hi:
-                    load(lane, nxt, state, path0, scratch)
-                    nxt += 1
-                    n_active += 1
+                nxt, loaded = fill(lane, nxt, hi, state, t_target, path0, scratch)
+                n_active += loaded
         while n_active > 0:
             n_done = 0
             for lane in range(lanes):
@@ -1446,22 +1603,17 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                 active = ba[lane]
                 bad_before = bbad[lane]
                 steps_before = bs[lane]
-                xs = bx[lane]
-                Om = bO[lane]
-                if PAIR:
-                    xs2 = bxf[lane]
-                    Om2 = bOf[lane]
+                mem = nest(bx0[lane], bO0[lane], bx1[lane], bO1[lane], bx2[lane], bO2[lane], bx3[lane],
+                           bO3[lane])
                 xn = bxi[lane]
                 xa = bxa[lane]
-                xad = bxad[lane]
-                xaa = bxaa[lane]
+                xc = bxc[lane]
+                xca = bxca[lane]
                 tt = bt[lane]
                 tc = btc[lane]
                 kk = bk[lane]
-                c2 = bc2[lane]
-                c3 = bc3[lane]
                 if ADAPTIVE:
-                    h = step_size(xs, Om, xn, h_max_r, c_r, omega2_r, q)
+                    h = step_size(mem[0], mem[1], xn, h_max_r, c_r, omega2_r, q)
                     if FAMILY:
                         h = family_bounds(h, c_r, d)
                     esc = h < escape * h_max_r
@@ -1472,89 +1624,47 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                 last = tt + h_clock * slack >= t_target
                 h_clock = t_target - tt if last else h_clock
                 h = real(h_clock)
-                if PAIR:
-                    # The fine member's two half steps draw the noise (draws k and k + 1);
-                    # the coarse kick uses the sum of their integrals.
-                    hh = half * h
-                    C = coefficients(hh, p)
-                    z = draw_keyed(rk0, rk1, c2, c3, kk)
-                    I1, xn1, xa1 = update(xn, xa, C, z)
-                    z = draw_keyed(rk0, rk1, c2, c3, kk + _U64(1))
-                    I2, xn_new, xa_new = update(xn1, xa1, C, z)
-                    if FAMILY and ADDITIVE_OU:  # as advance_pair's additive_ou_step
-                        hc = 0.5 * h_clock
-                        Ca = ou_coefficients(hh, pa)
-                        w1, w2 = normals_keyed(rk0, rk1, c2, c3, _U64(rng.N_ADDITIVE) + kk)
-                        z1, xad1, _ = ou_update(xad, zero_r, Ca, (real(w1), real(w2)))
-                        w1, w2 = normals_keyed(rk0, rk1, c2, c3, _U64(rng.N_ADDITIVE) + kk + _U64(1))
-                        z2, xad_new, _ = ou_update(xad1, zero_r, Ca, (real(w1), real(w2)))
-                        zc = z1 + z2
-                    elif FAMILY and ADN:  # as advance_pair's: the channel's half steps
-                        Can = a_coefficients(hh, pan)
-                        hc = 0.5 * h_clock
-                        z1, xad1, xaa1 = a_update(xad, xaa, Can, a_draw_keyed(rka0, rka1, c2, c3, kk))
-                        z2, xad_new, xaa_new = a_update(xad1, xaa1, Can,
-                                                        a_draw_keyed(rka0, rka1, c2, c3, kk + _U64(1)))
-                        zc = z1 + z2
-                    elif FAMILY:  # as advance_pair's pair_normals, operation for operation
-                        hc = 0.5 * h_clock
-                        z1 = additive_keyed(rk0, rk1, c2, c3, kk)
-                        z2 = additive_keyed(rk0, rk1, c2, c3, kk + _U64(1))
-                        e1 = 1.0 + expm1(-d[_GAMMA] * hc) if DAMPED else 1.0
-                        zc = real((e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1))
-                    if FAMILY:
-                        xf1, Of1 = family_step(xs2, Om2, hh, omega2_r, I1, q, tt, hc, z1, d)
-                        xf_new, Of_new = family_step(xf1, Of1, hh, omega2_r, I2, q, tt + hc, hc, z2, d)
-                        xs_new, Om_new = family_step(xs, Om, h, omega2_r, I1 + I2, q, tt, h_clock, zc, d)
-                    else:
-                        xf1, Of1 = verlet(xs2, Om2, hh, omega2_r, I1, q)
-                        xf_new, Of_new = verlet(xf1, Of1, hh, omega2_r, I2, q)
-                        xs_new, Om_new = verlet(xs, Om, h, omega2_r, I1 + I2, q)
-                else:
-                    C = coefficients(h, p)
-                    z = draw_keyed(rk0, rk1, c2, c3, kk)
-                    noise_integral, xn_new, xa_new = update(xn, xa, C, z)
-                    if FAMILY and ADDITIVE_OU:  # as advance_path's additive_ou_step
-                        Ca = ou_coefficients(h, pa)
-                        w1, w2 = normals_keyed(rk0, rk1, c2, c3, _U64(rng.N_ADDITIVE) + kk)
-                        za, xad_new, _ = ou_update(xad, zero_r, Ca, (real(w1), real(w2)))
-                    elif FAMILY and ADN:  # as advance_path's: the channel's exact step
-                        Can = a_coefficients(h, pan)
-                        za, xad_new, xaa_new = a_update(xad, xaa, Can, a_draw_keyed(rka0, rka1, c2, c3, kk))
-                    elif FAMILY:
-                        za = additive_keyed(rk0, rk1, c2, c3, kk)
-                    if FAMILY:
-                        xs_new, Om_new = family_step(xs, Om, h, omega2_r, noise_integral, q, tt, h_clock, za, d)
-                    else:
-                        xs_new, Om_new = verlet(xs, Om, h, omega2_r, noise_integral, q)
+                hf = FINEST * h if LEVELS > 1 else h
+                coef = (coefficients(hf, p), ou_coefficients(hf, pa), a_coefficients(hf, pan))
+                new, ns, cs = step(mem, (xn, xa, zero_r), (xc, xca, zero_r), keys, (bc2[lane], bc3[lane]),
+                                   kk, h, h_clock, tt, coef, omega2_r, q, d)
                 y = h_clock - tc
                 t_sum = tt + y
                 tc_new = (t_sum - tt) - y
                 t_new = t_target if last else t_sum
                 tc_new = 0.0 if last else tc_new
-                if PAIR:
-                    finite = (math.isfinite(xs_new) & math.isfinite(Om_new)
-                              & math.isfinite(xf_new) & math.isfinite(Of_new)
-                              & math.isfinite(xn_new) & math.isfinite(xa_new))
-                else:
-                    finite = (math.isfinite(xs_new) & math.isfinite(Om_new)
-                              & math.isfinite(xn_new) & math.isfinite(xa_new))
+                m = flat(new)
+                o = flat(mem)
+                finite = (math.isfinite(m[0]) & math.isfinite(m[1])
+                          & math.isfinite(ns[0]) & math.isfinite(ns[1]))
+                if HAS_1:
+                    finite = finite & math.isfinite(m[2]) & math.isfinite(m[3])
+                if HAS_2:
+                    finite = finite & math.isfinite(m[4]) & math.isfinite(m[5])
+                if HAS_3:
+                    finite = finite & math.isfinite(m[6]) & math.isfinite(m[7])
                 act = active != 0
                 go = act & (not esc)
                 steps_after = steps_before + (1 if go else 0)
                 bad = act & (esc | (go & (not finite)))
                 done = act & (esc | (go & (last | (not finite) | (steps_after >= max_steps))))
-                bx[lane] = xs_new if go else xs
-                bO[lane] = Om_new if go else Om
-                if PAIR:
-                    bxf[lane] = xf_new if go else xs2
-                    bOf[lane] = Of_new if go else Om2
-                bxi[lane] = xn_new if go else xn
-                bxa[lane] = xa_new if go else xa
-                if ADDITIVE_OU or ADN:
-                    bxad[lane] = xad_new if go else xad
+                bx0[lane] = m[0] if go else o[0]
+                bO0[lane] = m[1] if go else o[1]
+                if HAS_1:
+                    bx1[lane] = m[2] if go else o[2]
+                    bO1[lane] = m[3] if go else o[3]
+                if HAS_2:
+                    bx2[lane] = m[4] if go else o[4]
+                    bO2[lane] = m[5] if go else o[5]
+                if HAS_3:
+                    bx3[lane] = m[6] if go else o[6]
+                    bO3[lane] = m[7] if go else o[7]
+                bxi[lane] = ns[0] if go else xn
+                bxa[lane] = ns[1] if go else xa
+                if XC:
+                    bxc[lane] = cs[0] if go else xc
                 if ADN:
-                    bxaa[lane] = xaa_new if go else xaa
+                    bxca[lane] = cs[1] if go else xca
                 bt[lane] = t_new if go else tt
                 btc[lane] = tc_new if go else tc
                 bk[lane] = kk + _U64(DRAWS) if go else kk
@@ -1566,39 +1676,17 @@ def _lane_machine(spec: Spec, PAIR: bool) -> SimpleNamespace:
                 continue
             # Write the finished lanes back and refill them (scalar, rare).
             for lane in range(lanes):
-                i = bi[lane]
-                if i < 0 or ba[lane] != 0:
+                if js[0, lane] < 0 or ba[lane] != 0:
                     continue
-                x[i] = bx[lane]
-                Omega[i] = bO[lane]
-                if PAIR:
-                    xf[i] = bxf[lane]
-                    Omegaf[i] = bOf[lane]
-                xi[i] = bxi[lane]
-                xi_aux[i] = bxa[lane]
-                if ADDITIVE_OU or ADN:
-                    xa_arr[i] = bxad[lane]
-                if ADN:
-                    aux_arr[i] = bxaa[lane]
-                t[i] = bt[lane]
-                t_comp[i] = btc[lane]
-                k[i] = bk[lane]
-                steps_taken += DRAWS * bs[lane]
-                if bbad[lane] != 0:
-                    status[i] = 1
-                elif bt[lane] < t_target:
-                    unfinished += 1
-                bi[lane] = -1
+                s, u = store(lane, state, scratch, t_target)
+                steps_taken += s
+                unfinished += u
                 n_active -= 1
-                while nxt < hi and (status[nxt] != 0 or t[nxt] >= t_target):
-                    nxt += 1
-                if nxt < hi:
-                    load(lane, nxt, state, path0, scratch)
-                    nxt += 1
-                    n_active += 1
+                nxt, loaded = fill(lane, nxt, hi, state, t_target, path0, scratch)
+                n_active += loaded
         return steps_taken, unfinished
 
-    name_closures([advance_range, lanes], f"{'pair-lanes' if PAIR else 'lanes'}/{spec.label}")
+    name_closures([advance_range, lanes], f"lanes{LEVELS}/{spec.label}")
     return SimpleNamespace(spec=spec, advance_range=advance_range, lanes=lanes)
 
 

@@ -176,6 +176,42 @@ def test_each_member_is_a_single_run_at_its_own_step_fed_the_summed_increments(n
         assert not np.array_equal(state[0], state[2 * (levels - 1)])
 
 
+@pytest.mark.parametrize("name", list(cases.CASES))
+def test_the_simd_lanes_give_every_members_one_path_numbers(name):
+    """L = 1, 2, 3, 4 in the CPU's SIMD lanes (``integrator.build_level_lanes``: the step of
+    ``the_step`` with keyed draws) against the one-path loop of the same fast-math Spec, bit for
+    bit: every array of the state (members, noise, channel, clock, draw count) and the draws
+    taken. 40 paths in calls of 7 steps: lanes are refilled, and resumed mid-way. A Spec the
+    lanes cannot run (a channel noise without keyed draws) goes one path at a time."""
+    cfg = cases.config(name)
+    spec = integrator.Spec.of(cfg, fast_math=True)
+    built = integrator.build(spec)
+    key0, key1 = rng.seed_to_key(cfg.seed)
+    for levels in integrator.LEVELS:
+        one_path = cpu._one_at_a_time(built.advance_levels[levels], None, False, levels)
+        if not integrator.lanes_supported(spec):
+            assert name == "channel" and levels > 2 or cpu.levels_kernel(spec, levels) in (
+                cpu.path_kernel(spec), cpu._pair_path_kernel(spec))
+            continue
+        runs = []
+        for kernel in (cpu.levels_kernel(spec, levels), one_path):
+            state = cases.initial_state(cfg, levels, 40)
+            draws = []
+            for t_target in cases.TIMES:
+                while True:
+                    d, unfinished = kernel(state, t_target, cases.MAX_STEPS, key0, key1, cases.PATH0,
+                                           spec.noise.record(cfg), integrator.run_record(cfg))
+                    draws.append((int(d), int(unfinished)))
+                    if unfinished == 0:
+                        break
+            runs.append((state, draws))
+        (lanes, lane_draws), (one, one_draws) = runs
+        assert lane_draws == one_draws, (name, levels)
+        for j, (a, b) in enumerate(zip(lanes, one, strict=True)):
+            assert np.array_equal(a, b), (name, levels, j)
+        assert not np.array_equal(lanes[0], cases.initial_state(cfg, levels, 40)[0])
+
+
 def test_two_levels_are_the_bias_estimates_pair():
     """L = 2 is ``advance_pair`` (the bias estimate's step loop) and its CPU kernel the one-pair
     kernel; 1 is ``advance_path``. (The pair's numbers: the reference above at L = 2, and

@@ -286,16 +286,17 @@ def _take(typingctx, counter):
     return types.int64(counter), codegen
 
 
-def _lanes_kernel(spec: Spec):
-    """One worker of the lane machine (``build_lanes``): takes pieces of the paths from the
-    shared counter ``next_piece`` until none is left; :func:`_with_workers` runs ``nw`` of them
-    on threads. A plain ``nogil`` function, not a ``parallel=True`` one: Numba's parallel
-    lowering compiles the driver twice over (about 2 s more on a cold cache) for a loop over
-    the workers that Python threads run as well."""
-    advance_range = integrator.build_lanes(spec).advance_range
+def _lanes_kernel(spec: Spec, levels: int = 1):
+    """One worker of the lane machine of ``levels`` coupled members (``build_level_lanes``; 1:
+    the run's paths, 2: the bias estimate's pairs): takes pieces of the paths from the shared
+    counter ``next_piece`` until none is left; :func:`_with_workers` runs ``nw`` of them on
+    threads. A plain ``nogil`` function, not a ``parallel=True`` one: Numba's parallel lowering
+    compiles the driver twice over (about 2 s more on a cold cache) for a loop over the workers
+    that Python threads run as well."""
+    advance_range = integrator.build_level_lanes(spec, levels).advance_range
 
     @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
-    @own_index(spec.label)
+    @own_index({1: spec.label, 2: spec.label + "/pairs"}.get(levels, f"{spec.label}/lanes{levels}"))
     def advance(state, t_target, max_steps, key0, key1, path0, p, run, scratch, next_piece,
                 nw):  # pragma: no cover - compiled
         n_paths = state[0].shape[0]
@@ -418,11 +419,15 @@ def pair_advance_kernel(spec: Spec):
     math, so the pairs cost what the run's own paths cost per step; else one pair at a time
     (``Integrator.advance_pair``), as the run's paths go one at a time."""
     if integrator.lanes_supported(spec):
-        return _with_workers(_pair_lanes_kernel(spec),
-                             (integrator.PAIR_LANE_F_ROWS, integrator.LANE_COUNT),
-                             (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
-                             (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
+        return _level_lanes(spec, 2)
     return _pair_path_kernel(spec)
+
+
+def _level_lanes(spec: Spec, levels: int):
+    """The lane machine of ``levels`` members on the workers (:func:`_lanes_kernel`)."""
+    return _with_workers(_lanes_kernel(spec, levels), (integrator.lane_f_rows(levels), integrator.LANE_COUNT),
+                         (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
+                         (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
 
 
 @functools.cache
@@ -435,41 +440,19 @@ def _pair_path_kernel(spec: Spec):
 def levels_kernel(spec: Spec, levels: int):
     """``advance(state, t_target, max_steps, key0, key1, path0, p, run) -> (draws_taken,
     unfinished)``: ``levels`` coupled members (``integrator.build(spec).advance_levels``: steps
-    h, h/2, ..., h/2**(levels-1) driven by one noise path) one path at a time, ``state`` of
+    h, h/2, ..., h/2**(levels-1) driven by one noise path), ``state`` of
     :func:`integrator.level_positions` (members 0 .. levels-1, then ``xi, xi_aux, t, t_comp, k,
-    status`` and the additive channel's arrays). ``levels`` 1 is :func:`path_kernel`, 2 the
-    bias estimate's one-pair kernel."""
+    status`` and the additive channel's arrays): in SIMD lanes when the Spec has them
+    (``integrator.build_level_lanes``, the same numbers), else one path at a time (``levels``
+    1 is :func:`path_kernel`, 2 the bias estimate's one-pair kernel)."""
+    if integrator.lanes_supported(spec):
+        return _level_lanes(spec, levels)
     if levels == 1:
         return path_kernel(spec)
     if levels == 2:
         return _pair_path_kernel(spec)
     return _one_at_a_time(integrator.build(spec).advance_levels[levels], f"{spec.label}/levels{levels}",
                           spec.cacheable, levels)
-
-
-def _pair_lanes_kernel(spec: Spec):
-    """One worker of the pair lane machine (``build_pair_lanes``), as :func:`_lanes_kernel`."""
-    advance_range = integrator.build_pair_lanes(spec).advance_range
-
-    @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
-    @own_index(spec.label + "/pairs")
-    def advance(state, t_target, max_steps, key0, key1, path0, p, run, scratch, next_piece,
-                nw):  # pragma: no cover - compiled
-        n_paths = state[0].shape[0]
-        n_pieces, size = _pieces(n_paths, nw)
-        rk0, rk1 = rng.round_keys(key0, key1)
-        draws = 0
-        unfinished = 0
-        piece = _take(next_piece)
-        while piece < n_pieces:
-            s, uf = advance_range(piece * size, min((piece + 1) * size, n_paths), state, t_target,
-                                  max_steps, rk0, rk1, path0, p, run, scratch)
-            draws += s
-            unfinished += uf
-            piece = _take(next_piece)
-        return draws, unfinished
-
-    return advance
 
 
 def _lockstep_kernel(spec: Spec):
