@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import hashlib
 import types
+import uuid
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -62,7 +63,12 @@ def name_closures(functions: Iterable[Any], key: str) -> None:
         if isinstance(obj, (tuple, list)):
             stack.extend(obj)
         elif hasattr(obj, "py_func") and isinstance(obj.py_func, types.FunctionType):
-            stack.append(obj.py_func)  # a Numba dispatcher (an inlined piece): its function
+            # A Numba dispatcher (an inlined piece): its function named first, then its UUID.
+            if "<locals>" in obj.py_func.__qualname__ and not getattr(obj.py_func, "_stochpend_named", False):
+                obj.py_func.__qualname__ += suffix
+                obj.py_func._stochpend_named = True  # type: ignore[attr-defined]
+            _stable_uuid(obj)
+            stack.append(obj.py_func)
         elif isinstance(obj, types.FunctionType):
             if "<locals>" in obj.__qualname__ and not getattr(obj, "_stochpend_named", False):
                 obj.__qualname__ += suffix
@@ -72,6 +78,22 @@ def name_closures(functions: Iterable[Any], key: str) -> None:
                     stack.append(cell.cell_contents)
                 except ValueError:  # an empty cell
                     pass
+
+
+def _stable_uuid(dispatcher: Any) -> None:
+    """Give a Numba dispatcher in a kernel's closure (an inlined piece, ``integrator._inline``) a
+    UUID fixed by its function's module and qualname, in place of the random one Numba draws
+    when it is first pickled. Numba keys a cached kernel on its closure's cells pickled, and a
+    dispatcher pickles with its UUID: with a random one, every process had a new key, and
+    compiled every lane machine afresh (tests/system/test_compile_time.py). The qualname carries
+    the tag of what decides the code (:func:`name_closures`), so two dispatchers with one UUID
+    are the same code. Numba's ``_MemoMixin`` (0.68, pinned) keeps the UUID in a private
+    attribute; one already drawn is left as it is."""
+    if getattr(dispatcher, "_MemoMixin__uuid", "drawn") is not None:
+        return
+    fn = dispatcher.py_func
+    digest = hashlib.sha256(f"{fn.__module__}.{fn.__qualname__}".encode()).hexdigest()
+    dispatcher._set_uuid(str(uuid.UUID(digest[:32])))
 
 
 def _writable(directory: Path) -> bool:

@@ -10,6 +10,12 @@ where I_n is the exact integral of the noise over the step, drawn jointly with t
 update (:mod:`stochpend.noises`). At D = 0 the step is the symplectic, time-reversible
 Stormer-Verlet map; with noise the scheme has weak order 2 (measured in tests/statistical).
 
+The physics of one step -- the noise's exact draws, the additive channel, the coupled members'
+kicks -- is written once, :func:`the_step`; every loop below calls it, and keeps only the
+loading, the step control, the landing and events, the clock, the finiteness check and the
+write-back. :func:`build` assembles it from four bundles, each from its own builder: the
+oscillator's pieces, the noise's, the family's terms and the generic additive channel's.
+
 :func:`build` compiles nothing itself: for one :class:`Spec` -- (oscillator, coupling, noise,
 precision, adaptive or fixed step, math library) -- it returns the ``register_jitable``
 functions that the backends' thin drivers call:
@@ -27,7 +33,8 @@ functions that the backends' thin drivers call:
   them across the lanes (the CPU's lock-step driver);
 * :func:`build_lanes` (a separate builder): the same step loop for ``LANE_COUNT`` paths side by
   side, each with its own time, step and step count, refilled as paths finish (the CPU's
-  default driver: adaptive steps in SIMD);
+  default driver: adaptive steps in SIMD); :func:`build_level_lanes` the same for L = 1 .. 4
+  coupled members (:func:`build_pair_lanes`: L = 2, the bias estimate's pairs);
 * ``init_path`` (initial conditions) and ``path_values`` (what the statistics sum).
 
 Every choice in the Spec is a Python constant captured by these closures, so each combination
@@ -828,44 +835,18 @@ def _lockstep_lanes(*, real, coefficients, update, verlet, mathlib_log, mathlib_
 
 
 
-@functools.cache
-def build(spec: Spec, track: Any = None) -> SimpleNamespace:
-    """The device functions of ``spec`` (see the module docstring); cached per Spec.
-
-    ``track``: the per-path accumulators' step update
-    (:func:`stochpend.observables.track_step`), called by ``advance_path`` after each step of a
-    path that stays finite, with the state before and after it; their slots are ``state[8]``,
-    a float64 array (n_slots, n_paths). ``None`` (every run without accumulators): no tracking
-    is compiled, and the kernels are those of the Spec alone.
-    """
-    real = np.float32 if spec.precision == "float32" else np.float64
-    mathlib = FAST if spec.fast_math else LIBM
+def _oscillator_pieces(spec: Spec, real: Any, mathlib: Any) -> SimpleNamespace:
+    """The oscillator's pieces of ``spec`` in precision ``real`` with ``mathlib``: ``G`` (what the
+    noise multiplies), ``step_size`` (the step control), ``verlet`` (one drift-kick-drift step)
+    and ``verlet_step`` (``verlet`` under the member tree's arguments), with ``force``, ``wrap``
+    and ``half`` for the family's step."""
     osc = spec.oscillator.kernel(real, mathlib)
-    nz = spec.noise.kernel(real, mathlib)
-
     POSITION = spec.coupling == "position"
-    ADAPTIVE = spec.adaptive
-    TRACK = track is not None
-    track_step = track if TRACK else _track_nothing
-    HAS_EVENTS = spec.noise.has_events
     half = real(0.5)
-    escape = real(ESCAPE_STEP_FRACTION)
-
     force = osc.force
     noise_shape = osc.noise_shape
     step_scales = osc.step_scales
     wrap = osc.wrap
-    load_aux = nz.load_aux
-    coefficients = nz.coefficients
-    scratch0 = nz.scratch0
-    draw = nz.draw
-    update = nz.update
-    next_event = nz.next_event
-    at_event = nz.at_event
-    mathlib_log = mathlib.log
-    mathlib_sincos = mathlib.sincos
-    mathlib_expm1 = mathlib.expm1
-    additive_normals = rng.normals_with(mathlib, real)
 
     @register_jitable
     def G(x, q):
@@ -907,6 +888,51 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         x_new = x_half + half * h * Omega_new
         return wrap(x_new), Omega_new
 
+    @register_jitable
+    def verlet_step(x, Omega, h, omega2, noise_integral, q, t0, h_clock, za, d):
+        """:func:`verlet` under ``family_step``'s arguments (the member tree's step without the
+        family's terms: ``t0``, ``h_clock``, ``za``, ``d`` unused)."""
+        return verlet(x, Omega, h, omega2, noise_integral, q)
+
+    return SimpleNamespace(real=real, half=half, force=force, wrap=wrap, G=G, step_size=step_size,
+                           verlet=verlet, verlet_step=verlet_step)
+
+
+def _noise_pieces(spec: Spec, real: Any, mathlib: Any) -> SimpleNamespace:
+    """The noise's pieces of ``spec`` (:class:`stochpend.noises.base.NoiseKernel`'s functions in
+    precision ``real`` with ``mathlib``), with ``step``: its exact step as a leaf of the draw
+    tree (:func:`_draw_tree`)."""
+    nz = spec.noise.kernel(real, mathlib)
+    draw = nz.draw
+    update = nz.update
+
+    @register_jitable
+    def noise_step(key0, key1, path, n, xn, xa, S, C):
+        """The noise's exact step with draw n as a leaf of the draw tree (:func:`_draw_tree`):
+        returns (its integral over the step, xi, aux and the scratch S after it)."""
+        z, S = draw(key0, key1, path, n, S)
+        I, xn, xa = update(xn, xa, C, z)
+        return I, xn, xa, S
+
+    return SimpleNamespace(HAS_EVENTS=spec.noise.has_events, load_aux=nz.load_aux, scratch0=nz.scratch0,
+                           coefficients=nz.coefficients, draw=draw, update=update, next_event=nz.next_event,
+                           at_event=nz.at_event, step=noise_step)
+
+
+def _family_pieces(spec: Spec, real: Any, mathlib: Any, oscillator: SimpleNamespace) -> SimpleNamespace:
+    """The family's terms of ``spec`` (:mod:`stochpend.dynamics`): their flags, the step with
+    them (``family_step``, and ``family_step_inline`` for the lane machines), their step bounds,
+    the additive white and OU channels' leaves of the draw tree and the coarse members'
+    combination of their halves' draws (``additive_sum``). Without terms, pieces that are never
+    called (every use is under a compile-time ``if FAMILY``)."""
+    half = oscillator.half
+    G = oscillator.G
+    force = oscillator.force
+    wrap = oscillator.wrap
+    mathlib_sincos = mathlib.sincos
+    mathlib_expm1 = mathlib.expm1
+    additive_normals = rng.normals_with(mathlib, real)
+    ADN = "additive_noise" in spec.terms
     FAMILY = bool(spec.terms)
     # The table's terms (stochpend.terms): their bounds are composed from it (family_bounds);
     # their kicks are written in family_step, under compile-time flags, because a kick composed
@@ -933,32 +959,6 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         return zeros5
 
     ou_coefficients = ou_kernel.coefficients if ADDITIVE_OU else no_ou_coefficients
-    # The generic additive channel (additive_noise): its noise's device functions, in the Spec's
-    # precision and math, called with the channel's own Philox key (run record, _channel_of);
-    # without it, stubs that are never called (every use is under a compile-time ``if ADN``).
-    ADN = "additive_noise" in spec.terms
-    channel_of = _channel_of if ADN else _no_channel
-    if ADN:
-        assert spec.additive is not None
-        nza = spec.additive.kernel(real, mathlib)
-        A_EVENTS = spec.additive.has_events
-        a_load_aux = nza.load_aux
-        a_coefficients = nza.coefficients
-        a_scratch0 = nza.scratch0
-        a_draw = nza.draw
-        a_update = nza.update
-        a_next_event = nza.next_event
-        a_at_event = nza.at_event
-    else:
-        A_EVENTS = False
-        a_load_aux = load_aux
-        a_coefficients = no_ou_coefficients
-        a_scratch0 = scratch0
-        a_draw = draw
-        a_update = update
-        a_next_event = next_event
-        a_at_event = at_event
-
     # The step control's bounds of the table's terms that are on (h <= c/gamma, c/nu, c/nu_p).
     family_bounds = _term_bounds(tuple(term for term in _terms.TABLE if term.name in spec.terms))
 
@@ -1058,24 +1058,56 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
         return Ia, xa_new
 
     @register_jitable
-    def noise_step(key0, key1, path, n, xn, xa, S, C):
-        """The noise's exact step with draw n as a leaf of the draw tree (:func:`_draw_tree`):
-        returns (its integral over the step, xi, aux and the scratch S after it)."""
-        z, S = draw(key0, key1, path, n, S)
-        I, xn, xa = update(xn, xa, C, z)
-        return I, xn, xa, S
-
-    @register_jitable
     def ou_step(key0, key1, path, n, xa, b, S, Ca):
         """:func:`additive_ou_step` as a leaf of the draw tree (``b``, ``S`` passed through)."""
         Ia, xa = additive_ou_step(key0, key1, path, n, xa, Ca)
         return Ia, xa, b, S
 
-    @register_jitable
-    def verlet_step(x, Omega, h, omega2, noise_integral, q, t0, h_clock, za, d):
-        """:func:`verlet` under ``family_step``'s arguments (the member tree's step without the
-        family's terms: ``t0``, ``h_clock``, ``za``, ``d`` unused)."""
-        return verlet(x, Omega, h, omega2, noise_integral, q)
+    return SimpleNamespace(
+        FAMILY=FAMILY, ADDITIVE_OU=ADDITIVE_OU, dyn_of=dyn_of, family_bounds=family_bounds,
+        family_step=family_step, family_step_inline=family_step_inline, ou_record=ou_record,
+        ou_coefficients=ou_coefficients, no_ou_coefficients=no_ou_coefficients, ou_update=ou_update,
+        ou_step=ou_step, additive_step=additive_step, additive_sum=additive_sum,
+        additive_sum_inline=additive_sum_inline)
+
+
+def _channel_pieces(spec: Spec, real: Any, mathlib: Any, noise: SimpleNamespace,
+                    family: SimpleNamespace) -> SimpleNamespace:
+    """The generic additive channel of ``spec`` (term "additive_noise"): its noise's functions,
+    with ``step`` its exact step as a leaf of the draw tree under the channel's own key."""
+    load_aux = noise.load_aux
+    scratch0 = noise.scratch0
+    draw = noise.draw
+    update = noise.update
+    next_event = noise.next_event
+    at_event = noise.at_event
+    no_ou_coefficients = family.no_ou_coefficients
+    noise_step = noise.step
+    # The generic additive channel (additive_noise): its noise's device functions, in the Spec's
+    # precision and math, called with the channel's own Philox key (run record, _channel_of);
+    # without it, stubs that are never called (every use is under a compile-time ``if ADN``).
+    ADN = "additive_noise" in spec.terms
+    channel_of = _channel_of if ADN else _no_channel
+    if ADN:
+        assert spec.additive is not None
+        nza = spec.additive.kernel(real, mathlib)
+        A_EVENTS = spec.additive.has_events
+        a_load_aux = nza.load_aux
+        a_coefficients = nza.coefficients
+        a_scratch0 = nza.scratch0
+        a_draw = nza.draw
+        a_update = nza.update
+        a_next_event = nza.next_event
+        a_at_event = nza.at_event
+    else:
+        A_EVENTS = False
+        a_load_aux = load_aux
+        a_coefficients = no_ou_coefficients
+        a_scratch0 = scratch0
+        a_draw = draw
+        a_update = update
+        a_next_event = next_event
+        a_at_event = at_event
 
     if ADN:
         @register_jitable
@@ -1088,21 +1120,32 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     else:
         channel_step = noise_step  # never called (every use is under a compile-time ``if ADN``)
 
+    return SimpleNamespace(ADN=ADN, A_EVENTS=A_EVENTS, channel_of=channel_of, a_load_aux=a_load_aux,
+                           a_scratch0=a_scratch0, a_coefficients=a_coefficients, a_next_event=a_next_event,
+                           a_at_event=a_at_event, step=channel_step)
+
+
+@functools.cache
+def build(spec: Spec, track: Any = None) -> SimpleNamespace:
+    """The device functions of ``spec`` (see the module docstring); cached per Spec.
+
+    ``track``: the per-path accumulators' step update
+    (:func:`stochpend.observables.track_step`), called by ``advance_path`` after each step of a
+    path that stays finite, with the state before and after it; their slots are ``state[8]``,
+    a float64 array (n_slots, n_paths). ``None`` (every run without accumulators): no tracking
+    is compiled, and the kernels are those of the Spec alone.
+    """
+    real = np.float32 if spec.precision == "float32" else np.float64
+    mathlib = FAST if spec.fast_math else LIBM
+    oscillator = _oscillator_pieces(spec, real, mathlib)
+    noise = _noise_pieces(spec, real, mathlib)
+    family = _family_pieces(spec, real, mathlib, oscillator)
+    channel = _channel_pieces(spec, real, mathlib, noise, family)
+    control = SimpleNamespace(ADAPTIVE=spec.adaptive, escape=real(ESCAPE_STEP_FRACTION), TRACK=track is not None,
+                              track_step=_track_nothing if track is None else track)
     # The step loop's pieces, in bundles (_step_loop).
-    pieces: dict[str, Any] = dict(
-        noise=SimpleNamespace(HAS_EVENTS=HAS_EVENTS, load_aux=load_aux, scratch0=scratch0,
-                              coefficients=coefficients, next_event=next_event, at_event=at_event,
-                              step=noise_step),
-        oscillator=SimpleNamespace(real=real, half=half, step_size=step_size, verlet_step=verlet_step),
-        family=SimpleNamespace(FAMILY=FAMILY, ADDITIVE_OU=ADDITIVE_OU, dyn_of=dyn_of,
-                               family_bounds=family_bounds, family_step=family_step, ou_record=ou_record,
-                               ou_coefficients=ou_coefficients, ou_step=ou_step,
-                               additive_step=additive_step, additive_sum=additive_sum),
-        channel=SimpleNamespace(ADN=ADN, A_EVENTS=A_EVENTS, channel_of=channel_of, a_load_aux=a_load_aux,
-                                a_scratch0=a_scratch0, a_coefficients=a_coefficients,
-                                a_next_event=a_next_event, a_at_event=a_at_event, step=channel_step),
-        control=SimpleNamespace(ADAPTIVE=ADAPTIVE, escape=escape, TRACK=TRACK, track_step=track_step),
-    )
+    pieces: dict[str, Any] = dict(noise=noise, oscillator=oscillator, family=family, channel=channel,
+                                  control=control)
 
     #: ``advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)``: advance path
     #: i of the arrays towards ``t_target``, at most ``max_steps`` steps.
@@ -1159,27 +1202,28 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
             advance_levels[levels] = _step_loop(levels, **pieces, inline=True)
         device_levels[levels] = _step_loop(levels, **pieces)
 
-    advance_lanes = _lockstep_lanes(real=real, coefficients=coefficients, update=update, verlet=verlet,
-                                    mathlib_log=mathlib_log, mathlib_sincos=mathlib_sincos)
+    advance_lanes = _lockstep_lanes(real=real, coefficients=noise.coefficients, update=noise.update,
+                                    verlet=oscillator.verlet, mathlib_log=mathlib.log,
+                                    mathlib_sincos=mathlib.sincos)
 
     # family_step_inline too: only the lane machines call it, and whichever of them was built
     # first in a process would otherwise name it, so the pair kernel compiled by the compile
     # helper (pairs alone) and the one this process looks up (lanes first) would differ in name
     # and never share a cache entry.
-    name_closures([G, step_size, verlet, *advance_levels.values(), *device_levels.values(), advance_lanes,
-                   family_step_inline, additive_sum_inline],
+    name_closures([oscillator.G, oscillator.step_size, oscillator.verlet, *advance_levels.values(),
+                   *device_levels.values(), advance_lanes, family.family_step_inline, family.additive_sum_inline],
                   spec.label if track is None else f"{spec.label}/track/{id(track):x}")
     return SimpleNamespace(
-        spec=spec, real=real, G=G, step_size=step_size, verlet=verlet, family_step=family_step,
-        family_step_inline=family_step_inline, family_bounds=family_bounds,
-        ou_coefficients=ou_coefficients, ou_update=ou_update, ou_record=ou_record,
-        noise_step=noise_step, additive_step=additive_step, ou_step=ou_step,
-        additive_sum=additive_sum, additive_sum_inline=additive_sum_inline, channel_step=channel_step,
-        a_coefficients=a_coefficients, pieces=pieces,
-        a_scratch0=a_scratch0, init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
+        spec=spec, real=real, G=oscillator.G, step_size=oscillator.step_size, verlet=oscillator.verlet,
+        family_step=family.family_step, family_step_inline=family.family_step_inline,
+        family_bounds=family.family_bounds, ou_coefficients=family.ou_coefficients, ou_update=family.ou_update,
+        ou_record=family.ou_record, noise_step=noise.step, additive_step=family.additive_step,
+        ou_step=family.ou_step, additive_sum=family.additive_sum, additive_sum_inline=family.additive_sum_inline,
+        channel_step=channel.step, a_coefficients=channel.a_coefficients, a_scratch0=channel.a_scratch0,
+        pieces=pieces, init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
         advance_levels=advance_levels, device_levels=device_levels, advance_lanes=advance_lanes,
         path_values=statistics(spec.oscillator, spec.coupling),
-        lockstep=(not spec.adaptive) and spec.noise.pair_draws and not HAS_EVENTS and not FAMILY,
+        lockstep=(not spec.adaptive) and spec.noise.pair_draws and not spec.noise.has_events and not family.FAMILY,
     )
 
 
@@ -1539,6 +1583,11 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
                                oscillator.half, True)
     else:
         members = _member_tree(LEVELS - 1, oscillator.verlet_step, _first, oscillator.half, True)
+    # The member trees are shared between the machines of one Spec (a tree of L members holds
+    # that of L - 1): named for the Spec, not for the machine built first in a process (else the
+    # pair machine a compile helper builds alone and the one built after the run's would differ
+    # in name and never share a cache entry).
+    name_closures([members], f"lane-members/{spec.label}")
     step = the_step(LEVELS, _keyed_draws(spec, steps), members, family, channel, inline=True)
     nest, flat = _member_tuples(LEVELS)
     scalar = _lane_load_store(spec, LEVELS, steps)
