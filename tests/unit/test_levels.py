@@ -178,23 +178,26 @@ def test_each_member_is_a_single_run_at_its_own_step_fed_the_summed_increments(n
 
 @pytest.mark.parametrize("name", list(cases.CASES))
 def test_the_simd_lanes_give_every_members_one_path_numbers(name):
-    """L = 1, 2, 3, 4 in the CPU's SIMD lanes (``integrator.build_level_lanes``: the step of
+    """L = 3, 4 in the CPU's SIMD lanes (``integrator.build_level_lanes``: the step of
     ``the_step`` with keyed draws) against the one-path loop of the same fast-math Spec, bit for
     bit: every array of the state (members, noise, channel, clock, draw count) and the draws
     taken. 40 paths in calls of 7 steps: lanes are refilled, and resumed mid-way. A Spec the
-    lanes cannot run (a channel noise without keyed draws) goes one path at a time."""
+    lanes cannot run (a channel noise without keyed draws) goes one path at a time. (L = 1 and
+    2, the run's lanes and the bias pairs', against the one-path loops: test_lanes.py,
+    test_bias.py and the family's tests, tests/_lanes.py.)"""
     cfg = cases.config(name)
     spec = integrator.Spec.of(cfg, fast_math=True)
     built = integrator.build(spec)
     key0, key1 = rng.seed_to_key(cfg.seed)
-    for levels in integrator.LEVELS:
+    for levels in (3, 4):
         one_path = cpu._one_at_a_time(built.advance_levels[levels], None, False, levels)
         if not integrator.lanes_supported(spec):
-            assert name == "channel" and levels > 2 or cpu.levels_kernel(spec, levels) in (
-                cpu.path_kernel(spec), cpu._pair_path_kernel(spec))
+            assert name == "channel"  # the harmonic channel noise has no keyed draws
             continue
+        lanes_kernel = cpu.levels_kernel(spec, levels)
+        assert "_lanes_kernel" in lanes_kernel.kernel.py_func.__qualname__  # the lanes, not a path loop
         runs = []
-        for kernel in (cpu.levels_kernel(spec, levels), one_path):
+        for kernel in (lanes_kernel, one_path):
             state = cases.initial_state(cfg, levels, 40)
             draws = []
             for t_target in cases.TIMES:
