@@ -463,7 +463,7 @@ def the_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNa
     DEPTH = LEVELS - 1
     FAMILY = family.FAMILY
     ADDITIVE_OU = family.ADDITIVE_OU
-    ADN = channel.ADN
+    CHANNEL = channel.CHANNEL
     noise_path = _draw_tree(DEPTH, draws.noise, inline)
     ou_path = _draw_tree(DEPTH, draws.ou, inline)
     white_path = _draw_tree(DEPTH, draws.white, inline)
@@ -483,7 +483,7 @@ def the_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNa
             # normal of the exact composition of their two O flows (white).
             if ADDITIVE_OU:
                 zt, xc, _, _ = ou_path(keys[0], keys[1], path, n, xc, xc, Sa, coef[1])
-            elif ADN:  # the channel's noise under its own key
+            elif CHANNEL:  # the channel's noise under its own key
                 zt, xc, xca, Sa = channel_path(keys[2], keys[3], path, n, xc, xca, Sa, coef[2])
             else:
                 zt, _, _, _ = white_path(keys[0], keys[1], path, n, xc, xc, Sa, coef[1])
@@ -510,7 +510,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
     The bundles are :func:`build`'s pieces for the Spec, by name: ``noise`` (the noise's device
     functions and its exact step ``step``), ``oscillator`` (``real``, ``half``, ``verlet``,
     ``step_size``), ``family`` (the family's terms: ``FAMILY``, ``family_step``, the additive
-    white and OU channels), ``channel`` (the generic additive channel, ``ADN``) and ``control``
+    white and OU channels), ``channel`` (the generic additive channel, ``CHANNEL``) and ``control``
     (``ADAPTIVE``, ``escape``, the accumulators' ``TRACK``, ``track_step``). The step loop's
     closure captures each piece as it did when it was written inside :func:`build`."""
     real = oscillator.real
@@ -532,8 +532,8 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
     family_bounds = family.family_bounds
     ou_record = family.ou_record
     ou_coefficients = family.ou_coefficients
-    ADN = channel.ADN
-    A_EVENTS = channel.A_EVENTS
+    CHANNEL = channel.CHANNEL
+    CHANNEL_EVENTS = channel.CHANNEL_EVENTS
     channel_of = channel.channel_of
     a_load_aux = channel.a_load_aux
     a_scratch0 = channel.a_scratch0
@@ -579,9 +579,9 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
     I_TRK = I_ST + 1 if TRACKED else 0
     # The additive OU noise's xi_a: the state's array after the others (the slots too); a
     # constant index (as every array here, see below), x's in a Spec without it (unused).
-    I_ADD = I_ST + 1 + (1 if TRACKED else 0) if (ADDITIVE_OU or ADN) else 0
+    I_ADD = I_ST + 1 + (1 if TRACKED else 0) if (ADDITIVE_OU or CHANNEL) else 0
     # The generic channel's aux_a: right after its xi_a.
-    I_AUXA = I_ADD + 1 if ADN else 0
+    I_AUXA = I_ADD + 1 if CHANNEL else 0
 
     def advance(i, state, t_target, max_steps, key0, key1, path0, p, run):
         # The arrays of a tuple are taken by index, never unpacked (``x, Omega, ... =
@@ -629,11 +629,11 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         # the generic channel's next events (noises with events).
         xa_arr = state[I_ADD]
         aux_arr = state[I_AUXA]
-        if ADDITIVE_OU or ADN:
+        if ADDITIVE_OU or CHANNEL:
             xc = real(xa_arr[i])
         else:
             xc = real(0.0)
-        if ADN:
+        if CHANNEL:
             xca = a_load_aux(aux_arr[i])
         else:
             xca = real(0.0)
@@ -664,7 +664,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             else:
                 h = h_max_r
             h_clock = h_max if h == h_max_r else np.float64(h)
-            if A_EVENTS:  # cut at the earlier of the two channels' next events
+            if CHANNEL_EVENTS:  # cut at the earlier of the two channels' next events
                 t_ev = next_event(xn, xa)
                 t_ev_a = a_next_event(xc, xca)
                 h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
@@ -681,7 +681,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
                 hf = finest(h)
                 C = coefficients(hf, p)
                 Ca = ou_coefficients(hf, pa)
-                if ADN:
+                if CHANNEL:
                     Can = a_coefficients(hf, pan)
                 h_cached = h
             if TRACKED:
@@ -700,7 +700,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             xc = cs[0]
             xca = cs[1]
             Sa = cs[2]
-            if A_EVENTS:  # the event of the channel(s) whose time the step landed on
+            if CHANNEL_EVENTS:  # the event of the channel(s) whose time the step landed on
                 if HAS_EVENTS and event and t_land == t_ev:
                     xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
                 if event and t_land == t_ev_a:
@@ -741,9 +741,9 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             Omega3[i] = out[7]
         xi[i] = xn
         xi_aux[i] = xa
-        if ADDITIVE_OU or ADN:
+        if ADDITIVE_OU or CHANNEL:
             xa_arr[i] = xc
-        if ADN:
+        if CHANNEL:
             aux_arr[i] = xca
         t[i] = tt
         t_comp[i] = tc
@@ -932,7 +932,7 @@ def _family_pieces(spec: Spec, real: Any, mathlib: Any, oscillator: SimpleNamesp
     mathlib_sincos = mathlib.sincos
     mathlib_expm1 = mathlib.expm1
     additive_normals = rng.normals_with(mathlib, real)
-    ADN = "additive_noise" in spec.terms
+    CHANNEL = "additive_noise" in spec.terms
     FAMILY = bool(spec.terms)
     # The table's terms (stochpend.terms): their bounds are composed from it (family_bounds);
     # their kicks are written in family_step, under compile-time flags, because a kick composed
@@ -989,7 +989,7 @@ def _family_pieces(spec: Spec, real: Any, mathlib: Any, oscillator: SimpleNamesp
             s_half, _ = mathlib_sincos(0.5 * nu * h_clock)
             _, c_mid = mathlib_sincos(nu * (t0 + 0.5 * h_clock) + d[_PHI])
             kick -= real(2.0 * d[_A] / nu * c_mid * s_half)
-        if ADDITIVE_OU or ADN:  # za: the exact integral of xi_a over the step (its noise's update)
+        if ADDITIVE_OU or CHANNEL:  # za: the exact integral of xi_a over the step (its noise's update)
             kick -= za
         if O_STEP:
             Omega_mid = Omega - half * kick
@@ -1039,7 +1039,7 @@ def _family_pieces(spec: Spec, real: Any, mathlib: Any, oscillator: SimpleNamesp
         the OU and the generic channel's integrals summed (the exact integral over the step), the
         white noise's normals as the normal of the exact composition of the two half-step O
         flows, (e z1 + z2)/sqrt(1 + e^2), e = exp(-gamma hc)."""
-        if ADDITIVE_OU or ADN:
+        if ADDITIVE_OU or CHANNEL:
             return z1 + z2
         e1 = 1.0 + mathlib_expm1(-d[_GAMMA] * hc) if DAMPED else 1.0
         return real((e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1))
@@ -1085,13 +1085,13 @@ def _channel_pieces(spec: Spec, real: Any, mathlib: Any, noise: SimpleNamespace,
     noise_step = noise.step
     # The generic additive channel (additive_noise): its noise's device functions, in the Spec's
     # precision and math, called with the channel's own Philox key (run record, _channel_of);
-    # without it, stubs that are never called (every use is under a compile-time ``if ADN``).
-    ADN = "additive_noise" in spec.terms
-    channel_of = _channel_of if ADN else _no_channel
-    if ADN:
+    # without it, stubs that are never called (every use is under a compile-time ``if CHANNEL``).
+    CHANNEL = "additive_noise" in spec.terms
+    channel_of = _channel_of if CHANNEL else _no_channel
+    if CHANNEL:
         assert spec.additive is not None
         nza = spec.additive.kernel(real, mathlib)
-        A_EVENTS = spec.additive.has_events
+        CHANNEL_EVENTS = spec.additive.has_events
         a_load_aux = nza.load_aux
         a_coefficients = nza.coefficients
         a_scratch0 = nza.scratch0
@@ -1100,7 +1100,7 @@ def _channel_pieces(spec: Spec, real: Any, mathlib: Any, noise: SimpleNamespace,
         a_next_event = nza.next_event
         a_at_event = nza.at_event
     else:
-        A_EVENTS = False
+        CHANNEL_EVENTS = False
         a_load_aux = load_aux
         a_coefficients = no_ou_coefficients
         a_scratch0 = scratch0
@@ -1109,7 +1109,7 @@ def _channel_pieces(spec: Spec, real: Any, mathlib: Any, noise: SimpleNamespace,
         a_next_event = next_event
         a_at_event = at_event
 
-    if ADN:
+    if CHANNEL:
         @register_jitable
         def channel_step(key0, key1, path, n, xn, xa, S, C):
             """The generic channel's exact step with draw n under its own key, as
@@ -1118,11 +1118,11 @@ def _channel_pieces(spec: Spec, real: Any, mathlib: Any, noise: SimpleNamespace,
             I, xn, xa = a_update(xn, xa, C, z)
             return I, xn, xa, S
     else:
-        channel_step = noise_step  # never called (every use is under a compile-time ``if ADN``)
+        channel_step = noise_step  # never called (every use is under a compile-time ``if CHANNEL``)
 
-    return SimpleNamespace(ADN=ADN, A_EVENTS=A_EVENTS, channel_of=channel_of, a_load_aux=a_load_aux,
-                           a_scratch0=a_scratch0, a_coefficients=a_coefficients, a_next_event=a_next_event,
-                           a_at_event=a_at_event, step=channel_step)
+    return SimpleNamespace(CHANNEL=CHANNEL, CHANNEL_EVENTS=CHANNEL_EVENTS, channel_of=channel_of,
+                           a_load_aux=a_load_aux, a_scratch0=a_scratch0, a_coefficients=a_coefficients,
+                           a_next_event=a_next_event, a_at_event=a_at_event, step=channel_step)
 
 
 @functools.cache
@@ -1440,11 +1440,11 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
     load_aux = spec.noise.kernel(steps.real, FAST).load_aux
     channel = steps.pieces["channel"]
     a_load_aux = channel.a_load_aux
-    ADN = channel.ADN
-    XC = steps.pieces["family"].ADDITIVE_OU or ADN
+    CHANNEL = channel.CHANNEL
+    XC = steps.pieces["family"].ADDITIVE_OU or CHANNEL
     I_XI, I_XA, I_T, I_TC, I_K, I_ST = level_positions(LEVELS)
     I_ADD = I_ST + 1 if XC else 0
-    I_AUXA = I_ADD + 1 if ADN else 0
+    I_AUXA = I_ADD + 1 if CHANNEL else 0
     F_ROWS = lane_f_rows(LEVELS)
     DRAWS = 2 ** (LEVELS - 1)
     # Member m's x in the state (2 m) and in fs (row R_m; Omega the next of each); members beyond
@@ -1477,7 +1477,7 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
         fs[5, lane] = state[I_TC][i]
         if XC:
             fs[6, lane] = state[I_ADD][i]
-        if ADN:
+        if CHANNEL:
             fs[7, lane] = a_load_aux(state[I_AUXA][i])
         path = _U64(path0 + i)
         us[0, lane] = state[I_K][i]
@@ -1522,7 +1522,7 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
         state[I_TC][i] = fs[5, lane]
         if XC:
             state[I_ADD][i] = fs[6, lane]
-        if ADN:
+        if CHANNEL:
             state[I_AUXA][i] = fs[7, lane]
         state[I_K][i] = us[0, lane]
         js[0, lane] = -1
@@ -1570,8 +1570,8 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
     channel_of = channel.channel_of
     ADAPTIVE = spec.adaptive
     FAMILY = family.FAMILY
-    XC = family.ADDITIVE_OU or channel.ADN
-    ADN = channel.ADN
+    XC = family.ADDITIVE_OU or channel.CHANNEL
+    CHANNEL = channel.CHANNEL
     lanes = LANE_COUNT
     escape = real(ESCAPE_STEP_FRACTION)
     slack = 1.0 + LANDING_SLACK
@@ -1712,7 +1712,7 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
                 bxa[lane] = ns[1] if go else xa
                 if XC:
                     bxc[lane] = cs[0] if go else xc
-                if ADN:
+                if CHANNEL:
                     bxca[lane] = cs[1] if go else xca
                 bt[lane] = t_new if go else tt
                 btc[lane] = tc_new if go else tc

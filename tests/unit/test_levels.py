@@ -58,7 +58,7 @@ def _reference(spec):
     ADAPTIVE = spec.adaptive
     FAMILY = bool(spec.terms)
     ADDITIVE_OU = "additive_ou" in spec.terms
-    ADN = "additive_noise" in spec.terms
+    CHANNEL = "additive_noise" in spec.terms
 
     @numba.njit
     def reference(L, x0, O0, xi0, xa0, xad0, xaa0, t_targets, key0, key1, path0, p, run):
@@ -66,7 +66,7 @@ def _reference(spec):
         omega2, q, h_max, step_c = run[0], run[1], run[2], run[3]
         d = run[4] if FAMILY else (0.0,)
         pa = ou_record(d)
-        if ADN:  # the generic channel's record and key
+        if CHANNEL:  # the generic channel's record and key
             pan, kan = run[5], run[6]
         N = 1 << (L - 1)
         out = np.empty((L, 2, n))
@@ -75,7 +75,7 @@ def _reference(spec):
             mx = np.full(L, x0[i])
             mO = np.full(L, O0[i])
             xn, xa, S, xad = xi0[i], xa0[i], scratch0(), xad0[i]
-            if ADN:
+            if CHANNEL:
                 xaa, Sa = xaa0[i], a_scratch0()
             tt, tc, kk = 0.0, 0.0, np.uint64(0)
             I = np.empty(N)
@@ -92,14 +92,14 @@ def _reference(spec):
                     hf = h_clock / N
                     C = coefficients(hf, p)
                     Ca = ou_coefficients(hf, pa)
-                    if ADN:
+                    if CHANNEL:
                         Can = a_coefficients(hf, pan)
                     for j in range(N):  # the finest member's draws, in order
                         n_j = kk + np.uint64(j)
                         I[j], xn, xa, S = noise_step(key0, key1, path, n_j, xn, xa, S, C)
                         if ADDITIVE_OU:
                             Z[j], xad, _, _ = ou_step(key0, key1, path, n_j, xad, 0.0, 0, Ca)
-                        elif ADN:
+                        elif CHANNEL:
                             Z[j], xad, xaa, Sa = channel_step(kan[0], kan[1], path, n_j, xad, xaa, Sa, Can)
                         else:
                             Z[j], _, _, _ = additive_step(key0, key1, path, n_j, 0.0, 0.0, 0, C)
