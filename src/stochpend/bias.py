@@ -51,7 +51,8 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["BIAS_PATH0", "Assessment", "BiasEstimate", "RICHARDSON", "assess", "assess_dataset",
            "default_bias_paths", "estimate", "summary_line", "warnings_for"]
 
-#: Global index of the first coupled pair: the run's own paths are below it.
+#: Global index of the first coupled pair: the run's own paths are below it (the coupled
+#: levels' streams, ``stochpend.rng.COUPLED_PATH0``).
 BIAS_PATH0 = 1 << 63
 #: bias = RICHARDSON * (coarse - fine) for a scheme of weak order 2 and fine = coarse/2.
 RICHARDSON = 4.0 / 3.0
@@ -59,10 +60,6 @@ RICHARDSON = 4.0 / 3.0
 BIAS_BATCHES = 32
 #: Pairs advanced together (memory: about 90 bytes a pair).
 CHUNK_PAIRS = 1 << 18
-_WORK_PER_CALL = 10_000_000
-
-_U64 = np.uint64
-
 
 #: Statistics whose bias ``accuracy="auto"`` controls (declared in stochpend.observables: every
 #: moment of E and Omega and the two shape ratios).
@@ -134,40 +131,9 @@ def pair_spec(config: SimulationConfig, backend: str = "cpu") -> Spec:
     does. Always float64, also for a float32 GPU run: in float32 the difference of the members
     would chase the rounding floor (eps_32 ~ 1e-7 a step, amplified by the dynamics) rather than
     the step's bias; the estimate is then that of the float64 scheme at the run's steps."""
-    if backend == "cuda":
-        from stochpend._backends import cuda
+    from stochpend import runner
 
-        return cuda.spec_for(config, "float64")
-    from stochpend._backends import cpu
-
-    return cpu.spec_for(config, "float64")
-
-
-#: The histogram edges :func:`_accumulate_pairs` gives the run's kernel: one bin, every energy.
-_NO_EDGES = np.array([np.inf])
-
-
-def _accumulate_pairs(accumulate: Any, x: np.ndarray, Omega: np.ndarray, xf: np.ndarray,
-                      Omegaf: np.ndarray, xi: np.ndarray, t: np.ndarray, status: np.ndarray, omega2: float,
-                      q: tuple[float, ...], batch_size: int, sums: np.ndarray, hist: np.ndarray,
-                      tracks: np.ndarray) -> None:
-    """sums[b, 0 or 1, :]: the power sums of the coarse (0) and fine (1) members of batch b's
-    pairs, both over the same pairs: a pair is counted only when both members are (a member
-    whose moments overflow marks the pair non-finite in ``status``).
-
-    The run's own accumulate kernel (``cpu.accumulate_kernel``), once per member, so that a cold
-    kernel cache compiles one statistics kernel, not two: the coarse members (marking the pairs
-    whose coarse member overflows), the fine members (marking those whose fine member does),
-    and, only when the fine members marked a pair, the coarse members again, without it. Each
-    sum is added in path order, as the run's are: the numbers of a kernel of its own.
-
-    ``tracks``: zeros for a run's per-path accumulators, which the pairs do not carry (their
-    statistics have no Richardson estimate: ``Statistic.richardson``)."""
-    accumulate(x, Omega, xi, t, status, tracks, omega2, q, batch_size, _NO_EDGES, sums[:, 0], hist)
-    marked = np.count_nonzero(status)
-    accumulate(xf, Omegaf, xi, t, status, tracks, omega2, q, batch_size, _NO_EDGES, sums[:, 1], hist)
-    if np.count_nonzero(status) != marked:
-        accumulate(x, Omega, xi, t, status, tracks, omega2, q, batch_size, _NO_EDGES, sums[:, 0], hist)
+    return runner.spec_for(config, backend, "float64")
 
 
 # -- the estimate -------------------------------------------------------------------------------
@@ -258,126 +224,24 @@ def pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, *, backend
     """The coarse and fine members' per-batch sums, shape (n_batches, n_times, 2, n_sums)
     (member 0 coarse, 1 fine; batches of ceil(n_pairs / n_batches) pairs), of ``n_pairs``
     coupled pairs of ``config`` (pairs ``BIAS_PATH0 + i`` of its seed), and the path-steps they
-    took: the one host loop of the pairs, for the bias estimate and the multilevel target's
-    levels (:mod:`stochpend.multilevel`). In float64, on ``backend``'s pair driver, with the
-    run's Spec; the numbers do not depend on ``chunk_pairs`` or the threads. ``what``: the
-    progress bar's label. ``differences``: (n_times, 4, N_SUMS) float64, where the raw power
-    sums of the members' differences are added (``cpu.difference_kernel``; the kurtosis of a
-    level's differences), from the host arrays on every backend."""
-    spec = pair_spec(config, backend)
-    from stochpend import integrator
-    from stochpend._backends import cpu
+    took, for the bias estimate and the multilevel target's levels
+    (:mod:`stochpend.multilevel`): the runner's host loop (``runner.run_batches`` with 2
+    levels, the backend's ``LevelEngine``), with :func:`pair_spec`;
+    the numbers do not depend on ``chunk_pairs`` or the threads. ``what``: the progress bar's
+    label. ``differences``: (n_times, 4, N_SUMS) float64, where the raw power sums of the
+    members' differences are added (``cpu.difference_kernel``; the kurtosis of a level's
+    differences), from the host arrays on every backend."""
+    from stochpend import runner
 
-    progress = progress or NoProgress()
-    accumulate = cpu.accumulate_kernel(spec, config.observables)  # the run's own (compiled once for both)
-    diff = cpu.difference_kernel(spec) if differences is not None else None
-    n_tracks = len(observables.accumulators(observables.objects(config.observables)))
-    times = np.asarray(config.times, dtype=np.float64)
-    batch_size = -(-n_pairs // n_batches)
-    chunk_batches = max(1, chunk_pairs // batch_size)
-    sums = np.zeros((n_batches, times.size, 2, observables.n_sums(config)))
-    c = config
-    draws = 0
-    progress.start(n_pairs * c.t_max, what)
-    done_work = 0.0
-    q = integrator.run_record(c)[1]  # the oscillator's record
-    for b0 in range(0, n_batches, chunk_batches):
-        b1 = min(b0 + chunk_batches, n_batches)
-        p0 = b0 * batch_size
-        n = min(b1 * batch_size, n_pairs) - p0
-        pairs = (_GpuPairs if backend == "cuda" else _CpuPairs)(config, spec, p0, n)
-        max_steps = max(1000, _WORK_PER_CALL // max(n, 1))
-        hist = np.zeros((b1 - b0, 2), dtype=np.int64)  # the run's kernel counts; not used
-        tracks = np.zeros((n_tracks, n))
-        for j, t_target in enumerate(times):
-            while not pairs.advance(float(t_target), max_steps):
-                progress.update(done_work + pairs.time_sum())
-            x, Omega, xf, Omegaf, xi, t, status = pairs.members()
-            _accumulate_pairs(accumulate, x, Omega, xf, Omegaf, xi, t, status, c.omega**2, q,
-                              batch_size, sums[b0:b1, j], hist, tracks)
-            pairs.set_status(status)  # pairs whose moments overflowed stay excluded
-            if diff is not None and differences is not None:
-                diff(x, Omega, xf, Omegaf, status, c.omega**2, q, differences[j])
-            progress.update(done_work + n * float(t_target))
-        draws += pairs.draws()
-        done_work += n * c.t_max
-    progress.finish()
+    pairs = replace(config, paths=n_pairs, n_batches=n_batches)
+    acc, draws = runner.run_batches(pairs, 0, n_batches, backend=backend, precision="float64",  # pair_spec
+                                    chunk_paths=chunk_pairs, progress=progress, levels=2,
+                                    differences=differences is not None, what=what)
+    if differences is not None:
+        differences += acc.differences
     # A coarse step is one draw, each fine half step one: draws count the fine steps, and
     # the coarse steps are half as many.
-    return sums, draws + draws // 2
-
-
-class _CpuPairs:
-    """A chunk of pairs in host arrays, advanced by the CPU's pair driver."""
-
-    def __init__(self, config: SimulationConfig, spec: Spec, p0: int, n: int) -> None:
-        from stochpend import initial, integrator
-        from stochpend._backends import cpu
-
-        c = self.config = config
-        self.advance_k = cpu.pair_advance_kernel(spec)
-        self.key0, self.key1 = config.keys.main
-        self.x, self.Omega, self.xf, self.Omegaf, self.xi, self.xi_aux, self.t, self.t_comp = (
-            np.empty(n) for _ in range(8))
-        self.k = np.empty(n, dtype=np.uint64)
-        self.status = np.empty(n, dtype=np.uint8)
-        self.path0 = _U64(BIAS_PATH0 + p0)
-        self.record = spec.noise.record(config)
-        self.run = integrator.run_record(config)
-        cpu.init_kernel(spec)((self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k,
-                               self.status), self.key0, self.key1, self.path0,
-                              0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
-                              0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
-        if initial.temperature(c) > 0.0:  # as the run's paths (stochpend.initial)
-            self.x[:], self.Omega[:] = initial.boltzmann(c, int(self.path0), n)
-        # The additive channel's state, shared by the pair's members as xi is (a run with it).
-        self.additive = initial.additive_states(c, int(self.path0), n)
-        self.xf[:] = self.x
-        self.Omegaf[:] = self.Omega
-
-    def advance(self, t_target: float, max_steps: int) -> bool:
-        state: tuple[np.ndarray, ...] = (self.x, self.Omega, self.xf, self.Omegaf, self.xi, self.xi_aux,
-                                         self.t, self.t_comp, self.k, self.status)
-        state = (*state, *self.additive)
-        _, unfinished = self.advance_k(state, t_target, max_steps, self.key0, self.key1, self.path0,
-                                       self.record, self.run)
-        return unfinished == 0
-
-    def time_sum(self) -> float:
-        return float(np.sum(self.t))
-
-    def members(self) -> tuple[np.ndarray, ...]:
-        return self.x, self.Omega, self.xf, self.Omegaf, self.xi, self.t, self.status
-
-    def set_status(self, status: np.ndarray) -> None:
-        pass  # the accumulate kernel wrote the host array itself
-
-    def draws(self) -> int:
-        return int(np.sum(self.k, dtype=np.uint64))
-
-
-class _GpuPairs:
-    """A chunk of pairs on the GPU (:class:`stochpend._backends.cuda.PairEngine`)."""
-
-    def __init__(self, config: SimulationConfig, spec: Spec, p0: int, n: int) -> None:
-        from stochpend._backends import cuda
-
-        self.engine = cuda.PairEngine(config, spec, _U64(BIAS_PATH0 + p0), n)
-
-    def advance(self, t_target: float, max_steps: int) -> bool:
-        return self.engine.advance(t_target, max_steps)
-
-    def time_sum(self) -> float:
-        return 0.0
-
-    def members(self) -> tuple[np.ndarray, ...]:
-        return self.engine.members()
-
-    def set_status(self, status: np.ndarray) -> None:
-        self.engine.set_status(status)
-
-    def draws(self) -> int:
-        return self.engine.draws()
+    return acc.sums, draws + draws // 2
 
 
 def _decorrelation(bias: dict[str, tuple[np.ndarray, np.ndarray]],

@@ -1350,10 +1350,6 @@ def lane_f_rows(levels: int) -> int:
     return LANE_F_ROWS + 2 * (levels - 1)
 
 
-#: Rows of the pair lane machine's float64 scratch (:func:`lane_f_rows` of 2).
-PAIR_LANE_F_ROWS = lane_f_rows(2)
-
-
 @functools.cache
 def build_pair_lanes(spec: Spec) -> SimpleNamespace:
     """:func:`build`'s ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate)

@@ -55,6 +55,10 @@ _F32_TWO_POW_M33 = np.float32(2.0**-33)
 _F32_MINUS_TWO = np.float32(-2.0)
 _F32_TWO_PI = np.float32(2.0 * math.pi)
 
+#: The global path index of the first set of coupled levels (the bias estimate's pairs, a
+#: multilevel target's levels): set ``i`` is path ``COUPLED_PATH0 + i`` of the run's seed, so
+#: its streams are disjoint from the run's paths (0 .. paths - 1) and the same on every backend.
+COUPLED_PATH0 = 1 << 63
 #: Draw index of the initial angle theta0 (a uniform).
 N_INIT_THETA = 0
 #: Draw index of the initial noise xi0 (a normal).

@@ -119,16 +119,17 @@ class Engine(Protocol):
     def final_tracks(self) -> tuple[np.ndarray, np.ndarray]: ...
 
 
-def engine_class(backend: str) -> Any:
-    """The Engine class of ``backend`` ("cpu" or "cuda")."""
+def engine_class(backend: str, levels: int = 1) -> Any:
+    """The Engine class of ``backend`` ("cpu" or "cuda"): of one path per ensemble member, or
+    (``levels`` > 1) of coupled members (``LevelEngine``)."""
     if backend == "cpu":
         from stochpend._backends import cpu
 
-        return cpu.Engine
+        return cpu.Engine if levels == 1 else cpu.LevelEngine
     if backend == "cuda":
         from stochpend._backends import cuda
 
-        return cuda.Engine
+        return cuda.Engine if levels == 1 else cuda.LevelEngine
     raise ValueError(f"backend={backend!r} is not accepted: one of {', '.join(BACKENDS)}")
 
 
@@ -153,14 +154,25 @@ def run_batches(
     progress: Progress | None = None,
     checkpointer: Checkpointer | None = None,
     resume: RunState | None = None,
-) -> tuple[EnsembleSums, int]:
+    levels: int = 1,
+    differences: bool = False,
+    what: str = "simulating",
+) -> tuple[Any, int]:
     """Simulate batches ``first_batch .. stop_batch - 1`` and return ``(sums, path_steps)``.
 
     This is the unit of work that runs, Dask tasks and checkpointed runs are made of. Only the
-    batches in range are filled in ``sums``. ``chunk_paths`` (rounded down to whole batches,
-    at least one) bounds the memory; default: the backend's. ``resume``: a RunState from a
-    checkpoint of the same configuration, backend and precision.
+    batches in range are filled in ``sums`` (an ``EnsembleSums``). ``chunk_paths`` (rounded
+    down to whole batches, at least one) bounds the memory; default: the backend's. ``resume``:
+    a RunState from a checkpoint of the same configuration, backend and precision.
+
+    ``levels`` > 1: each of the ``config.paths`` members of the ensemble is a set of ``levels``
+    coupled members at steps h, h/2, ... driven by one noise path (the bias estimate's pairs, a
+    multilevel target's levels; global paths from ``rng.COUPLED_PATH0``): ``sums`` is then a
+    ``stats.LevelSums`` (with the 2 members' ``differences`` when asked), ``path_steps`` the
+    finest member's steps; not checkpointed. ``what``: the progress bar's label.
     """
+    if levels != 1 and (checkpointer is not None or resume is not None):
+        raise ValueError("coupled levels are not checkpointed: checkpointer and resume must be None")
     if not (0 <= first_batch < stop_batch <= config.n_batches):
         raise ValueError(
             f"batches {first_batch}..{stop_batch} are not accepted: need 0 <= first_batch < "
@@ -171,17 +183,19 @@ def run_batches(
     edges = np.ascontiguousarray(hist_edges(config), dtype=np.float64)
     bs = config.batch_size
     n_times = times.size
-    Engine = engine_class(backend)
+    Engine = engine_class(backend, levels)
     spec = spec_for(config, backend, precision)
     total_paths = min(stop_batch * bs, config.paths) - first_batch * bs
-    progress.start(total_paths * config.t_max, "simulating")
+    progress.start(total_paths * config.t_max, what)
 
     if resume is None:
         chunk_batches = max(1, (chunk_paths or Engine.default_chunk_paths(precision)) // bs)
         chunk_batches = min(chunk_batches, stop_batch - first_batch)
     else:
         chunk_batches = resume.b1 - resume.b0
-    engine = Engine(config, spec, min(chunk_batches * bs, total_paths), chunk_batches)
+    capacity = min(chunk_batches * bs, total_paths)
+    engine = (Engine(config, spec, capacity, chunk_batches) if levels == 1 else
+              Engine(config, spec, capacity, chunk_batches, levels=levels, differences=differences))
 
     def chunk(b0: int, b1: int) -> tuple[int, int]:
         p0 = b0 * bs
@@ -194,8 +208,9 @@ def run_batches(
         # The chunk's arrays reach the state only when a checkpointer asks (RunState.pull).
         state = RunState(first_batch, stop_batch, first_batch, b1, 0,
                          **dict.fromkeys(CHUNK_ARRAYS),  # type: ignore[arg-type]  # filled by pull
-                         acc=EnsembleSums.empty(config.n_batches, n_times, config.hist_bins,
-                                                  config.observables, config.paths, joint_cells(config)),
+                         acc=(EnsembleSums.empty(config.n_batches, n_times, config.hist_bins, config.observables,
+                                                 config.paths, joint_cells(config))
+                              if levels == 1 else engine.empty_sums()),
                          path_steps=0, done_work=0.0, backend=backend, precision=precision)
     else:
         state = resume
@@ -206,8 +221,7 @@ def run_batches(
     finished = [state.path_steps - (engine.steps() if resume is not None else 0)]
     state._sync = _syncer(engine, finished)
     # The accumulator slots that hold first-passage times, in slot order.
-    passages = [i for i, a in enumerate(observables.accumulators(observables.objects(config.observables)))
-                if isinstance(a, observables.FirstPassage)]
+    passages = [i for i, a in enumerate(engine.accs) if isinstance(a, observables.FirstPassage)]
 
     while True:
         max_steps = engine.max_steps()

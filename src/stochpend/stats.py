@@ -25,7 +25,7 @@ from stochpend import observables as _table
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 
-__all__ = ["EnsembleSums", "N_SUMS", "STATISTICS", "passage_slots"]
+__all__ = ["EnsembleSums", "LevelSums", "N_SUMS", "STATISTICS", "passage_slots"]
 
 #: Columns of the per-batch sums that every backend fills (``sums[batch, time, column]``):
 #: count, the summed values of :data:`stochpend.observables.SUMS`, non-finite paths.
@@ -243,6 +243,36 @@ class EnsembleSums:
         import xarray as xr  # here: `show` reads the statistics' names from this module, without xarray
 
         return xr.Dataset(data_vars, coords=coords, attrs=attrs)
+
+
+@dataclass
+class LevelSums:
+    """The per-batch power sums of coupled members (``runner.run_batches`` with ``levels`` >
+    1), shape (n_batches, n_times, levels, n_sums): member 0 the coarsest (step h), member m
+    the step h / 2**m, each batch's sums over the same sets of members. ``differences``: the
+    raw power sums of two members' differences over the whole run, (n_times, 4, N_SUMS)
+    (``stochpend._backends.cpu.difference_kernel``), or None when not asked for."""
+
+    sums: np.ndarray
+    filled: np.ndarray
+    differences: np.ndarray | None = None
+
+    @classmethod
+    def empty(cls, n_batches: int, n_times: int, levels: int, n_sums: int) -> LevelSums:
+        return cls(np.zeros((n_batches, n_times, levels, n_sums)), np.zeros(n_batches, dtype=bool))
+
+    def add_passage(self, first_path: int, values: np.ndarray) -> None:
+        raise ValueError("coupled levels carry no first passages")
+
+    def add_batches(self, first_batch: int, sums: np.ndarray, differences: np.ndarray | None) -> None:
+        """Insert the sums of batches ``first_batch ...``; ``differences`` the engine's running
+        totals so far (added in path order chunk after chunk, as one array: replaced, not added)."""
+        stop = first_batch + sums.shape[0]
+        if np.any(self.filled[first_batch:stop]):
+            raise ValueError(f"batches {first_batch}..{stop - 1} were already accumulated")
+        self.sums[first_batch:stop] = sums
+        self.filled[first_batch:stop] = True
+        self.differences = differences
 
 
 def _joint_variables(sums: EnsembleSums, n_e: int, x_edges: np.ndarray,

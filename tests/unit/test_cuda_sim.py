@@ -471,10 +471,11 @@ def test_gpu_bias_pairs_equal_cpu(simulated, monkeypatch):
     math): every statistic's bias and coarse value equal the CPU's one-pair kernel of that Spec
     to the last bits, and the pairs' path-steps exactly."""
     from stochpend import bias
+    from stochpend._backends import cpu
     from stochpend.integrator import Spec
 
     case = next(c for c in EXTRAS if c["name"] == "bias_pairs")
-    monkeypatch.setattr(bias, "pair_spec", lambda config, backend="cpu": Spec.of(config))
+    monkeypatch.setattr(cpu, "spec_for", lambda config, precision="float64": Spec.of(config, precision=precision))
     est = bias.estimate(SimulationConfig.build(**case["config"]), case["pairs"])
     assert int(simulated["bias_pairs/path_steps"]) == est.path_steps
     checked = 0

@@ -77,4 +77,4 @@ def test_a_lazy_import_against_the_layers_is_seen() -> None:
     graph = _graph()
     graph["rng"] = graph["rng"] | {"simulate"}
     assert [b for b in graph["rng"] if layer[b] > layer["rng"]] == ["simulate"]
-    assert "integrator" in graph["bias"]  # bias imports the kernels inside functions only
+    assert "runner" in graph["bias"]  # bias imports the engine's host loop inside functions only

@@ -229,6 +229,25 @@ def test_two_levels_are_the_bias_estimates_pair():
     assert integrator.level_positions(1) == integrator.state_positions(False)
 
 
+def test_the_runner_drives_three_levels_whatever_the_chunks():
+    """``runner.run_batches(levels=3)``: the host loop of every run drives coupled levels (the
+    backend's ``LevelEngine``): per batch and output time each member's sums count every set
+    of the batch, the members differ (each its own step), and the numbers do not depend on the
+    chunking (three chunks of 2 batches against one of 6)."""
+    from stochpend import bias, runner, stats
+    from stochpend.params import SimulationConfig
+
+    cfg = SimulationConfig.build(noise="ou", paths=120, n_batches=6, t_max=3.0, n_times=3, seed=7)
+    one, steps_one = runner.run_batches(cfg, 0, 6, levels=3)
+    chunked, steps_chunked = runner.run_batches(cfg, 0, 6, levels=3, chunk_paths=40)
+    assert isinstance(one, stats.LevelSums) and one.sums.shape[:3] == (6, 3, 3)
+    assert np.array_equal(one.sums, chunked.sums) and steps_one == steps_chunked > 0
+    assert np.all(one.sums[..., stats.S_COUNT] == cfg.batch_size)
+    for m in (1, 2):
+        assert not np.array_equal(one.sums[:, :, 0], one.sums[:, :, m])
+    assert bias.BIAS_PATH0 == rng.COUPLED_PATH0  # the pairs are the levels' streams
+
+
 # -- the CUDA simulator ----------------------------------------------------------------------------
 def background_run(folder: Path) -> _background.Command:
     """Every case in the CUDA simulator (a subprocess, a few seconds), started with the session."""

@@ -51,6 +51,7 @@ import functools
 import math
 import os
 from types import SimpleNamespace
+from typing import Any
 
 import numba
 import numpy as np
@@ -65,6 +66,7 @@ from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
 from stochpend.observables import N_SUMS, S_COUNT, S_NONFINITE
 from stochpend.oscillators.pendulum import PENDULUM
+from stochpend.stats import LevelSums
 
 #: Paths per lock-step block (the integrator's lane count).
 BLOCK = integrator.LANES
@@ -188,9 +190,7 @@ def advance_kernel(spec: Spec):
         return _with_workers(_lockstep_kernel(spec), (6, BLOCK), (2, BLOCK), (0, BLOCK),
                              items=lambda n_paths: (n_paths + BLOCK - 1) // BLOCK)
     if integrator.lanes_supported(spec):
-        return _with_workers(_lanes_kernel(spec), (integrator.LANE_F_ROWS, integrator.LANE_COUNT),
-                             (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
-                             (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
+        return _level_lanes(spec, 1)
     return path_kernel(spec)
 
 
@@ -856,3 +856,152 @@ class Engine:
         """The accumulators' slots (n_slots, n) and the status (n,) of the chunk's paths, copies
         (for each path's final first-passage time: stochpend.passage)."""
         return self.tracks.copy(), self.status.copy()
+
+
+#: The histogram edges a level engine gives the run's accumulate kernel: one bin, every energy.
+_NO_EDGES = np.array([np.inf])
+
+
+class LevelEngine:
+    """One chunk of ``levels`` coupled members in host memory (for ``runner.run_batches`` with
+    ``levels`` > 1: the bias estimate's pairs, a multilevel target's levels): member m steps
+    h / 2**m, all driven by one noise path (:func:`levels_kernel`). Pair ``i`` of the chunk is
+    global path ``rng.COUPLED_PATH0 + p0 + i`` of the run's seed, streams disjoint from the
+    run's paths; each starts as the run's path would (``init_kernel``, the Boltzmann law, the
+    additive channel's law), every member at that start.
+
+    Per output time the members' statistics are summed with the run's own accumulate kernel,
+    once per member (a cold cache compiles one statistics kernel, not ``levels``), into
+    ``(nb, n_times, levels, n_sums)``; a set of members is counted only when every member is:
+    one whose moments overflow marks the set non-finite. ``differences``: with 2 members, the
+    raw power sums of their differences (:func:`difference_kernel`) over the whole run, added
+    chunk after chunk into one array (the kurtosis of a level's differences). The members carry
+    no per-path accumulators (their statistics have no Richardson estimate), and a chunk is
+    never checkpointed. Float64 (:func:`stochpend.bias.pair_spec`)."""
+
+    name = "cpu"
+    accs: tuple = ()
+
+    def __init__(self, config, spec: Spec, capacity: int, n_chunk_batches: int, *, levels: int,
+                 differences: bool = False) -> None:
+        if differences and levels != 2:
+            raise ValueError(f"differences of levels={levels!r} are not accepted: only of 2 members")
+        self.config = config
+        self.spec = spec
+        self.levels = levels
+        self.init, self.advance_k = self.kernels(spec, levels)
+        # The CPU's accumulate kernel on every backend: the run's own (compiled once for all).
+        self.accumulate_k = accumulate_kernel(spec, config.observables)
+        self.difference_k = difference_kernel(spec) if differences else None
+        self.key0, self.key1 = config.keys.main
+        self.record = spec.noise.record(config)
+        self.run = integrator.run_record(config)
+        self.n_times = len(config.times)
+        self.n_sums = observables_.n_sums(config)
+        self.differences = np.zeros((self.n_times, 4, N_SUMS)) if differences else None
+        self.p0 = 0
+        self.n = 0
+
+    @staticmethod
+    def kernels(spec: Spec, levels: int) -> tuple[Any, Any]:
+        """The backend's init and levels kernels."""
+        return init_kernel(spec), levels_kernel(spec, levels)
+
+    @staticmethod
+    def default_chunk_paths(precision: str) -> int:
+        return 1 << 18
+
+    def empty_sums(self) -> LevelSums:
+        """The run's zeroed accumulator (``runner.run_batches`` adds each chunk's results)."""
+        return LevelSums.empty(self.config.n_batches, self.n_times, self.levels, self.n_sums)
+
+    def start(self, p0: int, n: int, nb: int) -> None:
+        """The start of sets ``p0 .. p0 + n - 1`` (batches: nb): every member at its path's."""
+        c = self.config
+        self.p0, self.n, self.nb = p0, n, nb
+        self.path0 = _U64(rng.COUPLED_PATH0 + p0)
+        self.members = [np.empty(n) for _ in range(2 * self.levels)]
+        self.xi, self.xi_aux, self.t, self.t_comp = (np.empty(n) for _ in range(4))
+        self.k = np.empty(n, dtype=np.uint64)
+        self.status = np.empty(n, dtype=np.uint8)
+        x, Omega = self.members[0], self.members[1]
+        self.init((x, Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k, self.status), self.key0,
+                  self.key1, self.path0, 0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
+                  0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
+        if initial.temperature(c) > 0.0:  # as the run's paths (stochpend.initial)
+            x[:], Omega[:] = initial.boltzmann(c, int(self.path0), n)
+        # The additive channel's state, shared by the members as xi is (a run with it).
+        self.additive = initial.additive_states(c, int(self.path0), n)
+        for m in range(1, self.levels):
+            self.members[2 * m][:] = x
+            self.members[2 * m + 1][:] = Omega
+        self.chunk_sums = np.zeros((nb, self.n_times, self.levels, self.n_sums))
+
+    def load(self, p0: int, arrays: dict[str, np.ndarray]) -> None:
+        raise NotImplementedError("coupled levels are not checkpointed")
+
+    def max_steps(self) -> int:
+        return max(MIN_STEPS_PER_CALL, WORK_PER_CALL // 2 // max(self.n, 1))
+
+    def state(self) -> tuple[np.ndarray, ...]:
+        """The kernels' state tuple (``integrator.level_positions``)."""
+        return (*self.members, self.xi, self.xi_aux, self.t, self.t_comp, self.k, self.status,
+                *self.additive)
+
+    def advance(self, t_target: float, max_steps: int) -> bool:
+        _, unfinished = self.advance_k(self.state(), t_target, max_steps, self.key0, self.key1,
+                                       self.path0, self.record, self.run)
+        return unfinished == 0
+
+    def time_sum(self, t_target: float, done: bool) -> float:
+        return float(np.sum(self.t))
+
+    def host_members(self) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
+        """The members' (x, Omega) arrays, xi, t and status, on the host."""
+        return self.members, self.xi, self.t, self.status
+
+    def put_status(self, status: np.ndarray) -> None:
+        """The status the accumulate kernel marked, back where the kernels read it."""
+
+    def accumulate(self, j: int, edges_j: np.ndarray) -> None:
+        """The members' sums at output time j: member 0 (marking the sets whose member 0
+        overflows), each finer member (marking its own), and, only when a finer member marked a
+        set, the members before the last again, without it: each sum in path order, as the
+        run's are."""
+        c = self.config
+        members, xi, t, status = self.host_members()
+        hist = np.zeros((self.nb, 2), dtype=np.int64)  # the kernel counts energies; not used
+        tracks = np.zeros((0, self.n))
+        q = self.run[1]
+        sums = self.chunk_sums[:, j]
+
+        def add(m: int) -> None:
+            self.accumulate_k(members[2 * m], members[2 * m + 1], xi, t, status, tracks, c.omega**2, q,
+                              c.batch_size, _NO_EDGES, sums[:, m], hist)
+
+        add(0)
+        marked = np.count_nonzero(status)
+        for m in range(1, self.levels):
+            add(m)
+        if np.count_nonzero(status) != marked:
+            for m in range(self.levels - 1):
+                add(m)
+        self.put_status(status)  # sets whose moments overflowed stay excluded
+        if self.difference_k is not None and self.differences is not None:
+            self.difference_k(members[0], members[1], members[2], members[3], status, c.omega**2, q,
+                              self.differences[j])
+
+    def steps(self) -> int:
+        """The finest member's draws (each of its steps one; member m takes 2**(m + 1 - levels)
+        as many steps)."""
+        return int(np.sum(self.k, dtype=np.uint64))
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        raise NotImplementedError("coupled levels are not checkpointed")
+
+    def results(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """The finished chunk's per-batch sums and the run's differences so far."""
+        return self.chunk_sums, self.differences
+
+    def final_tracks(self) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError("coupled levels carry no per-path accumulators")

@@ -47,6 +47,7 @@ from numba.extending import register_jitable
 from numba.np import numpy_support
 
 from stochpend import dynamics, initial, integrator, observables, rng
+from stochpend._backends import cpu
 from stochpend._backends.layout import path_dtypes
 from stochpend._jitcache import own_index
 from stochpend.integrator import Spec
@@ -347,60 +348,69 @@ def levels_kernel(spec: Spec, levels: int):
     return advance
 
 
-class PairEngine:
-    """Device arrays of a chunk of coupled pairs (:mod:`stochpend.bias` on a GPU run): the
-    pairs start like the run's paths (the Spec's ``init`` kernel, then fine = coarse) and are
-    advanced by :func:`pair_advance_kernel`; per output time the host copies back the members'
-    state, which the CPU's pair sums then add up (so, given the states, the same sums)."""
+class LevelEngine(cpu.LevelEngine):
+    """Device arrays of a chunk of coupled members (``runner.run_batches`` with ``levels`` > 1
+    on a GPU run: the bias estimate's pairs): the members start like the run's paths (the
+    Spec's ``init`` kernel, then every member at member 0's start) and are advanced by
+    :func:`levels_kernel`; per output time the host copies back the members' state, which the
+    CPU's accumulate kernel then sums (so, given the states, the CPU's sums)."""
 
-    def __init__(self, config: SimulationConfig, spec: Spec, p0: int | np.uint64, n: int) -> None:
+    name = "cuda"
+
+    @staticmethod
+    def kernels(spec: Spec, levels: int) -> tuple[Any, Any]:
         _require(spec.precision)
-        self.config = config
-        self.init = init_kernel(spec)
-        self.advance_k = pair_advance_kernel(spec)
-        self.key0, self.key1 = config.keys.main
-        self.p0, self.n = p0, n
-        self.record = spec.noise.record(config)
-        self.run = integrator.run_record(config)
-        c = config
+        return init_kernel(spec), levels_kernel(spec, levels)
+
+    def start(self, p0: int, n: int, nb: int) -> None:
+        c = self.config
+        self.p0, self.n, self.nb = p0, n, nb
+        self.path0 = np.uint64(rng.COUPLED_PATH0 + p0)
         with _quiet():
-            self.d = [cuda.device_array(n, dtype=np.float64) for _ in range(8)]
+            self.d = [cuda.device_array(n, dtype=np.float64) for _ in range(2 * self.levels + 4)]
             self.d_k = cuda.device_array(n, dtype=np.uint64)
             self.d_status = cuda.device_array(n, dtype=np.uint8)
             self.flag = cuda.device_array(1, dtype=np.int32)
-            x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp = self.d
+            x, Omega = self.d[0], self.d[1]
+            xi, xi_aux, t, t_comp = self.d[2 * self.levels:]
             self.init[_blocks(n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
                 (x, Omega, xi, xi_aux, t, t_comp, self.d_k, self.d_status), self.key0, self.key1,
-                p0, 0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
+                self.path0, 0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
                 0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
             if initial.temperature(c) > 0.0:  # as the run's paths (Engine.start)
-                bx, bO = initial.boltzmann(c, int(p0), n)
+                bx, bO = initial.boltzmann(c, int(self.path0), n)
                 x.copy_to_device(bx)
                 Omega.copy_to_device(bO)
             # The additive channel's state (a run with it), shared by the members as xi is.
-            self.extra = tuple(cuda.to_device(a) for a in initial.additive_states(c, int(p0), n))
-            xf.copy_to_device(x)
-            Omegaf.copy_to_device(Omega)
+            self.extra = tuple(cuda.to_device(a) for a in initial.additive_states(c, int(self.path0), n))
+            for m in range(1, self.levels):
+                self.d[2 * m].copy_to_device(x)
+                self.d[2 * m + 1].copy_to_device(Omega)
         self._zero_flag = np.zeros(1, dtype=np.int32)
+        self.chunk_sums = np.zeros((nb, self.n_times, self.levels, self.n_sums))
 
     def advance(self, t_target: float, max_steps: int) -> bool:
-        """One launch towards t_target; True when every live pair has landed on it."""
+        """One launch towards t_target; True when every live set has landed on it."""
         with _quiet():
             self.flag.copy_to_device(self._zero_flag)
             self.advance_k[_blocks(self.n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
                 (*self.d, self.d_k, self.d_status, *self.extra), t_target, max_steps, self.key0,
-                self.key1, self.p0, self.record, self.run, self.flag)
+                self.key1, self.path0, self.record, self.run, self.flag)
             return int(self.flag.copy_to_host()[0]) == 0
 
-    def members(self) -> tuple[np.ndarray, ...]:
-        """Host copies of (x, Omega, xf, Omegaf, xi, t, status) (the pair's members share xi, t)."""
-        x, Omega, xf, Omegaf, xi, _, t, _ = (a.copy_to_host() for a in self.d)
-        return x, Omega, xf, Omegaf, xi, t, self.d_status.copy_to_host()
+    def time_sum(self, t_target: float, done: bool) -> float:
+        return 0.0
 
-    def set_status(self, status: np.ndarray) -> None:
+    def host_members(self) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
+        """Host copies of the members' (x, Omega), xi, t and the status (the members share xi, t)."""
+        members = [a.copy_to_host() for a in self.d[:2 * self.levels]]
+        xi, t = self.d[2 * self.levels].copy_to_host(), self.d[2 * self.levels + 2].copy_to_host()
+        return members, xi, t, self.d_status.copy_to_host()
+
+    def put_status(self, status: np.ndarray) -> None:
         self.d_status.copy_to_device(status)
 
-    def draws(self) -> int:
+    def steps(self) -> int:
         return int(np.sum(self.d_k.copy_to_host(), dtype=np.uint64))
 
 
