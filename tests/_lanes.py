@@ -13,7 +13,8 @@ def assert_lanes_equal_one_path(run: dict, config, monkeypatch, *, finite_bias: 
     """``simulate(**run)`` in the SIMD lanes equals the one-path loop of the same fast-math Spec,
     bit for bit (a run with an accumulator goes one path at a time), and so do the bias pairs'
     lanes against the one-pair loop (``bias.estimate`` of ``config``, the same run's
-    configuration, with ``cpu.pair_advance_kernel`` replaced through ``monkeypatch``).
+    configuration, with ``cpu.levels_kernel`` replaced by the one-pair kernel through
+    ``monkeypatch``).
     ``finite_bias``: every pair estimate is finite too."""
     lanes = stochpend.simulate(**run, bias_paths=64)
     one_path = stochpend.simulate(**run, bias_paths=64, observables=("displacement",))
@@ -21,8 +22,10 @@ def assert_lanes_equal_one_path(run: dict, config, monkeypatch, *, finite_bias: 
     for name in lanes.data_vars:
         assert np.array_equal(lanes[name].values, one_path[name].values, equal_nan=True), name
     a = bias.estimate(config, 64)
-    monkeypatch.setattr(cpu, "pair_advance_kernel", cpu._pair_path_kernel)
+    asked = []
+    monkeypatch.setattr(cpu, "levels_kernel", lambda spec, levels: asked.append(levels) or cpu._pair_path_kernel(spec))
     b = bias.estimate(config, 64)
+    assert asked == [2] and b.path_steps == a.path_steps  # the pairs ran in the one-pair loop
     for name in a.bias:
         assert np.array_equal(a.bias[name][0], b.bias[name][0], equal_nan=True), name
         if finite_bias:

@@ -898,6 +898,7 @@ class LevelEngine:
         self.run = integrator.run_record(config)
         self.n_times = len(config.times)
         self.n_sums = observables_.n_sums(config)
+        self.n_tracks = len(observables_.accumulators(observables_.objects(config.observables)))
         self.differences = np.zeros((self.n_times, 4, N_SUMS)) if differences else None
         self.p0 = 0
         self.n = 0
@@ -971,7 +972,7 @@ class LevelEngine:
         c = self.config
         members, xi, t, status = self.host_members()
         hist = np.zeros((self.nb, 2), dtype=np.int64)  # the kernel counts energies; not used
-        tracks = np.zeros((0, self.n))
+        tracks = np.zeros((self.n_tracks, self.n))  # the accumulators' slots, which the members lack
         q = self.run[1]
         sums = self.chunk_sums[:, j]
 
