@@ -393,8 +393,7 @@ def simulate(
 
     if ctx is not None:
         _config_keys_in_use(ctx)
-    from stochpend.simulate import resolve_backend
-    from stochpend.simulate import simulate as run_simulation
+    from stochpend.lifecycle import Run, execute, resolve_backend
 
     load_plugins(plugin)
     if out is not None:
@@ -427,8 +426,7 @@ def simulate(
         from stochpend._cli_scale import parse_duration
         from stochpend._cli_target import simulate_target
 
-        if checkpoint_every is not None and checkpoint is None:
-            raise ValueError(f"checkpoint_every={checkpoint_every!r} is not accepted: it needs --checkpoint FILE")
+        _check_checkpoint_every(checkpoint, checkpoint_every)
         simulate_target(config, target_error=target_error, target_confidence=target_confidence,
                         target_statistics=target_statistics, target_times=target_times,
                         backend=backend, precision=precision, max_path_steps=max_path_steps,
@@ -441,13 +439,8 @@ def simulate(
     if max_seconds is not None:
         raise ValueError(f"max_seconds={max_seconds!r} is not accepted without --target-error: the "
                          "wall-time budget is a target run's (bound other runs' work with --max-path-steps)")
-    from stochpend import bias as _bias
-
-    accuracy, rtol = _bias.check_accuracy(accuracy, rtol)
-    if bias_paths is not None:
-        bias_paths = _bias.check_bias_paths(bias_paths, config.paths)
-    if checkpoint_every is not None and checkpoint is None:
-        raise ValueError(f"checkpoint_every={checkpoint_every!r} is not accepted: it needs --checkpoint FILE")
+    accuracy, rtol, bias_paths = _checked_accuracy(config, accuracy, rtol, bias_paths)
+    _check_checkpoint_every(checkpoint, checkpoint_every)
     backend = resolve_backend(backend, note=note)  # 'auto' on a broken CUDA stack: a note
     # Memory and work, before any work: a run that cannot fit or would not end is refused.
     estimate = resources.check(config, backend=backend, precision=precision, max_path_steps=max_path_steps,
@@ -479,40 +472,63 @@ def simulate(
         # The API raises its notes as warnings; the command prints them itself, below the table.
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", StochpendWarning)
-            ds = run_simulation(
-                noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max,
-                times=parse_times(times), n_times=n_times, seed=seed, theta0=parse_theta0(theta0),
-                Omega0=Omega0, backend=backend, threads=threads, progress=progress,
-                precision=precision, max_path_steps=max_path_steps, bias_paths=bias_paths,
-                accuracy=accuracy, rtol=rtol, observables=config.observables, **kwargs, **noise_params,
-            )
-        ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
-        if config_file is not None and ctx is not None:  # provenance: the file as it was read
-            ds.attrs["config_file"] = str(config_file)
-            ds.attrs["config_text"] = ctx.meta.get("stochpend.config_text", "")
+            ds = execute(Run.build(config, backend=backend, precision=precision, threads=threads,
+                                   bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
+                                   max_path_steps=max_path_steps), progress=progress)[0]
+        _provenance(ds, config_file, ctx)
         if out is not None:
             io.to_netcdf(ds, out, overwrite=overwrite)
     if not quiet:
-        results.print(summary_table(ds, width=results.width, more=_cli_common.rows_hint(out)))
-        extra = observables_table(ds, width=results.width)
-        if extra is not None:
-            results.print(extra)
-        for line in joint_lines(ds):
-            results.print(line, markup=False, highlight=False)
-        for table in passage_tables(ds):
-            results.print(table)
-        for line in bias_warnings(ds, shown_rows(ds)):
+        _print_run(ds, out)
+
+
+def _provenance(ds: Any, config_file: Path | None, ctx: typer.Context | None) -> None:
+    """The command line, and the --config file as it was read, in the result's attrs."""
+    ds.attrs["command_line"] = " ".join(["stochpend", *sys.argv[1:]])
+    if config_file is not None and ctx is not None:
+        ds.attrs["config_file"] = str(config_file)
+        ds.attrs["config_text"] = ctx.meta.get("stochpend.config_text", "")
+
+
+def _print_run(ds: Any, out: Path | None) -> None:
+    """A run's results on stdout (the summary table, the observables', the joint histogram's
+    lines, the first passages') and its warnings and notes on stderr."""
+    results.print(summary_table(ds, width=results.width, more=_cli_common.rows_hint(out)))
+    extra = observables_table(ds, width=results.width)
+    if extra is not None:
+        results.print(extra)
+    for line in joint_lines(ds):
+        results.print(line, markup=False, highlight=False)
+    for table in passage_tables(ds):
+        results.print(table)
+    for line in bias_warnings(ds, shown_rows(ds)):
+        console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
+    for line in bias_notes(ds):
+        note(line)
+    nonfinite_line(ds)
+    for kind, line in growth_lines(ds):
+        if kind == "warning":
             console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
-        for line in bias_notes(ds):
+        else:
             note(line)
-        nonfinite_line(ds)
-        for kind, line in growth_lines(ds):
-            if kind == "warning":
-                console.print(f"[yellow]{escape(line)}[/]", highlight=False, soft_wrap=True)
-            else:
-                note(line)
-        if out is not None:
-            console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
+    if out is not None:
+        console.print(f"wrote {markup(out)}", highlight=False, soft_wrap=True)
+
+
+def _checked_accuracy(config: Any, accuracy: str, rtol: float | None,
+                      bias_paths: int | None) -> tuple[str, float | None, int | None]:
+    """--accuracy, --rtol and --bias-paths, checked (stochpend.bias) before any work."""
+    from stochpend import bias
+
+    accuracy, rtol = bias.check_accuracy(accuracy, rtol)
+    if bias_paths is not None:
+        bias_paths = bias.check_bias_paths(bias_paths, config.paths)
+    return accuracy, rtol, bias_paths
+
+
+def _check_checkpoint_every(checkpoint: Path | None, checkpoint_every: str | None) -> None:
+    if checkpoint_every is not None and checkpoint is None:
+        raise ValueError(f"checkpoint_every={checkpoint_every!r} is not accepted: it needs --checkpoint FILE")
 
 
 def growth_lines(ds: Any) -> list[tuple[str, str]]:
