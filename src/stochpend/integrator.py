@@ -498,6 +498,157 @@ def the_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNa
     return register_jitable(_named(step, name))
 
 
+def _finest(LEVELS: int, real: Any) -> Any:
+    """``finest(h)``: the finest of ``LEVELS`` members' step, h/2**(LEVELS - 1) (exact: a power
+    of two), for the noise's coefficients; chosen here, so that one member's loop has no
+    branch for it."""
+    FINEST = real(0.5 ** (LEVELS - 1))
+    if LEVELS == 1:
+        def finest(h):
+            return h
+    else:
+        def finest(h):
+            return FINEST * h
+    return register_jitable(_named(finest, f"finest_of{LEVELS}"))
+
+
+def _loop_positions(LEVELS: int, TRACKED: bool, CHANNEL_STATE: bool, CHANNEL: bool) -> SimpleNamespace:
+    """Where a step loop's state tuple keeps each array, by name: member m's x and Omega at
+    ``X<m>``, ``O<m>`` (2 m and 2 m + 1, :func:`level_positions`; x's and Omega's, read and
+    never written, for a member beyond ``LEVELS``: ``HAS<m>`` false), ``XI, XA, T, TC, K, ST``
+    (xi, xi_aux, t, t_comp, k, status), then the accumulators' slots ``TRK``, the additive
+    channel's xi_a ``ADD`` and the generic channel's aux_a ``AUXA``, each only when the Spec
+    has it (``TRACKED``, ``CHANNEL_STATE``: the OU or the generic channel, ``CHANNEL``); 0
+    (x's, never read) otherwise.
+
+    Constant indices, like every array of the loop: not a function returning ``state[8]``,
+    which numba-cuda refuses ("Only accept returning of array passed into the function as
+    argument"), so the tracked kernels did not compile for a real GPU (the CPU and the
+    simulator accept it)."""
+    XI, XA, T, TC, K, ST = level_positions(LEVELS)
+    ADD = ST + 1 + (1 if TRACKED else 0) if CHANNEL_STATE else 0
+    X1, X2, X3 = (2 * m if m < LEVELS else 0 for m in range(1, _MAX_LEVELS))
+    O1, O2, O3 = (2 * m + 1 if m < LEVELS else 1 for m in range(1, _MAX_LEVELS))
+    HAS1, HAS2, HAS3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
+    return SimpleNamespace(X1=X1, X2=X2, X3=X3, O1=O1, O2=O2, O3=O3, HAS1=HAS1, HAS2=HAS2, HAS3=HAS3,
+                           XI=XI, XA=XA, T=T, TC=TC, K=K, ST=ST, TRK=ST + 1 if TRACKED else 0,
+                           ADD=ADD, AUXA=ADD + 1 if CHANNEL else 0, CHANNEL_STATE=CHANNEL_STATE,
+                           CHANNEL=CHANNEL)
+
+
+def _path_io(LEVELS: int, at: SimpleNamespace, real: Any, a_load_aux: Any, flat: Any) -> tuple[Any, Any]:
+    """``load_channel(i, state) -> (xc, xca)`` and ``write_back(i, state, mem, xn, xa, xc, xca,
+    tt, tc, kk, bad)``: a step loop's reads of the additive channel's state of path i and its
+    write-back of the path, at the positions ``at`` (:func:`_loop_positions`)."""
+    I_X1, I_X2, I_X3, I_O1, I_O2, I_O3 = at.X1, at.X2, at.X3, at.O1, at.O2, at.O3
+    HAS_1, HAS_2, HAS_3 = at.HAS1, at.HAS2, at.HAS3
+    I_XI, I_XA, I_T, I_TC, I_K, I_ST = at.XI, at.XA, at.T, at.TC, at.K, at.ST
+    I_ADD, I_AUXA, CHANNEL_STATE, CHANNEL = at.ADD, at.AUXA, at.CHANNEL_STATE, at.CHANNEL
+
+    def load_channel(i, state):
+        """The additive channel's state of path i: xi_a (the OU and the generic channel) and
+        aux_a (the generic channel); zeros without them (no array read)."""
+        if CHANNEL_STATE:
+            xc = real(state[I_ADD][i])
+        else:
+            xc = real(0.0)
+        if CHANNEL:
+            xca = a_load_aux(state[I_AUXA][i])
+        else:
+            xca = real(0.0)
+        return xc, xca
+
+    def write_back(i, state, mem, xn, xa, xc, xca, tt, tc, kk, bad):
+        """Path i's members, noise, channel, clock and draw counter back into ``state``."""
+        out = flat(mem)
+        state[0][i] = out[0]
+        state[1][i] = out[1]
+        if HAS_1:
+            state[I_X1][i] = out[2]
+            state[I_O1][i] = out[3]
+        if HAS_2:
+            state[I_X2][i] = out[4]
+            state[I_O2][i] = out[5]
+        if HAS_3:
+            state[I_X3][i] = out[6]
+            state[I_O3][i] = out[7]
+        state[I_XI][i] = xn
+        state[I_XA][i] = xa
+        if CHANNEL_STATE:
+            state[I_ADD][i] = xc
+        if CHANNEL:
+            state[I_AUXA][i] = xca
+        state[I_T][i] = tt
+        state[I_TC][i] = tc
+        state[I_K][i] = kk
+        if bad:
+            state[I_ST][i] = 1
+
+    load_channel = register_jitable(_named(load_channel, f"load_channel{LEVELS}"))
+    write_back = register_jitable(_named(write_back, f"write_back{LEVELS}"))
+    return load_channel, write_back
+
+
+def _step_choice(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace, family: SimpleNamespace,
+                 channel: SimpleNamespace, control: SimpleNamespace) -> Any:
+    """``choose_step(mem, xn, xa, xc, xca, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d)``
+    and ``at_events(xn, xa, xc, xca, t_land, t_ev, t_ev_a, keys, path, kk, p, pan)`` of a step
+    loop (:func:`_step_loop`'s bundles): the step control and the landing, and the noises'
+    events where a step landed on one."""
+    step_size = oscillator.step_size
+    escape = control.escape
+    ADAPTIVE = control.ADAPTIVE
+    FAMILY = family.FAMILY
+    family_bounds = family.family_bounds
+    HAS_EVENTS = noise.HAS_EVENTS
+    next_event = noise.next_event
+    CHANNEL_EVENTS = channel.CHANNEL_EVENTS
+    a_next_event = channel.a_next_event
+    at_event = noise.at_event
+    a_at_event = channel.a_at_event
+
+    def choose_step(mem, xn, xa, xc, xca, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d):
+        """The step from tt: the step control's (or h_max), landing on t_target or cut at the
+        noises' next events. Returns ``(h_clock, last, event, t_land, t_ev, t_ev_a, bad)``,
+        ``bad`` when the path is running away (see ESCAPE_STEP_FRACTION; the rest unused)."""
+        t_ev = math.inf
+        t_ev_a = math.inf
+        if ADAPTIVE:
+            h = step_size(mem[0], mem[1], xn, h_max_r, c_r, omega2_r, q)
+            if FAMILY:
+                h = family_bounds(h, c_r, d)
+            if h < escape * h_max_r:
+                return h_max, False, False, t_target, t_ev, t_ev_a, True
+        else:
+            h = h_max_r
+        h_clock = h_max if h == h_max_r else np.float64(h)
+        if CHANNEL_EVENTS:  # cut at the earlier of the two channels' next events
+            t_ev = next_event(xn, xa)
+            t_ev_a = a_next_event(xc, xca)
+            h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target, min(t_ev, t_ev_a))
+        elif HAS_EVENTS:
+            h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target, next_event(xn, xa))
+        else:
+            h_clock, last = landing_step(tt, h_clock, t_target)
+            event = False
+            t_land = t_target
+        return h_clock, last, event, t_land, t_ev, t_ev_a, False
+
+    def at_events(xn, xa, xc, xca, t_land, t_ev, t_ev_a, keys, path, kk, p, pan):
+        """After a step that landed on an event: the noise's (``t_land == t_ev``) and the
+        generic channel's (``t_land == t_ev_a``) jumps (a noise without events: none)."""
+        if CHANNEL_EVENTS:
+            if HAS_EVENTS and t_land == t_ev:
+                xn, xa = at_event(xn, xa, keys[0], keys[1], path, kk, p)
+            if t_land == t_ev_a:
+                xc, xca = a_at_event(xc, xca, keys[2], keys[3], path, kk, pan)
+        elif HAS_EVENTS:
+            xn, xa = at_event(xn, xa, keys[0], keys[1], path, kk, p)
+        return xn, xa, xc, xca
+
+    return (register_jitable(_named(choose_step, f"choose_step{LEVELS}")),
+            register_jitable(_named(at_events, f"at_events{LEVELS}")))
+
 def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace, family: SimpleNamespace,
                channel: SimpleNamespace, control: SimpleNamespace, *, inline: bool = False) -> Any:
     """The step loop of ``LEVELS`` coupled members (1: one path, :func:`advance_path`; 2: the
@@ -515,44 +666,24 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
     closure captures each piece as it did when it was written inside :func:`build`."""
     real = oscillator.real
     half = oscillator.half
-    step_size = oscillator.step_size
-    escape = control.escape
-    ADAPTIVE = control.ADAPTIVE
     TRACK = control.TRACK
     track_step = control.track_step
-    HAS_EVENTS = noise.HAS_EVENTS
     load_aux = noise.load_aux
     scratch0 = noise.scratch0
     coefficients = noise.coefficients
-    next_event = noise.next_event
-    at_event = noise.at_event
     FAMILY = family.FAMILY
     ADDITIVE_OU = family.ADDITIVE_OU
     dyn_of = family.dyn_of
-    family_bounds = family.family_bounds
     ou_record = family.ou_record
     ou_coefficients = family.ou_coefficients
     CHANNEL = channel.CHANNEL
-    CHANNEL_EVENTS = channel.CHANNEL_EVENTS
     channel_of = channel.channel_of
-    a_load_aux = channel.a_load_aux
     a_scratch0 = channel.a_scratch0
     a_coefficients = channel.a_coefficients
-    a_next_event = channel.a_next_event
-    a_at_event = channel.a_at_event
 
     DEPTH = LEVELS - 1
     DRAWS = 2 ** DEPTH
-    # The finest member's step, h/2**DEPTH (exact: a power of two), for the noise's coefficients;
-    # chosen here, so that one member's loop has no branch for it.
-    FINEST = real(0.5 ** DEPTH)
-    if DEPTH == 0:
-        def finest(h):
-            return h
-    else:
-        def finest(h):
-            return FINEST * h
-    finest = register_jitable(_named(finest, f"finest_of{LEVELS}"))
+    finest = _finest(LEVELS, real)
     if FAMILY:
         members_step = _member_tree(DEPTH, family.family_step, family.additive_sum, half)
     else:
@@ -562,26 +693,13 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
     step = the_step(LEVELS, draws, members_step, family, channel, inline=inline)
     nest, flat = _member_tuples(LEVELS)
     assert LEVELS <= _MAX_LEVELS
-    # Member m's x and Omega: the state's arrays 2 m and 2 m + 1 (level_positions); x's and
-    # Omega's for a member beyond LEVELS (read, never written: every store is under HAS_m).
-    I_X1, I_X2, I_X3 = (2 * m if m < LEVELS else 0 for m in range(1, _MAX_LEVELS))
-    I_O1, I_O2, I_O3 = (2 * m + 1 if m < LEVELS else 1 for m in range(1, _MAX_LEVELS))
-    HAS_1, HAS_2, HAS_3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
-
-    I_XI, I_XA, I_T, I_TC, I_K, I_ST = level_positions(LEVELS)
     TRACKED = TRACK and LEVELS == 1
-    # The accumulators' slots (n_slots, n_paths): the state's array after status, taken by a
-    # constant index like every array here. Not through a function returning ``state[8]``:
-    # numba-cuda refuses a device function that returns an array it was not passed ("Only
-    # accept returning of array passed into the function as argument"), so the tracked
-    # kernels did not compile for a real GPU (the CPU and the simulator accept it). x's in a
-    # Spec without accumulators (not read: see ``tracks`` below).
-    I_TRK = I_ST + 1 if TRACKED else 0
-    # The additive OU noise's xi_a: the state's array after the others (the slots too); a
-    # constant index (as every array here, see below), x's in a Spec without it (unused).
-    I_ADD = I_ST + 1 + (1 if TRACKED else 0) if (ADDITIVE_OU or CHANNEL) else 0
-    # The generic channel's aux_a: right after its xi_a.
-    I_AUXA = I_ADD + 1 if CHANNEL else 0
+    at = _loop_positions(LEVELS, TRACKED, ADDITIVE_OU or CHANNEL, CHANNEL)
+    I_X1, I_X2, I_X3, I_O1, I_O2, I_O3 = at.X1, at.X2, at.X3, at.O1, at.O2, at.O3
+    HAS_1, HAS_2, HAS_3 = at.HAS1, at.HAS2, at.HAS3
+    I_XI, I_XA, I_T, I_TC, I_K, I_ST, I_TRK = at.XI, at.XA, at.T, at.TC, at.K, at.ST, at.TRK
+    load_channel, write_back = _path_io(LEVELS, at, real, channel.a_load_aux, flat)
+    choose_step, at_events = _step_choice(LEVELS, noise, oscillator, family, channel, control)
 
     def advance(i, state, t_target, max_steps, key0, key1, path0, p, run):
         # The arrays of a tuple are taken by index, never unpacked (``x, Omega, ... =
@@ -589,60 +707,34 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         # once it had inlined an ``inline="always"`` function (the fast-math OU
         # coefficients) into this function's IR. The same in every function here that
         # takes a tuple of arrays.
-        x = state[0]
-        Omega = state[1]
-        x1 = state[I_X1]
-        Omega1 = state[I_O1]
-        x2 = state[I_X2]
-        Omega2 = state[I_O2]
-        x3 = state[I_X3]
-        Omega3 = state[I_O3]
-        xi = state[I_XI]
-        xi_aux = state[I_XA]
-        t = state[I_T]
-        t_comp = state[I_TC]
-        k = state[I_K]
-        status = state[I_ST]
-        if status[i] != 0 or t[i] >= t_target:
+        if state[I_ST][i] != 0 or state[I_T][i] >= t_target:
             return 0, 0
         omega2 = run[0]
         q = run[1]
         h_max = run[2]
-        step_c = run[3]
         d = dyn_of(run)
         omega2_r = real(omega2)
         h_max_r = real(h_max)
-        c_r = real(step_c)
+        c_r = real(run[3])
         path = _U64(path0 + i)
-        mem = nest(x[i], Omega[i], x1[i], Omega1[i], x2[i], Omega2[i], x3[i], Omega3[i])
-        xn = xi[i]
-        xa = load_aux(xi_aux[i])
-        tt = t[i]
-        tc = t_comp[i]
-        kk = k[i]
+        mem = nest(state[0][i], state[1][i], state[I_X1][i], state[I_O1][i], state[I_X2][i],
+                   state[I_O2][i], state[I_X3][i], state[I_O3][i])
+        xn = state[I_XI][i]
+        xa = load_aux(state[I_XA][i])
+        tt = state[I_T][i]
+        tc = state[I_TC][i]
+        kk = state[I_K][i]
         if TRACKED:  # a compile-time constant: an untracked kernel reads no array for it
             tracks = state[I_TRK]
         else:
             tracks = 0
-        # The additive channel's state (xi_a and, for the generic channel, aux_a), the OU
-        # channel's record, the generic channel's record and key; t_ev, t_ev_a the noise's and
-        # the generic channel's next events (noises with events).
-        xa_arr = state[I_ADD]
-        aux_arr = state[I_AUXA]
-        if ADDITIVE_OU or CHANNEL:
-            xc = real(xa_arr[i])
-        else:
-            xc = real(0.0)
-        if CHANNEL:
-            xca = a_load_aux(aux_arr[i])
-        else:
-            xca = real(0.0)
+        # The additive channel's state, the OU channel's record, the generic channel's record
+        # and key; t_ev, t_ev_a the noise's and the generic channel's next events.
+        xc, xca = load_channel(i, state)
         pa = ou_record(d)
         pan, kan = channel_of(run)
         keys = (key0, key1, kan[0], kan[1])
         Sa = a_scratch0()
-        t_ev = math.inf
-        t_ev_a = math.inf
         # Everything of the noise's step that depends on h only (with several members, on the
         # finest member's step), cached while h is unchanged (h = h_max most of the time).
         h_cached = h_max_r
@@ -654,28 +746,10 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         steps = 0
         bad = False
         while steps < max_steps:
-            if ADAPTIVE:
-                h = step_size(mem[0], mem[1], xn, h_max_r, c_r, omega2_r, q)
-                if FAMILY:
-                    h = family_bounds(h, c_r, d)
-                if h < escape * h_max_r:
-                    bad = True  # running away (see ESCAPE_STEP_FRACTION)
-                    break
-            else:
-                h = h_max_r
-            h_clock = h_max if h == h_max_r else np.float64(h)
-            if CHANNEL_EVENTS:  # cut at the earlier of the two channels' next events
-                t_ev = next_event(xn, xa)
-                t_ev_a = a_next_event(xc, xca)
-                h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
-                                                                 min(t_ev, t_ev_a))
-            elif HAS_EVENTS:
-                h_clock, last, event, t_land = landing_or_event(tt, h_clock, t_target,
-                                                                 next_event(xn, xa))
-            else:
-                h_clock, last = landing_step(tt, h_clock, t_target)
-                event = False
-                t_land = t_target
+            h_clock, last, event, t_land, t_ev, t_ev_a, bad = choose_step(
+                mem, xn, xa, xc, xca, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d)
+            if bad:  # running away
+                break
             h = real(h_clock)
             if h != h_cached:
                 hf = finest(h)
@@ -694,19 +768,10 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             # integral over its step (one member: one draw, its own step).
             mem, ns, cs = step(mem, (xn, xa, S), (xc, xca, Sa), keys, path, kk, h, h_clock, tt,
                                (C, Ca, Can), omega2_r, q, d)
-            xn = ns[0]
-            xa = ns[1]
-            S = ns[2]
-            xc = cs[0]
-            xca = cs[1]
-            Sa = cs[2]
-            if CHANNEL_EVENTS:  # the event of the channel(s) whose time the step landed on
-                if HAS_EVENTS and event and t_land == t_ev:
-                    xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
-                if event and t_land == t_ev_a:
-                    xc, xca = a_at_event(xc, xca, keys[2], keys[3], path, kk, pan)
-            elif HAS_EVENTS and event:
-                xn, xa = at_event(xn, xa, key0, key1, path, kk, p)
+            xn, xa, S = ns
+            xc, xca, Sa = cs
+            if event:  # the event of the noise(s) whose time the step landed on
+                xn, xa, xc, xca = at_events(xn, xa, xc, xca, t_land, t_ev, t_ev_a, keys, path, kk, p, pan)
             kk += _U64(DRAWS)
             steps += 1
             tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
@@ -727,29 +792,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
                            np.float64(xn), t_before, tt)
             if last:
                 break
-        out = flat(mem)
-        x[i] = out[0]
-        Omega[i] = out[1]
-        if HAS_1:
-            x1[i] = out[2]
-            Omega1[i] = out[3]
-        if HAS_2:
-            x2[i] = out[4]
-            Omega2[i] = out[5]
-        if HAS_3:
-            x3[i] = out[6]
-            Omega3[i] = out[7]
-        xi[i] = xn
-        xi_aux[i] = xa
-        if ADDITIVE_OU or CHANNEL:
-            xa_arr[i] = xc
-        if CHANNEL:
-            aux_arr[i] = xca
-        t[i] = tt
-        t_comp[i] = tc
-        k[i] = kk
-        if bad:
-            status[i] = 1
+        write_back(i, state, mem, xn, xa, xc, xca, tt, tc, kk, bad)
         return DRAWS * steps, (1 if (not bad and tt < t_target) else 0)
 
     name = {1: "advance_path", 2: "advance_pair"}.get(LEVELS, f"advance_levels{LEVELS}")
