@@ -423,8 +423,10 @@ def pair_advance_kernel(spec: Spec):
     return _pair_path_kernel(spec)
 
 
+@functools.cache
 def _level_lanes(spec: Spec, levels: int):
-    """The lane machine of ``levels`` members on the workers (:func:`_lanes_kernel`)."""
+    """The lane machine of ``levels`` members on the workers (:func:`_lanes_kernel`): one per
+    (Spec, levels), whichever kernel function asks (the compiled kernels' statistics read it)."""
     return _with_workers(_lanes_kernel(spec, levels), (integrator.lane_f_rows(levels), integrator.LANE_COUNT),
                          (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
                          (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
