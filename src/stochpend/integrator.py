@@ -1472,7 +1472,8 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
     -> (nxt, loaded)`` loads the next path of ``nxt .. hi - 1`` that is neither frozen nor
     finished into ``lane``; ``store(lane, state, scratch, t_target) -> (draws, unfinished)``
     writes the lane's path back; ``idle(scratch, t_target)`` sets every lane idle (harmless
-    numbers that are never written back). The scratch's rows: ``fs`` x, Omega, xi, aux, t,
+    numbers that are never written back); ``refill`` and ``store_and_refill`` do the first
+    two over every lane. The scratch's rows: ``fs`` x, Omega, xi, aux, t,
     t_comp, xi_a, aux_a, then members 1.. 's x and Omega; ``us`` k and the path's counter
     words; ``js`` the path's index (-1: none), steps in this call, active, escaped or
     non-finite."""
@@ -1481,17 +1482,15 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
     a_load_aux = channel.a_load_aux
     CHANNEL = channel.CHANNEL
     XC = steps.pieces["family"].ADDITIVE_OU or CHANNEL
-    I_XI, I_XA, I_T, I_TC, I_K, I_ST = level_positions(LEVELS)
-    I_ADD = I_ST + 1 if XC else 0
-    I_AUXA = I_ADD + 1 if CHANNEL else 0
+    at = _loop_positions(LEVELS, False, XC, CHANNEL)  # the state's arrays, by name
+    I_XI, I_XA, I_T, I_TC, I_K, I_ST, I_ADD, I_AUXA = at.XI, at.XA, at.T, at.TC, at.K, at.ST, at.ADD, at.AUXA
+    X1, X2, X3, O1, O2, O3 = at.X1, at.X2, at.X3, at.O1, at.O2, at.O3
+    HAS_1, HAS_2, HAS_3 = at.HAS1, at.HAS2, at.HAS3
     F_ROWS = lane_f_rows(LEVELS)
     DRAWS = 2 ** (LEVELS - 1)
-    # Member m's x in the state (2 m) and in fs (row R_m; Omega the next of each); members beyond
-    # LEVELS take member 0's, never touched (every use is under HAS_m).
-    X1, X2, X3 = (2 * m if m < LEVELS else 0 for m in range(1, _MAX_LEVELS))
-    O1, O2, O3 = (2 * m + 1 if m < LEVELS else 1 for m in range(1, _MAX_LEVELS))
+    # Member m's x in fs (row R_m; Omega the next); members beyond LEVELS take member 0's, never
+    # touched (every use is under HAS_m).
     R1, R2, R3 = (LANE_F_ROWS + 2 * (m - 1) if m < LEVELS else 0 for m in range(1, _MAX_LEVELS))
-    HAS_1, HAS_2, HAS_3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
 
     @register_jitable
     def load(lane, i, state, path0, scratch):
@@ -1585,7 +1584,94 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
                 js[r, lane] = 0
             js[0, lane] = -1
 
-    return SimpleNamespace(fill=fill, store=store, idle=idle)
+    @register_jitable
+    def refill(nxt, hi, state, t_target, path0, scratch):
+        """Every lane loaded (:func:`fill`): ``(nxt, lanes loaded)``."""
+        n_active = 0
+        for lane in range(LANE_COUNT):
+            nxt, loaded = fill(lane, nxt, hi, state, t_target, path0, scratch)
+            n_active += loaded
+        return nxt, n_active
+
+    @register_jitable
+    def store_and_refill(nxt, hi, state, t_target, path0, scratch, n_active):
+        """Each finished lane written back (:func:`store`) and loaded again (:func:`fill`):
+        ``(nxt, draws, unfinished, n_active)``."""
+        js = scratch[2]
+        draws = 0
+        unfinished = 0
+        for lane in range(LANE_COUNT):
+            if js[0, lane] < 0 or js[2, lane] != 0:
+                continue
+            s, u = store(lane, state, scratch, t_target)
+            draws += s
+            unfinished += u
+            n_active -= 1
+            nxt, loaded = fill(lane, nxt, hi, state, t_target, path0, scratch)
+            n_active += loaded
+        return nxt, draws, unfinished, n_active
+
+    return SimpleNamespace(fill=fill, store=store, idle=idle, refill=refill, store_and_refill=store_and_refill)
+
+
+def _lane_scalars(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> tuple[Any, Any, Any, Any]:
+    """The lane machine's scalar pieces, inlined into its lane loop (:func:`_inline`):
+    ``lane_step(mem, xn, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d) -> (h, h_clock,
+    last, escaped)``, the step control's step (or h_max) landing on t_target, without a branch;
+    ``lane_clock(tt, tc, h_clock, last, t_target) -> (t, t_comp)``, :func:`advance_clock`'s
+    compensated sum written branch-free; ``lane_finite(m, ns)``, whether the members (``flat``)
+    and the noise after the step are finite (bitwise ands: no short-circuit branch);
+    ``lane_records(run, rk0, rk1, d) -> (pa, pan, keys)``: the OU channel's and the generic
+    channel's records and the round keys of the noise and the channel."""
+    real = steps.real
+    step_size = steps.step_size
+    family_bounds = steps.family_bounds
+    ADAPTIVE = spec.adaptive
+    FAMILY = steps.pieces["family"].FAMILY
+    escape = real(ESCAPE_STEP_FRACTION)
+    slack = 1.0 + LANDING_SLACK
+    HAS_1, HAS_2, HAS_3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
+    ou_record = steps.ou_record
+    channel_of = steps.pieces["channel"].channel_of
+
+    def lane_step(mem, xn, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d):
+        if ADAPTIVE:
+            h = step_size(mem[0], mem[1], xn, h_max_r, c_r, omega2_r, q)
+            if FAMILY:
+                h = family_bounds(h, c_r, d)
+            esc = h < escape * h_max_r
+        else:
+            h = h_max_r
+            esc = False
+        h_clock = h_max if h == h_max_r else np.float64(h)
+        last = tt + h_clock * slack >= t_target
+        h_clock = t_target - tt if last else h_clock
+        return real(h_clock), h_clock, last, esc
+
+    def lane_clock(tt, tc, h_clock, last, t_target):
+        y = h_clock - tc
+        t_sum = tt + y
+        tc_new = (t_sum - tt) - y
+        return (t_target if last else t_sum), (0.0 if last else tc_new)
+
+    def lane_finite(m, ns):
+        finite = (math.isfinite(m[0]) & math.isfinite(m[1])
+                  & math.isfinite(ns[0]) & math.isfinite(ns[1]))
+        if HAS_1:
+            finite = finite & math.isfinite(m[2]) & math.isfinite(m[3])
+        if HAS_2:
+            finite = finite & math.isfinite(m[4]) & math.isfinite(m[5])
+        if HAS_3:
+            finite = finite & math.isfinite(m[6]) & math.isfinite(m[7])
+        return finite
+
+    def lane_records(run, rk0, rk1, d):
+        pan, kan = channel_of(run)
+        rka0, rka1 = rng.round_keys(kan[0], kan[1])  # the channel's, the same for every path
+        return ou_record(d), pan, (rk0, rk1, rka0, rka1)
+
+    return (_inline(_named(lane_step, f"lane_step{LEVELS}")), _inline(_named(lane_clock, "lane_clock")),
+            _inline(_named(lane_finite, f"lane_finite{LEVELS}")), _inline(lane_records))
 
 
 def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
@@ -1600,24 +1686,16 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
     channel = steps.pieces["channel"]
     nz = spec.noise.kernel(real, FAST)
     coefficients = nz.coefficients
-    step_size = steps.step_size
-    family_bounds = steps.family_bounds
     ou_coefficients = steps.ou_coefficients
     a_coefficients = steps.a_coefficients
-    ou_record = steps.ou_record
     dyn_of = family.dyn_of
-    channel_of = channel.channel_of
-    ADAPTIVE = spec.adaptive
-    FAMILY = family.FAMILY
     XC = family.ADDITIVE_OU or channel.CHANNEL
     CHANNEL = channel.CHANNEL
     lanes = LANE_COUNT
-    escape = real(ESCAPE_STEP_FRACTION)
-    slack = 1.0 + LANDING_SLACK
     zero_r = real(0.0)
     DRAWS = 2 ** (LEVELS - 1)
     FINEST = real(0.5 ** (LEVELS - 1))
-    if FAMILY:
+    if family.FAMILY:
         members = _member_tree(LEVELS - 1, steps.family_step_inline, steps.additive_sum_inline,
                                oscillator.half, True)
     else:
@@ -1630,26 +1708,26 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
     step = the_step(LEVELS, _keyed_draws(spec, steps), members, family, channel, inline=True)
     nest, flat = _member_tuples(LEVELS)
     scalar = _lane_load_store(spec, LEVELS, steps)
-    fill = scalar.fill
-    store = scalar.store
+    refill = scalar.refill
+    store_and_refill = scalar.store_and_refill
     idle = scalar.idle
     # Member m's rows in fs (row 0 for members beyond LEVELS: read by nest, never written).
     R1, R2, R3 = (LANE_F_ROWS + 2 * (m - 1) if m < LEVELS else 0 for m in range(1, _MAX_LEVELS))
     HAS_1, HAS_2, HAS_3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
+
+    lane_step, lane_clock, lane_finite, lane_records = _lane_scalars(spec, LEVELS, steps)
 
     @register_jitable
     def advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch):
         fs = scratch[0]
         us = scratch[1]
         js = scratch[2]
-        omega2 = run[0]
         q = run[1]
         h_max = run[2]
-        step_c = run[3]
         d = dyn_of(run)
-        omega2_r = real(omega2)
+        omega2_r = real(run[0])
         h_max_r = real(h_max)
-        c_r = real(step_c)
+        c_r = real(run[3])
         bx0 = fs[0]
         bO0 = fs[1]
         bx1 = fs[R1]
@@ -1670,19 +1748,14 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
         bs = js[1]
         ba = js[2]
         bbad = js[3]
-        pa = ou_record(d)
-        pan, kan = channel_of(run)
-        rka0, rka1 = rng.round_keys(kan[0], kan[1])  # the channel's, the same for every path
-        keys = (rk0, rk1, rka0, rka1)
+        pa, pan, keys = lane_records(run, rk0, rk1, d)
         idle(scratch, t_target)
         steps_taken = 0
         unfinished = 0
         nxt = lo
         n_active = 0
         if max_steps > 0:
-            for lane in range(lanes):
-                nxt, loaded = fill(lane, nxt, hi, state, t_target, path0, scratch)
-                n_active += loaded
+            nxt, n_active = refill(nxt, hi, state, t_target, path0, scratch)
         while n_active > 0:
             n_done = 0
             for lane in range(lanes):
@@ -1700,37 +1773,15 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
                 tt = bt[lane]
                 tc = btc[lane]
                 kk = bk[lane]
-                if ADAPTIVE:
-                    h = step_size(mem[0], mem[1], xn, h_max_r, c_r, omega2_r, q)
-                    if FAMILY:
-                        h = family_bounds(h, c_r, d)
-                    esc = h < escape * h_max_r
-                else:
-                    h = h_max_r
-                    esc = False
-                h_clock = h_max if h == h_max_r else np.float64(h)
-                last = tt + h_clock * slack >= t_target
-                h_clock = t_target - tt if last else h_clock
-                h = real(h_clock)
+                h, h_clock, last, esc = lane_step(mem, xn, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d)
                 hf = FINEST * h if LEVELS > 1 else h
                 coef = (coefficients(hf, p), ou_coefficients(hf, pa), a_coefficients(hf, pan))
                 new, ns, cs = step(mem, (xn, xa, zero_r), (xc, xca, zero_r), keys, (bc2[lane], bc3[lane]),
                                    kk, h, h_clock, tt, coef, omega2_r, q, d)
-                y = h_clock - tc
-                t_sum = tt + y
-                tc_new = (t_sum - tt) - y
-                t_new = t_target if last else t_sum
-                tc_new = 0.0 if last else tc_new
+                t_new, tc_new = lane_clock(tt, tc, h_clock, last, t_target)
                 m = flat(new)
                 o = flat(mem)
-                finite = (math.isfinite(m[0]) & math.isfinite(m[1])
-                          & math.isfinite(ns[0]) & math.isfinite(ns[1]))
-                if HAS_1:
-                    finite = finite & math.isfinite(m[2]) & math.isfinite(m[3])
-                if HAS_2:
-                    finite = finite & math.isfinite(m[4]) & math.isfinite(m[5])
-                if HAS_3:
-                    finite = finite & math.isfinite(m[6]) & math.isfinite(m[7])
+                finite = lane_finite(m, ns)
                 act = active != 0
                 go = act & (not esc)
                 steps_after = steps_before + (1 if go else 0)
@@ -1763,15 +1814,9 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
             if n_done == 0:
                 continue
             # Write the finished lanes back and refill them (scalar, rare).
-            for lane in range(lanes):
-                if js[0, lane] < 0 or ba[lane] != 0:
-                    continue
-                s, u = store(lane, state, scratch, t_target)
-                steps_taken += s
-                unfinished += u
-                n_active -= 1
-                nxt, loaded = fill(lane, nxt, hi, state, t_target, path0, scratch)
-                n_active += loaded
+            nxt, s, u, n_active = store_and_refill(nxt, hi, state, t_target, path0, scratch, n_active)
+            steps_taken += s
+            unfinished += u
         return steps_taken, unfinished
 
     name_closures([advance_range, lanes], f"lanes{LEVELS}/{spec.label}")
