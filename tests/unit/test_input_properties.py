@@ -159,7 +159,7 @@ def runner():
 @SETTINGS
 @given(args=cli_args())
 def test_cli_simulate_accepts_or_refuses_in_one_line(runner, args):
-    with mock.patch("stochpend.simulate.run", _accept), \
+    with mock.patch("stochpend.lifecycle.execute", _accept), \
             mock.patch("stochpend._cli_scale.simulate_with_checkpoint", _accept):
         result = runner.invoke(app, args)
     if isinstance(result.exception, _Accepted):

@@ -127,7 +127,7 @@ def test_cli_announces_long_runs_even_when_quiet(args, long_run, compiling):
 
     from stochpend.cli import app
 
-    with (mock.patch("stochpend.simulate.run", _start_then_stop),
+    with (mock.patch("stochpend.lifecycle.execute", _start_then_stop),
           mock.patch("stochpend.resources.compile_seconds", lambda *a, **k: compiling)):
         result = CliRunner().invoke(app, ["simulate", "--quiet", *args])
     assert isinstance(result.exception, _Started), result.output
