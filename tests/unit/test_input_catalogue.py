@@ -152,7 +152,8 @@ def _no_work(*args, **kwargs):
 @pytest.fixture(autouse=True)
 def no_simulation():
     """Every runner replaced: a case that got past validation fails instead of running."""
-    targets = ["stochpend.simulate.run", "stochpend.lifecycle.execute", "stochpend.runner.run_batches", "stochpend.checkpoint.run_checkpointed",
+    targets = ["stochpend.simulate.run", "stochpend.lifecycle.execute", "stochpend.runner.run_batches",
+               "stochpend.checkpoint.run_checkpointed",
                "stochpend.sweep.sweep", "stochpend.reduced._run_chunk", "stochpend.reproduce._simulate"]
     patches = [mock.patch(t, _no_work) for t in targets]
     for p in patches:
