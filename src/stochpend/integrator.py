@@ -589,17 +589,40 @@ def _path_io(LEVELS: int, at: SimpleNamespace, real: Any, a_load_aux: Any, flat:
     return load_channel, write_back
 
 
+def _step_bound(oscillator: SimpleNamespace, family: SimpleNamespace, control: SimpleNamespace, *,
+                inline: bool = False) -> Any:
+    """``bound(mem, xn, h_max_r, c_r, omega2_r, q, d) -> (h, escaped)``: the step control's step
+    from the members ``mem`` and the noise ``xn`` (the oscillator's bound, then the family's
+    terms'; h_max for a fixed step), and whether it fell below ``escape * h_max`` (a path running
+    away: ESCAPE_STEP_FRACTION). Written once for the step loops and the lanes (``inline``: the
+    lanes', inlined by Numba, :func:`_inline`)."""
+    step_size = oscillator.step_size
+    family_bounds = family.family_bounds
+    ADAPTIVE = control.ADAPTIVE
+    FAMILY = family.FAMILY
+    escape = control.escape
+
+    def bound(mem, xn, h_max_r, c_r, omega2_r, q, d):
+        esc = False
+        if ADAPTIVE:
+            h = step_size(mem[0], mem[1], xn, h_max_r, c_r, omega2_r, q)
+            if FAMILY:
+                h = family_bounds(h, c_r, d)
+            esc = h < escape * h_max_r
+        else:
+            h = h_max_r
+        return h, esc
+
+    return _inline(_named(bound, "step_bound_inline")) if inline else register_jitable(bound)
+
+
 def _step_choice(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace, family: SimpleNamespace,
                  channel: SimpleNamespace, control: SimpleNamespace) -> Any:
     """``choose_step(mem, xn, xa, xc, xca, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d)``
     and ``at_events(xn, xa, xc, xca, t_land, t_ev, t_ev_a, keys, path, kk, p, pan)`` of a step
     loop (:func:`_step_loop`'s bundles): the step control and the landing, and the noises'
     events where a step landed on one."""
-    step_size = oscillator.step_size
-    escape = control.escape
-    ADAPTIVE = control.ADAPTIVE
-    FAMILY = family.FAMILY
-    family_bounds = family.family_bounds
+    bound = _step_bound(oscillator, family, control)
     HAS_EVENTS = noise.HAS_EVENTS
     next_event = noise.next_event
     CHANNEL_EVENTS = channel.CHANNEL_EVENTS
@@ -615,14 +638,7 @@ def _step_choice(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespac
         t_ev_a = math.inf
         # No early return for an escaped path (the caller stops it): with one, ptxas gave 16 of
         # the 84 kernels of the offline table 2-6 more registers (and 21 fewer: a toss-up).
-        esc = False
-        if ADAPTIVE:
-            h = step_size(mem[0], mem[1], xn, h_max_r, c_r, omega2_r, q)
-            if FAMILY:
-                h = family_bounds(h, c_r, d)
-            esc = h < escape * h_max_r
-        else:
-            h = h_max_r
+        h, esc = bound(mem, xn, h_max_r, c_r, omega2_r, q, d)
         h_clock = h_max if h == h_max_r else np.float64(h)
         if CHANNEL_EVENTS:  # cut at the earlier of the two channels' next events
             t_ev = next_event(xn, xa)
@@ -1626,25 +1642,14 @@ def _lane_scalars(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> tuple[Any,
     ``lane_records(run, rk0, rk1, d) -> (pa, pan, keys)``: the OU channel's and the generic
     channel's records and the round keys of the noise and the channel."""
     real = steps.real
-    step_size = steps.step_size
-    family_bounds = steps.family_bounds
-    ADAPTIVE = spec.adaptive
-    FAMILY = steps.pieces["family"].FAMILY
-    escape = real(ESCAPE_STEP_FRACTION)
+    bound = _step_bound(steps.pieces["oscillator"], steps.pieces["family"], steps.pieces["control"], inline=True)
     slack = 1.0 + LANDING_SLACK
     HAS_1, HAS_2, HAS_3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
     ou_record = steps.ou_record
     channel_of = steps.pieces["channel"].channel_of
 
     def lane_step(mem, xn, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d):
-        if ADAPTIVE:
-            h = step_size(mem[0], mem[1], xn, h_max_r, c_r, omega2_r, q)
-            if FAMILY:
-                h = family_bounds(h, c_r, d)
-            esc = h < escape * h_max_r
-        else:
-            h = h_max_r
-            esc = False
+        h, esc = bound(mem, xn, h_max_r, c_r, omega2_r, q, d)
         h_clock = h_max if h == h_max_r else np.float64(h)
         last = tt + h_clock * slack >= t_target
         h_clock = t_target - tt if last else h_clock
