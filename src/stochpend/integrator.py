@@ -153,6 +153,12 @@ def advance_clock(t, t_comp, h, last, t_target):
     return t_new, (t_new - t) - y
 
 
+#: The run record's fields (:func:`run_record`), in order: declared once, read by name (the
+#: ``RUN_*`` positions below) in every kernel.
+RUN_RECORD = ("omega2", "q", "h_max", "step_c", "d", "channel_record", "channel_key")
+RUN_OMEGA2, RUN_Q, RUN_H_MAX, RUN_STEP_C, RUN_D, RUN_CHANNEL_RECORD, RUN_CHANNEL_KEY = range(len(RUN_RECORD))
+
+
 def run_record(config: Any) -> tuple[Any, ...]:
     """The run's scalars as the kernels take them, one record ``(omega2, q, h_max, step_c)``
     (and, for a run with the family's terms on, their record ``d`` fifth; with the generic
@@ -266,7 +272,7 @@ def _no_dyn(run):
 
 @register_jitable
 def _dyn_of(run):
-    return run[4]
+    return run[RUN_D]
 
 
 #: Where the kernels read the family's record d (:data:`stochpend.dynamics.RECORD`).
@@ -290,7 +296,7 @@ def _no_ou_record(d):
 @register_jitable
 def _channel_of(run):
     """The generic additive channel's noise record and Philox key from the run record."""
-    return run[5], run[6]
+    return run[RUN_CHANNEL_RECORD], run[RUN_CHANNEL_KEY]
 
 
 @register_jitable
@@ -727,13 +733,13 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         # takes a tuple of arrays.
         if state[I_ST][i] != 0 or state[I_T][i] >= t_target:
             return 0, 0
-        omega2 = run[0]
-        q = run[1]
-        h_max = run[2]
+        omega2 = run[RUN_OMEGA2]
+        q = run[RUN_Q]
+        h_max = run[RUN_H_MAX]
         d = dyn_of(run)
         omega2_r = real(omega2)
         h_max_r = real(h_max)
-        c_r = real(run[3])
+        c_r = real(run[RUN_STEP_C])
         path = _U64(path0 + i)
         mem = nest(state[0][i], state[1][i], state[I_X1][i], state[I_O1][i], state[I_X2][i],
                    state[I_O2][i], state[I_X3][i], state[I_O3][i])
@@ -849,9 +855,9 @@ def _lockstep_lanes(*, real, coefficients, update, verlet, mathlib_log, mathlib_
         bc3 = block[5]
         br = block[6]
         bph = block[7]
-        omega2 = run[0]
-        q = run[1]
-        h_max = run[2]
+        omega2 = run[RUN_OMEGA2]
+        q = run[RUN_Q]
+        h_max = run[RUN_H_MAX]
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         tt = t0
@@ -1729,12 +1735,12 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
         fs = scratch[0]
         us = scratch[1]
         js = scratch[2]
-        q = run[1]
-        h_max = run[2]
+        q = run[RUN_Q]
+        h_max = run[RUN_H_MAX]
         d = dyn_of(run)
-        omega2_r = real(run[0])
+        omega2_r = real(run[RUN_OMEGA2])
         h_max_r = real(h_max)
-        c_r = real(run[3])
+        c_r = real(run[RUN_STEP_C])
         bx0 = fs[0]
         bO0 = fs[1]
         bx1 = fs[R1]

@@ -193,3 +193,21 @@ def test_step_of_an_oscillator_is_constant_along_its_orbit():
     a = step_size(0.0, 3.0, 0.0, h_max, c, omega2, (2.0,))
     b = step_size(2.0, 1.0, 0.0, h_max, c, omega2, (2.0,))
     assert a == pytest.approx(c / 3.0) and b == pytest.approx(c / 1.0)
+
+
+def test_the_run_record_is_read_by_its_declared_names():
+    """``integrator.RUN_RECORD`` declares the run record's fields once; the kernels read them by
+    their ``RUN_*`` positions: each holds the configuration's value (the generic additive
+    channel's run, which has every field)."""
+    from stochpend import dynamics, integrator, rng
+    from stochpend.params import SimulationConfig
+
+    cfg = SimulationConfig.build(noise="white", D=0.5, omega=1.5, h_max=0.03, step_c=0.2, seed=11,
+                                 additive_noise="harmonic",
+                                 noise_params=dict(gamma=0.3, additive_D=0.4, additive_tau=0.5))
+    run = integrator.run_record(cfg)
+    assert len(run) == len(integrator.RUN_RECORD)
+    assert run[integrator.RUN_OMEGA2] == 1.5**2 and run[integrator.RUN_H_MAX] == 0.03
+    assert run[integrator.RUN_STEP_C] == 0.2 and run[integrator.RUN_D] == dynamics.record(cfg)
+    assert run[integrator.RUN_CHANNEL_RECORD] == dynamics.channel_record(cfg)
+    assert run[integrator.RUN_CHANNEL_KEY] == rng.run_keys(11).additive

@@ -833,7 +833,7 @@ class Engine:
     def accumulate(self, j: int, edges_j: np.ndarray) -> None:
         c = self.config
         nb = self.nb
-        self.kernels.accumulate(self.x, self.Omega, self.xi, self.t, self.status, self.tracks, c.omega**2, self.run[1],
+        self.kernels.accumulate(self.x, self.Omega, self.xi, self.t, self.status, self.tracks, c.omega**2, self.run[integrator.RUN_Q],
                                 c.batch_size, edges_j, self.chunk_sums[:, j, :], self.hist[:nb])
         self.chunk_hist[j, :self.n_e] = self.hist[:nb].sum(axis=0)
         if self.joint_grid is not None:
@@ -975,7 +975,7 @@ class LevelEngine:
         members, xi, t, status = self.host_members()
         hist = np.zeros((self.nb, 2), dtype=np.int64)  # the kernel counts energies; not used
         tracks = np.zeros((self.n_tracks, self.n))  # the accumulators' slots, which the members lack
-        q = self.run[1]
+        q = self.run[integrator.RUN_Q]
         sums = self.chunk_sums[:, j]
 
         def add(m: int) -> None:

@@ -771,7 +771,7 @@ class Engine:
         x, Omega, xi, _, t, _, _, status = self._views()
         with _quiet():
             self.accumulate_k[self.nb, STATS_THREADS](
-                x, Omega, xi, t, status, self.d_tracks[:, : self.n], c.omega**2, self.run[1],
+                x, Omega, xi, t, status, self.d_tracks[:, : self.n], c.omega**2, self.run[integrator.RUN_Q],
                 c.batch_size, self.d_edges, j, self.d_sums, self.d_hist)
             if self.joint_grid is not None:
                 x_edges, O_edges = self.joint_grid
