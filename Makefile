@@ -93,7 +93,7 @@ cuda-registers: $(CUDA_STAMP)
 	PYTHONPATH=src $(CUDA_PY) benchmarks/cuda_registers.py $(CUDA_ARGS)
 
 # Every kernel kind the CUDA backend launches (advance, pairs, init, tracked advance, accumulate,
-# joint: stochpend._backends.cuda.kernel_variants()) compiled for sm_90 offline, the path a launch
+# joint: stochpend.engine.cuda.kernel_variants()) compiled for sm_90 offline, the path a launch
 # takes (nvJitLink LTO, then ptxas): no GPU needed; fails on any compile failure. The table of
 # registers and spills goes to out/cuda-compile-check.md. CUDA_CHECK=ci: the representative subset
 # (every kind, 84 of the 212 kernels) that .ci/run uses; docs/gpu.md, "Developer notes": timings.

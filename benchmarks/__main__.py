@@ -77,10 +77,10 @@ def _timed(fn, repeat):
 def _worker_stochpend(spec):
     import numba
 
-    from stochpend.simulate import simulate
+    from stochpend.runs.simulate import simulate
 
     # "fixed": the fixed-step run, which the runner gives the SIMD lock-step blocks
-    # (stochpend._backends.cpu.spec_for); "adaptive": the default step control, which it gives
+    # (stochpend.engine.cpu.spec_for); "adaptive": the default step control, which it gives
     # the SIMD lane machine; "adaptive_libm": the same with the C library's math one path at a
     # time (the default before the lane machine), by replacing cpu.spec_for in this process.
     mode = spec["mode"]
@@ -94,8 +94,8 @@ def _worker_stochpend(spec):
     if mode == "adaptive_damped":  # issue 23: the default path with the family's damping on
         kw.update(gamma=GAMMA)
     if mode == "adaptive_libm":
-        from stochpend._backends import cpu
-        from stochpend.integrator import Spec
+        from stochpend.engine import cpu
+        from stochpend.engine.integrator import Spec
 
         cpu.spec_for = lambda config, precision="float64": Spec.of(config, precision=precision)
     # Warm-up (loads or compiles the kernels), not timed.
@@ -183,7 +183,7 @@ def _worker_jit(spec):
     """First call (compile, the on-disk cache being empty) against the second call."""
     t_spawn = spec["t_spawn"]
     t_entry = time.monotonic()
-    from stochpend.simulate import simulate
+    from stochpend.runs.simulate import simulate
 
     t_import = time.monotonic()
     kw = dict(noise="ou", D=D, tau=TAU, omega=OMEGA, paths=1000, t_max=1.0, times=[1.0], seed=SEED)
@@ -215,10 +215,10 @@ def _worker_bias_share(spec):
     at a time on the C library's math with the previous default subsample (paths/32, at least
     256), by replacing ``bias.pair_spec`` and ``bias.default_bias_paths`` in this process."""
     from stochpend import bias
-    from stochpend.simulate import simulate
+    from stochpend.runs.simulate import simulate
 
     if spec["engine"] == "one_pair_libm":
-        from stochpend.integrator import Spec
+        from stochpend.engine.integrator import Spec
 
         bias.pair_spec = lambda config, backend="cpu": Spec.of(config)
         bias.default_bias_paths = lambda paths: int(max(2, min(paths, max(256, paths // 32))))

@@ -40,7 +40,7 @@ launched and nvJitLink >= 12.3 is installed (numba-cuda's default ``lto``; ``num
 installs nvJitLink). Without it, the plain ``compile_ptx`` PTX is measured. The two can differ
 by a few registers; compare numbers only within one mode and one toolkit version.
 
-Which kernels: if ``stochpend._backends.cuda`` has ``kernel_variants()``, the triples
+Which kernels: if ``stochpend.engine.cuda`` has ``kernel_variants()``, the triples
 ``(label, kernel, signature)`` it returns (``kernel`` a Python function or a ``@cuda.jit``
 dispatcher; ``signature`` a Numba signature or a tuple of Numba types, as ``compile_ptx``
 accepts). Otherwise the advance kernel of the current backend in float64 and float32, with the
@@ -93,7 +93,7 @@ WARP_SIZE = 32
 THREADS_PER_BLOCK = 128
 
 #: The advance kernel of stochpend before 248dd5c (measured with --ref), its arguments in order, with the types its host passed (see
-#: ``_Chunk.advance`` in src/stochpend/_backends/cuda.py): device arrays are 1-d C-contiguous;
+#: ``_Chunk.advance`` in src/stochpend/engine/cuda.py): device arrays are 1-d C-contiguous;
 #: Python floats are float64, Python ints int64, the Philox keys np.uint64. "real" is the
 #: precision's dtype (x, Omega, xi, xi_aux).
 ADVANCE_ARGS = (
@@ -420,9 +420,9 @@ def main(argv: list[str] | None = None) -> int:
 
     with source_at(args.ref) as source:
         try:
-            import stochpend._backends.cuda as backend
+            import stochpend.engine.cuda as backend
         except Exception as error:
-            print(f"error: cannot import stochpend._backends.cuda from {source}: "
+            print(f"error: cannot import stochpend.engine.cuda from {source}: "
                   f"{type(error).__name__}: {error}", file=sys.stderr)
             return 1
 

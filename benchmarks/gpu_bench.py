@@ -53,11 +53,11 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT / "src") not in sys.path:
     sys.path.insert(0, str(ROOT / "src"))
 
-from stochpend import __version__, runner  # noqa: E402
-from stochpend._backends import cpu  # noqa: E402
-from stochpend._backends import cuda as gpu  # noqa: E402
-from stochpend.params import SimulationConfig  # noqa: E402
-from stochpend.runner import run_batches as cpu_run_batches  # noqa: E402
+from stochpend import __version__  # noqa: E402
+from stochpend.engine import cpu, runner  # noqa: E402
+from stochpend.engine import cuda as gpu  # noqa: E402
+from stochpend.engine.runner import run_batches as cpu_run_batches  # noqa: E402
+from stochpend.model.params import SimulationConfig  # noqa: E402
 
 H = 0.01
 SEED = 2024
@@ -308,8 +308,9 @@ def host_check() -> tuple[list[str], bool]:
     import subprocess
     import tempfile
 
-    from stochpend import integrator, rng
-    from stochpend.mathlib import LIBM
+    from stochpend.engine import integrator
+    from stochpend.numerics import rng
+    from stochpend.numerics.mathlib import LIBM
 
     compiler = shutil.which("g++") or shutil.which("c++")
     if compiler is None:
@@ -398,7 +399,7 @@ class Reference:
         """One launch over all paths: (seconds, path-steps, <E>, its standard error)."""
         import ctypes
 
-        from stochpend import rng
+        from stochpend.numerics import rng
 
         key0, key1 = rng.seed_to_key(config.seed)
         self.d_sums.copy_to_device(np.zeros(2))

@@ -151,7 +151,7 @@ def scheme_moments(h: float, n: int, D: float, d: tuple, x0: float = 1.0) -> np.
     noise D on the force and the additive white noise (family record d), start (x0, 0): the
     scheme is linear in the state, so its second moments follow an exact map read off the
     kernel's own step function (as tests/statistical/test_family_dynamics.py)."""
-    from stochpend import integrator
+    from stochpend.engine import integrator
 
     B0, B1, a = integrator.linear_step_maps(h, d, {"damping", "additive"})
     M = np.array([[x0 * x0, 0.0], [0.0, 0.0]])
@@ -164,7 +164,7 @@ def step_oracle(args) -> tuple[bool | None, list[str]]:
     from types import SimpleNamespace
 
     import stochpend
-    from stochpend import dynamics
+    from stochpend.model import dynamics
 
     D, gamma, D_a, h = 0.5, 0.7, 0.3, 0.1
     times = (1.0, 4.0)
@@ -255,7 +255,7 @@ def run_step(name: str, function: Callable, args) -> Step:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from stochpend._backends import cuda as gpu
+    from stochpend.engine import cuda as gpu
 
     ok, why = gpu.availability()
     if not ok or (gpu._simulator_enabled() and not args.allow_simulator):

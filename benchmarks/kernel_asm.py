@@ -4,7 +4,7 @@ A restructuring that promises "the same kernels" (issue 33: the step written onc
 here: the same digests before and after mean the same machine code, so the same numbers and
 the same speed, whatever a busy machine's benchmark would say. Names are normalised first:
 the code digest stochpend puts in every closure's and cache index's name
-(:mod:`stochpend._jitcache`) and Numba's per-process counters change with any edit.
+(:mod:`stochpend.numerics._jitcache`) and Numba's per-process counters change with any edit.
 
 Usage: ``python benchmarks/kernel_asm.py OUT.json`` (in a fresh ``NUMBA_CACHE_DIR`` or not:
 the assembly is read from the compiled library either way), then compare two files with

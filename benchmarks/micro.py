@@ -6,7 +6,7 @@ Each operation is applied to 2**20 independent inputs in the range a path-step u
 loop, best of 5 by the process's CPU time (robust to other processes sharing the machine); ns
 per evaluation, one thread. "scalar" loops sum the results and call what stochpend's scalar kernel calls (glibc through LLVM
 intrinsics; the llvmlite wheels have no vector math library, so these loops stay scalar);
-"SIMD" loops call the branch-free ``stochpend.fastmath`` versions and store each result, so
+"SIMD" loops call the branch-free ``stochpend.numerics.fastmath`` versions and store each result, so
 that LLVM vectorizes them (a floating-point sum would not vectorize without fastmath).
 """
 
@@ -18,8 +18,8 @@ import time
 import numba
 import numpy as np
 
-from stochpend import fastmath, rng
 from stochpend.noises import ou
+from stochpend.numerics import fastmath, rng
 
 N = 1 << 20
 _U64 = np.uint64

@@ -7,7 +7,7 @@ For each case, output time t and relative total error ε on ⟨E⟩ and ⟨E²�
 half-width plus a bound on the discretisation bias), the wall time of:
 
 (a) ``simulate(target_error=ε)``: multilevel Monte Carlo on coupled fixed-step levels, run for
-    real (``src/stochpend/multilevel.py``). Where its plan exceeds the budget
+    real (``src/stochpend/runs/multilevel.py``). Where its plan exceeds the budget
     (``--budget-path-steps``) it refuses before any work and names the path-steps it would
     take: the row then gives that work at the rate the run's levels measured, marked "projected".
 (b) one level at the best fixed step: a sweep of h = h_0/2^k (k = 0 … 5); at each h a pilot run

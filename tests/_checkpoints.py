@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from stochpend import checkpoint as ck
+from stochpend.runs import checkpoint as ck
 
 
 class StopAfter(ck.FileCheckpointer):

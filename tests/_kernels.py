@@ -6,8 +6,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from stochpend import integrator, rng
-from stochpend._backends import cpu
+from stochpend.engine import cpu, integrator
+from stochpend.numerics import rng
 
 
 def kernels(noise="ou", potential="pendulum", coupling="force", *, adaptive=True, fast_math=False):

@@ -6,7 +6,7 @@ import numpy as np
 
 import stochpend
 from stochpend import bias
-from stochpend._backends import cpu
+from stochpend.engine import cpu
 
 
 def assert_lanes_equal_one_path(run: dict, config, monkeypatch, *, finite_bias: bool = True) -> None:

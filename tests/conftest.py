@@ -16,7 +16,7 @@ _SITE = str(Path(__file__).resolve().parent / "_simulator_site")
 if _SITE not in os.environ.get("PYTHONPATH", "").split(os.pathsep):
     os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (_SITE, os.environ.get("PYTHONPATH")) if p)
 
-# No compile helper (stochpend._compile_helper) in the suite's runs and the processes they start:
+# No compile helper (stochpend.runs._compile_helper) in the suite's runs and the processes they start:
 # the helper buys wall time from an idle core, and the suite keeps both cores busy, so there it
 # only adds a process that imports stochpend and compiles beside the run (about 3.7 s of CPU per
 # cold Spec, measured; 30 helpers in a cold suite). The numbers are the same either way (the
@@ -117,7 +117,7 @@ def tiny_reproduce(tmp_path_factory, request):
 
 
 def _tiny_reproduce(out):
-    from stochpend.reproduce import reproduce
+    from stochpend.paper.reproduce import reproduce
 
     started = time.perf_counter()
     result = reproduce("all", out=out, **TINY_REPRODUCE)

@@ -3,7 +3,7 @@
  * second half of this file): the practical floor for the benchmark.
  *
  * It reproduces, number for number, what stochpend's CPU kernels (init_paths + advance_paths
- * in src/stochpend/_backends/cpu.py) do for the pendulum with OU noise at a fixed step:
+ * in src/stochpend/engine/cpu.py) do for the pendulum with OU noise at a fixed step:
  *
  *   - the same Philox4x32-10 stream: key = (seed mod 2^32, seed >> 32),
  *     counter = (n mod 2^32, n >> 32, path mod 2^32, path >> 32); draw 0 gives theta0,

@@ -4,7 +4,7 @@
  * One thread per path, the state in registers, nothing stored per path: the pendulum with OU
  * noise on the force (dOmega/dt = -(omega^2 + xi) sin theta), stochpend's numbers:
  *
- *   - Philox4x32-10 keyed like stochpend.rng: key = (seed mod 2^32, seed >> 32), counter =
+ *   - Philox4x32-10 keyed like stochpend.numerics.rng: key = (seed mod 2^32, seed >> 32), counter =
  *     (n mod 2^32, n >> 32, path mod 2^32, path >> 32); draw 0 gives theta0, draw 1 xi0, draw
  *     k + 2 the two normals of step k. On the device the round uses __umulhi and a 32-bit
  *     product (cuRAND's philox4x32_10);

@@ -18,12 +18,11 @@ name that needs them is touched):
 from __future__ import annotations
 
 import importlib
-import sys
-import types
 from typing import TYPE_CHECKING, Any
 
-from stochpend import _cputarget, _xarray_nodask
 from stochpend._version import __version__
+from stochpend.files import _xarray_nodask
+from stochpend.numerics import _cputarget
 
 _xarray_nodask.install()  # xarray's check for Dask arrays imports Dask only once Dask is used
 
@@ -39,28 +38,28 @@ SUBMODULES = ("bias", "exponents", "io", "models", "noises", "paper", "plotting"
 __all__ = ["StochpendWarning", "__version__", "simulate", *SUBMODULES]
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
-    from stochpend import bias as bias
-    from stochpend import exponents as exponents
-    from stochpend import io as io
     from stochpend import models as models
-    from stochpend import noises as noises
     from stochpend import paper as paper
-    from stochpend import plotting as plotting
-    from stochpend import sweep as sweep
     from stochpend import theory as theory
-    from stochpend._warnings import StochpendWarning
-    from stochpend.simulate import simulate
+    from stochpend.files import io as io
+    from stochpend.model import noises as noises
+    from stochpend.paper import plotting as plotting
+    from stochpend.runs import bias as bias
+    from stochpend.runs import sweep as sweep
+    from stochpend.runs.simulate import simulate
+    from stochpend.text._warnings import StochpendWarning
+    from stochpend.theory import exponents as exponents
 
 
 def __getattr__(name: str) -> Any:
     """Import a public submodule (or :func:`simulate`) when it is first touched."""
     if name == "simulate":
-        from stochpend.simulate import simulate
+        from stochpend.runs.simulate import simulate
 
         globals()["simulate"] = simulate
         return simulate
     if name == "StochpendWarning":
-        from stochpend._warnings import StochpendWarning
+        from stochpend.text._warnings import StochpendWarning
 
         return StochpendWarning
     if name in SUBMODULES:
@@ -72,17 +71,3 @@ def __getattr__(name: str) -> Any:
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
-
-
-class _Package(types.ModuleType):
-    """The package's module type: the submodule ``stochpend.simulate`` shares its name with the
-    function, and importing the submodule makes Python set the package's attribute to the
-    module; the function stays the attribute, as users call ``stochpend.simulate(...)``."""
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        if name == "simulate" and isinstance(value, types.ModuleType):
-            value = value.simulate
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package

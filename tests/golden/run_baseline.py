@@ -23,7 +23,7 @@ def numpy_above_avx2() -> list[str]:
 
 
 def main(args: list[str]) -> int:
-    from stochpend import _cputarget
+    from stochpend.numerics import _cputarget
 
     why = _cputarget._host_supports_baseline()
     if why is not None:  # nothing to emulate: this machine cannot run x86-64-v3 code

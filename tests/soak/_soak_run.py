@@ -20,7 +20,7 @@ CHUNKS_PER_SOAK_SECOND = 20
 
 
 def config_for(duration_s: float):
-    from stochpend.params import SimulationConfig
+    from stochpend.model.params import SimulationConfig
 
     n_batches = max(200, int(CHUNKS_PER_SOAK_SECOND * duration_s))
     return SimulationConfig.build(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=CHUNK_PATHS * n_batches,
@@ -29,7 +29,7 @@ def config_for(duration_s: float):
 
 
 def main(checkpoint_path: str, out: str, duration_s: float) -> None:
-    from stochpend.checkpoint import CheckpointInterrupt, run_checkpointed
+    from stochpend.runs.checkpoint import CheckpointInterrupt, run_checkpointed
 
     try:
         run_checkpointed(config_for(duration_s), checkpoint_path=checkpoint_path, every_s=EVERY_S, out=out,

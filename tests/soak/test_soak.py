@@ -26,8 +26,8 @@ import numpy as np
 import pytest
 
 import stochpend
-from stochpend import checkpoint as ck
-from stochpend.runner import run_batches
+from stochpend.engine.runner import run_batches
+from stochpend.runs import checkpoint as ck
 from tests.soak._soak_run import CHUNK_PATHS, EVERY_S, config_for
 
 HELPER = Path(__file__).with_name("_soak_run.py")

@@ -39,11 +39,14 @@ from numba.extending import register_jitable
 from scipy.linalg import solve_discrete_lyapunov
 
 import stochpend
-from stochpend import dynamics, initial, integrator, noises, rng
+from stochpend import noises
+from stochpend.engine import integrator
+from stochpend.model import dynamics, initial
+from stochpend.model.parameters import Parameter
 from stochpend.noises import harmonic as harmonic_noise
 from stochpend.noises import ou
 from stochpend.noises.base import Noise, NoiseKernel
-from stochpend.parameters import Parameter
+from stochpend.numerics import rng
 from stochpend.theory import family
 from tests._checkpoints import StopAfter
 from tests._lanes import assert_lanes_equal_one_path
@@ -212,7 +215,7 @@ PENDULUM = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=600, t_max=6.0, n_t
 
 
 def _config(run, **extra):
-    from stochpend.params import SimulationConfig
+    from stochpend.model.params import SimulationConfig
 
     own = {k: v for k, v in run.items() if k in dynamics.names() or (k.startswith("additive_") and k != "additive_noise")}
     return SimulationConfig.build(**{k: v for k, v in run.items() if k not in own}, **extra, noise_params=own)
@@ -223,7 +226,7 @@ def test_the_lanes_give_the_one_path_numbers(step, gain_ou, monkeypatch):
     """A channel noise with draw_keyed and no events (the user's gain-ou) runs in the SIMD lanes
     (the runs' and the pairs'), which agree with the one-path loops of the same fast-math Spec
     (a run with an accumulator goes one path at a time)."""
-    from stochpend._backends import cpu
+    from stochpend.engine import cpu
 
     run = {**PENDULUM, "additive_noise": "gain-ou", "additive_gain": 0.8}
     config = _config(run, **step)
@@ -234,7 +237,7 @@ def test_the_lanes_give_the_one_path_numbers(step, gain_ou, monkeypatch):
 
 @pytest.mark.parametrize("name", ["harmonic", "dichotomous"])
 def test_a_channel_without_keyed_draws_or_with_events_runs_one_path_at_a_time(name):
-    from stochpend._backends import cpu
+    from stochpend.engine import cpu
 
     config = _config({**PENDULUM, "additive_noise": name})
     fast = integrator.Spec.of(config, fast_math=True)
@@ -259,8 +262,8 @@ def test_the_channels_start_is_keyed_by_seed_and_path_and_independent_of_xi():
 
 @pytest.mark.parametrize("name", ["harmonic", "dichotomous"])
 def test_a_checkpointed_run_resumes_to_the_same_numbers(name, tmp_path):
-    from stochpend import checkpoint as ck
-    from stochpend.simulate import run
+    from stochpend.runs import checkpoint as ck
+    from stochpend.runs.simulate import run
 
     config = _config(dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=300, t_max=10.0, n_times=4, seed=4,
                           gamma=0.3, additive_D=0.2, additive_tau=0.7), additive_noise=name)
@@ -359,8 +362,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import stochpend
-from stochpend import checkpoint as ck
-from stochpend.params import SimulationConfig
+from stochpend.runs import checkpoint as ck
+from stochpend.model.params import SimulationConfig
 from tests._checkpoints import StopAfter
 
 kw = dict(noise="ou", D=0.5, tau=0.8, omega=1.0, paths=48, t_max=1.0, times=[0.5, 1.0], seed=3, n_batches=4)

@@ -29,7 +29,8 @@ import pytest
 from scipy.linalg import solve_discrete_lyapunov
 
 import stochpend
-from stochpend import dynamics, initial, integrator
+from stochpend.engine import integrator
+from stochpend.model import dynamics, initial
 from stochpend.noises.ou import step_coefficients
 from stochpend.theory import family
 from tests._checkpoints import StopAfter
@@ -178,8 +179,8 @@ FAMILY_RUN = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=600, t_max=6.0, n
 def test_the_lanes_give_the_one_path_numbers(step, monkeypatch):
     """The SIMD lane machines (the runs' and the pairs') against the one-path loops of the same
     fast-math Spec (a run with an accumulator goes one path at a time)."""
-    from stochpend._backends import cpu
-    from stochpend.params import SimulationConfig
+    from stochpend.engine import cpu
+    from stochpend.model.params import SimulationConfig
 
     config = SimulationConfig.build(**{k: v for k, v in FAMILY_RUN.items() if k not in dynamics.names()}, **step,
                                     noise_params={k: v for k, v in FAMILY_RUN.items() if k in dynamics.names()})
@@ -204,9 +205,9 @@ def test_the_pairs_bias_is_small_and_the_coarse_member_is_a_run_path():
 
 
 def test_a_checkpointed_run_resumes_to_the_same_numbers(tmp_path):
-    from stochpend import checkpoint as ck
-    from stochpend.params import SimulationConfig
-    from stochpend.simulate import run
+    from stochpend.model.params import SimulationConfig
+    from stochpend.runs import checkpoint as ck
+    from stochpend.runs.simulate import run
 
     config = SimulationConfig.build(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=300, t_max=10.0, n_times=4, seed=4,
                                     noise_params={"gamma": 0.3, "additive_D": 0.2, "additive_tau": 0.7})
@@ -231,8 +232,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import stochpend
-from stochpend import checkpoint as ck
-from stochpend.params import SimulationConfig
+from stochpend.runs import checkpoint as ck
+from stochpend.model.params import SimulationConfig
 from tests._checkpoints import StopAfter
 
 kw = dict(noise="ou", D=0.5, tau=0.8, omega=1.0, paths=48, t_max=1.0, times=[0.5, 1.0], seed=3, n_batches=4)

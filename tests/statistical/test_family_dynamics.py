@@ -31,7 +31,8 @@ import pytest
 from scipy.linalg import expm, solve_discrete_lyapunov
 
 import stochpend
-from stochpend import dynamics, integrator
+from stochpend.engine import integrator
+from stochpend.model import dynamics
 from stochpend.observables import TimeAverage, register, unregister
 from stochpend.theory import family
 from tests._checkpoints import StopAfter
@@ -197,9 +198,9 @@ def test_a_bad_term_is_refused_in_one_line(kwargs, message):
 
 
 def test_a_checkpointed_damped_run_resumes_to_the_same_numbers(tmp_path):
-    from stochpend import checkpoint as ck
-    from stochpend.params import SimulationConfig
-    from stochpend.simulate import run
+    from stochpend.model.params import SimulationConfig
+    from stochpend.runs import checkpoint as ck
+    from stochpend.runs.simulate import run
 
     config = SimulationConfig.build(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=300, t_max=10.0, n_times=4, seed=4,
                                     noise_params={"gamma": 0.3, "additive_D": 0.2, "torque": 0.1})
@@ -262,8 +263,8 @@ def test_the_lanes_run_the_family_with_the_one_path_numbers(step, monkeypatch):
     """The SIMD lane machines (the runs' and the pairs') against the one-path loops of the same
     fast-math Spec: a run with an accumulator goes one path at a time, and must change no other
     number; the pairs' one-path kernel must give the lanes' bias estimate bit for bit."""
-    from stochpend._backends import cpu
-    from stochpend.params import SimulationConfig
+    from stochpend.engine import cpu
+    from stochpend.model.params import SimulationConfig
 
     config = SimulationConfig.build(**{k: v for k, v in FAMILY_RUN.items()
                                        if k not in dynamics.names()}, **step,
@@ -339,11 +340,11 @@ def test_an_ensemble_started_from_the_boltzmann_law_is_there_and_stays(potential
 
 @pytest.mark.parametrize("power_n", [1, 2, 3])
 def test_the_power_oscillators_boltzmann_start_has_the_exact_law_of_x(power_n):
-    """The start alone (stochpend.initial.boltzmann, what every backend and the bias pairs use):
+    """The start alone (stochpend.model.initial.boltzmann, what every backend and the bias pairs use):
     <x^2> of U = x^(2n)/(2n) at temperature T against (2nT/omega^2)^(1/n) Gamma(3/2n)/Gamma(1/2n),
     <omega^2 U> against the virial T/(2n), x symmetric, and n = 1 the harmonic law."""
-    from stochpend import initial
-    from stochpend.params import SimulationConfig
+    from stochpend.model import initial
+    from stochpend.model.params import SimulationConfig
 
     T, omega, n = 0.7, 1.3, 50_000
     config = SimulationConfig.build(potential="power", power_n=power_n, noise="white", D=0.0, omega=omega,

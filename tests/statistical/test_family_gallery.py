@@ -13,12 +13,12 @@ import math
 
 import pytest
 
-from stochpend import reproduce as rep
-from stochpend.figures import CASES, COLUMNS, FIGURES, GALLERY, RunSpec
-from stochpend.figures import family_boltzmann as fb
-from stochpend.figures import family_kramers as fk
-from stochpend.figures import family_random_frequency as frf
-from stochpend.figures import family_washboard as fw
+from stochpend.paper import reproduce as rep
+from stochpend.paper.figures import CASES, COLUMNS, FIGURES, GALLERY, RunSpec
+from stochpend.paper.figures import family_boltzmann as fb
+from stochpend.paper.figures import family_kramers as fk
+from stochpend.paper.figures import family_random_frequency as frf
+from stochpend.paper.figures import family_washboard as fw
 from stochpend.theory import family as fam
 
 NAMES = ("family-boltzmann", "family-kramers", "family-washboard", "family-random-frequency")

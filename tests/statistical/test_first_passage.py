@@ -7,7 +7,7 @@ passage to a > 0 has P(tau <= t) = erfc(a / sqrt(2 D_a t)), the density
 a / sqrt(2 pi D_a t^3) exp(-a^2 / (2 D_a t)). The run watches it at steps of h only, so it
 detects a passage late: O(sqrt(h)), not the scheme's O(h^2). To o(sqrt(h)) the detected passage
 has the law of the continuous one to the shifted threshold a + beta sqrt(D_a h), beta = 0.5826
-(Siegmund's correction; stochpend.passage): that is the reference here, at h = 0.01, where the
+(Siegmund's correction; stochpend.model.passage): that is the reference here, at h = 0.01, where the
 shift (0.058 a) is many standard errors; the unshifted law is checked to be rejected, so the
 test sees the O(sqrt(h)) error it corrects for.
 
@@ -25,8 +25,8 @@ from scipy.special import erfc, erfcinv
 from scipy.stats import chi2
 
 import stochpend
+from stochpend.model.passage import SIEGMUND_BETA
 from stochpend.observables import FirstPassage, register, unregister
-from stochpend.passage import SIEGMUND_BETA
 
 Z = 4.0
 A, D_A, T_END, H = 1.0, 1.0, 16.0, 0.01

@@ -8,7 +8,7 @@ checkpointed run stopped and resumed, and a sweep (the CUDA backend: test_golden
 
 The bits are those of any x86-64 machine with AVX2 and FMA, whatever its vector width: the
 kernels keep IEEE semantics and the host arithmetic avoids numpy's CPU-dispatched loops
-(stochpend._hostmath). ``make test-baseline`` runs this file again with the kernels compiled for
+(stochpend.numerics._hostmath). ``make test-baseline`` runs this file again with the kernels compiled for
 x86-64-v3 and numpy held to AVX2, as an AVX2-only machine computes (docs/development.md, "What
 is bit-identical, and where"). Another kind of machine (no FMA, another C library) computes its
 own last bits: there the statistical tests check the numbers, and these are skipped, saying why.
@@ -25,8 +25,9 @@ import pytest
 from typer.testing import CliRunner
 
 import stochpend
-from stochpend import checkpoint, cli, io
-from stochpend.params import SimulationConfig
+from stochpend import cli, io
+from stochpend.model.params import SimulationConfig
+from stochpend.runs import checkpoint
 from stochpend.sweep import sweep
 from tests._machine import golden_machine
 

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from stochpend import integrator, rng
+from stochpend.engine import integrator
 from stochpend.noises import harmonic
+from stochpend.numerics import rng
 from tests._kernels import Paths, kernels
 from tests.conftest import SEED, Z_TOL
 
@@ -187,7 +188,7 @@ def test_new_noises_do_not_depend_on_chunks_threads_or_kernel_call_splits(noise)
 
     import stochpend
 
-    sim = importlib.import_module("stochpend._backends.cpu")  # where the per-call budget lives
+    sim = importlib.import_module("stochpend.engine.cpu")  # where the per-call budget lives
 
     kw = dict(noise=noise, D=1.0, tau=0.5, paths=300, t_max=200.0, n_times=5, seed=SEED,
               n_batches=6)

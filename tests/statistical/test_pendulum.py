@@ -153,7 +153,7 @@ def test_results_do_not_depend_on_kernel_call_budget():
     """Segments longer than one kernel call's step budget are split; the clock must not notice."""
     import importlib
 
-    sim_mod = importlib.import_module("stochpend._backends.cpu")
+    sim_mod = importlib.import_module("stochpend.engine.cpu")
     # 200 time units are > 4000 steps a path: several calls of the minimum 1000-step budget
     kw = dict(noise="ou", D=1.0, tau=0.5, omega=1.0, paths=64, t_max=200.0, times=[200.0], seed=SEED)
     a = stochpend.simulate(**kw)

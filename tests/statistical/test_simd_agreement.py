@@ -1,7 +1,7 @@
 """The default CPU path (SIMD, fast math) against the C library's one-path kernel, in law.
 
 Since the lane machine, the default runs (the pendulum with the noise on the force, OU or
-white noise, adaptive steps) use the branch-free log/sin/cos/expm1 of ``stochpend.fastmath``
+white noise, adaptive steps) use the branch-free log/sin/cos/expm1 of ``stochpend.numerics.fastmath``
 and the branch-free OU coefficients: each step differs from the C library's by an ulp or so,
 and the chaotic dynamics amplify that, so paths end apart while the ensembles must agree. Two
 independent ensembles (different seeds) of 10**5 paths per case, one per kernel: <E> and <E**2>
@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stochpend._backends import cpu
-from stochpend.params import SimulationConfig
+from stochpend.engine import cpu
+from stochpend.model.params import SimulationConfig
 from tests._kernels import Paths, kernels
 from tests.conftest import SEED, Z_TOL
 

@@ -13,8 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stochpend import observables, runner
-from stochpend.params import SimulationConfig
+from stochpend import observables
+from stochpend.engine import runner
+from stochpend.model.params import SimulationConfig
 from stochpend.theory.family import random_frequency_lyapunov
 
 

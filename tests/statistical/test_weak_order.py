@@ -17,7 +17,7 @@ import numpy as np
 from scipy.linalg import expm
 
 import stochpend
-from stochpend import integrator
+from stochpend.engine import integrator
 from tests.conftest import SEED, Z_TOL
 
 #: The harmonic oscillator with the noise on the force (G = x): a linear scheme.

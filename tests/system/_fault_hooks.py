@@ -24,7 +24,8 @@ from pathlib import Path
 
 
 def _kill_in_out_write() -> None:
-    from stochpend import _files, io
+    from stochpend import io
+    from stochpend.files import _files
 
     def write_atomic(path, data, **kwargs):
         def half(fd):  # half of the result reaches its temporary file, then the crash
@@ -38,7 +39,7 @@ def _kill_in_out_write() -> None:
 
 
 def _kill_in_checkpoint_write(n: int) -> None:
-    from stochpend import checkpoint
+    from stochpend.runs import checkpoint
 
     original = checkpoint.write
     calls = [0]
@@ -61,7 +62,7 @@ def _kill_in_checkpoint_write(n: int) -> None:
 
 
 def _barrier(folder: str) -> None:
-    from stochpend import _files
+    from stochpend.files import _files
 
     original = _files._put_in_place
     here = Path(folder)

@@ -13,8 +13,9 @@ import sys
 import numpy as np
 
 import stochpend
-from stochpend import observables, runner
-from stochpend.params import SimulationConfig
+from stochpend import observables
+from stochpend.engine import runner
+from stochpend.model.params import SimulationConfig
 
 backend = sys.argv[1]
 out: dict = {"package": stochpend.__file__}

@@ -30,7 +30,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from benchmarks import c_ref, numpy_ref  # noqa: E402
-from stochpend.simulate import simulate  # noqa: E402
+from stochpend.runs.simulate import simulate  # noqa: E402
 from tests._kernels import Paths, kernels  # noqa: E402
 
 PATHS, T, H, SEED = 50, 0.5, 0.01, 7

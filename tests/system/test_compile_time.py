@@ -20,8 +20,9 @@ SRC = str(Path(stochpend.__file__).resolve().parent.parent)
 _SCRIPT = """
 import json, sys
 import stochpend
-from stochpend import _calibration, resources
-from stochpend.params import SimulationConfig
+from stochpend.numerics import _calibration
+from stochpend.runs import resources
+from stochpend.model.params import SimulationConfig
 # The estimate scales with the load average (_calibration.slowdown), read anew for the note and
 # for 'before': held at 0 so that both are the same number on a busy CI (it moved ~10 s -> ~11 s).
 _calibration.current_load = lambda: 0.0
@@ -72,7 +73,7 @@ def test_compile_clock_times_compiles_and_notes_the_first_only():
     already compiled (what a cached kernel is) adds neither time nor a note."""
     import numba
 
-    from stochpend._jitcache import CompileClock
+    from stochpend.numerics._jitcache import CompileClock
 
     @numba.njit
     def first(x):
@@ -101,8 +102,8 @@ def test_a_run_reports_compile_time_apart_from_its_wall_time():
 
 
 def test_the_estimate_line_counts_the_compile_time():
-    from stochpend import resources
-    from stochpend.params import SimulationConfig
+    from stochpend.model.params import SimulationConfig
+    from stochpend.runs import resources
 
     config = SimulationConfig.build(noise="ou", paths=64, t_max=1.0, n_times=2, seed=1)
     est = resources.estimate(config)
@@ -111,7 +112,7 @@ def test_the_estimate_line_counts_the_compile_time():
     assert cold.total_seconds == est.seconds + 12.0
     assert "plus ~12 s compiling kernels (first use, cached after)" in cold.describe()
     # Every kernel a run calls is counted once, in kinds resources.COMPILE_S knows.
-    from stochpend._backends import cpu
+    from stochpend.engine import cpu
 
     kinds = set(cpu.compiled_kernels(cpu.spec_for(config), pairs=True))
     other = SimulationConfig.build(noise="dichotomous", paths=64, t_max=1.0, n_times=2, seed=1)
@@ -130,9 +131,9 @@ _HELPER_SCRIPT = """
 import json, sys
 import numpy as np
 import stochpend
-from stochpend import _compile_helper
-from stochpend._backends import cpu
-from stochpend.params import SimulationConfig
+from stochpend.runs import _compile_helper
+from stochpend.engine import cpu
+from stochpend.model.params import SimulationConfig
 if sys.argv[1] == "fail":
     _compile_helper.COMMAND = (sys.executable, "-c", "import sys; sys.exit(3)")
 kw = dict(noise="ou", paths=256, t_max=5.0, n_times=3, seed=3)

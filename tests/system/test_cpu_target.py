@@ -1,4 +1,4 @@
-"""The instruction set of the CPU kernels (stochpend._cputarget, issue 37): the result names it,
+"""The instruction set of the CPU kernels (stochpend.numerics._cputarget, issue 37): the result names it,
 the x86-64-v3 baseline gives this machine's bits, and a target that cannot hold is one line."""
 
 from __future__ import annotations
@@ -12,7 +12,8 @@ import pytest
 from typer.testing import CliRunner
 
 import stochpend
-from stochpend import _cputarget, cli, io
+from stochpend import cli, io
+from stochpend.numerics import _cputarget
 
 RUN = ["simulate", "--noise", "ou", "--D", "1", "--tau", "1", "--omega", "1", "--paths", "300", "--t-max", "20",
        "--n-times", "4", "--seed", "5", "--bias-paths", "0", "--quiet"]

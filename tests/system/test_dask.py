@@ -140,7 +140,7 @@ def test_given_client_is_left_open(reference, monkeypatch):
         _assert_identical(reference, ds)
         assert client.status == "running"
         # Workers with other code (another version, or an edited tree) are refused up front.
-        import stochpend._backends.dask as backend
+        import stochpend.runs.dask as backend
 
         monkeypatch.setattr(backend, "BUILD", "0.0.0 (code 000000000000)")
         with pytest.raises(ValueError, match=r"is not accepted: worker .* runs stochpend .*, this is stochpend 0.0.0"):

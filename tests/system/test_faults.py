@@ -36,11 +36,11 @@ import xarray as xr
 from typer.testing import CliRunner
 
 import stochpend
-from stochpend import checkpoint as ck
-from stochpend import cli, integrator, io
-from stochpend._backends import cpu
-from stochpend.params import SimulationConfig
-from stochpend.simulate import run
+from stochpend import cli, io
+from stochpend.engine import cpu, integrator
+from stochpend.model.params import SimulationConfig
+from stochpend.runs import checkpoint as ck
+from stochpend.runs.simulate import run
 
 HERE = Path(__file__).parent
 HOOKS = HERE / "_fault_hooks.py"
@@ -134,7 +134,7 @@ def _assert_identical(ref: xr.Dataset, ds: xr.Dataset) -> None:
 
 def _one_line(text: str) -> str:
     # The start's "estimate:" line is not part of the error: a cold start prints it when this
-    # machine's compile calibration (stochpend._calibration) expects over 10 s of compiling.
+    # machine's compile calibration (stochpend.numerics._calibration) expects over 10 s of compiling.
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.startswith("estimate: ")]
     assert len(lines) == 1, text
     assert "Traceback" not in text
@@ -309,9 +309,9 @@ def _no_space(*_args, **_kwargs):
 
 
 def _full_disk_after(monkeypatch, budget: int) -> None:
-    """Every file written through stochpend._files gets ``budget`` more bytes, then ENOSPC
+    """Every file written through stochpend.files._files gets ``budget`` more bytes, then ENOSPC
     (the bytes before it really reach the temporary file)."""
-    from stochpend import _files
+    from stochpend.files import _files
 
     real, left = _files.write_all, [budget]
 

@@ -24,9 +24,9 @@ from unittest import mock
 import pytest
 from typer.testing import CliRunner
 
-from stochpend import checkpoint as ck
 from stochpend import cli, io
-from stochpend.params import SimulationConfig
+from stochpend.model.params import SimulationConfig
+from stochpend.runs import checkpoint as ck
 
 pytestmark = pytest.mark.system
 
@@ -54,7 +54,7 @@ def _one_line(text: str) -> str:
     # The note of a first use's compilation comes before any error when the kernel is not in the
     # cache yet: whether it is depends on which tests ran before on this xdist worker, and the
     # note is not part of the error. Nor is the start's "estimate:" line, which a cold start
-    # prints when this machine's compile calibration (stochpend._calibration) expects over 10 s.
+    # prints when this machine's compile calibration (stochpend.numerics._calibration) expects over 10 s.
     lines = [ln for ln in text.splitlines()
              if ln.strip() and not ln.startswith(("compiling kernels for ", "estimate: "))]
     assert len(lines) == 1, text
@@ -167,13 +167,13 @@ def _invoke_before_work(args: list[str]):
     must come before all of them (a bound on work, where these tests had wall-time limits that
     a busy machine could break: issue 37)."""
     # Imported before the patches: a module first imported under them binds the patched
-    # run_batches by name (``from stochpend.runner import run_batches``) and keeps it for good,
+    # run_batches by name (``from stochpend.engine.runner import run_batches``) and keeps it for good,
     # failing every later test of this process that does work.
-    import stochpend._blocks  # noqa: F401
+    import stochpend.runs._blocks  # noqa: F401
     import stochpend.sweep  # noqa: F401
     import stochpend.theory.bfpe  # noqa: F401
-    with mock.patch("stochpend.runner.run_batches", _work_started), \
-            mock.patch("stochpend._blocks.run_batches", _work_started), \
+    with mock.patch("stochpend.engine.runner.run_batches", _work_started), \
+            mock.patch("stochpend.runs._blocks.run_batches", _work_started), \
             mock.patch("stochpend.sweep.run_block", _work_started), \
             mock.patch("stochpend.theory.bfpe._sdirk2_step", _work_started):
         return _invoke(args)
@@ -741,7 +741,7 @@ def test_checkpoint_that_is_not_a_regular_file_says_what_it_is(tmp_path, kind):
 def test_sigterm_during_the_final_write_leaves_no_temporary_file(tmp_path, monkeypatch, checkpointed):
     """Issue 20 item 7 (no id in the case list): SIGTERM during the final write left a 0-byte
     `.x.nc.*.tmp` beside the output. A real SIGTERM, delivered half-way through the write."""
-    from stochpend import _files
+    from stochpend.files import _files
 
     real = io.write_atomic
 
@@ -872,7 +872,7 @@ def test_an_unwritable_pseudo_filesystem_out_is_refused_before_any_work(tmp_path
 def test_a_long_bfpe_solve_says_so_before_it_starts(tmp_path):
     """B01: 'bfpe --n-cells 1e7 --t-max 10' (accepted: about 6e9 cell-steps) printed nothing in
     40 s, with or without --quiet. Its estimate is the first line, before the solve allocates."""
-    from stochpend import resources
+    from stochpend.runs import resources
 
     if resources.available_memory() < 6 * 2**30:
         pytest.skip("the solve needs 4.8 GiB: refused here before any estimate")
@@ -1169,7 +1169,7 @@ def test_the_checkpoint_read_guard_covers_its_measured_peak(tmp_path, handed_ove
     """S28: reading a checkpoint peaked at 2.59 times the file (tracemalloc), the guard assumed 2."""
     import tracemalloc
 
-    from stochpend import resources
+    from stochpend.runs import resources
 
     path = tmp_path / "run.ckpt"
     path.write_bytes(handed_over)

@@ -6,7 +6,7 @@ those names. Without care, process B that compiles another Spec's pieces first g
 names the writer process A gave the cached kernel's pieces, and the cached kernel, once
 loaded, calls B's functions: other noise, wrong numbers, no error. (Seen in the test suite:
 the fixed-step OU kernel computed with the dichotomous noise's step after the bias estimate
-of a dichotomous run.) ``stochpend._jitcache`` names every closure after what decides its code
+of a dichotomous run.) ``stochpend.numerics._jitcache`` names every closure after what decides its code
 and the code digest, so one name is one code in every process.
 
 Numba also keys a cached kernel on its own file only: an edit of a function it calls from
@@ -65,7 +65,7 @@ def test_an_edited_module_level_function_runs_with_numba_cache_dir_set(tmp_path)
     cache = tmp_path / "numba-cache"
     cache.mkdir()
     before = _run(cache, tmp_path / "before.npy", "ou", src=src)
-    mathlib = src / "stochpend" / "mathlib.py"
+    mathlib = src / "stochpend" / "numerics" / "mathlib.py"
     text = mathlib.read_text()
     old = "def _sin(x):\n    return math.sin(x)\n"
     assert text.count(old) == 1
@@ -107,8 +107,9 @@ def test_every_closure_of_every_builtin_spec_is_named_where_it_is_made():
     a name given by a kernel's ``own_index`` (whichever kernel is built first) would depend
     on the order of a process's builds, so none may be left to it. Two Specs that differ in
     anything that decides a closure's code never share its name."""
-    from stochpend import _jitcache, integrator, noises, oscillators
-    from stochpend._backends import cpu
+    from stochpend import noises, oscillators
+    from stochpend.engine import cpu, integrator
+    from stochpend.numerics import _jitcache
 
     seen_names: dict[str, str] = {}
     for noise in noises.names():

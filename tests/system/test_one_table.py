@@ -1,4 +1,4 @@
-"""Statistics declared once (issue 22): a new moment is one line of ``stochpend/observables.py``.
+"""Statistics declared once (issue 22): a new moment is one line of ``stochpend/model/observables.py``.
 
 The test copies the package, appends one line to its table -- the mean of Omega**6 -- and runs
 the copy in fresh processes with a fresh kernel cache: on the CPU (the SIMD-lane run, the
@@ -34,7 +34,7 @@ def package_with_omega6(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("one_entry")
     source = Path(stochpend.__file__).resolve().parent
     shutil.copytree(source, root / "stochpend", ignore=shutil.ignore_patterns("__pycache__"))
-    table = root / "stochpend" / "observables.py"
+    table = root / "stochpend" / "model" / "observables.py"
     before = table.read_text().splitlines(keepends=True)
     at = next(i for i, line in enumerate(before) if line.startswith(ANCHOR))
     after = before[:at] + [LINE, "\n"] + before[at:]

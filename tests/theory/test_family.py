@@ -489,7 +489,7 @@ def test_cli_family_bad_input_one_line(args, needle) -> None:
 def test_cli_family_table_fits_80_columns() -> None:
     from rich.console import Console
 
-    from stochpend._cli_theory import theory_table
+    from stochpend.cli._theory import theory_table
 
     for kw in ({"noise": "white", "F": 2.0}, {"noise": "ou", "tau": 0.5}):
         console = Console(width=80, record=True, file=__import__("io").StringIO())

@@ -1,4 +1,4 @@
-"""The reduced (averaged) dynamics, stochpend.reduced: samplers, exact laws, determinism.
+"""The reduced (averaged) dynamics, stochpend.runs.reduced: samplers, exact laws, determinism.
 
 Statistical assertions use fixed seeds and |z| < Z_TOL = 4 standard errors; goodness-of-fit
 tests (Kolmogorov-Smirnov, chi-square) require p > 1e-3.
@@ -14,9 +14,9 @@ import pytest
 import xarray as xr
 from scipy import integrate, special, stats
 
-from stochpend import reduced
-from stochpend.reduced import draw_samples, sample_reduced, simulate_reduced
-from stochpend.stats import N_SUMS, S_COUNT, S_E1, S_NONFINITE
+from stochpend.model.stats import N_SUMS, S_COUNT, S_E1, S_NONFINITE
+from stochpend.runs import reduced
+from stochpend.runs.reduced import draw_samples, sample_reduced, simulate_reduced
 from stochpend.theory import laws
 from tests.conftest import Z_TOL
 

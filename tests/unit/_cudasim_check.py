@@ -42,9 +42,9 @@ class RecordingProgress:
 def main(spec_path: str, out_path: str) -> None:
     if os.environ.get("NUMBA_ENABLE_CUDASIM") != "1":
         raise SystemExit("set NUMBA_ENABLE_CUDASIM=1 before running this script")
-    from stochpend import runner
-    from stochpend._backends import cuda as backend
-    from stochpend.params import SimulationConfig
+    from stochpend.engine import cuda as backend
+    from stochpend.engine import runner
+    from stochpend.model.params import SimulationConfig
 
     with open(spec_path) as f:
         cases = json.load(f)
@@ -117,8 +117,8 @@ def checkpoint_case(case: dict) -> dict[str, np.ndarray]:
     from pathlib import Path
 
     import stochpend
-    from stochpend import checkpoint
-    from stochpend.params import SimulationConfig
+    from stochpend.model.params import SimulationConfig
+    from stochpend.runs import checkpoint
 
     name = case["name"]
     config = SimulationConfig.build(**case["config"])
@@ -182,7 +182,7 @@ def bias_case(case: dict) -> dict[str, np.ndarray]:
     chunks of ``chunk_pairs``: each statistic's bias and coarse value with their errors, the
     pairs' path-steps and decorrelation, saved as "<name>/<what>_<statistic>"."""
     from stochpend import bias
-    from stochpend.params import SimulationConfig
+    from stochpend.model.params import SimulationConfig
 
     name = case["name"]
     est = bias.estimate(SimulationConfig.build(**case["config"]), case["pairs"],
@@ -199,8 +199,8 @@ def bias_case(case: dict) -> dict[str, np.ndarray]:
 def rng_case(case: dict) -> dict[str, np.ndarray]:
     """Philox words and both normal pairs of draws ``(path, n)`` computed in a CUDA kernel (the
     paths and counters of :func:`rng_inputs`, whose high words are in use)."""
-    from stochpend import rng
-    from stochpend.mathlib import LIBM
+    from stochpend.numerics import rng
+    from stochpend.numerics.mathlib import LIBM
 
     name = case["name"]
     paths, counters = rng_inputs(case["n"])
@@ -238,8 +238,8 @@ def rng_inputs(n: int) -> tuple[np.ndarray, np.ndarray]:
 def precision_pair_case(case: dict) -> dict[str, np.ndarray]:
     """The same configuration run in float64 and in float32 with *different* seeds (independent
     ensembles, for a two-sample test): the sums of each."""
-    from stochpend import runner
-    from stochpend.params import SimulationConfig
+    from stochpend.engine import runner
+    from stochpend.model.params import SimulationConfig
 
     name = case["name"]
     out: dict[str, np.ndarray] = {}

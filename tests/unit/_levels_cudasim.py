@@ -39,7 +39,7 @@ PATH0 = np.uint64(2**63 + 17)
 
 
 def config(name: str):
-    from stochpend.params import SimulationConfig
+    from stochpend.model.params import SimulationConfig
 
     return SimulationConfig.build(**CASES[name], paths=64, t_max=TIMES[-1], n_times=2, seed=SEED)
 
@@ -47,7 +47,7 @@ def config(name: str):
 def initial_state(cfg, levels: int, n: int = PATHS) -> tuple[np.ndarray, ...]:
     """The state of ``levels`` members (``integrator.level_positions``) at t = 0: every member
     at the same spread of (x, Omega), the noises at 0, then the additive channel's arrays."""
-    from stochpend import dynamics
+    from stochpend.model import dynamics
 
     x = np.linspace(-2.5, 2.5, n)
     Omega = np.linspace(-1.0, 1.5, n)
@@ -62,8 +62,9 @@ def main(out_path: str) -> None:
         raise SystemExit("set NUMBA_ENABLE_CUDASIM=1 before running this script")
     from numba import cuda
 
-    from stochpend import integrator, rng
-    from stochpend._backends import cuda as backend
+    from stochpend.engine import cuda as backend
+    from stochpend.engine import integrator
+    from stochpend.numerics import rng
 
     out: dict[str, np.ndarray] = {}
     for name in CASES:

@@ -16,8 +16,9 @@ import math
 import numpy as np
 from numba.extending import register_jitable
 
-from stochpend import noises, rng
+from stochpend import noises
 from stochpend.noises.base import Noise, NoiseKernel, at_no_event, no_event, no_scratch
+from stochpend.numerics import rng
 
 NAME = "phase-drive"
 

@@ -4,7 +4,7 @@
     U(x) = x**4/4 - x**2/2 + a x,   U'(x) = x**3 - x + a,   |U''(x)| = |3 x**2 - 1|,
 
 whose tilt ``a`` the package has never heard of. The model declares it (a
-:class:`stochpend.parameters.Parameter`: default 0, range [-1, 1]); its functions take it after
+:class:`stochpend.model.parameters.Parameter`: default 0, range [-1, 1]); its functions take it after
 x; the kernels receive it in the oscillator's record ``q = (a,)``. At a = 0 it is the double
 well of ``tests/unit/_user_models.py``, term for term (plus 0.0).
 
@@ -15,8 +15,8 @@ line) makes ``potential="tilted-well"`` and ``a=...`` (``--param a=...``) work e
 
 from __future__ import annotations
 
+from stochpend.model.parameters import Parameter
 from stochpend.models import Model, register
-from stochpend.parameters import Parameter
 
 NAME = "tilted-well"
 TILT = Parameter("a", 0.0, "the tilt: U = x^4/4 - x^2/2 + a x", low=-1.0, high=1.0)

@@ -23,10 +23,11 @@ import math
 import numpy as np
 from numba.extending import register_jitable
 
-from stochpend import noises, rng
+from stochpend import noises
+from stochpend.model.parameters import Parameter
 from stochpend.noises import ou
 from stochpend.noises.base import Noise, NoiseKernel, at_no_event, no_event, no_scratch
-from stochpend.parameters import Parameter
+from stochpend.numerics import rng
 
 NAME = "two-ou"
 _U64 = np.uint64

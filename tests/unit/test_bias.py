@@ -16,9 +16,10 @@ import pytest
 from typer.testing import CliRunner
 
 import stochpend
-from stochpend import bias, integrator
+from stochpend import bias
 from stochpend.cli import app
-from stochpend.params import SimulationConfig
+from stochpend.engine import integrator
+from stochpend.model.params import SimulationConfig
 from tests.conftest import SEED, Z_TOL
 from tests.statistical.test_weak_order import OMEGA, X0, D, exact_second_moments, scheme_second_moments
 
@@ -75,13 +76,13 @@ def test_pairs_without_noise_are_the_run_at_h_and_at_h_over_2(step_c):
     """D = 0, fixed start: the coarse member is advance_path's path bit for bit (fixed and
     adaptive steps), and with a fixed step the fine member is the path run at h_max/2: the
     pair adds nothing to the scheme but the shared noise."""
-    from stochpend import rng
+    from stochpend.numerics import rng
     from tests._kernels import Paths, kernels
 
     n, seed, theta0, Omega0 = 8, SEED, 2.5, np.linspace(-1.0, 3.0, 8)
     key0, key1 = rng.seed_to_key(seed)
     spec = integrator.spec("ou", adaptive=step_c > 0)
-    from stochpend._backends import cpu
+    from stochpend.engine import cpu
 
     init, advance = cpu.init_kernel(spec), cpu.pair_advance_kernel(spec)
     pair = [np.zeros(n) for _ in range(8)]
@@ -221,8 +222,8 @@ def test_spec_pair_function_exists_for_every_noise():
 def test_each_spec_has_its_own_cache_index():
     """Numba's index file is shared by every overload of one function; two processes adding
     different Specs to it at once can leave one Spec's key pointing at another's code. Each
-    Spec's kernels therefore get their own index file (stochpend._jitcache.own_index)."""
-    from stochpend._backends import cpu
+    Spec's kernels therefore get their own index file (stochpend.numerics._jitcache.own_index)."""
+    from stochpend.engine import cpu
 
     paths = set()
     for noise in ("ou", "dichotomous"):
@@ -242,8 +243,8 @@ def test_pairs_in_simd_lanes_are_the_one_pair_kernel_bit_for_bit(noise, adaptive
     neighbour's counter or dropped a half step differs at once."""
     import numba
 
-    from stochpend import rng
-    from stochpend._backends import cpu
+    from stochpend.engine import cpu
+    from stochpend.numerics import rng
 
     spec = integrator.spec(noise, adaptive=adaptive, fast_math=True)
     assert integrator.lanes_supported(spec)

@@ -8,8 +8,8 @@ import os
 
 import pytest
 
-from stochpend import _calibration as cal
-from stochpend import resources
+from stochpend.numerics import _calibration as cal
+from stochpend.runs import resources
 
 
 @pytest.fixture
@@ -112,7 +112,7 @@ def test_the_estimates_use_the_calibration(monkeypatch, tmp_path):
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(cal, "current_load", lambda: 0.0)
     monkeypatch.setattr(cal, "cores", lambda: 2)
-    from stochpend.params import SimulationConfig
+    from stochpend.model.params import SimulationConfig
 
     config = SimulationConfig.build(paths=100_000, t_max=1000.0, n_times=4)  # seconds of work: a sample
     before = resources.estimate(config, threads=2)
@@ -124,7 +124,7 @@ def test_the_estimates_use_the_calibration(monkeypatch, tmp_path):
     assert after.seconds == pytest.approx(4 * before.seconds)
     assert "(rate measured here)" in after.describe()
     # compile seconds: the built-in figures times the measured scale and the load now
-    from stochpend import _jitcache
+    from stochpend.numerics import _jitcache
 
     monkeypatch.setattr(_jitcache, "in_cache", lambda kernel: False)  # a cold kernel cache
     builtin = resources.compile_seconds(config, calibrated=False)
@@ -151,7 +151,7 @@ def test_bfpe_announces_a_long_solve_at_the_measured_rate(monkeypatch, tmp_path)
 
 
 def test_a_long_sweep_has_an_estimate_line(monkeypatch, tmp_path):
-    from stochpend._cli_scale import sweep_estimate
+    from stochpend.cli._scale import sweep_estimate
     from stochpend.sweep import load_spec
 
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
@@ -172,8 +172,8 @@ def test_a_sweep_of_many_tiny_sets_counts_each_sets_own_cost(monkeypatch, tmp_pa
     estimate) was not counted."""
     from types import SimpleNamespace
 
-    from stochpend._cli_scale import SET_SECONDS, SET_SECONDS_WITH_BIAS, sweep_estimate
-    from stochpend.params import SimulationConfig
+    from stochpend.cli._scale import SET_SECONDS, SET_SECONDS_WITH_BIAS, sweep_estimate
+    from stochpend.model.params import SimulationConfig
 
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(cal, "current_load", lambda: 0.0)
@@ -196,7 +196,7 @@ def test_a_kernels_own_rate_never_another_kernels(monkeypatch, tmp_path):
     monkeypatch.setattr(cal, "current_load", lambda: 0.0)
     monkeypatch.setattr(resources, "_cores", lambda threads: 2)
     monkeypatch.setattr(cal, "cores", lambda: 2)
-    from stochpend.params import SimulationConfig
+    from stochpend.model.params import SimulationConfig
 
     quartic = SimulationConfig.build(paths=100_000, t_max=1000.0, n_times=4, potential="power", power_n=2)
     kind = resources.kernel_kind(quartic)

@@ -15,12 +15,17 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from stochpend import checkpoint as ck
 from stochpend import cli, io
-from stochpend._cli_scale import parse_duration, resume_command, simulate_with_checkpoint, sweep_command
-from stochpend.params import SimulationConfig
-from stochpend.progress import NoProgress
-from stochpend.simulate import run, simulate
+from stochpend.cli._scale import (
+    parse_duration,
+    resume_command,
+    simulate_with_checkpoint,
+    sweep_command,
+)
+from stochpend.model.params import SimulationConfig
+from stochpend.runs import checkpoint as ck
+from stochpend.runs.simulate import run, simulate
+from stochpend.text.progress import NoProgress
 from tests._checkpoints import StopAfter
 
 SMALL = {"noise": "ou", "D": 1.0, "tau": 1.0, "omega": 1.0, "paths": 300, "t_max": 20.0, "n_times": 6, "seed": 5}
@@ -66,7 +71,7 @@ def test_interrupt_then_resume_is_exact(tmp_path, small, n):
 
 
 #: Attributes that time a run or name its checkpoint: the only ones a checkpointed run may
-#: differ in from the same run by stochpend.simulate.run.
+#: differ in from the same run by stochpend.runs.simulate.run.
 _TIMING = {"wall_time_s", "simulation_wall_time_s", "compile_time_s", "path_steps_per_s", "bias_wall_time_s",
            "created", "checkpoint", "checkpoint_every_s", "resumed"}
 
@@ -290,7 +295,7 @@ def test_backend_and_precision_are_recorded_and_checked(good, monkeypatch):
 
 def test_gpu_checkpoint_without_a_usable_gpu_is_one_line(good, monkeypatch):
     """A GPU run resumes on the GPU; where none is usable, resume says so in one line."""
-    from stochpend._backends import cuda as gpu
+    from stochpend.engine import cuda as gpu
 
     monkeypatch.setattr(gpu, "availability", lambda: (False, "the CUDA driver reports no GPU"))
     header, payload = _split(good.read_bytes())
@@ -508,7 +513,7 @@ TARGET_ARGS = ["simulate", "--noise", "white", "--D", "0", "--t-max", "2", "--ti
 def target_reference():
     import warnings
 
-    from stochpend import multilevel
+    from stochpend.runs import multilevel
 
     config = SimulationConfig.build(**TARGET_RUN, noise_params=TARGET_OWN)
     with warnings.catch_warnings():
@@ -563,7 +568,7 @@ def test_a_target_run_interrupted_in_its_late_time_route_resumes_bit_for_bit(tmp
     the resumed run replays the levels' rounds and that ensemble and runs the rest."""
     import warnings
 
-    from stochpend import multilevel
+    from stochpend.runs import multilevel
 
     run_ = dict(noise="ou", t_max=100.0, times=(1.0, 100.0), seed=2)
     with warnings.catch_warnings():
@@ -671,7 +676,7 @@ def test_a_damaged_target_checkpoint_is_refused_by_resume_exit_2(tmp_path, targe
 
 
 def test_the_journal_replays_the_independent_routes_ensembles_and_refuses_another():
-    from stochpend import multilevel
+    from stochpend.runs import multilevel
 
     made = []
 

@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 
 import stochpend
 from stochpend import cli, io
-from stochpend._warnings import StochpendWarning
+from stochpend.text._warnings import StochpendWarning
 
 
 def _cli(*args: object) -> SimpleNamespace:

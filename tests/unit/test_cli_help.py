@@ -17,7 +17,8 @@ import typer.main
 from typer._click import Context
 from typer.testing import CliRunner
 
-from stochpend import _cli_common, cli
+from stochpend import cli
+from stochpend.cli import _common as _cli_common
 from stochpend.paper import EQUATIONS
 
 WIDE = {"COLUMNS": "2000", "TERMINAL_WIDTH": "2000"}
@@ -106,7 +107,7 @@ def test_root_help_has_no_bool_metavar() -> None:
 
 
 def test_help_defaults_match_the_api() -> None:
-    from stochpend import params
+    from stochpend.model import params
 
     assert (cli.DEFAULT_H_MAX, cli.DEFAULT_STEP_C, cli.DEFAULT_HIST_BINS) == (
         params.DEFAULT_H_MAX, params.DEFAULT_STEP_C, params.DEFAULT_HIST_BINS)

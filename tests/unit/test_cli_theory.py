@@ -1,4 +1,4 @@
-"""The ``theory``, ``bfpe`` and ``reduced`` commands (stochpend._cli_theory)."""
+"""The ``theory``, ``bfpe`` and ``reduced`` commands (stochpend.cli._theory)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from stochpend import cli
-from stochpend._cli_theory import bfpe_command, reduced_command, theory_command
+from stochpend.cli._theory import bfpe_command, reduced_command, theory_command
 
 COMMANDS = {"theory": theory_command, "bfpe": bfpe_command, "reduced": reduced_command}
 

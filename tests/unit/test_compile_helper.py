@@ -1,12 +1,12 @@
-"""When a run's pair kernel is left to the compile helper (stochpend._compile_helper.wanted):
+"""When a run's pair kernel is left to the compile helper (stochpend.runs._compile_helper.wanted):
 only where it can save time, never where it cannot run or is turned off."""
 
 from __future__ import annotations
 
-from stochpend import _compile_helper
-from stochpend._backends import cpu
-from stochpend._jitcache import in_cache
-from stochpend.params import SimulationConfig
+from stochpend.engine import cpu
+from stochpend.model.params import SimulationConfig
+from stochpend.numerics._jitcache import in_cache
+from stochpend.runs import _compile_helper
 
 
 def test_the_helper_is_wanted_only_for_a_cold_cpu_run_with_pairs(monkeypatch):
@@ -25,7 +25,7 @@ def test_the_helper_is_wanted_only_for_a_cold_cpu_run_with_pairs(monkeypatch):
     pairs_cached = all(in_cache(k) for kind, k in kernels.items() if kind.startswith("pairs"))
     own_cached = all(in_cache(k) for kind, k in kernels.items() if not kind.startswith("pairs"))
     assert _compile_helper.wanted(config, backend="cpu", pairs=True) == (not pairs_cached and not own_cached)
-    import stochpend._jitcache as jitcache
+    import stochpend.numerics._jitcache as jitcache
 
     monkeypatch.setattr(jitcache, "in_cache", lambda k: False)
     assert _compile_helper.wanted(config, backend="cpu", pairs=True)  # a cold cache: wanted

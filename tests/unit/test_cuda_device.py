@@ -1,7 +1,7 @@
 """On a real GPU only (skipped elsewhere, CI included): Philox as the CUDA kernels compile it.
 
 The simulator runs rng's Python functions, so it cannot test the CUDA-target implementation of
-rng.mulhilo (one mul.wide.u32, registered by stochpend._backends.cuda). Here a kernel computes
+rng.mulhilo (one mul.wide.u32, registered by stochpend.engine.cuda). Here a kernel computes
 the Random123 known answers and draws of paths and counters with high words, which must equal
 the CPU's exactly (words), to the last bits (float64 normals: libdevice's log/sin/cos against
 glibc's) and to float32 round-off (float32 normals). Run on the GPU machine with
@@ -14,9 +14,9 @@ import numba
 import numpy as np
 import pytest
 
-from stochpend import rng
-from stochpend._backends import cuda as gpu
-from stochpend.mathlib import LIBM
+from stochpend.engine import cuda as gpu
+from stochpend.numerics import rng
+from stochpend.numerics.mathlib import LIBM
 from tests.unit.test_rng import KAT, _words
 
 pytestmark = pytest.mark.gpu

@@ -20,9 +20,9 @@ from typer.testing import CliRunner
 
 import stochpend
 from stochpend import cli
-from stochpend._backends import cuda as gpu
-from stochpend._backends import cuda_probe
-from stochpend.simulate import cuda_status, resolve_backend
+from stochpend.engine import cuda as gpu
+from stochpend.engine import cuda_probe
+from stochpend.runs.simulate import cuda_status, resolve_backend
 
 ROW_STACK = "module 'numpy' has no attribute 'row_stack'"
 GPU = "NVIDIA Fake (compute capability 9.0)"
@@ -117,7 +117,7 @@ def test_no_gpu_is_not_probed(monkeypatch):
 @pytest.mark.gpu
 def test_real_probe_in_the_simulator():
     """The real probe kernel compiles and runs (Numba's CUDA simulator, in its own process)."""
-    code = ("import json; from stochpend._backends import cuda_probe; from stochpend.simulate import cuda_status;"
+    code = ("import json; from stochpend.engine import cuda_probe; from stochpend.runs.simulate import cuda_status;"
             "print(json.dumps([cuda_probe.probe(), cuda_status(), cuda_status('auto'), cuda_probe._compile_and_launch().tolist()]))")
     src = Path(stochpend.__file__).resolve().parents[1]
     env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1",

@@ -19,14 +19,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stochpend import integrator, rng, runner
-from stochpend._backends import cpu
-from stochpend._backends import cuda as gpu
-from stochpend.mathlib import LIBM
+from stochpend.engine import cpu, integrator, runner
+from stochpend.engine import cuda as gpu
+from stochpend.engine.runner import run_batches
+from stochpend.model.params import SimulationConfig
 from stochpend.noises import ou
+from stochpend.numerics import rng
+from stochpend.numerics.mathlib import LIBM
 from stochpend.observables import S_COUNT, S_NONFINITE, Observable, column
-from stochpend.params import SimulationConfig
-from stochpend.runner import run_batches
 from tests import _background
 from tests._kernels import Paths
 from tests.unit import _phase_noise
@@ -227,7 +227,7 @@ def _check_cpu_kernels_are_current() -> None:
         pytest.fail(
             f"the CPU kernels do not compute what rng/integrator say (state {found} != {expected}): "
             "most likely a stale Numba cache, which cache=True keys on cpu.py alone; delete "
-            "src/stochpend/_backends/__pycache__/*.nbi and *.nbc (or set NUMBA_CACHE_DIR) and rerun"
+            "src/stochpend/engine/__pycache__/*.nbi and *.nbc (or set NUMBA_CACHE_DIR) and rerun"
         )
 
 
@@ -471,8 +471,8 @@ def test_gpu_bias_pairs_equal_cpu(simulated, monkeypatch):
     math): every statistic's bias and coarse value equal the CPU's one-pair kernel of that Spec
     to the last bits, and the pairs' path-steps exactly."""
     from stochpend import bias
-    from stochpend._backends import cpu
-    from stochpend.integrator import Spec
+    from stochpend.engine import cpu
+    from stochpend.engine.integrator import Spec
 
     case = next(c for c in EXTRAS if c["name"] == "bias_pairs")
     monkeypatch.setattr(cpu, "spec_for", lambda config, precision="float64": Spec.of(config, precision=precision))

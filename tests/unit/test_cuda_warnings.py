@@ -16,7 +16,7 @@ import warnings
 import numba.core.errors
 import pytest
 
-from stochpend._backends import cuda as gpu
+from stochpend.engine import cuda as gpu
 from tests import conftest
 
 
@@ -71,7 +71,7 @@ def test_the_suite_ignores_numba_cudas_own_class_only_where_it_is_installed(monk
 _SIMULATED_RUN = r"""
 import json, sys, warnings
 import stochpend
-from stochpend._backends import cuda as gpu
+from stochpend.engine import cuda as gpu
 gpu._multiprocessors = lambda: int(sys.argv[1])  # the simulator has no SM count: a GPU's
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")

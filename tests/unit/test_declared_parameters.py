@@ -25,11 +25,11 @@ import numpy as np
 import pytest
 
 import stochpend
-from stochpend import checkpoint as ck
 from stochpend import io, plugins
+from stochpend.model.params import SimulationConfig
 from stochpend.observables import Observable, register, unregister
-from stochpend.params import SimulationConfig
-from stochpend.simulate import run
+from stochpend.runs import checkpoint as ck
+from stochpend.runs.simulate import run
 from tests._checkpoints import StopAfter
 from tests.unit import _two_ou
 

@@ -1,4 +1,4 @@
-"""Branch-free log/sin/cos (stochpend.fastmath) and the CPU's SIMD lock-step driver.
+"""Branch-free log/sin/cos (stochpend.numerics.fastmath) and the CPU's SIMD lock-step driver.
 
 Errors are measured in ulps of the reference result against glibc's ``log``/``sin``/``cos``
 (what the scalar kernel calls), over the ranges the kernel uses: the Box-Muller uniforms
@@ -16,9 +16,9 @@ import numba
 import numpy as np
 import pytest
 
-from stochpend import fastmath, integrator, rng
-from stochpend._backends import cpu
-from stochpend.params import SimulationConfig
+from stochpend.engine import cpu, integrator
+from stochpend.model.params import SimulationConfig
+from stochpend.numerics import fastmath, rng
 from tests._kernels import Paths, kernels
 
 #: The fixed-step OU pendulum, with the C library's math (one path at a time) and with the
@@ -263,8 +263,8 @@ def test_branch_free_ou_coefficients_agree_with_the_c_library_ones(h, tau):
     """The fast-math Spec's OU coefficients (expm1 polynomial, tanh(x/2) = b/(2 - b) in the
     direct form, both forms evaluated and one selected) against noises.ou.step_coefficients:
     within 1e-14 relative for every coefficient (h/tau on both sides of the series' 0.6)."""
-    from stochpend.mathlib import FAST
     from stochpend.noises import ou
+    from stochpend.numerics.mathlib import FAST
 
     coefficients = ou.branch_free_coefficients(np.float64, FAST)
 

@@ -58,7 +58,7 @@ def test_bad_arguments_get_one_line_naming_the_parameter(args, parameter):
 
 def test_the_report_holds_the_device_the_versions_and_every_figure(monkeypatch, tmp_path):
     gc = _module()
-    from stochpend._backends import cuda as gpu
+    from stochpend.engine import cuda as gpu
 
     def fake_oracle(args):
         return True, ["| precision | z |", "|---|---:|", "| float64 | +0.123 |"]
@@ -103,7 +103,7 @@ def test_the_oracle_step_runs_in_the_simulator_on_a_toy_case(tmp_path):
         # the reference column is the scheme's moment map, computed here again
         from types import SimpleNamespace
 
-        from stochpend import dynamics
+        from stochpend.model import dynamics
 
         d = dynamics.record(SimpleNamespace(dyn_params=dynamics.resolve({"gamma": 0.7, "additive_D": 0.3})))
         moments = gc.scheme_moments(0.1, round(float(t) / 0.1), 0.5, d)

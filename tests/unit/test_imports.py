@@ -123,8 +123,8 @@ def test_the_graph_sees_imports_inside_functions_and_importlib_calls():
     """The graph is not blind where cycles hide: ``runner`` imports the backends inside a
     function, ``sweep`` imports the Dask backend with ``importlib``."""
     graph = import_graph()
-    assert "stochpend._backends.cpu" in graph["stochpend.runner"]
-    assert "stochpend._backends.dask" in graph["stochpend.sweep"]
+    assert "stochpend.engine.cpu" in graph["stochpend.engine.runner"]
+    assert "stochpend.runs.dask" in graph["stochpend.runs.sweep"]
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 

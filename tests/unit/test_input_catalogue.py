@@ -152,9 +152,9 @@ def _no_work(*args, **kwargs):
 @pytest.fixture(autouse=True)
 def no_simulation():
     """Every runner replaced: a case that got past validation fails instead of running."""
-    targets = ["stochpend.simulate.run", "stochpend.lifecycle.execute", "stochpend.runner.run_batches",
-               "stochpend.checkpoint.run_checkpointed",
-               "stochpend.sweep.sweep", "stochpend.reduced._run_chunk", "stochpend.reproduce._simulate"]
+    targets = ["stochpend.runs.simulate.run", "stochpend.runs.lifecycle.execute", "stochpend.engine.runner.run_batches",
+               "stochpend.runs.checkpoint.run_checkpointed",
+               "stochpend.sweep.sweep", "stochpend.runs.reduced._run_chunk", "stochpend.paper.reproduce._simulate"]
     patches = [mock.patch(t, _no_work) for t in targets]
     for p in patches:
         p.start()
@@ -179,8 +179,10 @@ def test_cli_refuses_in_one_line(files, args, needles):
 
 
 def _api_cases(d: pathlib.Path) -> list[tuple[str, object, str]]:
-    from stochpend import checkpoint, io, reduced, reproduce, sweep, theory
-    from stochpend.params import SimulationConfig
+    from stochpend import io, sweep, theory
+    from stochpend.model.params import SimulationConfig
+    from stochpend.paper import reproduce
+    from stochpend.runs import checkpoint, reduced
 
     return [
         ("simulate-paths-1e15", lambda: stochpend.simulate(paths=10**15), "paths="),

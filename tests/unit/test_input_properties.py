@@ -17,9 +17,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from stochpend import resources
 from stochpend.cli import app
-from stochpend.params import SimulationConfig
+from stochpend.model.params import SimulationConfig
+from stochpend.runs import resources
 
 #: 200 examples each (a few seconds); STOCHPEND_HYPOTHESIS_EXAMPLES=5000 for a deeper search.
 SETTINGS = settings(max_examples=int(os.environ.get("STOCHPEND_HYPOTHESIS_EXAMPLES", "200")), deadline=None,
@@ -159,8 +159,8 @@ def runner():
 @SETTINGS
 @given(args=cli_args())
 def test_cli_simulate_accepts_or_refuses_in_one_line(runner, args):
-    with mock.patch("stochpend.lifecycle.execute", _accept), \
-            mock.patch("stochpend._cli_scale.simulate_with_checkpoint", _accept):
+    with mock.patch("stochpend.runs.lifecycle.execute", _accept), \
+            mock.patch("stochpend.cli._scale.simulate_with_checkpoint", _accept):
         result = runner.invoke(app, args)
     if isinstance(result.exception, _Accepted):
         return

@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 import stochpend
-from stochpend import integrator, oscillators
+from stochpend import oscillators
+from stochpend.engine import integrator
+from stochpend.model.params import SimulationConfig
 from stochpend.noises import ou
-from stochpend.params import SimulationConfig
 
 
 def _steps(potential="pendulum", coupling="force"):
@@ -199,8 +200,10 @@ def test_the_run_record_is_read_by_its_declared_names():
     """``integrator.RUN_RECORD`` declares the run record's fields once; the kernels read them by
     their ``RUN_*`` positions: each holds the configuration's value (the generic additive
     channel's run, which has every field)."""
-    from stochpend import dynamics, integrator, rng
-    from stochpend.params import SimulationConfig
+    from stochpend.engine import integrator
+    from stochpend.model import dynamics
+    from stochpend.model.params import SimulationConfig
+    from stochpend.numerics import rng
 
     cfg = SimulationConfig.build(noise="white", D=0.5, omega=1.5, h_max=0.03, step_c=0.2, seed=11,
                                  additive_noise="harmonic",

@@ -1,4 +1,4 @@
-"""stochpend._jitable: the kernels' functions are registered with Numba whichever of Numba and
+"""stochpend.numerics._jitable: the kernels' functions are registered with Numba whichever of Numba and
 the package is imported first, and importing the package's pieces imports no Numba (issue 36)."""
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def _run(code: str) -> subprocess.CompletedProcess:
 @pytest.mark.parametrize("numba_first", [False, True])
 def test_registered_whichever_is_imported_first(numba_first):
     imports = ("import math, sys\n" + ("import numba\n" if numba_first else "")
-               + "from stochpend import fastmath, mathlib, noises, oscillators, rng\n"
+               + "from stochpend import noises, oscillators\nfrom stochpend.numerics import fastmath, mathlib, rng\n"
                "from stochpend.noises.base import no_event\n"
                "print('numba' in sys.modules)\n" + ("" if numba_first else "import numba\n"))
     done = _run(imports + CALLS)
@@ -43,7 +43,7 @@ def test_registered_whichever_is_imported_first(numba_first):
 
 
 def test_the_import_hook_is_gone_after_numba_is_imported():
-    done = _run("import sys; from stochpend import noises; from stochpend._jitable import _NumbaWatcher as W\n"
+    done = _run("import sys; from stochpend import noises; from stochpend.numerics._jitable import _NumbaWatcher as W\n"
                 "print(any(isinstance(f, W) for f in sys.meta_path))\n"
                 "import numba\nprint(any(isinstance(f, W) for f in sys.meta_path))")
     assert done.returncode == 0, done.stderr[-3000:]

@@ -15,11 +15,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from stochpend import checkpoint as ck
-from stochpend import cli, io, params, runner
-from stochpend._backends import cpu
-from stochpend.params import SimulationConfig
-from stochpend.simulate import run
+from stochpend import cli, io
+from stochpend.engine import cpu, runner
+from stochpend.model import params
+from stochpend.model.params import SimulationConfig
+from stochpend.runs import checkpoint as ck
+from stochpend.runs.simulate import run
 from tests._checkpoints import StopAfter
 
 #: The damped pendulum with additive white noise (no parametric noise): it relaxes to
@@ -259,7 +260,7 @@ def test_a_configuration_file_sets_it(tmp_path):
 def test_the_error_is_the_delete_one_batch_jackknife_for_equal_batches():
     """From Σc_b, Σc_b² and Σc_b n_b alone: for batches of equal size the batch-means error
     of p = C/N is the delete-one-batch jackknife's exactly (and close to it otherwise)."""
-    from stochpend.stats import EnsembleSums
+    from stochpend.model.stats import EnsembleSums
 
     rng = np.random.default_rng(4)
     shape, n_e = (2, 3), 4

@@ -16,8 +16,7 @@ import numba
 import numpy as np
 import pytest
 
-from stochpend import integrator
-from stochpend._backends import cpu
+from stochpend.engine import cpu, integrator
 from tests._kernels import Paths
 
 FIELDS = ("x", "Omega", "xi", "xi_aux", "t", "t_comp", "k", "status")

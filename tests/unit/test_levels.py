@@ -24,10 +24,10 @@ import numba
 import numpy as np
 import pytest
 
-from stochpend import integrator, rng
-from stochpend._backends import cpu
-from stochpend._backends import cuda as gpu
-from stochpend.mathlib import LIBM
+from stochpend.engine import cpu, integrator
+from stochpend.engine import cuda as gpu
+from stochpend.numerics import rng
+from stochpend.numerics.mathlib import LIBM
 from tests import _background
 from tests.unit import _levels_cudasim as cases
 
@@ -236,8 +236,10 @@ def test_the_runner_drives_three_levels_whatever_the_chunks():
     backend's ``LevelEngine``): per batch and output time each member's sums count every set
     of the batch, the members differ (each its own step), and the numbers do not depend on the
     chunking (three chunks of 2 batches against one of 6)."""
-    from stochpend import bias, runner, stats
-    from stochpend.params import SimulationConfig
+    from stochpend import bias
+    from stochpend.engine import runner
+    from stochpend.model import stats
+    from stochpend.model.params import SimulationConfig
 
     cfg = SimulationConfig.build(noise="ou", paths=120, n_batches=6, t_max=3.0, n_times=3, seed=7)
     one, steps_one = runner.run_batches(cfg, 0, 6, levels=3)
@@ -280,7 +282,7 @@ def test_member_l_has_the_law_of_an_ordinary_run_at_step_h_over_2_to_the_l():
     h/2**l have the same mean energy at t = 2 and 4 (|z| < 4, z the difference in standard
     errors). The test can fail: the coarsest member against the finest step's run is about 10
     standard errors apart (the scheme's energy bias at omega h = 1.2)."""
-    from stochpend.params import SimulationConfig
+    from stochpend.model.params import SimulationConfig
 
     n, h, L, omega = 4000, 0.6, 4, 2.0
     cfg_kw = dict(noise="white", D=0.5, omega=omega, potential="harmonic", step_c=0.0, paths=n,

@@ -65,7 +65,7 @@ def test_light_commands_import_neither_numba_nor_dask(args, small_result):
     assert done.returncode == 0, done.stderr[-2000:]
     assert not top & set(HEAVY), f"stochpend {' '.join(args)} imported {sorted(top & set(HEAVY))}"
     # Typer converts option values with Pydantic (0.15 s to import and build); an option with its
-    # own parser, text and a default need none (stochpend._cli_types.fast_coercion)
+    # own parser, text and a default need none (stochpend.cli._types.fast_coercion)
     assert "pydantic" not in top, f"stochpend {' '.join(args)} imported pydantic"
 
 
@@ -90,7 +90,7 @@ def test_a_value_pydantic_converts_still_converts(small_result):
 
 def test_list_imports_no_numba(small_result):
     """``list`` reads the noises', oscillators' and models' modules, whose functions are
-    ``register_jitable``: stochpend._jitable defers their registration until Numba is imported."""
+    ``register_jitable``: stochpend.numerics._jitable defers their registration until Numba is imported."""
     top, done = _imported(["list"], small_result.parent)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "white" in done.stdout and "pendulum" in done.stdout
@@ -107,7 +107,7 @@ def test_the_probe_sees_an_import(small_result):
 
 def test_xarray_reads_and_builds_without_dask(small_result):
     """In a fresh process, opening a result and building a Dataset leave Dask unimported; once Dask
-    is imported, xarray still recognises a Dask array (stochpend._xarray_nodask)."""
+    is imported, xarray still recognises a Dask array (stochpend.files._xarray_nodask)."""
     code = ("import sys; import stochpend, xarray as xr, numpy as np; from stochpend import io;"
             "ds = io.open_results(sys.argv[1]); xr.Dataset({'a': ('t', np.arange(3.0))}, coords={'t': [1, 2, 3]});"
             "print('dask' in sys.modules);"
@@ -120,7 +120,7 @@ def test_xarray_reads_and_builds_without_dask(small_result):
 
 def test_show_of_a_run_imports_no_xarray(small_result):
     """``show`` of a run's table reads the file without xarray and pandas (0.45 s to import:
-    stochpend._plain); its CSV still goes through the Dataset."""
+    stochpend.files._plain); its CSV still goes through the Dataset."""
     top, done = _imported(["show", "r.nc"], small_result.parent)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "<E>" in done.stdout
@@ -132,7 +132,7 @@ def test_show_of_a_run_imports_no_xarray(small_result):
 @pytest.mark.parametrize("name", ["r.nc", "sweep.nc"])
 def test_the_plain_reader_reads_what_xarray_reads(small_result, name):
     """The same variables, coordinates, values and attributes, so the file's checksum verifies it."""
-    from stochpend import _plain
+    from stochpend.files import _plain
 
     path = small_result.parent / name
     plain, ds = io.open_results(path, plain=True), io._load_netcdf(path)
@@ -145,7 +145,8 @@ def test_the_plain_reader_reads_what_xarray_reads(small_result, name):
 def test_show_prints_the_same_without_xarray(small_result, monkeypatch, args):
     from typer.testing import CliRunner
 
-    from stochpend import _plain, cli
+    from stochpend import cli
+    from stochpend.files import _plain
 
     def shown() -> tuple[int, str, str]:
         done = CliRunner().invoke(cli.app, ["show", str(small_result), *args])
@@ -159,7 +160,7 @@ def test_show_prints_the_same_without_xarray(small_result, monkeypatch, args):
 def test_a_file_xarray_decodes_further_is_left_to_xarray(small_result, tmp_path):
     """A boolean variable (stored as int8 with a dtype attribute, which xarray decodes): the
     plain reader declines, xarray reads the file."""
-    from stochpend import _plain
+    from stochpend.files import _plain
 
     ds = io.open_results(small_result)
     ds["flag"] = ("time", ds["nonfinite_paths"].values > 0)

@@ -25,8 +25,8 @@ def test_user_pendulum_is_the_builtin_pendulum_bit_for_bit(noise, monkeypatch):
     noise runs the branch-free fast-math sin in SIMD lanes, which the user's ``math.sin``
     cannot: there the two agree to rounding (relative 1e-9), not bit for bit."""
     default = stochpend.simulate(noise=noise, **_KW)
-    from stochpend._backends import cpu
-    from stochpend.integrator import Spec
+    from stochpend.engine import cpu
+    from stochpend.engine.integrator import Spec
 
     monkeypatch.setattr(cpu, "spec_for", lambda config, precision="float64":
                         Spec.of(config, precision=precision))

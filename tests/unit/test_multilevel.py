@@ -18,9 +18,9 @@ import pytest
 from typer.testing import CliRunner
 
 import stochpend
-from stochpend import multilevel
 from stochpend.cli import app
-from stochpend.params import SimulationConfig
+from stochpend.model.params import SimulationConfig
+from stochpend.runs import multilevel
 from stochpend.theory import family
 
 GAMMA, D_A, OMEGA = 0.5, 0.4, 1.0
@@ -371,7 +371,7 @@ def test_the_cost_to_certify_a_decorrelated_time_is_the_independent_route_and_fo
     """Issue 35, item 3: where the pairs decorrelate, two independent ensembles at h and h/2 are
     the cheaper route; the cost said is that route's least N (C + 2C), from level 0's variance
     and the level means less two standard errors (a lower bound, never an overstatement)."""
-    from stochpend import multilevel
+    from stochpend.runs import multilevel
 
     ds = stochpend.simulate(noise="ou", t_max=100.0, times=(1.0, 100.0), seed=2, target_error=0.05,
                             target_statistics=["mean_E"], progress=False, max_path_steps=LATE_LIMIT)
@@ -417,8 +417,9 @@ def test_a_decorrelated_late_time_is_certified_by_two_independent_runs():
 
 # -- the kurtosis of the level differences (Giles' diagnostic) ------------------------------------
 def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
-    from stochpend import bias, integrator, stats
-    from stochpend._backends import cpu
+    from stochpend import bias
+    from stochpend.engine import cpu, integrator
+    from stochpend.model import stats
 
     cfg = SimulationConfig.build(noise="white", D=0.5, omega=OMEGA, t_max=1.0, times=[1.0])
     spec = bias.pair_spec(cfg, "cpu")

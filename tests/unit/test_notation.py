@@ -1,4 +1,4 @@
-"""The one v(e) notation of every table (stochpend._notation.ve; issue 19, item 5)."""
+"""The one v(e) notation of every table (stochpend.text._notation.ve; issue 19, item 5)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from stochpend._notation import ve
+from stochpend.text._notation import ve
 
 PATTERN = re.compile(r"^(-?\d+(?:\.(\d+))?)\((\d+)\)(?:e(-?\d+))?$")
 
@@ -59,8 +59,8 @@ def test_rule_holds_for_any_value_and_error(value, error):
 
 def test_every_table_uses_it():
     """The simulate/show table and the figures' rows format through ve (no second formatter)."""
-    from stochpend import _cli_common
-    from stochpend.figures import _common
+    from stochpend.cli import _common as _cli_common
+    from stochpend.paper.figures import _common
 
     for v, e in ((0.00012, 3.1e-5), (177000.0, 11193.0), (-0.004, 0.3)):
         assert _cli_common._fmt(v, e) == _common.fmt_se(v, e) == ve(v, e)

@@ -1,6 +1,6 @@
 """Help and docstrings from one source (issue 36, item 7).
 
-``help(stochpend.simulate)`` shows the signature's defaults (stochpend._docs writes them into the
+``help(stochpend.simulate)`` shows the signature's defaults (stochpend.text._docs writes them into the
 docstring at import) and documents every parameter; the command line's declared defaults are
 the API's, checked here option by option, so that neither can drift from the code; nothing a
 user reads (help, docstring, console tables) shows the paper's internal labels (eq:pdfEcolor),
@@ -20,8 +20,12 @@ from typer._click import Context
 from typer.testing import CliRunner
 
 import stochpend
-from stochpend import _cli_common, _docs, bias, cli, params, resources
-from stochpend.paper import _CITED, with_numbers
+from stochpend import bias, cli
+from stochpend.cli import _common as _cli_common
+from stochpend.model import params
+from stochpend.runs import resources
+from stochpend.text import _docs
+from stochpend.text.equations import _CITED, with_numbers
 
 WIDE = {"COLUMNS": "2000", "TERMINAL_WIDTH": "2000"}
 API = inspect.signature(stochpend.simulate).parameters
@@ -125,7 +129,7 @@ def test_documented_writes_defaults_and_numbers():
 def _public_functions() -> list[Any]:
     """The API entry points whose parameters the command line shares (simulate, sweep, bfpe,
     reduced, theory, scaling) and the growth diagnosis: their help() must not drift either."""
-    from stochpend.reduced import simulate_reduced
+    from stochpend.runs.reduced import simulate_reduced
 
     return [stochpend.simulate, stochpend.sweep.sweep, stochpend.theory.solve_bfpe, simulate_reduced,
             stochpend.theory.predictions, stochpend.theory.predicted_exponent,
@@ -251,7 +255,7 @@ def test_reduced_caption_cites_numbers(order):
 
 def _api_of(command: str) -> Any:
     if command == "reduced":
-        from stochpend.reduced import simulate_reduced
+        from stochpend.runs.reduced import simulate_reduced
 
         return simulate_reduced
     if command == "bfpe":
@@ -262,7 +266,7 @@ def _api_of(command: str) -> Any:
         return stochpend.sweep.sweep
     if command == "theory":
         return stochpend.theory.predictions
-    from stochpend.reproduce import reproduce
+    from stochpend.paper.reproduce import reproduce
 
     return reproduce
 

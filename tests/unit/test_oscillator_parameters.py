@@ -25,12 +25,13 @@ import numpy as np
 import pytest
 
 import stochpend
-from stochpend import checkpoint as ck
-from stochpend import integrator, io, models
+from stochpend import io, models
+from stochpend.engine import integrator
+from stochpend.model.parameters import Parameter, split
+from stochpend.model.params import SimulationConfig
 from stochpend.models import Model
-from stochpend.parameters import Parameter, split
-from stochpend.params import SimulationConfig
-from stochpend.simulate import run
+from stochpend.runs import checkpoint as ck
+from stochpend.runs.simulate import run
 from tests._checkpoints import StopAfter
 from tests.unit import _tilted_well
 from tests.unit._user_models import DOUBLE_WELL, register_all

@@ -1,5 +1,5 @@
 """The pieces of "pieces declare their parameters" (issue 22, item 2) that need no kernel: a
-:class:`~stochpend.parameters.Parameter` checks its values and says what it accepts; a noise's
+:class:`~stochpend.model.parameters.Parameter` checks its values and says what it accepts; a noise's
 own parameters are resolved with their defaults, an unknown one refused in one line naming it;
 plugins load only by name from the command line, and a bad one is one line; ``--param`` is
 parsed NAME=VALUE. The whole path through the kernels is tests/unit/test_declared_parameters.py.
@@ -14,8 +14,8 @@ import pytest
 from typer.testing import CliRunner
 
 from stochpend import cli, plugins
-from stochpend._cli_common import parse_params
-from stochpend.parameters import Parameter, describe, own, resolve
+from stochpend.cli._common import parse_params
+from stochpend.model.parameters import Parameter, describe, own, resolve
 
 TAU1 = Parameter("tau1", 1.0, "correlation time of the first component", low=0.0, low_open=True)
 WEIGHT = Parameter("weight", 0.5, "share of S(0) carried by the first component", low=0.0, high=1.0)

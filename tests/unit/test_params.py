@@ -119,7 +119,7 @@ def test_cli_refuses_existing_out_without_overwrite(tmp_path):
 
 
 def test_cuda_refused_with_reason_where_there_is_no_gpu():
-    from stochpend._backends import cuda as cuda_backend
+    from stochpend.engine import cuda as cuda_backend
 
     usable, _ = cuda_backend.availability()
     if usable:

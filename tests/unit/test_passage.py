@@ -1,4 +1,4 @@
-"""The law of a first-passage time from each path's own time (issue 23, stochpend.passage):
+"""The law of a first-passage time from each path's own time (issue 23, stochpend.model.passage):
 order statistics, distribution-free intervals that hold their coverage, censoring, the
 histogram; the same numbers whatever the chunks, the threads, an interruption or a sweep; the
 tables ``show`` prints. The law against an exact one: tests/statistical/test_first_passage.py.
@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 import stochpend
-from stochpend import checkpoint as ck
-from stochpend import passage
+from stochpend.model import passage
+from stochpend.model.params import SimulationConfig
 from stochpend.observables import FirstPassage, Observable, register, unregister
-from stochpend.params import SimulationConfig
-from stochpend.simulate import run
+from stochpend.runs import checkpoint as ck
+from stochpend.runs.simulate import run
 
 RUN = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=300, t_max=6.0, times=(2.0, 6.0), seed=4)
 
@@ -151,7 +151,7 @@ def test_the_tables_escape_what_a_file_says():
     import xarray as xr
     from rich.console import Console
 
-    from stochpend._cli_common import passage_tables
+    from stochpend.cli._common import passage_tables
 
     name = "x\x1b[2J[red]"
     pre = f"fpt_{name}"

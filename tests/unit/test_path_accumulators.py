@@ -23,10 +23,10 @@ import numpy as np
 import pytest
 
 import stochpend
-from stochpend import checkpoint as ck
+from stochpend.model.params import SimulationConfig
 from stochpend.observables import FirstPassage, Observable, RunningSum, TimeAverage, register, unregister
-from stochpend.params import SimulationConfig
-from stochpend.simulate import run
+from stochpend.runs import checkpoint as ck
+from stochpend.runs.simulate import run
 from tests._checkpoints import StopAfter
 
 RUN = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=2000, t_max=10.0, n_times=4, seed=11)

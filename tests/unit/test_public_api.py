@@ -20,11 +20,12 @@ def test_every_public_name_is_reachable_after_import():
 
 
 def test_importing_the_simulate_module_keeps_the_function():
-    """``stochpend.simulate`` is also a submodule; importing it must not replace the function."""
-    import stochpend.simulate  # noqa: F401
-    from stochpend.simulate import run  # noqa: F401
+    """``stochpend.simulate`` is the function, whatever the module ``stochpend.runs.simulate``
+    that defines it does when imported."""
+    import stochpend.runs.simulate  # noqa: F401
+    from stochpend.runs.simulate import run  # noqa: F401
 
-    assert callable(stochpend.simulate) and stochpend.simulate.__module__ == "stochpend.simulate"
+    assert callable(stochpend.simulate) and stochpend.simulate.__module__ == "stochpend.runs.simulate"
 
 
 def test_import_and_cli_import_load_no_heavy_module():

@@ -10,10 +10,10 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from stochpend import __version__, cli
-from stochpend._cli_reproduce import reproduce_command
-from stochpend.figures import COLUMNS, FIGURES
-from stochpend.figures._common import Row, extrapolate, fmt_se, leave_one_out
-from stochpend.reproduce import reproduce
+from stochpend.cli._reproduce import reproduce_command
+from stochpend.paper.figures import COLUMNS, FIGURES
+from stochpend.paper.figures._common import Row, extrapolate, fmt_se, leave_one_out
+from stochpend.paper.reproduce import reproduce
 from tests.conftest import TINY_REPRODUCE
 
 #: Tiny runs for the default test suite (the real --quick size is checked in the slow test).
@@ -171,8 +171,8 @@ def test_bad_arguments_are_refused_before_any_work(kwargs, fragment, tmp_path) -
 def test_backend_is_passed_through_and_keys_the_stored_runs(tiny, monkeypatch) -> None:
     """--backend reaches the runner, and a run stored by one backend or precision is never
     reused for another (the GPU's float64 differs from the CPU's in the last bits)."""
-    import stochpend.reproduce as rep
-    from stochpend import runner
+    import stochpend.paper.reproduce as rep
+    from stochpend.engine import runner
 
     result, _ = tiny
     spec = FIGURES["fig1"].runs(TINY["paths"], TINY["t_max"], True)[0]
@@ -196,7 +196,7 @@ def test_backend_is_passed_through_and_keys_the_stored_runs(tiny, monkeypatch) -
 
 
 def test_cli_reproduce_on_an_unusable_gpu_is_one_line(tmp_path, monkeypatch) -> None:
-    from stochpend._backends import cuda as gpu
+    from stochpend.engine import cuda as gpu
 
     monkeypatch.setattr(gpu, "availability", lambda: (False, "the CUDA driver reports no GPU"))
     res = CliRunner().invoke(_app(), ["reproduce", "fig1", "--quick", "--backend", "cuda",
@@ -397,8 +397,8 @@ def test_the_runs_table_labels_each_run_with_its_own_noise_and_model() -> None:
     """M18: the report's "Runs" table labelled the dichotomous and harmonic-noise exponent runs
     "OU noise, D = 1, τ = 1, ω = 1", and the quartic runs only "white noise ..."; the paper's
     pendulum runs keep their labels."""
-    from stochpend.figures import exponents
-    from stochpend.figures._common import RunSpec
+    from stochpend.paper.figures import exponents
+    from stochpend.paper.figures._common import RunSpec
 
     def spec(**kw) -> RunSpec:
         base = {"key": "k", "label": "l", "noise": "ou", "D": 1.0, "tau": 1.0, "omega": 1.0,

@@ -1,4 +1,4 @@
-"""The named long runs for a GPU (stochpend.figures.cases) and the cost lines of reproduce."""
+"""The named long runs for a GPU (stochpend.paper.figures.cases) and the cost lines of reproduce."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from stochpend import reproduce as rp
-from stochpend.figures import CASES, FIGURES
+from stochpend.paper import reproduce as rp
+from stochpend.paper.figures import CASES, FIGURES
 from tests import _background
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -1,4 +1,4 @@
-"""stochpend.resources: memory and work estimated, and refused, before any work."""
+"""stochpend.runs.resources: memory and work estimated, and refused, before any work."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import math
 import pytest
 
 import stochpend
-from stochpend import resources
-from stochpend.params import SimulationConfig
+from stochpend.model.params import SimulationConfig
+from stochpend.runs import resources
 
 
 def _config(**kwargs):
@@ -16,7 +16,7 @@ def _config(**kwargs):
 
 
 def test_chunk_defaults_match_the_backends():
-    from stochpend._backends import cpu, cuda
+    from stochpend.engine import cpu, cuda
 
     assert resources.CPU_CHUNK_PATHS == cpu.DEFAULT_CHUNK_PATHS
     assert resources.STATE_BYTES_PER_PATH == {"float64": 57, "float32": 45}
@@ -127,8 +127,8 @@ def test_cli_announces_long_runs_even_when_quiet(args, long_run, compiling):
 
     from stochpend.cli import app
 
-    with (mock.patch("stochpend.lifecycle.execute", _start_then_stop),
-          mock.patch("stochpend.resources.compile_seconds", lambda *a, **k: compiling)):
+    with (mock.patch("stochpend.runs.lifecycle.execute", _start_then_stop),
+          mock.patch("stochpend.runs.resources.compile_seconds", lambda *a, **k: compiling)):
         result = CliRunner().invoke(app, ["simulate", "--quiet", *args])
     assert isinstance(result.exception, _Started), result.output
     lines = [ln for ln in result.output.splitlines() if ln.strip()]
@@ -170,7 +170,7 @@ def test_a_cgroup_memory_limit_bounds_the_available_memory(tmp_path):
     """A Slurm job or a container kills a process at its group's limit whatever the machine
     has: the headroom is the smallest limit - usage + reclaimable cache over the group and its
     ancestors (v2), or the v1 memory group's; no limit, no number."""
-    from stochpend.resources import cgroup_headroom
+    from stochpend.runs.resources import cgroup_headroom
 
     root, proc = tmp_path / "cg", tmp_path / "cgroup"
     job = root / "slurm" / "job_7"
@@ -201,7 +201,7 @@ def test_a_cgroup_memory_limit_bounds_the_available_memory(tmp_path):
 
 
 def test_the_memory_refusal_names_the_cgroup_limit(monkeypatch):
-    from stochpend import resources
+    from stochpend.runs import resources
 
     monkeypatch.setattr(resources, "cgroup_headroom", lambda: 1 << 20)
     with pytest.raises(ValueError, match=r"^hist_bins=100000 is not accepted: .* and this process's memory "

@@ -8,7 +8,7 @@ import numba
 import numpy as np
 import pytest
 
-from stochpend import rng
+from stochpend.numerics import rng
 from tests.conftest import Z_TOL
 
 U = np.uint64
@@ -103,7 +103,7 @@ def test_uniform_f32_is_in_the_half_open_unit_interval():
 
 
 def _f32_normals():
-    from stochpend.mathlib import LIBM
+    from stochpend.numerics.mathlib import LIBM
 
     return rng.normals_with(LIBM, np.float32)
 
@@ -174,9 +174,9 @@ def test_the_seed_becomes_a_key_in_one_place():
     import ast
     from pathlib import Path
 
-    from stochpend.params import SimulationConfig
+    from stochpend.model.params import SimulationConfig
 
-    src = Path(rng.__file__).parent
+    src = Path(rng.__file__).parents[1]  # the package root
     callers = set()
     for path in src.rglob("*.py"):
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
@@ -184,10 +184,11 @@ def test_the_seed_becomes_a_key_in_one_place():
                 name = getattr(node.func, "attr", getattr(node.func, "id", None))
                 if name in ("seed_to_key", "additive_key", "run_keys"):
                     callers.add((path.relative_to(src).as_posix(), name))
-    # params.py (SimulationConfig.keys, what the drivers read); initial.py, integrator.py and
-    # reduced.py take any object with a seed (tests pass namespaces), so they ask run_keys itself
-    assert callers == {("rng.py", "seed_to_key"), ("rng.py", "additive_key"), ("params.py", "run_keys"),
-                       ("initial.py", "run_keys"), ("integrator.py", "run_keys"), ("reduced.py", "run_keys")}, callers
+    # model/params.py (SimulationConfig.keys, what the drivers read); initial.py, integrator.py
+    # and reduced.py take any object with a seed (tests pass namespaces), so they ask run_keys itself
+    assert callers == {("numerics/rng.py", "seed_to_key"), ("numerics/rng.py", "additive_key"),
+                       ("model/params.py", "run_keys"), ("model/initial.py", "run_keys"),
+                       ("engine/integrator.py", "run_keys"), ("runs/reduced.py", "run_keys")}, callers
     seed = 2**40 + 77
     keys = SimulationConfig.build(seed=seed).keys
     assert keys.main == (np.uint64(seed & 0xFFFFFFFF), np.uint64(seed >> 32))

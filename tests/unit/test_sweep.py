@@ -13,12 +13,12 @@ from rich.console import Console
 from typer.testing import CliRunner
 
 import stochpend
-from stochpend import _cli_common as common
 from stochpend import cli, io
-from stochpend._cli_scale import resume_command, sweep_command, sweep_table
-from stochpend._sources import BUILD
-from stochpend.params import SimulationConfig
-from stochpend.simulate import run
+from stochpend.cli import _common as common
+from stochpend.cli._scale import resume_command, sweep_command, sweep_table
+from stochpend.model.params import SimulationConfig
+from stochpend.numerics._sources import BUILD
+from stochpend.runs.simulate import run
 from stochpend.sweep import load_spec, plan_tasks, run_block, sweep
 
 BASE = """
@@ -247,11 +247,11 @@ def test_missing_file_and_bad_arguments(tmp_path):
 
 @pytest.mark.parametrize("scheduler", ["threads", "local", "tcp://127.0.0.1:8786"])
 def test_missing_dask_extra_is_one_clear_line(tmp_path, monkeypatch, scheduler):
-    import stochpend._backends
+    import stochpend.engine
 
-    for name in ("dask", "distributed", "stochpend._backends.dask"):
+    for name in ("dask", "distributed", "stochpend.runs.dask"):
         monkeypatch.setitem(sys.modules, name, None)
-    monkeypatch.delattr(stochpend._backends, "dask", raising=False)
+    monkeypatch.delattr(stochpend.engine, "dask", raising=False)
     with pytest.raises(ValueError) as info:
         sweep(_write(tmp_path, GRID), scheduler=scheduler)
     assert str(info.value) == f"scheduler={scheduler!r} requires the `dask` extra: pip install 'stochpend[dask]'"
@@ -372,7 +372,7 @@ def test_a_sweep_of_targets_gives_each_set_the_numbers_of_its_own_target_run():
                                                                 "0..2) needs about"),
 ])
 def test_a_bad_target_in_a_sweep_is_refused_before_any_work(spec, kwargs, needle, monkeypatch):
-    from stochpend import multilevel
+    from stochpend.runs import multilevel
 
     def no_work(*args, **kwargs):
         raise AssertionError("a level ran")

@@ -16,9 +16,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stochpend import dynamics, integrator, terms
+from stochpend import terms
+from stochpend.engine import integrator
+from stochpend.model import dynamics
 
-SRC = Path(integrator.__file__).parent
+SRC = Path(integrator.__file__).parents[1]  # the package root
 
 
 def _record(values: dict[str, float]) -> tuple[float, ...]:
@@ -96,8 +98,8 @@ def _engine_words(path: Path) -> set[str]:
 
 #: The engine outside the step: its loops' drivers, the backends, the settings' checks (the step,
 #: integrator.py, writes the kicks: stochpend.terms says why).
-ENGINE = ("params.py", "runner.py", "bias.py", "multilevel.py", "_backends/cpu.py",
-          "_backends/cuda.py", "_backends/layout.py")
+ENGINE = ("model/params.py", "engine/runner.py", "runs/bias.py", "runs/multilevel.py", "engine/cpu.py",
+          "engine/cuda.py", "engine/layout.py")
 #: The damping is the step's Ornstein-Uhlenbeck flow, which the step writes (terms/damping.py).
 O_FLOW = {"damping", "gamma"}
 
@@ -109,4 +111,4 @@ def test_the_engine_holds_no_code_of_a_table_term(module):
     found = sorted({(name, w) for name in parameters for w in words if name in w}
                    | {(term.name, w) for term in terms.TABLE if term.name not in O_FLOW for w in words
                       if term.name in re.findall(r"[a-z0-9]+", w)})
-    assert found == [], f"{module}: a term's code belongs in stochpend/terms/ (its entry of terms.TABLE)"
+    assert found == [], f"{module}: a term's code belongs in stochpend/model/terms/ (its entry of terms.TABLE)"

@@ -44,7 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import solve_banded
 from scipy.special import erfc
 
-from stochpend._docs import documented
+from stochpend.text._docs import documented
 from stochpend.theory.laws import (
     BFPE_LONGTIME_MEAN_PREFACTOR,
     PHI_INF,
@@ -199,8 +199,8 @@ def _integer(name: str, value: Any, accepted: str, minimum: int, maximum: int | 
 
 def cell_steps_per_s() -> float:
     """The solve's expected rate now: measured by earlier solves on this machine and scaled to the
-    load (:mod:`stochpend._calibration`), else :data:`CELL_STEPS_PER_S`. One thread."""
-    from stochpend import _calibration
+    load (:mod:`stochpend.numerics._calibration`), else :data:`CELL_STEPS_PER_S`. One thread."""
+    from stochpend.numerics import _calibration
 
     return _calibration.rate("bfpe", CELL_STEPS_PER_S, 1)[0]
 
@@ -208,7 +208,7 @@ def cell_steps_per_s() -> float:
 def _check_cost(n_cells: int, n_times: int, n_steps: int, max_cell_steps: float | None) -> tuple[float, float, float]:
     """Refuse, before any work, a solve that cannot fit in memory or would not end; else return
     ``(cell-steps, expected seconds, bytes of the stored laws and work arrays)``."""
-    from stochpend import resources
+    from stochpend.runs import resources
 
     accepted = "max_cell_steps must be a number > 0 (inf: no limit)"
     try:
@@ -295,7 +295,7 @@ def solve_bfpe(
     log : callable, optional
         Receives one line, ``"estimate: ..."`` (the work, the expected duration at the rate
         measured on this machine, the memory), before a solve expected to last longer than
-        :data:`stochpend.resources.LONG_RUN_S`.
+        :data:`stochpend.runs.resources.LONG_RUN_S`.
 
     Returns
     -------
@@ -378,7 +378,8 @@ def solve_bfpe(
     sigma0 = math.sqrt(s0 / 2.0)  # initial std of x
     n_steps_expected = math.ceil(steps_per_decade * math.log10(s_max / s0)) + grid_t.size
     work, seconds, need = _check_cost(n_cells, grid_t.size, n_steps_expected, max_cell_steps)
-    from stochpend import _calibration, resources
+    from stochpend.numerics import _calibration
+    from stochpend.runs import resources
 
     if log is not None and seconds > resources.LONG_RUN_S:
         log(f"estimate: about {work:.3g} cell-steps (n_cells x time steps = {n_cells} x {n_steps_expected}), "

@@ -33,7 +33,7 @@ from fractions import Fraction
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from stochpend._docs import documented
+from stochpend.text._docs import documented
 from stochpend.theory.laws import _check_D, _check_tau, _fail, _scalar
 
 __all__ = [

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from stochpend._docs import documented
+from stochpend.text._docs import documented
 from stochpend.theory import laws
 from stochpend.theory.laws import _check_D, _check_omega, _check_tau, _fail, _scalar
 
