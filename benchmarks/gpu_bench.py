@@ -57,7 +57,7 @@ from stochpend import __version__  # noqa: E402
 from stochpend.engine import cpu, runner  # noqa: E402
 from stochpend.engine import cuda as gpu  # noqa: E402
 from stochpend.engine.runner import run_batches as cpu_run_batches  # noqa: E402
-from stochpend.model.params import SimulationConfig  # noqa: E402
+from stochpend.model.settings import SimulationConfig  # noqa: E402
 
 H = 0.01
 SEED = 2024

@@ -32,8 +32,8 @@ def run_case(noise, D, tau, omega, t_end, paths, h_max, step_c, seed):
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--paths", type=int, default=20_000)
-    ap.add_argument("--h-max", type=float, default=stochpend.model.params.DEFAULT_H_MAX)
-    ap.add_argument("--step-c", type=float, default=stochpend.model.params.DEFAULT_STEP_C)
+    ap.add_argument("--h-max", type=float, default=stochpend.model.settings.DEFAULT_H_MAX)
+    ap.add_argument("--step-c", type=float, default=stochpend.model.settings.DEFAULT_STEP_C)
     ap.add_argument("--refine", type=float, default=4.0)
     args = ap.parse_args()
     cases = []

@@ -20,7 +20,7 @@ CHUNKS_PER_SOAK_SECOND = 20
 
 
 def config_for(duration_s: float):
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     n_batches = max(200, int(CHUNKS_PER_SOAK_SECOND * duration_s))
     return SimulationConfig.build(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=CHUNK_PATHS * n_batches,

@@ -215,7 +215,7 @@ PENDULUM = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=600, t_max=6.0, n_t
 
 
 def _config(run, **extra):
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     own = {k: v for k, v in run.items() if k in dynamics.names() or (k.startswith("additive_") and k != "additive_noise")}
     return SimulationConfig.build(**{k: v for k, v in run.items() if k not in own}, **extra, noise_params=own)
@@ -363,7 +363,7 @@ import numpy as np
 import pytest
 import stochpend
 from stochpend.runs import checkpoint as ck
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from tests._checkpoints import StopAfter
 
 kw = dict(noise="ou", D=0.5, tau=0.8, omega=1.0, paths=48, t_max=1.0, times=[0.5, 1.0], seed=3, n_batches=4)

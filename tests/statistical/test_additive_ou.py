@@ -180,7 +180,7 @@ def test_the_lanes_give_the_one_path_numbers(step, monkeypatch):
     """The SIMD lane machines (the runs' and the pairs') against the one-path loops of the same
     fast-math Spec (a run with an accumulator goes one path at a time)."""
     from stochpend.engine import cpu
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     config = SimulationConfig.build(**{k: v for k, v in FAMILY_RUN.items() if k not in dynamics.names()}, **step,
                                     noise_params={k: v for k, v in FAMILY_RUN.items() if k in dynamics.names()})
@@ -205,7 +205,7 @@ def test_the_pairs_bias_is_small_and_the_coarse_member_is_a_run_path():
 
 
 def test_a_checkpointed_run_resumes_to_the_same_numbers(tmp_path):
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
     from stochpend.runs import checkpoint as ck
     from stochpend.runs.simulate import run
 
@@ -233,7 +233,7 @@ import numpy as np
 import pytest
 import stochpend
 from stochpend.runs import checkpoint as ck
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from tests._checkpoints import StopAfter
 
 kw = dict(noise="ou", D=0.5, tau=0.8, omega=1.0, paths=48, t_max=1.0, times=[0.5, 1.0], seed=3, n_batches=4)

@@ -198,7 +198,7 @@ def test_a_bad_term_is_refused_in_one_line(kwargs, message):
 
 
 def test_a_checkpointed_damped_run_resumes_to_the_same_numbers(tmp_path):
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
     from stochpend.runs import checkpoint as ck
     from stochpend.runs.simulate import run
 
@@ -264,7 +264,7 @@ def test_the_lanes_run_the_family_with_the_one_path_numbers(step, monkeypatch):
     fast-math Spec: a run with an accumulator goes one path at a time, and must change no other
     number; the pairs' one-path kernel must give the lanes' bias estimate bit for bit."""
     from stochpend.engine import cpu
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     config = SimulationConfig.build(**{k: v for k, v in FAMILY_RUN.items()
                                        if k not in dynamics.names()}, **step,
@@ -344,7 +344,7 @@ def test_the_power_oscillators_boltzmann_start_has_the_exact_law_of_x(power_n):
     <x^2> of U = x^(2n)/(2n) at temperature T against (2nT/omega^2)^(1/n) Gamma(3/2n)/Gamma(1/2n),
     <omega^2 U> against the virial T/(2n), x symmetric, and n = 1 the harmonic law."""
     from stochpend.model import initial
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     T, omega, n = 0.7, 1.3, 50_000
     config = SimulationConfig.build(potential="power", power_n=power_n, noise="white", D=0.0, omega=omega,

@@ -26,7 +26,7 @@ from typer.testing import CliRunner
 
 import stochpend
 from stochpend import cli, io
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.runs import checkpoint
 from stochpend.sweep import sweep
 from tests._machine import golden_machine

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from stochpend.engine import cpu
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from tests._kernels import Paths, kernels
 from tests.conftest import SEED, Z_TOL
 

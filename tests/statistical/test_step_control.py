@@ -15,7 +15,7 @@ import pytest
 
 from stochpend import observables
 from stochpend.engine import runner
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.theory.family import random_frequency_lyapunov
 
 

@@ -15,7 +15,7 @@ import numpy as np
 import stochpend
 from stochpend import observables
 from stochpend.engine import runner
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 
 backend = sys.argv[1]
 out: dict = {"package": stochpend.__file__}

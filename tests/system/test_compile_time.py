@@ -22,7 +22,7 @@ import json, sys
 import stochpend
 from stochpend.numerics import _calibration
 from stochpend.runs import resources
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 # The estimate scales with the load average (_calibration.slowdown), read anew for the note and
 # for 'before': held at 0 so that both are the same number on a busy CI (it moved ~10 s -> ~11 s).
 _calibration.current_load = lambda: 0.0
@@ -102,7 +102,7 @@ def test_a_run_reports_compile_time_apart_from_its_wall_time():
 
 
 def test_the_estimate_line_counts_the_compile_time():
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
     from stochpend.runs import resources
 
     config = SimulationConfig.build(noise="ou", paths=64, t_max=1.0, n_times=2, seed=1)
@@ -133,7 +133,7 @@ import numpy as np
 import stochpend
 from stochpend.runs import _compile_helper
 from stochpend.engine import cpu
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 if sys.argv[1] == "fail":
     _compile_helper.COMMAND = (sys.executable, "-c", "import sys; sys.exit(3)")
 kw = dict(noise="ou", paths=256, t_max=5.0, n_times=3, seed=3)

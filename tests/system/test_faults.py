@@ -38,7 +38,7 @@ from typer.testing import CliRunner
 import stochpend
 from stochpend import cli, io
 from stochpend.engine import cpu, integrator
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.runs import checkpoint as ck
 from stochpend.runs.simulate import run
 

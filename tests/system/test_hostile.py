@@ -25,7 +25,7 @@ import pytest
 from typer.testing import CliRunner
 
 from stochpend import cli, io
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.runs import checkpoint as ck
 
 pytestmark = pytest.mark.system

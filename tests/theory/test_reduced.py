@@ -14,7 +14,7 @@ import pytest
 import xarray as xr
 from scipy import integrate, special, stats
 
-from stochpend.model.stats import N_SUMS, S_COUNT, S_E1, S_NONFINITE
+from stochpend.model.power_sums import N_SUMS, S_COUNT, S_E1, S_NONFINITE
 from stochpend.runs import reduced
 from stochpend.runs.reduced import draw_samples, sample_reduced, simulate_reduced
 from stochpend.theory import laws

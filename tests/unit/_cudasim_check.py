@@ -44,7 +44,7 @@ def main(spec_path: str, out_path: str) -> None:
         raise SystemExit("set NUMBA_ENABLE_CUDASIM=1 before running this script")
     from stochpend.engine import cuda as backend
     from stochpend.engine import runner
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     with open(spec_path) as f:
         cases = json.load(f)
@@ -117,7 +117,7 @@ def checkpoint_case(case: dict) -> dict[str, np.ndarray]:
     from pathlib import Path
 
     import stochpend
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
     from stochpend.runs import checkpoint
 
     name = case["name"]
@@ -182,7 +182,7 @@ def bias_case(case: dict) -> dict[str, np.ndarray]:
     chunks of ``chunk_pairs``: each statistic's bias and coarse value with their errors, the
     pairs' path-steps and decorrelation, saved as "<name>/<what>_<statistic>"."""
     from stochpend import bias
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     name = case["name"]
     est = bias.estimate(SimulationConfig.build(**case["config"]), case["pairs"],
@@ -239,7 +239,7 @@ def precision_pair_case(case: dict) -> dict[str, np.ndarray]:
     """The same configuration run in float64 and in float32 with *different* seeds (independent
     ensembles, for a two-sample test): the sums of each."""
     from stochpend.engine import runner
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     name = case["name"]
     out: dict[str, np.ndarray] = {}

@@ -18,7 +18,7 @@ def main(cases_path: str, out_path: str) -> None:
     if os.environ.get("NUMBA_ENABLE_CUDASIM") != "1":
         raise SystemExit("set NUMBA_ENABLE_CUDASIM=1 before running this script")
     from stochpend.engine import runner
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     with open(cases_path) as f:
         cases = json.load(f)

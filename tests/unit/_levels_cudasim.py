@@ -39,7 +39,7 @@ PATH0 = np.uint64(2**63 + 17)
 
 
 def config(name: str):
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     return SimulationConfig.build(**CASES[name], paths=64, t_max=TIMES[-1], n_times=2, seed=SEED)
 

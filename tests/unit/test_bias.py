@@ -19,7 +19,7 @@ import stochpend
 from stochpend import bias
 from stochpend.cli import app
 from stochpend.engine import integrator
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from tests.conftest import SEED, Z_TOL
 from tests.statistical.test_weak_order import OMEGA, X0, D, exact_second_moments, scheme_second_moments
 

@@ -112,7 +112,7 @@ def test_the_estimates_use_the_calibration(monkeypatch, tmp_path):
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(cal, "current_load", lambda: 0.0)
     monkeypatch.setattr(cal, "cores", lambda: 2)
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     config = SimulationConfig.build(paths=100_000, t_max=1000.0, n_times=4)  # seconds of work: a sample
     before = resources.estimate(config, threads=2)
@@ -173,7 +173,7 @@ def test_a_sweep_of_many_tiny_sets_counts_each_sets_own_cost(monkeypatch, tmp_pa
     from types import SimpleNamespace
 
     from stochpend.cli._scale import SET_SECONDS, SET_SECONDS_WITH_BIAS, sweep_estimate
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(cal, "current_load", lambda: 0.0)
@@ -196,7 +196,7 @@ def test_a_kernels_own_rate_never_another_kernels(monkeypatch, tmp_path):
     monkeypatch.setattr(cal, "current_load", lambda: 0.0)
     monkeypatch.setattr(resources, "_cores", lambda threads: 2)
     monkeypatch.setattr(cal, "cores", lambda: 2)
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     quartic = SimulationConfig.build(paths=100_000, t_max=1000.0, n_times=4, potential="power", power_n=2)
     kind = resources.kernel_kind(quartic)

@@ -22,7 +22,7 @@ from stochpend.cli._scale import (
     simulate_with_checkpoint,
     sweep_command,
 )
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.runs import checkpoint as ck
 from stochpend.runs.simulate import run, simulate
 from stochpend.text.progress import NoProgress

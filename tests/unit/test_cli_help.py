@@ -107,11 +107,11 @@ def test_root_help_has_no_bool_metavar() -> None:
 
 
 def test_help_defaults_match_the_api() -> None:
-    from stochpend.model import params
+    from stochpend.model import settings
 
     assert (cli.DEFAULT_H_MAX, cli.DEFAULT_STEP_C, cli.DEFAULT_HIST_BINS) == (
-        params.DEFAULT_H_MAX, params.DEFAULT_STEP_C, params.DEFAULT_HIST_BINS)
-    assert (cli.MAX_OMEGA, cli.MAX_POWER_N) == (params.MAX_OMEGA, params.MAX_POWER_N)
+        settings.DEFAULT_H_MAX, settings.DEFAULT_STEP_C, settings.DEFAULT_HIST_BINS)
+    assert (cli.MAX_OMEGA, cli.MAX_POWER_N) == (settings.MAX_OMEGA, settings.MAX_POWER_N)
     simulate = _help("simulate")
     for option, default in (("--h-max", "0.05"), ("--step-c", "0.1"), ("--hist-bins", "100")):
         row = next(ln for ln in simulate.splitlines() if re.match(rf"^│ {option}\s", ln))

@@ -4,7 +4,7 @@ only where it can save time, never where it cannot run or is turned off."""
 from __future__ import annotations
 
 from stochpend.engine import cpu
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.numerics._jitcache import in_cache
 from stochpend.runs import _compile_helper
 

@@ -22,7 +22,7 @@ import pytest
 from stochpend.engine import cpu, integrator, runner
 from stochpend.engine import cuda as gpu
 from stochpend.engine.runner import run_batches
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.noises import ou
 from stochpend.numerics import rng
 from stochpend.numerics.mathlib import LIBM

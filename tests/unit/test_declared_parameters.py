@@ -26,7 +26,7 @@ import pytest
 
 import stochpend
 from stochpend import io, plugins
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.observables import Observable, register, unregister
 from stochpend.runs import checkpoint as ck
 from stochpend.runs.simulate import run

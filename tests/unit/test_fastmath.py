@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from stochpend.engine import cpu, integrator
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.numerics import fastmath, rng
 from tests._kernels import Paths, kernels
 

@@ -180,7 +180,7 @@ def test_cli_refuses_in_one_line(files, args, needles):
 
 def _api_cases(d: pathlib.Path) -> list[tuple[str, object, str]]:
     from stochpend import io, sweep, theory
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
     from stochpend.paper import reproduce
     from stochpend.runs import checkpoint, reduced
 

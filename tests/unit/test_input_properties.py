@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from stochpend.cli import app
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.runs import resources
 
 #: 200 examples each (a few seconds); STOCHPEND_HYPOTHESIS_EXAMPLES=5000 for a deeper search.

@@ -15,7 +15,7 @@ import pytest
 import stochpend
 from stochpend import oscillators
 from stochpend.engine import integrator
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.noises import ou
 
 
@@ -202,7 +202,7 @@ def test_the_run_record_is_read_by_its_declared_names():
     channel's run, which has every field)."""
     from stochpend.engine import integrator
     from stochpend.model import dynamics
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
     from stochpend.numerics import rng
 
     cfg = SimulationConfig.build(noise="white", D=0.5, omega=1.5, h_max=0.03, step_c=0.2, seed=11,

@@ -17,8 +17,8 @@ from typer.testing import CliRunner
 
 from stochpend import cli, io
 from stochpend.engine import cpu, runner
-from stochpend.model import params
-from stochpend.model.params import SimulationConfig
+from stochpend.model import settings
+from stochpend.model.settings import SimulationConfig
 from stochpend.runs import checkpoint as ck
 from stochpend.runs.simulate import run
 from tests._checkpoints import StopAfter
@@ -115,7 +115,7 @@ def test_without_it_the_run_is_the_run_it_was(damped):
         np.testing.assert_array_equal(plain[name].values, ref[name].values, err_msg=str(name))
     assert "joint_bins" not in ck.config_to_json(plain_config := _config({k: v for k, v in DAMPED.items()
                                                                           if k != "joint_bins"}))
-    assert params.hist_columns(plain_config) == plain_config.hist_bins + 2
+    assert settings.hist_columns(plain_config) == plain_config.hist_bins + 2
 
 
 @pytest.mark.parametrize("n", [2, 5])
@@ -240,7 +240,7 @@ def test_cuda_simulator_counts_equal_the_cpu(tmp_path):
     for name, kwargs in CUDA_CASES.items():
         config = SimulationConfig.build(**kwargs)
         acc, _ = runner.run_batches(config, 0, config.n_batches, chunk_paths=kwargs["paths"] // 2)
-        assert acc.hist.shape[1] == params.hist_columns(config) > config.hist_bins + 2
+        assert acc.hist.shape[1] == settings.hist_columns(config) > config.hist_bins + 2
         np.testing.assert_array_equal(simulated[f"{name}/hist"], acc.hist, err_msg=name)
         np.testing.assert_allclose(simulated[f"{name}/sums"], acc.sums, rtol=1e-12, atol=0.0, err_msg=name)
 
@@ -260,7 +260,7 @@ def test_a_configuration_file_sets_it(tmp_path):
 def test_the_error_is_the_delete_one_batch_jackknife_for_equal_batches():
     """From Σc_b, Σc_b² and Σc_b n_b alone: for batches of equal size the batch-means error
     of p = C/N is the delete-one-batch jackknife's exactly (and close to it otherwise)."""
-    from stochpend.model.stats import EnsembleSums
+    from stochpend.model.power_sums import EnsembleSums
 
     rng = np.random.default_rng(4)
     shape, n_e = (2, 3), 4

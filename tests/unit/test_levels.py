@@ -238,15 +238,15 @@ def test_the_runner_drives_three_levels_whatever_the_chunks():
     chunking (three chunks of 2 batches against one of 6)."""
     from stochpend import bias
     from stochpend.engine import runner
-    from stochpend.model import stats
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model import power_sums
+    from stochpend.model.settings import SimulationConfig
 
     cfg = SimulationConfig.build(noise="ou", paths=120, n_batches=6, t_max=3.0, n_times=3, seed=7)
     one, steps_one = runner.run_batches(cfg, 0, 6, levels=3)
     chunked, steps_chunked = runner.run_batches(cfg, 0, 6, levels=3, chunk_paths=40)
-    assert isinstance(one, stats.LevelSums) and one.sums.shape[:3] == (6, 3, 3)
+    assert isinstance(one, power_sums.LevelSums) and one.sums.shape[:3] == (6, 3, 3)
     assert np.array_equal(one.sums, chunked.sums) and steps_one == steps_chunked > 0
-    assert np.all(one.sums[..., stats.S_COUNT] == cfg.batch_size)
+    assert np.all(one.sums[..., power_sums.S_COUNT] == cfg.batch_size)
     for m in (1, 2):
         assert not np.array_equal(one.sums[:, :, 0], one.sums[:, :, m])
     assert bias.BIAS_PATH0 == rng.COUPLED_PATH0  # the pairs are the levels' streams
@@ -282,7 +282,7 @@ def test_member_l_has_the_law_of_an_ordinary_run_at_step_h_over_2_to_the_l():
     h/2**l have the same mean energy at t = 2 and 4 (|z| < 4, z the difference in standard
     errors). The test can fail: the coarsest member against the finest step's run is about 10
     standard errors apart (the scheme's energy bias at omega h = 1.2)."""
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     n, h, L, omega = 4000, 0.6, 4, 2.0
     cfg_kw = dict(noise="white", D=0.5, omega=omega, potential="harmonic", step_c=0.0, paths=n,

@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 
 import stochpend
 from stochpend.cli import app
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.runs import multilevel
 from stochpend.theory import family
 
@@ -419,7 +419,7 @@ def test_a_decorrelated_late_time_is_certified_by_two_independent_runs():
 def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
     from stochpend import bias
     from stochpend.engine import cpu, integrator
-    from stochpend.model import stats
+    from stochpend.model import power_sums
 
     cfg = SimulationConfig.build(noise="white", D=0.5, omega=OMEGA, t_max=1.0, times=[1.0])
     spec = bias.pair_spec(cfg, "cpu")
@@ -430,7 +430,7 @@ def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
     xf, Omegaf = x + 0.1 * rng.normal(size=n), Omega + 0.1 * rng.standard_t(3, size=n)
     status = np.zeros(n, dtype=np.uint8)
     status[[7, 99]] = 1  # pairs the accumulate kernel marked: not summed
-    out = np.zeros((4, stats.N_SUMS))
+    out = np.zeros((4, power_sums.N_SUMS))
     cpu.difference_kernel(spec)(x, Omega, xf, Omegaf, status, OMEGA**2, q, out)
     values = integrator.statistics(spec.oscillator, spec.coupling)  # the kernels' own, called from Python
     d = np.array([np.subtract(values(xf[i], Omegaf[i], OMEGA**2, q)[2], values(x[i], Omega[i], OMEGA**2, q)[2])

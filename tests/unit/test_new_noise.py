@@ -15,7 +15,7 @@ import pytest
 
 import stochpend
 from stochpend.engine import integrator
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.numerics import rng
 from stochpend.runs import checkpoint
 from tests._kernels import Paths, kernels

@@ -22,7 +22,7 @@ from typer.testing import CliRunner
 import stochpend
 from stochpend import bias, cli
 from stochpend.cli import _common as _cli_common
-from stochpend.model import params
+from stochpend.model import settings
 from stochpend.runs import resources
 from stochpend.text import _docs
 from stochpend.text.equations import _CITED, with_numbers
@@ -34,9 +34,9 @@ CLI_TO_API = {"n": "power_n"}
 #: options of the command line only (no API keyword), or whose API default is None and which
 #: the CLI shows in words: what the words must say, from the code's own constants.
 SHOWN = {
-    "h_max": f"{params.DEFAULT_H_MAX:g}",
-    "step_c": f"{params.DEFAULT_STEP_C:g}",
-    "hist_bins": f"{params.DEFAULT_HIST_BINS}",
+    "h_max": f"{settings.DEFAULT_H_MAX:g}",
+    "step_c": f"{settings.DEFAULT_STEP_C:g}",
+    "hist_bins": f"{settings.DEFAULT_HIST_BINS}",
     "n_times": f"{API['n_times'].default}",
     "bias_paths": f"paths/{bias.PAIRS_FRACTION}, at least {bias.MIN_PAIRS}",
     "max_path_steps": f"{resources.DEFAULT_MAX_PATH_STEPS:g}".replace("e+", "e"),
@@ -188,8 +188,8 @@ def test_a_stale_default_in_words_is_found():
 # -- the command line against the API -----------------------------------------------------------
 def test_cli_constants_are_the_apis():
     assert (_cli_common.DEFAULT_H_MAX, _cli_common.DEFAULT_STEP_C, _cli_common.DEFAULT_HIST_BINS) == (
-        params.DEFAULT_H_MAX, params.DEFAULT_STEP_C, params.DEFAULT_HIST_BINS)
-    assert (_cli_common.MAX_OMEGA, _cli_common.MAX_POWER_N) == (params.MAX_OMEGA, params.MAX_POWER_N)
+        settings.DEFAULT_H_MAX, settings.DEFAULT_STEP_C, settings.DEFAULT_HIST_BINS)
+    assert (_cli_common.MAX_OMEGA, _cli_common.MAX_POWER_N) == (settings.MAX_OMEGA, settings.MAX_POWER_N)
 
 
 @pytest.mark.parametrize("option", _simulate_options(), ids=lambda p: p.name)

@@ -28,7 +28,7 @@ import stochpend
 from stochpend import io, models
 from stochpend.engine import integrator
 from stochpend.model.parameters import Parameter, split
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.models import Model
 from stochpend.runs import checkpoint as ck
 from stochpend.runs.simulate import run

@@ -13,7 +13,7 @@ import pytest
 
 import stochpend
 from stochpend.model import passage
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.observables import FirstPassage, Observable, register, unregister
 from stochpend.runs import checkpoint as ck
 from stochpend.runs.simulate import run

@@ -7,7 +7,7 @@ import math
 import pytest
 
 import stochpend
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.runs import resources
 
 

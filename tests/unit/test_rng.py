@@ -174,7 +174,7 @@ def test_the_seed_becomes_a_key_in_one_place():
     import ast
     from pathlib import Path
 
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     src = Path(rng.__file__).parents[1]  # the package root
     callers = set()
@@ -184,10 +184,10 @@ def test_the_seed_becomes_a_key_in_one_place():
                 name = getattr(node.func, "attr", getattr(node.func, "id", None))
                 if name in ("seed_to_key", "additive_key", "run_keys"):
                     callers.add((path.relative_to(src).as_posix(), name))
-    # model/params.py (SimulationConfig.keys, what the drivers read); initial.py, integrator.py
+    # model/settings.py (SimulationConfig.keys, what the drivers read); initial.py, integrator.py
     # and reduced.py take any object with a seed (tests pass namespaces), so they ask run_keys itself
     assert callers == {("numerics/rng.py", "seed_to_key"), ("numerics/rng.py", "additive_key"),
-                       ("model/params.py", "run_keys"), ("model/initial.py", "run_keys"),
+                       ("model/settings.py", "run_keys"), ("model/initial.py", "run_keys"),
                        ("engine/integrator.py", "run_keys"), ("runs/reduced.py", "run_keys")}, callers
     seed = 2**40 + 77
     keys = SimulationConfig.build(seed=seed).keys

@@ -16,7 +16,7 @@ import stochpend
 from stochpend import cli, io
 from stochpend.cli import _common as common
 from stochpend.cli._scale import resume_command, sweep_command, sweep_table
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.numerics._sources import BUILD
 from stochpend.runs.simulate import run
 from stochpend.sweep import load_spec, plan_tasks, run_block, sweep

@@ -98,7 +98,7 @@ def _engine_words(path: Path) -> set[str]:
 
 #: The engine outside the step: its loops' drivers, the backends, the settings' checks (the step,
 #: integrator.py, writes the kicks: stochpend.terms says why).
-ENGINE = ("model/params.py", "engine/runner.py", "runs/bias.py", "runs/multilevel.py", "engine/cpu.py",
+ENGINE = ("model/settings.py", "engine/runner.py", "runs/bias.py", "runs/multilevel.py", "engine/cpu.py",
           "engine/cuda.py", "engine/layout.py")
 #: The damping is the step's Ornstein-Uhlenbeck flow, which the step writes (terms/damping.py).
 O_FLOW = {"damping", "gamma"}

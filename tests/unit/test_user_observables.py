@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 import stochpend
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.observables import Observable, register, unregister
 from stochpend.runs import checkpoint as ck
 from stochpend.runs.simulate import run

@@ -390,7 +390,7 @@ def simulate(
 ) -> None:
     """Simulate an ensemble and print the energy statistics (optionally save them as NetCDF)."""
     from stochpend.files import io
-    from stochpend.model import params
+    from stochpend.model import settings
     from stochpend.runs import resources
 
     if ctx is not None:
@@ -418,7 +418,7 @@ def simulate(
     if additive_noise is not None:
         kwargs["additive_noise"] = additive_noise
     noise_params = parse_params(param)
-    config = params.SimulationConfig.build(
+    config = settings.SimulationConfig.build(
         noise_params=noise_params,
         noise=noise, D=D, tau=tau, omega=omega, paths=paths, t_max=t_max,
         times=parse_times(times), n_times=n_times, seed=seed, theta0=parse_theta0(theta0),

@@ -50,7 +50,7 @@ results = _ResultsConsole(width=None if sys.stdout is not None and sys.stdout.is
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-# stochpend.model.params's defaults and limits, as the help shows them (importing params would load
+# stochpend.model.settings's defaults and limits, as the help shows them (importing params would load
 # Numba before '--help'; tests/unit/test_cli_help.py checks that they agree).
 DEFAULT_H_MAX, DEFAULT_STEP_C, DEFAULT_HIST_BINS = 0.05, 0.1, 100
 MAX_OMEGA, MAX_POWER_N = 1e150, 1000

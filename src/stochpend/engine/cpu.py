@@ -62,11 +62,11 @@ from numba.extending import intrinsic
 from stochpend.engine import integrator
 from stochpend.engine.integrator import Spec
 from stochpend.engine.layout import CHUNK_ARRAYS, path_dtypes
-from stochpend.model import dynamics, initial, params
+from stochpend.model import dynamics, initial, settings
 from stochpend.model import observables as observables_
 from stochpend.model.observables import N_SUMS, S_COUNT, S_NONFINITE
 from stochpend.model.oscillators.pendulum import PENDULUM
-from stochpend.model.stats import LevelSums
+from stochpend.model.power_sums import LevelSums
 from stochpend.numerics import rng
 from stochpend.numerics._jitcache import own_index
 
@@ -690,7 +690,7 @@ def joint_kernel(periodic: bool):
 def joint_sums(counts: np.ndarray, n_b: np.ndarray, out: np.ndarray) -> None:
     """Into ``out`` (3 * cells,): the per-batch ``counts`` (n_batches, cells) summed, their
     squares summed, and their products with the batches' finite paths ``n_b`` summed (the
-    joint histogram's errors: :meth:`stochpend.model.stats.EnsembleSums.joint`). Integers: exact."""
+    joint histogram's errors: :meth:`stochpend.model.power_sums.EnsembleSums.joint`). Integers: exact."""
     cells = counts.shape[1]
     out[:cells] = counts.sum(axis=0)
     out[cells:2 * cells] = (counts * counts).sum(axis=0)
@@ -749,13 +749,13 @@ class Engine:
         self.additive = dynamics.additive_arrays(config)
         self.n_times = len(config.times)
         self.n_e = config.hist_bins + 2  # the energy histogram's columns
-        self.n_cols = params.hist_columns(config)
+        self.n_cols = settings.hist_columns(config)
         self.hist = np.empty((n_chunk_batches, self.n_e), dtype=np.int64)
-        # The joint (x, Omega) histogram, when the run asks for it (params.joint_grid).
-        self.joint_grid = params.joint_grid(config)
+        # The joint (x, Omega) histogram, when the run asks for it (settings.joint_grid).
+        self.joint_grid = settings.joint_grid(config)
         if self.joint_grid is not None:
             self.joint = joint_kernel(spec.oscillator.periodic)
-            self.joint_counts = np.empty((n_chunk_batches, params.joint_cells(config)), dtype=np.int64)
+            self.joint_counts = np.empty((n_chunk_batches, settings.joint_cells(config)), dtype=np.int64)
         self.p0 = 0
         self.n = 0
         self._buffers: dict[str, np.ndarray] | None = None

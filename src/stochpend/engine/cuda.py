@@ -51,7 +51,7 @@ from stochpend.engine.integrator import Spec
 from stochpend.engine.layout import path_dtypes
 from stochpend.model import dynamics, initial, observables
 from stochpend.model.observables import N_SUMS, S_COUNT, S_NONFINITE
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.model.terms import TABLE
 from stochpend.numerics import rng
 from stochpend.numerics._jitcache import own_index
@@ -645,15 +645,15 @@ class Engine:
         # The additive channel's per-path arrays (xi_a; aux_a for the generic channel).
         self.additive = dynamics.additive_arrays(config)
         self.n_times = len(config.times)
-        from stochpend.model import params
+        from stochpend.model import settings
 
-        self.n_cols = params.hist_columns(config)
-        # The joint (x, Omega) histogram, when the run asks for it (params.joint_grid).
-        self.joint_grid = params.joint_grid(config)
+        self.n_cols = settings.hist_columns(config)
+        # The joint (x, Omega) histogram, when the run asks for it (settings.joint_grid).
+        self.joint_grid = settings.joint_grid(config)
         if self.joint_grid is not None:
             self.joint_k = joint_kernel(spec.oscillator.periodic)
             with _quiet():
-                self.d_joint_counts = cuda.device_array((n_chunk_batches, params.joint_cells(config)),
+                self.d_joint_counts = cuda.device_array((n_chunk_batches, settings.joint_cells(config)),
                                                         dtype=np.int64)
         with _quiet():
             for name, dtype in path_dtypes("cuda", spec.precision).items():
@@ -665,7 +665,7 @@ class Engine:
             self.d_sums = cuda.device_array((n_chunk_batches, self.n_times, observables.n_sums(config)),
                                             dtype=np.float64)
             self.d_hist = cuda.device_array((self.n_times, self.n_cols), dtype=np.int64)
-            from stochpend.model.params import hist_edges
+            from stochpend.model.settings import hist_edges
 
             self.d_edges = cuda.to_device(np.ascontiguousarray(hist_edges(config), dtype=np.float64))
         self._zero_flag = np.zeros(1, dtype=np.int32)

@@ -168,7 +168,7 @@ def run_record(config: Any) -> tuple[Any, ...]:
     omega**2, the oscillator's parameter record q (:meth:`stochpend.oscillators.Oscillator.record`:
     ``(power_n,)`` for the power family, a model's own parameters in declared order, ``(0.0,)``
     for none), the largest step and the step control's constant (0: fixed steps) of a
-    :class:`stochpend.model.params.SimulationConfig`. With the noise's record (``Noise.record``) it is
+    :class:`stochpend.model.settings.SimulationConfig`. With the noise's record (``Noise.record``) it is
     everything of the configuration a step reads."""
     oscillator = _oscillators.get(config.potential)
     assert oscillator is not None, config.potential  # validated when the config was built
@@ -219,7 +219,7 @@ class Spec:
 
     @classmethod
     def of(cls, config: Any, *, precision: str = "float64", fast_math: bool = False) -> Spec:
-        """The Spec of a validated :class:`stochpend.model.params.SimulationConfig`."""
+        """The Spec of a validated :class:`stochpend.model.settings.SimulationConfig`."""
         oscillator = _oscillators.get(config.potential)
         noise = _noises.get(config.noise)
         if oscillator is None or noise is None:  # validated configs never get here

@@ -1,6 +1,6 @@
 """The joint (x, Omega) histogram's cell of one path, shared by the CPU and CUDA kernels.
 
-Uniform bins of ``[lo, hi)`` along each axis (``stochpend.model.params.joint_grid``), with an outside
+Uniform bins of ``[lo, hi)`` along each axis (``stochpend.model.settings.joint_grid``), with an outside
 row and column on either side: the cells are numbered ``ix * (nO + 2) + iO``, ``ix`` in
 ``0 .. nx + 1`` (0: below the range, nx + 1: at or above it), likewise ``iO``. A periodic
 oscillator's angle is reduced to [-pi, pi) first, so it is never outside. The same float64

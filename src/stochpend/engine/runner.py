@@ -26,9 +26,9 @@ import numpy as np
 
 from stochpend.engine.layout import CHUNK_ARRAYS
 from stochpend.model import observables
-from stochpend.model.params import SimulationConfig, hist_edges, joint_cells
 from stochpend.model.passage import final_values
-from stochpend.model.stats import EnsembleSums
+from stochpend.model.power_sums import EnsembleSums
+from stochpend.model.settings import SimulationConfig, hist_edges, joint_cells
 from stochpend.text.progress import NoProgress, Progress
 
 __all__ = ["BACKENDS", "Checkpointer", "RunState", "engine_class", "run_batches"]

@@ -4,6 +4,6 @@
 family term; public as ``stochpend.noises``, ``stochpend.oscillators``, ``stochpend.terms``),
 the family they make (:mod:`.dynamics`), models and observables users write
 (:mod:`.user_models`, public as ``stochpend.models``; :mod:`.observables`), plugins, the
-parameters pieces declare (:mod:`.parameters`), a run's validated settings (:mod:`.params`),
+parameters pieces declare (:mod:`.parameters`), a run's validated settings (:mod:`.settings`),
 initial conditions (:mod:`.initial`), and the on-the-fly sums the statistics are built from
-(:mod:`.stats`, :mod:`.passage`). Below the engine: nothing here compiles a loop."""
+(:mod:`.power_sums`, :mod:`.passage`). Below the engine: nothing here compiles a loop."""

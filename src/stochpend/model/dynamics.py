@@ -30,7 +30,7 @@ array ``xi_a``), started in its stationary law N(0, D_a/(2 tau_a)) from Philox d
 integral over the step) from both normals of draw ``rng.N_ADDITIVE + k``; the integral enters
 the kick (the term "additive_ou"; "additive" is the white channel's).
 
-``additive_noise`` (a setting of :class:`stochpend.model.params.SimulationConfig`) makes xi_a ANY
+``additive_noise`` (a setting of :class:`stochpend.model.settings.SimulationConfig`) makes xi_a ANY
 registered noise (:mod:`stochpend.noises`: ``"harmonic"``, ``"dichotomous"``, a user's): the
 term "additive_noise" (the generic channel). Unset, ``"white"`` or ``"ou"`` select the two terms
 above, so those runs are what they were, bit for bit. The channel's parameter record is the

@@ -13,7 +13,7 @@ with their labels.
   the value in the averaged dynamics, where a path is its energy alone (``None``: undefined
   there). The per-batch sums are laid out as ``count``, the SUMS in order, ``nonfinite``.
 * :data:`STATISTICS`: what a result reports, each a function of the ensemble means of the
-  sums, with a delete-one-batch jackknife error and a bias estimate (``stochpend.model.stats``,
+  sums, with a delete-one-batch jackknife error and a bias estimate (``stochpend.model.power_sums``,
   ``stochpend.bias``).
 
 A new moment is one line: ``mean("Omega6", "Omega2 * Omega4", "⟨Ω⁶⟩", "<Omega^6>")`` appended

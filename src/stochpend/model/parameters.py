@@ -3,7 +3,7 @@ their parameters").
 
 A :class:`~stochpend.noises.Noise` lists the fields of its kernel record in ``parameters``:
 a name of the run's shared settings (``"D"``, ``"tau"``, ``"omega_noise"``, validated by
-:class:`stochpend.model.params.SimulationConfig`) or a :class:`Parameter` of its own, which states its
+:class:`stochpend.model.settings.SimulationConfig`) or a :class:`Parameter` of its own, which states its
 name, default, accepted range and meaning once. From that one declaration:
 
 * the Python API takes it as a keyword (``simulate(noise="two-ou", tau1=0.5)``) and refuses a

@@ -22,8 +22,8 @@ __all__ = ["NUMBERS_SOURCES", "digest", "BUILD"]
 _PACKAGE = Path(__file__).resolve().parent.parent  # the package's root
 
 #: Files and folders of the package whose code decides a simulated number.
-NUMBERS_SOURCES = ("model/params.py", "numerics/rng.py", "numerics/mathlib.py", "numerics/fastmath.py",
-                   "engine/integrator.py", "engine/runner.py", "runs/simulate.py", "model/stats.py",
+NUMBERS_SOURCES = ("model/settings.py", "numerics/rng.py", "numerics/mathlib.py", "numerics/fastmath.py",
+                   "engine/integrator.py", "engine/runner.py", "runs/simulate.py", "model/power_sums.py",
                    "model/observables.py", "model/passage.py", "model/user_models.py", "model/dynamics.py",
                    "model/initial.py", "runs/bias.py", "runs/reduced.py", "numerics/_jitcache.py",
                    "engine/cpu.py", "engine/cuda.py", "engine/joint.py", "model/noises",

@@ -382,7 +382,7 @@ def _estimates(specs: dict[str, list[RunSpec]], *, backend: str, precision: str,
                max_path_steps: float | None, threads: int | None) -> dict[tuple[str, str], Any]:
     """Every run validated before any work (a one-line ValueError naming the parameter), and
     its cost: ``resources.Estimate`` by (figure, run key)."""
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
     from stochpend.runs import resources
 
     estimates: dict[tuple[str, str], resources.Estimate] = {}
@@ -406,7 +406,7 @@ def _cost_lines(specs: dict[str, list[RunSpec]], estimates: dict, to_simulate: s
     """One line per run to simulate, then the total: the lower bound on the work and a duration
     at the assumed rate (:func:`stochpend.runs.resources.estimate`), and for the named long runs
     (:data:`stochpend.paper.figures.CASES`) the cost model's figure too."""
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
     from stochpend.runs import resources
 
     lines = []
@@ -535,7 +535,7 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None,
     configuration, numbers, bias estimate with its default pairs, and attributes), keeping the
     per-batch sums, which the tables need for jackknife errors of late-time fits.
     """
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
     from stochpend.runs.lifecycle import Run, execute
 
     config = SimulationConfig.build(**spec.simulate_kwargs())

@@ -15,7 +15,7 @@ import numba
 import numpy as np
 
 from stochpend.engine.runner import run_batches
-from stochpend.model.params import SimulationConfig
+from stochpend.model.settings import SimulationConfig
 from stochpend.numerics._sources import BUILD
 from stochpend.runs.lifecycle import numba_threads as numba_threads_of
 from stochpend.text.progress import Progress

@@ -39,13 +39,13 @@ import numpy as np
 
 # The kernels' modules (Numba, seconds to import) load where an estimate runs: reading a
 # result's verdicts (assess_dataset, warnings_for, summary_line; 'stochpend show') needs NumPy only.
-from stochpend.model import observables, stats
-from stochpend.model.stats import STATISTICS
+from stochpend.model import observables, power_sums
+from stochpend.model.power_sums import STATISTICS
 from stochpend.text.progress import NoProgress, Progress
 
 if TYPE_CHECKING:  # pragma: no cover
     from stochpend.engine.integrator import Spec
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
     from stochpend.numerics._jitcache import CompileClock
 
 __all__ = ["BIAS_PATH0", "Assessment", "BiasEstimate", "RICHARDSON", "assess", "assess_dataset",
@@ -212,7 +212,7 @@ def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_
     sums, path_steps = pair_sums(config, n_paths, n_batches, backend=backend, progress=progress,
                                  chunk_pairs=chunk_pairs)
     bias, coarse = _statistics(sums, observables.STATISTICS + observables.user_statistics(config.observables))
-    nonfinite = sums[:, :, 0, stats.S_NONFINITE].sum(axis=0).astype(np.int64)
+    nonfinite = sums[:, :, 0, power_sums.S_NONFINITE].sum(axis=0).astype(np.int64)
     return BiasEstimate(np.asarray(config.times, dtype=np.float64), bias, coarse, n_paths, path_steps,
                         _time.perf_counter() - started - compile_clock.seconds, nonfinite, config.h_max,
                         config.step_c, n_batches, _decorrelation(bias, coarse, len(config.times)))
@@ -275,7 +275,7 @@ def _statistics(sums: np.ndarray, statistics: Sequence[observables.Statistic]):
     loo = total[None] - sums
 
     def means(s: np.ndarray) -> np.ndarray:
-        count = s[..., stats.S_COUNT]
+        count = s[..., power_sums.S_COUNT]
         return s / np.where(count > 0, count, np.nan)[..., None]
 
     m_all = means(total)

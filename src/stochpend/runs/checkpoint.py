@@ -68,8 +68,8 @@ from stochpend.files import _files, io
 from stochpend.model import observables
 from stochpend.model.dynamics import additive_arrays
 from stochpend.model.observables import n_sums
-from stochpend.model.params import SimulationConfig, hist_columns
-from stochpend.model.stats import EnsembleSums, passage_slots
+from stochpend.model.power_sums import EnsembleSums, passage_slots
+from stochpend.model.settings import SimulationConfig, hist_columns
 from stochpend.numerics import _cputarget
 from stochpend.numerics._sources import BUILD
 from stochpend.runs import bias, multilevel

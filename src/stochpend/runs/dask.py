@@ -97,7 +97,7 @@ class LocalSchedulerEngine:
 def _check_threadsafe_numba() -> None:
     """Concurrent kernels from several threads need the omp or tbb threading layer."""
     from stochpend.engine.runner import run_batches
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
 
     run_batches(SimulationConfig.build(paths=2, t_max=0.1, n_times=1), 0, 2)  # loads the kernels
     layer = numba.threading_layer()

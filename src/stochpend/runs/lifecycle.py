@@ -35,8 +35,8 @@ from stochpend.engine import integrator, runner
 from stochpend.engine.runner import RunState
 from stochpend.model import observables
 from stochpend.model import user_models as models
-from stochpend.model.params import SimulationConfig, hist_edges, joint_grid
-from stochpend.model.stats import EnsembleSums
+from stochpend.model.power_sums import EnsembleSums
+from stochpend.model.settings import SimulationConfig, hist_edges, joint_grid
 from stochpend.numerics import _cputarget
 from stochpend.numerics._jitcache import CompileClock
 from stochpend.runs import _compile_helper, bias, resources

@@ -101,13 +101,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from stochpend.model import observables, stats
+from stochpend.model import observables, power_sums
 from stochpend.runs import bias
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 
-    from stochpend.model.params import SimulationConfig
+    from stochpend.model.settings import SimulationConfig
     from stochpend.text.progress import Progress
 
 __all__ = ["DEFAULT_STATISTICS", "check_target", "level_seed", "plan_samples", "target_run"]
@@ -297,7 +297,7 @@ def _jackknife(sums: np.ndarray, g: Any) -> tuple[np.ndarray, np.ndarray]:
     """(value, variance of the value) of g(means) by the delete-one-batch jackknife; ``sums``
     (B, n_times, ..., n_sums) with the count in column S_COUNT."""
     def means(s: np.ndarray) -> np.ndarray:
-        count = s[..., stats.S_COUNT]
+        count = s[..., power_sums.S_COUNT]
         return s / np.where(count > 0, count, np.nan)[..., None]
 
     total = sums.sum(axis=0)
@@ -316,7 +316,7 @@ def _st(x: np.ndarray) -> np.ndarray:
 
 
 def _user_column(config: SimulationConfig, name: str) -> int:
-    c = stats.N_SUMS
+    c = power_sums.N_SUMS
     for u in config.observables:
         if f"mean_{u}" == name:
             return c
@@ -385,19 +385,19 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
         ens, path_steps = runner.run_batches(cfg, 0, n_b, backend=backend, progress=progress)
         sums = ens.sums  # (B, T', n_sums)
         f, f_var = _jackknife(sums, lambda m: _st(of(m)))
-        nonfinite = int(sums[:, -1, stats.S_NONFINITE].sum())
+        nonfinite = int(sums[:, -1, power_sums.S_NONFINITE].sum())
         f, f_var = _pad(f, T), _pad(f_var, T)
         nan = np.full_like(f, np.nan)
         return Round(_counts(n, stop, T), stop, cfg.t_max, int(path_steps), seed, n_b, f, f_var,
                      nan, nan.copy(), f, f_var, nonfinite)
     cfg = replace(bias.refined(cfg, level - 1), seed=seed)
-    dsums = np.zeros((len(cfg.times), 4, stats.N_SUMS))
+    dsums = np.zeros((len(cfg.times), 4, power_sums.N_SUMS))
     sums, path_steps = bias.pair_sums(cfg, n, n_b, backend=backend, progress=progress,
                                       what=f"level {level}", differences=dsums)  # (B, T', 2, n_sums)
     f, f_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :])))
     c, c_var = _jackknife(sums, lambda m: _st(of(m[..., 0, :])))
     y, y_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :]) - of(m[..., 0, :])))
-    nonfinite = int(sums[:, -1, 0, stats.S_NONFINITE].sum())
+    nonfinite = int(sums[:, -1, 0, power_sums.S_NONFINITE].sum())
     moments = np.full((4, f.shape[0], dsums.shape[0]), np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
         for i, col in enumerate(columns):
@@ -1172,7 +1172,7 @@ def _ensemble(cfg: SimulationConfig, h: float, n: int, seed: int, stop: int,
     c = replace(_truncated(cfg, stop + 1), h_max=float(h), step_c=0.0, seed=seed, paths=n, n_batches=n_b)
     ens, path_steps = runner.run_batches(c, 0, n_b, backend=backend)
     f, f_var = _jackknife(ens.sums, lambda m: _st(of(m)))
-    return Ensemble(seed, float(h), n, stop, f, f_var, int(path_steps), int(ens.sums[:, -1, stats.S_NONFINITE].sum()))
+    return Ensemble(seed, float(h), n, stop, f, f_var, int(path_steps), int(ens.sums[:, -1, power_sums.S_NONFINITE].sum()))
 
 
 def _certify_by_independent_runs(cfg: SimulationConfig, target: Target, st: State, nonfinite: int,

@@ -101,8 +101,8 @@ from stochpend.model.observables import (
     TABLE_KEY,
     reduced_values_source,
 )
-from stochpend.model.params import DEFAULT_HIST_BINS, DEFAULT_N_BATCHES, SimulationConfig
-from stochpend.model.stats import EnsembleSums
+from stochpend.model.power_sums import EnsembleSums
+from stochpend.model.settings import DEFAULT_HIST_BINS, DEFAULT_N_BATCHES, SimulationConfig
 from stochpend.numerics import _cputarget, rng
 from stochpend.numerics._jitcache import own_index
 from stochpend.text._docs import documented

@@ -1,6 +1,6 @@
 """What a simulation will cost, estimated before any work: memory and path-steps.
 
-:func:`estimate` computes, from a validated :class:`~stochpend.model.params.SimulationConfig`,
+:func:`estimate` computes, from a validated :class:`~stochpend.model.settings.SimulationConfig`,
 
 * the peak host memory of the run: the per-path state of one chunk of paths (57 bytes a path in
   float64, 45 in float32: x, Omega, xi in the working precision; xi_aux, t, t_comp in float64;
@@ -31,8 +31,8 @@ from typing import Any
 
 from stochpend.model import observables as observables_
 from stochpend.model.observables import N_SUMS, n_sums
-from stochpend.model.params import DEFAULT_H_MAX, DEFAULT_STEP_C, SimulationConfig, short_repr
-from stochpend.model.params import joint_cells as _joint_cells
+from stochpend.model.settings import DEFAULT_H_MAX, DEFAULT_STEP_C, SimulationConfig, short_repr
+from stochpend.model.settings import joint_cells as _joint_cells
 
 __all__ = [
     "DEFAULT_MAX_PATH_STEPS",

@@ -7,7 +7,7 @@ from typing import Any
 
 import xarray as xr
 
-from stochpend.model.params import (
+from stochpend.model.settings import (
     DEFAULT_H_MAX,
     DEFAULT_HIST_BINS,
     DEFAULT_N_BATCHES,

@@ -3,7 +3,7 @@
 A sweep is a grid (Cartesian product) or a list of cases of :class:`SimulationConfig`
 parameters. Each set's batches are cut into blocks; each block is one task that returns the
 per-batch sums of its batches (:func:`run_block`). Placing those sums back is exact (see
-:mod:`stochpend.model.stats`) and random numbers are keyed by (seed, global path index), so the
+:mod:`stochpend.model.power_sums`) and random numbers are keyed by (seed, global path index), so the
 result does not depend on the engine: in this process, Dask threads, a local cluster or a
 remote one give the same numbers to the last bit. Each set's discretisation bias is then
 estimated in this process, as :func:`stochpend.simulate` estimates it (:func:`sweep`).
@@ -59,8 +59,8 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from stochpend.model.params import SimulationConfig, hist_edges, joint_cells, joint_grid
-from stochpend.model.stats import EnsembleSums
+from stochpend.model.power_sums import EnsembleSums
+from stochpend.model.settings import SimulationConfig, hist_edges, joint_cells, joint_grid
 from stochpend.numerics._sources import BUILD
 from stochpend.runs import bias, multilevel
 from stochpend.runs._blocks import BlockResult, Task, run_block

@@ -9,7 +9,7 @@ Why per-batch sums: <E> at different times comes from the same paths, so the err
 log <E(t_i)> are strongly correlated and a least-squares slope error that treats them as
 independent is wrong (usually too small at late times, where each path carries its whole
 history). Deleting one batch of paths at a time and refitting (the delete-one-batch
-jackknife, as in :mod:`stochpend.model.stats`) keeps every correlation between times.
+jackknife, as in :mod:`stochpend.model.power_sums`) keeps every correlation between times.
 
 The predictions these are compared with are in :mod:`stochpend.theory.scaling`
 (derivations in ``docs/scaling.md``).

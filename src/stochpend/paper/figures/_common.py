@@ -129,7 +129,7 @@ class RunSpec:
         The resolved configuration includes every default (step controls, histogram, batches),
         so a run stored before a default changed is never reused for the new settings.
         """
-        from stochpend.model.params import SimulationConfig
+        from stochpend.model.settings import SimulationConfig
         from stochpend.numerics import _sources
 
         config = SimulationConfig.build(**self.simulate_kwargs())
@@ -267,11 +267,11 @@ def leave_one_out(ds: xr.Dataset, var: str) -> np.ndarray | None:
     """Leave-one-batch-out values of a statistic, shape (n_batches, n_times), or None.
 
     Computed from the per-batch sums ``batch_sums`` that :mod:`stochpend.paper.reproduce` stores with
-    each run, with the same statistic functions as the simulator (:data:`stochpend.model.stats.STATISTICS`).
+    each run, with the same statistic functions as the simulator (:data:`stochpend.model.power_sums.STATISTICS`).
     """
     if "batch_sums" not in ds:
         return None
-    from stochpend.model.stats import STATISTICS
+    from stochpend.model.power_sums import STATISTICS
 
     of = STATISTICS[var] if var in STATISTICS else _user_statistic(ds, var)
     if of is None:

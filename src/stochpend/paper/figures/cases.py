@@ -20,7 +20,7 @@ import dataclasses
 import math
 from typing import Any
 
-from stochpend.model.params import DEFAULT_H_MAX
+from stochpend.model.settings import DEFAULT_H_MAX
 from stochpend.paper.figures import fig2, fig4
 from stochpend.paper.figures._common import RunSpec, fmt_num
 

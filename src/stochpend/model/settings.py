@@ -647,7 +647,7 @@ def hist_columns(config: SimulationConfig) -> int:
     """Columns of a run's histogram counts per output time (``EnsembleSums.hist``): the energy
     histogram's underflow, bins and overflow, then, with a joint histogram, its counts, their
     per-batch squares and their per-batch products with the batch's finite paths, each over
-    the :func:`joint_cells` (``stochpend.model.stats``: the errors)."""
+    the :func:`joint_cells` (``stochpend.model.power_sums``: the errors)."""
     return config.hist_bins + 2 + 3 * joint_cells(config)
 
 

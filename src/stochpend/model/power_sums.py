@@ -50,7 +50,7 @@ class EnsembleSums:
 
     ``hist`` has shape (n_times, n_bins + 2): underflow, the bins, overflow; with a joint
     (x, Omega) histogram, its 3 * cells integer columns follow (:meth:`joint`,
-    ``stochpend.model.params.hist_columns``), summed like the rest. ``filled`` marks the batches
+    ``stochpend.model.settings.hist_columns``), summed like the rest. ``filled`` marks the batches
     already computed (all must be filled before statistics are read).
     """
 
@@ -72,8 +72,8 @@ class EnsembleSums:
         batch over a long run (a slow rise that looks like a leak, and a shortfall that shows
         late). Written now, the memory the resource check counted is held from the start.
         ``paths``: the ensemble's, for the per-path passage times of its first passages;
-        ``joint_cells``: the joint histogram's (``stochpend.model.params.joint_cells``), whose counts
-        follow the energy histogram's columns (``stochpend.model.params.hist_columns``)."""
+        ``joint_cells``: the joint histogram's (``stochpend.model.settings.joint_cells``), whose counts
+        follow the energy histogram's columns (``stochpend.model.settings.hist_columns``)."""
         sums = np.empty((n_batches, n_times, _table.n_sums(SimpleNamespace(observables=observables_))))
         sums.fill(0.0)
         filled = np.empty(n_batches, dtype=bool)
@@ -184,7 +184,7 @@ class EnsembleSums:
     def to_dataset(self, times: np.ndarray, edges: np.ndarray, attrs: dict,
                    joint: tuple[np.ndarray, np.ndarray] | None = None) -> xr.Dataset:
         """The result as an ``xarray.Dataset`` (names fixed: other tools read them).
-        ``joint``: the joint histogram's edges (``stochpend.model.params.joint_grid``), when the run
+        ``joint``: the joint histogram's edges (``stochpend.model.settings.joint_grid``), when the run
         has one."""
         data_vars: dict[str, tuple] = {}
         n_e = edges.shape[-1] + 1  # the energy histogram's columns, outside ones included
