@@ -626,7 +626,7 @@ def _step_bound(oscillator: SimpleNamespace, family: SimpleNamespace, control: S
 def _step_choice(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace, family: SimpleNamespace,
                  channel: SimpleNamespace, control: SimpleNamespace) -> Any:
     """``choose_step(mem, xn, xa, xc, xca, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d)``
-    and ``at_events(xn, xa, xc, xca, t_land, t_ev, t_ev_a, keys, path, kk, p, pan)`` of a step
+    and ``at_events(xn, xa, xc, xca, t_land, t_ev, t_ev_a, keys, path, kk, p, p_channel)`` of a step
     loop (:func:`_step_loop`'s bundles): the step control and the landing, and the noises'
     events where a step landed on one."""
     bound = _step_bound(oscillator, family, control)
@@ -659,14 +659,14 @@ def _step_choice(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespac
             t_land = t_target
         return h_clock, last, event, t_land, t_ev, t_ev_a, esc
 
-    def at_events(xn, xa, xc, xca, t_land, t_ev, t_ev_a, keys, path, kk, p, pan):
+    def at_events(xn, xa, xc, xca, t_land, t_ev, t_ev_a, keys, path, kk, p, p_channel):
         """After a step that landed on an event: the noise's (``t_land == t_ev``) and the
         generic channel's (``t_land == t_ev_a``) jumps (a noise without events: none)."""
         if CHANNEL_EVENTS:
             if HAS_EVENTS and t_land == t_ev:
                 xn, xa = at_event(xn, xa, keys[0], keys[1], path, kk, p)
             if t_land == t_ev_a:
-                xc, xca = a_at_event(xc, xca, keys[2], keys[3], path, kk, pan)
+                xc, xca = a_at_event(xc, xca, keys[2], keys[3], path, kk, p_channel)
         elif HAS_EVENTS:
             xn, xa = at_event(xn, xa, keys[0], keys[1], path, kk, p)
         return xn, xa, xc, xca
@@ -757,8 +757,8 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         # and key; t_ev, t_ev_a the noise's and the generic channel's next events.
         xc, xca = load_channel(i, state)
         pa = ou_record(d)
-        pan, kan = channel_of(run)
-        keys = (key0, key1, kan[0], kan[1])
+        p_channel, keys_channel = channel_of(run)
+        keys = (key0, key1, keys_channel[0], keys_channel[1])
         Sa = a_scratch0()
         # Everything of the noise's step that depends on h only (with several members, on the
         # finest member's step), cached while h is unchanged (h = h_max most of the time).
@@ -766,7 +766,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         hf = finest(h_max_r)
         C = coefficients(hf, p)
         Ca = ou_coefficients(hf, pa)
-        Can = a_coefficients(hf, pan)
+        C_channel = a_coefficients(hf, p_channel)
         S = scratch0()
         steps = 0
         bad = False
@@ -781,7 +781,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
                 C = coefficients(hf, p)
                 Ca = ou_coefficients(hf, pa)
                 if CHANNEL:
-                    Can = a_coefficients(hf, pan)
+                    C_channel = a_coefficients(hf, p_channel)
                 h_cached = h
             if TRACKED:
                 x_before = mem[0]
@@ -792,11 +792,11 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             # coarser member's kick uses the sum of its two halves' integrals, the exact
             # integral over its step (one member: one draw, its own step).
             mem, ns, cs = step(mem, (xn, xa, S), (xc, xca, Sa), keys, path, kk, h, h_clock, tt,
-                               (C, Ca, Can), omega2_r, q, d)
+                               (C, Ca, C_channel), omega2_r, q, d)
             xn, xa, S = ns
             xc, xca, Sa = cs
             if event:  # the event of the noise(s) whose time the step landed on
-                xn, xa, xc, xca = at_events(xn, xa, xc, xca, t_land, t_ev, t_ev_a, keys, path, kk, p, pan)
+                xn, xa, xc, xca = at_events(xn, xa, xc, xca, t_land, t_ev, t_ev_a, keys, path, kk, p, p_channel)
             kk += _U64(DRAWS)
             steps += 1
             tt, tc = advance_clock(tt, tc, h_clock, event or last, t_land)
@@ -1506,8 +1506,8 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
     channel = steps.pieces["channel"]
     a_load_aux = channel.a_load_aux
     CHANNEL = channel.CHANNEL
-    XC = steps.pieces["family"].ADDITIVE_OU or CHANNEL
-    at = _loop_positions(LEVELS, False, XC, CHANNEL)  # the state's arrays, by name
+    XI_A_STATE = steps.pieces["family"].ADDITIVE_OU or CHANNEL  # xi_a has a state: OU or the generic channel
+    at = _loop_positions(LEVELS, False, XI_A_STATE, CHANNEL)  # the state's arrays, by name
     I_XI, I_XA, I_T, I_TC, I_K, I_ST, I_ADD, I_AUXA = at.XI, at.XA, at.T, at.TC, at.K, at.ST, at.ADD, at.AUXA
     X1, X2, X3, O1, O2, O3 = at.X1, at.X2, at.X3, at.O1, at.O2, at.O3
     HAS_1, HAS_2, HAS_3 = at.HAS1, at.HAS2, at.HAS3
@@ -1538,7 +1538,7 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
         fs[3, lane] = load_aux(state[I_XA][i])
         fs[4, lane] = state[I_T][i]
         fs[5, lane] = state[I_TC][i]
-        if XC:
+        if XI_A_STATE:
             fs[6, lane] = state[I_ADD][i]
         if CHANNEL:
             fs[7, lane] = a_load_aux(state[I_AUXA][i])
@@ -1583,7 +1583,7 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
         state[I_XA][i] = fs[3, lane]
         state[I_T][i] = fs[4, lane]
         state[I_TC][i] = fs[5, lane]
-        if XC:
+        if XI_A_STATE:
             state[I_ADD][i] = fs[6, lane]
         if CHANNEL:
             state[I_AUXA][i] = fs[7, lane]
@@ -1646,7 +1646,7 @@ def _lane_scalars(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> tuple[Any,
     ``lane_clock(tt, tc, h_clock, last, t_target) -> (t, t_comp)``, :func:`advance_clock`'s
     compensated sum written branch-free; ``lane_finite(m, ns)``, whether the members (``flat``)
     and the noise after the step are finite (bitwise ands: no short-circuit branch);
-    ``lane_records(run, rk0, rk1, d) -> (pa, pan, keys)``: the OU channel's and the generic
+    ``lane_records(run, rk0, rk1, d) -> (pa, p_channel, keys)``: the OU channel's and the generic
     channel's records and the round keys of the noise and the channel."""
     real = steps.real
     bound = _step_bound(steps.pieces["oscillator"], steps.pieces["family"], steps.pieces["control"], inline=True)
@@ -1680,9 +1680,9 @@ def _lane_scalars(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> tuple[Any,
         return finite
 
     def lane_records(run, rk0, rk1, d):
-        pan, kan = channel_of(run)
-        rka0, rka1 = rng.round_keys(kan[0], kan[1])  # the channel's, the same for every path
-        return ou_record(d), pan, (rk0, rk1, rka0, rka1)
+        p_channel, keys_channel = channel_of(run)
+        rka0, rka1 = rng.round_keys(keys_channel[0], keys_channel[1])  # the channel's, the same for every path
+        return ou_record(d), p_channel, (rk0, rk1, rka0, rka1)
 
     return (_inline(_named(lane_step, f"lane_step{LEVELS}")), _inline(_named(lane_clock, "lane_clock")),
             _inline(_named(lane_finite, f"lane_finite{LEVELS}")), _inline(lane_records))
@@ -1703,7 +1703,7 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
     ou_coefficients = steps.ou_coefficients
     a_coefficients = steps.a_coefficients
     dyn_of = family.dyn_of
-    XC = family.ADDITIVE_OU or channel.CHANNEL
+    XI_A_STATE = family.ADDITIVE_OU or channel.CHANNEL
     CHANNEL = channel.CHANNEL
     lanes = LANE_COUNT
     zero_r = real(0.0)
@@ -1762,7 +1762,7 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
         bs = js[1]
         ba = js[2]
         bbad = js[3]
-        pa, pan, keys = lane_records(run, rk0, rk1, d)
+        pa, p_channel, keys = lane_records(run, rk0, rk1, d)
         idle(scratch, t_target)
         steps_taken = 0
         unfinished = 0
@@ -1789,7 +1789,7 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
                 kk = bk[lane]
                 h, h_clock, last, esc = lane_step(mem, xn, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d)
                 hf = FINEST * h if LEVELS > 1 else h
-                coef = (coefficients(hf, p), ou_coefficients(hf, pa), a_coefficients(hf, pan))
+                coef = (coefficients(hf, p), ou_coefficients(hf, pa), a_coefficients(hf, p_channel))
                 new, ns, cs = step(mem, (xn, xa, zero_r), (xc, xca, zero_r), keys, (bc2[lane], bc3[lane]),
                                    kk, h, h_clock, tt, coef, omega2_r, q, d)
                 t_new, tc_new = lane_clock(tt, tc, h_clock, last, t_target)
@@ -1814,7 +1814,7 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
                     bO3[lane] = m[7] if go else o[7]
                 bxi[lane] = ns[0] if go else xn
                 bxa[lane] = ns[1] if go else xa
-                if XC:
+                if XI_A_STATE:
                     bxc[lane] = cs[0] if go else xc
                 if CHANNEL:
                     bxca[lane] = cs[1] if go else xca
