@@ -23,7 +23,7 @@ import tempfile
 
 #: Small runs whose kernels cover the drivers: SIMD lanes (fast math) with pairs, the one-path
 #: driver (C library), events (dichotomous), the x^(2n) oscillator with position coupling, the
-#: family terms and an additive OU channel, a fixed step.
+#: family terms and an additive OU noise (on the additive channel), a fixed step.
 RUNS = [
     dict(noise="ou", D=1.0, tau=1.0, omega=1.0),
     dict(noise="white", D=1.0, omega=1.0),

@@ -282,7 +282,14 @@ def test_a_checkpointed_run_resumes_to_the_same_numbers(name, tmp_path):
         assert np.array_equal(done[v].values, ref[v].values, equal_nan=True), v
 
 
-def test_unset_white_and_ou_are_todays_kernels_bit_for_bit():
+def test_unset_is_the_white_channel_or_the_channels_ou_bit_for_bit():
+    """Issue 33, item 5: additive_tau > 0 alone is the channel's "ou" (one mechanism for every
+    coloured noise, the same kernel), additive_tau = 0 alone the white channel."""
+    from stochpend.engine import cpu
+    from stochpend.model.settings import SimulationConfig
+
+    spec = cpu.spec_for(SimulationConfig.build(noise="white", D=0.5, noise_params=dict(additive_D=0.3, additive_tau=0.6)))
+    assert "additive_noise" in spec.terms and spec.additive is not None and spec.additive.name == "ou"
     base = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=300, t_max=4.0, n_times=2, seed=11, bias_paths=32,
                 gamma=0.5, additive_D=0.3)
     for tau_a, name in ((0.0, "white"), (0.6, "ou")):

@@ -44,8 +44,9 @@ def _record(**values):
 
 
 def _step(terms):
+    additive = "ou" if "additive_noise" in terms else None  # the channel of the OU noise
     return integrator.build(integrator.spec("white", "harmonic", "force", adaptive=False,
-                                            terms=frozenset(terms))).family_step
+                                            terms=frozenset(terms), additive=additive)).family_step
 
 
 def _ou_stationary(h, gamma, D_a, tau, omega=1.0):
@@ -53,7 +54,7 @@ def _ou_stationary(h, gamma, D_a, tau, omega=1.0):
     normals, read off the kernel's own step function (linear in x, Omega and the integral I of
     xi_a, which the kernel takes as its ``za``) and the OU noise's exact update."""
     d = _record(gamma=gamma, additive_D=D_a, additive_tau=tau)
-    step = _step({"damping", "additive_ou"})
+    step = _step({"damping", "additive_noise"})
 
     def apply(x, Omega, I):
         return np.array(step(x, Omega, h, omega * omega, 0.0, (0.0,), 0.0, h, I, d))
@@ -160,14 +161,15 @@ def test_the_free_velocity_is_the_exact_integral_of_the_stationary_noise():
 def test_the_noise_starts_in_its_stationary_law():
     D_a, tau, n = 0.8, 0.25, 100_000
     config = SimpleNamespace(seed=5, dyn_params=dynamics.resolve({"additive_D": D_a, "additive_tau": tau}))
-    xi = initial.additive_state(config, 0, n)
+    assert dynamics.additive_arrays(config) == ("xi_a", "aux_a")  # the generic channel's "ou"
+    xi = initial.additive_states(config, 0, n)[0]
     var = D_a / (2 * tau)
     z = (np.mean(xi * xi) - var) / (np.std(xi * xi) / math.sqrt(n))
     assert abs(z) < Z, z
     assert abs(np.mean(xi)) < Z * math.sqrt(var / n)
-    assert np.array_equal(initial.additive_state(config, 7, 10), xi[7:17])  # a function of (seed, path)
+    assert np.array_equal(initial.additive_states(config, 7, 10)[0], xi[7:17])  # a function of (seed, path)
     white = SimpleNamespace(seed=5, dyn_params=dynamics.resolve({"additive_D": D_a}))
-    assert not initial.additive_state(white, 0, 4).any()
+    assert initial.additive_states(white, 0, 4) == ()
 
 
 FAMILY_RUN = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=600, t_max=6.0, n_times=3, seed=9, gamma=0.4,
@@ -185,7 +187,7 @@ def test_the_lanes_give_the_one_path_numbers(step, monkeypatch):
     config = SimulationConfig.build(**{k: v for k, v in FAMILY_RUN.items() if k not in dynamics.names()}, **step,
                                     noise_params={k: v for k, v in FAMILY_RUN.items() if k in dynamics.names()})
     spec = cpu.spec_for(config)
-    assert "additive_ou" in spec.terms and integrator.lanes_supported(spec)
+    assert "additive_noise" in spec.terms and integrator.lanes_supported(spec)
     assert_lanes_equal_one_path({**FAMILY_RUN, **step}, config, monkeypatch)
 
 

@@ -48,16 +48,12 @@ def _reference(spec):
     step_size = b.step_size
     family_bounds = b.family_bounds
     additive_step = b.additive_step
-    ou_step = b.ou_step
     additive_sum = b.additive_sum
     channel_step = b.channel_step
     a_coefficients = b.a_coefficients
     a_scratch0 = b.a_scratch0
-    ou_coefficients = b.ou_coefficients
-    ou_record = b.ou_record
     ADAPTIVE = spec.adaptive
     FAMILY = bool(spec.terms)
-    ADDITIVE_OU = "additive_ou" in spec.terms
     CHANNEL = "additive_noise" in spec.terms
 
     @numba.njit
@@ -65,7 +61,6 @@ def _reference(spec):
         n = x0.shape[0]
         omega2, q, h_max, step_c = run[0], run[1], run[2], run[3]
         d = run[4] if FAMILY else (0.0,)
-        pa = ou_record(d)
         if CHANNEL:  # the generic channel's record and key
             pan, kan = run[5], run[6]
         N = 1 << (L - 1)
@@ -91,15 +86,12 @@ def _reference(spec):
                     h_clock, last = integrator.landing_step(tt, h, t_target)
                     hf = h_clock / N
                     C = coefficients(hf, p)
-                    Ca = ou_coefficients(hf, pa)
                     if CHANNEL:
                         Can = a_coefficients(hf, pan)
                     for j in range(N):  # the finest member's draws, in order
                         n_j = kk + np.uint64(j)
                         I[j], xn, xa, S = noise_step(key0, key1, path, n_j, xn, xa, S, C)
-                        if ADDITIVE_OU:
-                            Z[j], xad, _, _ = ou_step(key0, key1, path, n_j, xad, 0.0, 0, Ca)
-                        elif CHANNEL:
+                        if CHANNEL:
                             Z[j], xad, xaa, Sa = channel_step(kan[0], kan[1], path, n_j, xad, xaa, Sa, Can)
                         else:
                             Z[j], _, _, _ = additive_step(key0, key1, path, n_j, 0.0, 0.0, 0, C)

@@ -744,8 +744,8 @@ class Engine:
         self.key0, self.key1 = config.keys.main
         self.record = spec.noise.record(config)
         self.run = integrator.run_record(config)
-        # The additive channel's per-path arrays (xi_a for the OU channel, xi_a and aux_a for
-        # the generic one), after the others in the state: only for a run with them.
+        # The additive channel's per-path arrays (xi_a, aux_a), after the others in the state:
+        # only for a run with a coloured additive noise.
         self.additive = dynamics.additive_arrays(config)
         self.n_times = len(config.times)
         self.n_e = config.hist_bins + 2  # the energy histogram's columns

@@ -626,7 +626,7 @@ class Engine:
     d_t_comp: Any
     d_k: Any
     d_status: Any
-    d_xi_a: Any  # a run with the additive OU channel or the generic one only
+    d_xi_a: Any  # a run with the additive channel of a coloured noise only
     d_aux_a: Any  # a run with the generic additive channel only
 
     def __init__(self, config: SimulationConfig, spec: Spec, capacity: int,
@@ -961,8 +961,6 @@ def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: froze
     arrays = list(_path_arrays(precision))
     if tracks:
         arrays.append(_TRACKS)
-    if "additive_ou" in terms:  # the additive OU noise's xi_a, last (float64)
-        arrays.append(f64)
     if "additive_noise" in terms:  # the generic channel's xi_a, aux_a, last (float64)
         arrays.extend((f64, f64))
     state = nbtypes.Tuple(tuple(arrays))
@@ -1025,11 +1023,10 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
                             out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
                                         _pair_advance_signature(noise, osc)))
     # The family's terms (stochpend.model.dynamics) on the paper's pendulum: damping with the additive
-    # white noise, every term on, and damping with the additive OU noise; then the generic channel.
+    # white noise and every term on; then the generic channel.
     pendulum = oscillators.BUILTIN["pendulum"]
     for terms in (frozenset({"damping", "additive"}),
-                  frozenset({"additive", *(term.name for term in TABLE)}),
-                  frozenset({"damping", "additive_ou"})):
+                  frozenset({"additive", *(term.name for term in TABLE)})):
         for precision in precisions:
             for noise in noises.BUILTIN:
                 if noise.name not in ("ou", "white"):
@@ -1040,12 +1037,12 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
                 if precision == "float64":
                     out.append((f"pairs {spec.label}", pair_advance_kernel(spec).py_func,
                                 _pair_advance_signature(noise, pendulum, terms)))
-    # The generic additive channel (additive_noise): damping with the harmonic and the
-    # dichotomous noise on the channel (its own state, draws and events), the paper's white noise
-    # multiplying the force.
+    # The additive channel of a coloured noise (additive_noise): damping with the OU (additive_tau
+    # > 0), the harmonic and the dichotomous noise on the channel (its own state, draws and
+    # events), the paper's white noise multiplying the force.
     builtin = {noise.name: noise for noise in noises.BUILTIN}
     white = builtin["white"]
-    for channel_name in ("harmonic", "dichotomous"):
+    for channel_name in ("ou", "harmonic", "dichotomous"):
         channel = builtin[channel_name]
         terms = frozenset({"damping", "additive_noise"})
         for precision in precisions:
@@ -1070,10 +1067,9 @@ def _levels_kernels() -> list[tuple[str, object, tuple]]:
     specs = [(Spec(pendulum, "force", noise, "float64", True), ()) for noise in noises.BUILTIN]
     specs.append((Spec(pendulum, "force", builtin["ou"], "float64", False), ()))
     for terms in (frozenset({"damping", "additive"}),
-                  frozenset({"additive", *(term.name for term in TABLE)}),
-                  frozenset({"damping", "additive_ou"})):
+                  frozenset({"additive", *(term.name for term in TABLE)})):
         specs.append((Spec(pendulum, "force", builtin["white"], "float64", True, False, terms), ()))
-    for channel_name in ("harmonic", "dichotomous"):
+    for channel_name in ("ou", "harmonic", "dichotomous"):
         channel = builtin[channel_name]
         terms = frozenset({"damping", "additive_noise"})
         specs.append((Spec(pendulum, "force", builtin["white"], "float64", True, False, terms, channel), ()))

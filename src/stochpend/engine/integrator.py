@@ -59,7 +59,6 @@ from stochpend.model import observables
 from stochpend.model import oscillators as _oscillators
 from stochpend.model import terms as _terms
 from stochpend.model.noises.base import Noise
-from stochpend.model.noises.ou import OU as _OU
 from stochpend.model.oscillators.base import Oscillator
 from stochpend.numerics import rng
 from stochpend.numerics._jitcache import name_closures
@@ -199,7 +198,7 @@ class Spec:
     adaptive: bool = True
     fast_math: bool = False
     #: The family's terms that are on (:mod:`stochpend.model.dynamics`: "damping", "torque", "drive",
-    #: "parametric", "additive", "additive_ou", "additive_noise"); empty: the paper's model,
+    #: "parametric", "additive", "additive_noise"); empty: the paper's model,
     #: today's kernels.
     terms: frozenset = frozenset()
     #: The generic additive channel's noise (term "additive_noise"; :mod:`stochpend.model.dynamics`):
@@ -278,20 +277,9 @@ def _dyn_of(run):
 
 #: Where the kernels read the family's record d (:data:`stochpend.model.dynamics.RECORD`).
 _AT = _dynamics.POSITION
-_GAMMA, _D_A, _SIGMA_A, _TAU_A = _AT["gamma"], _AT["additive_D"], _AT["sigma_a"], _AT["additive_tau"]
+_GAMMA, _SIGMA_A = _AT["gamma"], _AT["sigma_a"]
 _TORQUE, _A, _NU, _PHI = _AT["torque"], _AT["drive_amplitude"], _AT["drive_frequency"], _AT["drive_phase"]
 _EPS, _NU_P = _AT["parametric_amplitude"], _AT["parametric_frequency"]
-
-
-@register_jitable
-def _ou_record(d):
-    """The additive OU noise's record (D_a, tau_a) from the family's record d."""
-    return (d[_D_A], d[_TAU_A])
-
-
-@register_jitable
-def _no_ou_record(d):
-    return (0.0, 1.0)
 
 
 @register_jitable
@@ -463,16 +451,14 @@ def the_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNa
     halves' integrals summed (``members``). ``keys = (k0, k1, ka0, ka1)`` the noise's and the
     generic channel's keys and ``path`` the path, in the form the leaves take them (the
     one-path loops: Philox keys and the path number; the lanes: round keys and the path's
-    counter words); ``coef = (C, C_a, C_an)`` the noise's, the OU channel's and the generic
+    counter words); ``coef = (C, C_channel)`` the noise's and the additive
     channel's coefficients at the finest member's step. What stays in the loops: loading,
     the step control, the landing and the events, the clock, the finiteness check, masking and
     write-back. ``inline``: the draw trees and this function inlined by Numba (the CPU's)."""
     DEPTH = LEVELS - 1
     FAMILY = family.FAMILY
-    ADDITIVE_OU = family.ADDITIVE_OU
     CHANNEL = channel.CHANNEL
     noise_path = _draw_tree(DEPTH, draws.noise, inline)
-    ou_path = _draw_tree(DEPTH, draws.ou, inline)
     white_path = _draw_tree(DEPTH, draws.white, inline)
     channel_path = _draw_tree(DEPTH, draws.channel, inline)
 
@@ -488,10 +474,8 @@ def the_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNa
             # The additive noise likewise: the finest member's steps draw it, a coarser member's
             # step uses its halves' integrals summed (the OU and the generic channel) or the
             # normal of the exact composition of their two O flows (white).
-            if ADDITIVE_OU:
-                zt, xc, _, _ = ou_path(keys[0], keys[1], path, n, xc, xc, Sa, coef[1])
-            elif CHANNEL:  # the channel's noise under its own key
-                zt, xc, xca, Sa = channel_path(keys[2], keys[3], path, n, xc, xca, Sa, coef[2])
+            if CHANNEL:  # the channel's noise under its own key
+                zt, xc, xca, Sa = channel_path(keys[2], keys[3], path, n, xc, xca, Sa, coef[1])
             else:
                 zt, _, _, _ = white_path(keys[0], keys[1], path, n, xc, xc, Sa, coef[1])
         else:
@@ -519,28 +503,26 @@ def _finest(LEVELS: int, real: Any) -> Any:
     return register_jitable(_named(finest, f"finest_of{LEVELS}"))
 
 
-def _loop_positions(LEVELS: int, TRACKED: bool, CHANNEL_STATE: bool, CHANNEL: bool) -> SimpleNamespace:
+def _loop_positions(LEVELS: int, TRACKED: bool, CHANNEL: bool) -> SimpleNamespace:
     """Where a step loop's state tuple keeps each array, by name: member m's x and Omega at
     ``X<m>``, ``O<m>`` (2 m and 2 m + 1, :func:`level_positions`; x's and Omega's, read and
     never written, for a member beyond ``LEVELS``: ``HAS<m>`` false), ``XI, XA, T, TC, K, ST``
-    (xi, xi_aux, t, t_comp, k, status), then the accumulators' slots ``TRK``, the additive
-    channel's xi_a ``ADD`` and the generic channel's aux_a ``AUXA``, each only when the Spec
-    has it (``TRACKED``, ``CHANNEL_STATE``: the OU or the generic channel, ``CHANNEL``); 0
-    (x's, never read) otherwise.
+    (xi, xi_aux, t, t_comp, k, status), then the accumulators' slots ``TRK`` and the additive
+    channel's xi_a ``ADD`` and aux_a ``AUXA``, each only when the Spec has it (``TRACKED``,
+    ``CHANNEL``: the generic channel); 0 (x's, never read) otherwise.
 
     Constant indices, like every array of the loop: not a function returning ``state[8]``,
     which numba-cuda refuses ("Only accept returning of array passed into the function as
     argument"), so the tracked kernels did not compile for a real GPU (the CPU and the
     simulator accept it)."""
     XI, XA, T, TC, K, ST = level_positions(LEVELS)
-    ADD = ST + 1 + (1 if TRACKED else 0) if CHANNEL_STATE else 0
+    ADD = ST + 1 + (1 if TRACKED else 0) if CHANNEL else 0
     X1, X2, X3 = (2 * m if m < LEVELS else 0 for m in range(1, _MAX_LEVELS))
     O1, O2, O3 = (2 * m + 1 if m < LEVELS else 1 for m in range(1, _MAX_LEVELS))
     HAS1, HAS2, HAS3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
     return SimpleNamespace(X1=X1, X2=X2, X3=X3, O1=O1, O2=O2, O3=O3, HAS1=HAS1, HAS2=HAS2, HAS3=HAS3,
                            XI=XI, XA=XA, T=T, TC=TC, K=K, ST=ST, TRK=ST + 1 if TRACKED else 0,
-                           ADD=ADD, AUXA=ADD + 1 if CHANNEL else 0, CHANNEL_STATE=CHANNEL_STATE,
-                           CHANNEL=CHANNEL)
+                           ADD=ADD, AUXA=ADD + 1 if CHANNEL else 0, CHANNEL=CHANNEL)
 
 
 def _path_io(LEVELS: int, at: SimpleNamespace, real: Any, a_load_aux: Any, flat: Any) -> tuple[Any, Any]:
@@ -550,20 +532,14 @@ def _path_io(LEVELS: int, at: SimpleNamespace, real: Any, a_load_aux: Any, flat:
     I_X1, I_X2, I_X3, I_O1, I_O2, I_O3 = at.X1, at.X2, at.X3, at.O1, at.O2, at.O3
     HAS_1, HAS_2, HAS_3 = at.HAS1, at.HAS2, at.HAS3
     I_XI, I_XA, I_T, I_TC, I_K, I_ST = at.XI, at.XA, at.T, at.TC, at.K, at.ST
-    I_ADD, I_AUXA, CHANNEL_STATE, CHANNEL = at.ADD, at.AUXA, at.CHANNEL_STATE, at.CHANNEL
+    I_ADD, I_AUXA, CHANNEL = at.ADD, at.AUXA, at.CHANNEL
 
     def load_channel(i, state):
-        """The additive channel's state of path i: xi_a (the OU and the generic channel) and
-        aux_a (the generic channel); zeros without them (no array read)."""
-        if CHANNEL_STATE:
-            xc = real(state[I_ADD][i])
-        else:
-            xc = real(0.0)
+        """The additive channel's state of path i, (xi_a, aux_a); zeros without it (no array
+        read)."""
         if CHANNEL:
-            xca = a_load_aux(state[I_AUXA][i])
-        else:
-            xca = real(0.0)
-        return xc, xca
+            return real(state[I_ADD][i]), a_load_aux(state[I_AUXA][i])
+        return real(0.0), real(0.0)
 
     def write_back(i, state, mem, xn, xa, xc, xca, tt, tc, kk, bad):
         """Path i's members, noise, channel, clock and draw counter back into ``state``."""
@@ -581,9 +557,8 @@ def _path_io(LEVELS: int, at: SimpleNamespace, real: Any, a_load_aux: Any, flat:
             state[I_O3][i] = out[7]
         state[I_XI][i] = xn
         state[I_XA][i] = xa
-        if CHANNEL_STATE:
-            state[I_ADD][i] = xc
         if CHANNEL:
+            state[I_ADD][i] = xc
             state[I_AUXA][i] = xca
         state[I_T][i] = tt
         state[I_TC][i] = tc
@@ -697,10 +672,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
     scratch0 = noise.scratch0
     coefficients = noise.coefficients
     FAMILY = family.FAMILY
-    ADDITIVE_OU = family.ADDITIVE_OU
     dyn_of = family.dyn_of
-    ou_record = family.ou_record
-    ou_coefficients = family.ou_coefficients
     CHANNEL = channel.CHANNEL
     channel_of = channel.channel_of
     a_scratch0 = channel.a_scratch0
@@ -713,13 +685,12 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         members_step = _member_tree(DEPTH, family.family_step, family.additive_sum, half)
     else:
         members_step = _member_tree(DEPTH, oscillator.verlet_step, _first, half)
-    draws = SimpleNamespace(noise=noise.step, ou=family.ou_step, white=family.additive_step,
-                            channel=channel.step)
+    draws = SimpleNamespace(noise=noise.step, white=family.additive_step, channel=channel.step)
     step = the_step(LEVELS, draws, members_step, family, channel, inline=inline)
     nest, flat = _member_tuples(LEVELS)
     assert LEVELS <= _MAX_LEVELS
     TRACKED = TRACK and LEVELS == 1
-    at = _loop_positions(LEVELS, TRACKED, ADDITIVE_OU or CHANNEL, CHANNEL)
+    at = _loop_positions(LEVELS, TRACKED, CHANNEL)
     I_X1, I_X2, I_X3, I_O1, I_O2, I_O3 = at.X1, at.X2, at.X3, at.O1, at.O2, at.O3
     HAS_1, HAS_2, HAS_3 = at.HAS1, at.HAS2, at.HAS3
     I_XI, I_XA, I_T, I_TC, I_K, I_ST, I_TRK = at.XI, at.XA, at.T, at.TC, at.K, at.ST, at.TRK
@@ -753,10 +724,9 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             tracks = state[I_TRK]
         else:
             tracks = 0
-        # The additive channel's state, the OU channel's record, the generic channel's record
-        # and key; t_ev, t_ev_a the noise's and the generic channel's next events.
+        # The additive channel's state, record and key; t_ev, t_ev_a the noise's and the
+        # channel's next events.
         xc, xca = load_channel(i, state)
-        pa = ou_record(d)
         p_channel, keys_channel = channel_of(run)
         keys = (key0, key1, keys_channel[0], keys_channel[1])
         Sa = a_scratch0()
@@ -765,7 +735,6 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         h_cached = h_max_r
         hf = finest(h_max_r)
         C = coefficients(hf, p)
-        Ca = ou_coefficients(hf, pa)
         C_channel = a_coefficients(hf, p_channel)
         S = scratch0()
         steps = 0
@@ -779,7 +748,6 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             if h != h_cached:
                 hf = finest(h)
                 C = coefficients(hf, p)
-                Ca = ou_coefficients(hf, pa)
                 if CHANNEL:
                     C_channel = a_coefficients(hf, p_channel)
                 h_cached = h
@@ -792,7 +760,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             # coarser member's kick uses the sum of its two halves' integrals, the exact
             # integral over its step (one member: one draw, its own step).
             mem, ns, cs = step(mem, (xn, xa, S), (xc, xca, Sa), keys, path, kk, h, h_clock, tt,
-                               (C, Ca, C_channel), omega2_r, q, d)
+                               (C, C_channel), omega2_r, q, d)
             xn, xa, S = ns
             xc, xca, Sa = cs
             if event:  # the event of the noise(s) whose time the step landed on
@@ -1012,21 +980,8 @@ def _family_pieces(spec: Spec, real: Any, mathlib: Any, oscillator: SimpleNamesp
     DRIVE = "drive" in spec.terms
     PARAMETRIC = "parametric" in spec.terms
     ADDITIVE = "additive" in spec.terms
-    ADDITIVE_OU = "additive_ou" in spec.terms
     O_STEP = DAMPED or ADDITIVE
     dyn_of = _dyn_of if FAMILY else _no_dyn
-    # The additive Ornstein-Uhlenbeck channel (additive_tau > 0): the OU noise's exact step, in
-    # the Spec's precision and math (the fast math's branch-free coefficients for the lanes).
-    ou_kernel = _OU.kernel(real, mathlib)
-    ou_update = ou_kernel.update
-    ou_record = _ou_record if ADDITIVE_OU else _no_ou_record
-    zeros5 = (real(0.0),) * 5
-
-    @register_jitable
-    def no_ou_coefficients(h, pa):
-        return zeros5
-
-    ou_coefficients = ou_kernel.coefficients if ADDITIVE_OU else no_ou_coefficients
     # The step control's bounds of the table's terms that are on (h <= c/gamma, c/nu, c/nu_p).
     family_bounds = _term_bounds(tuple(term for term in _terms.TABLE if term.name in spec.terms))
 
@@ -1057,7 +1012,7 @@ def _family_pieces(spec: Spec, real: Any, mathlib: Any, oscillator: SimpleNamesp
             s_half, _ = mathlib_sincos(0.5 * nu * h_clock)
             _, c_mid = mathlib_sincos(nu * (t0 + 0.5 * h_clock) + d[_PHI])
             kick -= real(2.0 * d[_A] / nu * c_mid * s_half)
-        if ADDITIVE_OU or CHANNEL:  # za: the exact integral of xi_a over the step (its noise's update)
+        if CHANNEL:  # za: the exact integral of xi_a over the step (its noise's update)
             kick -= za
         if O_STEP:
             Omega_mid = Omega - half * kick
@@ -1107,7 +1062,7 @@ def _family_pieces(spec: Spec, real: Any, mathlib: Any, oscillator: SimpleNamesp
         the OU and the generic channel's integrals summed (the exact integral over the step), the
         white noise's normals as the normal of the exact composition of the two half-step O
         flows, (e z1 + z2)/sqrt(1 + e^2), e = exp(-gamma hc)."""
-        if ADDITIVE_OU or CHANNEL:
+        if CHANNEL:
             return z1 + z2
         e1 = 1.0 + mathlib_expm1(-d[_GAMMA] * hc) if DAMPED else 1.0
         return real((e1 * z1 + z2) / math.sqrt(1.0 + e1 * e1))
@@ -1116,26 +1071,10 @@ def _family_pieces(spec: Spec, real: Any, mathlib: Any, oscillator: SimpleNamesp
     additive_sum_inline = _inline(_copy(additive_sum, "additive_sum_inline"))
     additive_sum = register_jitable(additive_sum)
 
-    @register_jitable
-    def additive_ou_step(key0, key1, path, n, xa, Ca):
-        """The additive OU noise's exact step with draw n (both normals of Philox draw
-        ``rng.N_ADDITIVE + n``, the OU noise's joint update, coefficients ``Ca``): (its
-        integral over the step, xi_a at the step's end)."""
-        z1, z2 = additive_normals(key0, key1, path, _U64(rng.N_ADDITIVE) + n)
-        Ia, xa_new, _ = ou_update(xa, real(0.0), Ca, (z1, z2))
-        return Ia, xa_new
-
-    @register_jitable
-    def ou_step(key0, key1, path, n, xa, b, S, Ca):
-        """:func:`additive_ou_step` as a leaf of the draw tree (``b``, ``S`` passed through)."""
-        Ia, xa = additive_ou_step(key0, key1, path, n, xa, Ca)
-        return Ia, xa, b, S
-
     return SimpleNamespace(
-        FAMILY=FAMILY, ADDITIVE_OU=ADDITIVE_OU, dyn_of=dyn_of, family_bounds=family_bounds,
-        family_step=family_step, family_step_inline=family_step_inline, ou_record=ou_record,
-        ou_coefficients=ou_coefficients, no_ou_coefficients=no_ou_coefficients, ou_update=ou_update,
-        ou_step=ou_step, additive_step=additive_step, additive_sum=additive_sum,
+        FAMILY=FAMILY, dyn_of=dyn_of, family_bounds=family_bounds,
+        family_step=family_step, family_step_inline=family_step_inline,
+        additive_step=additive_step, additive_sum=additive_sum,
         additive_sum_inline=additive_sum_inline)
 
 
@@ -1149,8 +1088,13 @@ def _channel_pieces(spec: Spec, real: Any, mathlib: Any, noise: SimpleNamespace,
     update = noise.update
     next_event = noise.next_event
     at_event = noise.at_event
-    no_ou_coefficients = family.no_ou_coefficients
     noise_step = noise.step
+    zeros5 = (real(0.0),) * 5
+
+    @register_jitable
+    def no_coefficients(h, p):
+        return zeros5
+
     # The generic additive channel (additive_noise): its noise's device functions, in the Spec's
     # precision and math, called with the channel's own Philox key (run record, _channel_of);
     # without it, stubs that are never called (every use is under a compile-time ``if CHANNEL``).
@@ -1170,7 +1114,7 @@ def _channel_pieces(spec: Spec, real: Any, mathlib: Any, noise: SimpleNamespace,
     else:
         CHANNEL_EVENTS = False
         a_load_aux = load_aux
-        a_coefficients = no_ou_coefficients
+        a_coefficients = no_coefficients
         a_scratch0 = scratch0
         a_draw = draw
         a_update = update
@@ -1284,9 +1228,8 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     return SimpleNamespace(
         spec=spec, real=real, G=oscillator.G, step_size=oscillator.step_size, verlet=oscillator.verlet,
         family_step=family.family_step, family_step_inline=family.family_step_inline,
-        family_bounds=family.family_bounds, ou_coefficients=family.ou_coefficients, ou_update=family.ou_update,
-        ou_record=family.ou_record, noise_step=noise.step, additive_step=family.additive_step,
-        ou_step=family.ou_step, additive_sum=family.additive_sum, additive_sum_inline=family.additive_sum_inline,
+        family_bounds=family.family_bounds, noise_step=noise.step, additive_step=family.additive_step,
+        additive_sum=family.additive_sum, additive_sum_inline=family.additive_sum_inline,
         channel_step=channel.step, a_coefficients=channel.a_coefficients, a_scratch0=channel.a_scratch0,
         pieces=pieces, init_path=initial_state(spec.noise), advance_path=advance_path, advance_pair=advance_pair,
         advance_levels=advance_levels, device_levels=device_levels, advance_lanes=advance_lanes,
@@ -1450,7 +1393,7 @@ def build_level_lanes(spec: Spec, levels: int) -> SimpleNamespace:
 
 def _keyed_draws(spec: Spec, steps: SimpleNamespace) -> SimpleNamespace:
     """The lane machine's leaves of the draw trees (:func:`_draw_tree`): :func:`build`'s
-    ``noise_step``, ``ou_step``, ``additive_step`` and ``channel_step`` with the same numbers,
+    ``noise_step``, ``additive_step`` and ``channel_step`` with the same numbers,
     drawn by ``draw_keyed`` and ``rng.normals_keyed_with`` from the seed's round keys and the
     path's counter words ``cw = (c2, c3)``, with no loop-carried scratch (``S`` passes through),
     inlined by Numba (a call left in the lane loop stops its vectorization)."""
@@ -1459,7 +1402,6 @@ def _keyed_draws(spec: Spec, steps: SimpleNamespace) -> SimpleNamespace:
     draw_keyed = nz.draw_keyed
     update = nz.update
     normals_keyed = rng.normals_keyed_with(FAST)
-    ou_update = steps.ou_update
     ADDITIVE = "additive" in spec.terms
     zero_r = real(0.0)
     nza = nz if spec.additive is None else spec.additive.kernel(real, FAST)
@@ -1470,12 +1412,6 @@ def _keyed_draws(spec: Spec, steps: SimpleNamespace) -> SimpleNamespace:
     def noise_keyed(rk0, rk1, cw, n, xn, xa, S, C):
         I, xn, xa = update(xn, xa, C, draw_keyed(rk0, rk1, cw[0], cw[1], n))
         return I, xn, xa, S
-
-    @_inline
-    def ou_keyed(rk0, rk1, cw, n, xc, b, S, Ca):
-        w1, w2 = normals_keyed(rk0, rk1, cw[0], cw[1], _U64(rng.N_ADDITIVE) + n)
-        Ia, xc, _ = ou_update(xc, zero_r, Ca, (real(w1), real(w2)))
-        return Ia, xc, b, S
 
     @_inline
     def white_keyed(rk0, rk1, cw, n, a, b, S, coef):
@@ -1489,7 +1425,7 @@ def _keyed_draws(spec: Spec, steps: SimpleNamespace) -> SimpleNamespace:
         I, xc, xca = a_update(xc, xca, C, a_draw_keyed(rk0, rk1, cw[0], cw[1], n))
         return I, xc, xca, S
 
-    return SimpleNamespace(noise=noise_keyed, ou=ou_keyed, white=white_keyed, channel=channel_keyed)
+    return SimpleNamespace(noise=noise_keyed, white=white_keyed, channel=channel_keyed)
 
 
 def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleNamespace:
@@ -1506,8 +1442,7 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
     channel = steps.pieces["channel"]
     a_load_aux = channel.a_load_aux
     CHANNEL = channel.CHANNEL
-    XI_A_STATE = steps.pieces["family"].ADDITIVE_OU or CHANNEL  # xi_a has a state: OU or the generic channel
-    at = _loop_positions(LEVELS, False, XI_A_STATE, CHANNEL)  # the state's arrays, by name
+    at = _loop_positions(LEVELS, False, CHANNEL)  # the state's arrays, by name
     I_XI, I_XA, I_T, I_TC, I_K, I_ST, I_ADD, I_AUXA = at.XI, at.XA, at.T, at.TC, at.K, at.ST, at.ADD, at.AUXA
     X1, X2, X3, O1, O2, O3 = at.X1, at.X2, at.X3, at.O1, at.O2, at.O3
     HAS_1, HAS_2, HAS_3 = at.HAS1, at.HAS2, at.HAS3
@@ -1538,9 +1473,8 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
         fs[3, lane] = load_aux(state[I_XA][i])
         fs[4, lane] = state[I_T][i]
         fs[5, lane] = state[I_TC][i]
-        if XI_A_STATE:
-            fs[6, lane] = state[I_ADD][i]
         if CHANNEL:
+            fs[6, lane] = state[I_ADD][i]
             fs[7, lane] = a_load_aux(state[I_AUXA][i])
         path = _U64(path0 + i)
         us[0, lane] = state[I_K][i]
@@ -1583,9 +1517,8 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
         state[I_XA][i] = fs[3, lane]
         state[I_T][i] = fs[4, lane]
         state[I_TC][i] = fs[5, lane]
-        if XI_A_STATE:
-            state[I_ADD][i] = fs[6, lane]
         if CHANNEL:
+            state[I_ADD][i] = fs[6, lane]
             state[I_AUXA][i] = fs[7, lane]
         state[I_K][i] = us[0, lane]
         js[0, lane] = -1
@@ -1646,13 +1579,12 @@ def _lane_scalars(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> tuple[Any,
     ``lane_clock(tt, tc, h_clock, last, t_target) -> (t, t_comp)``, :func:`advance_clock`'s
     compensated sum written branch-free; ``lane_finite(m, ns)``, whether the members (``flat``)
     and the noise after the step are finite (bitwise ands: no short-circuit branch);
-    ``lane_records(run, rk0, rk1, d) -> (pa, p_channel, keys)``: the OU channel's and the generic
-    channel's records and the round keys of the noise and the channel."""
+    ``lane_records(run) -> (p_channel, keys)``: the additive channel's record and the round
+    keys of the noise and the channel."""
     real = steps.real
     bound = _step_bound(steps.pieces["oscillator"], steps.pieces["family"], steps.pieces["control"], inline=True)
     slack = 1.0 + LANDING_SLACK
     HAS_1, HAS_2, HAS_3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
-    ou_record = steps.ou_record
     channel_of = steps.pieces["channel"].channel_of
 
     def lane_step(mem, xn, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d):
@@ -1679,10 +1611,10 @@ def _lane_scalars(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> tuple[Any,
             finite = finite & math.isfinite(m[6]) & math.isfinite(m[7])
         return finite
 
-    def lane_records(run, rk0, rk1, d):
+    def lane_records(run, rk0, rk1):
         p_channel, keys_channel = channel_of(run)
         rka0, rka1 = rng.round_keys(keys_channel[0], keys_channel[1])  # the channel's, the same for every path
-        return ou_record(d), p_channel, (rk0, rk1, rka0, rka1)
+        return p_channel, (rk0, rk1, rka0, rka1)
 
     return (_inline(_named(lane_step, f"lane_step{LEVELS}")), _inline(_named(lane_clock, "lane_clock")),
             _inline(_named(lane_finite, f"lane_finite{LEVELS}")), _inline(lane_records))
@@ -1700,10 +1632,8 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
     channel = steps.pieces["channel"]
     nz = spec.noise.kernel(real, FAST)
     coefficients = nz.coefficients
-    ou_coefficients = steps.ou_coefficients
     a_coefficients = steps.a_coefficients
     dyn_of = family.dyn_of
-    XI_A_STATE = family.ADDITIVE_OU or channel.CHANNEL
     CHANNEL = channel.CHANNEL
     lanes = LANE_COUNT
     zero_r = real(0.0)
@@ -1762,7 +1692,7 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
         bs = js[1]
         ba = js[2]
         bbad = js[3]
-        pa, p_channel, keys = lane_records(run, rk0, rk1, d)
+        p_channel, keys = lane_records(run, rk0, rk1)
         idle(scratch, t_target)
         steps_taken = 0
         unfinished = 0
@@ -1789,7 +1719,7 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
                 kk = bk[lane]
                 h, h_clock, last, esc = lane_step(mem, xn, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d)
                 hf = FINEST * h if LEVELS > 1 else h
-                coef = (coefficients(hf, p), ou_coefficients(hf, pa), a_coefficients(hf, p_channel))
+                coef = (coefficients(hf, p), a_coefficients(hf, p_channel))
                 new, ns, cs = step(mem, (xn, xa, zero_r), (xc, xca, zero_r), keys, (bc2[lane], bc3[lane]),
                                    kk, h, h_clock, tt, coef, omega2_r, q, d)
                 t_new, tc_new = lane_clock(tt, tc, h_clock, last, t_target)
@@ -1814,9 +1744,8 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
                     bO3[lane] = m[7] if go else o[7]
                 bxi[lane] = ns[0] if go else xn
                 bxa[lane] = ns[1] if go else xa
-                if XI_A_STATE:
-                    bxc[lane] = cs[0] if go else xc
                 if CHANNEL:
+                    bxc[lane] = cs[0] if go else xc
                     bxca[lane] = cs[1] if go else xca
                 bt[lane] = t_new if go else tt
                 btc[lane] = tc_new if go else tc

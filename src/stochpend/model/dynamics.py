@@ -24,24 +24,25 @@ its stationary law is Boltzmann at T = D_a / (2 gamma) (:mod:`stochpend.theory.f
 
 With ``additive_tau`` tau_a > 0 it is an Ornstein-Uhlenbeck noise instead, in the convention of
 :mod:`stochpend.noises.ou`: <xi_a(t) xi_a(s)> = D_a/(2 tau_a) exp(-|t - s|/tau_a), so S(0) = D_a
-and tau_a -> 0 is the white channel of intensity D_a. Its value is a per-path state (the chunk
-array ``xi_a``), started in its stationary law N(0, D_a/(2 tau_a)) from Philox draw
-``rng.N_INIT_ADDITIVE`` and advanced with the OU noise's exact joint update of (xi_a, its
-integral over the step) from both normals of draw ``rng.N_ADDITIVE + k``; the integral enters
-the kick (the term "additive_ou"; "additive" is the white channel's).
+and tau_a -> 0 is the white channel of intensity D_a: the channel below with the noise "ou".
 
 ``additive_noise`` (a setting of :class:`stochpend.model.settings.SimulationConfig`) makes xi_a ANY
-registered noise (:mod:`stochpend.noises`: ``"harmonic"``, ``"dichotomous"``, a user's): the
-term "additive_noise" (the generic channel). Unset, ``"white"`` or ``"ou"`` select the two terms
-above, so those runs are what they were, bit for bit. The channel's parameter record is the
+registered noise (:mod:`stochpend.noises`: ``"ou"``, ``"harmonic"``, ``"dichotomous"``, a
+user's): the term "additive_noise", one channel for every coloured noise (issue 33, item 5: the
+Ornstein-Uhlenbeck one had a channel of its own until then, whose numbers differed only in
+their random streams). Unset or ``"white"`` with tau_a = 0 is the white channel above: its
+noise enters the exact Ornstein-Uhlenbeck flow of Omega with the damping (the Boltzmann law of
+the damped harmonic oscillator at every gamma h), not the kick, so it stays a term of its own.
+The channel's parameter record is the
 noise's own :meth:`~stochpend.noises.Noise.record`, with its names mapped onto the channel
 (:func:`channel_record`): D -> ``additive_D``, tau -> ``additive_tau``, omega_noise ->
 ``additive_omega_noise`` (0: the noise's ``default_omega_noise(tau_a)``), and each parameter p the
 noise declares for itself -> ``additive_<p>``. Its random numbers are the noise's own draws
 (init, draw, at_event) under the channel's Philox key (:func:`stochpend.numerics.rng.additive_key`), so
-they are independent of xi's and of the white/OU channel's, and keyed by (seed, path, step)
+they are independent of xi's and of the white channel's, and keyed by (seed, path, step)
 alone. Its state (xi_a, aux_a) is per path (the chunk arrays ``xi_a``, ``aux_a``); the noise's
-exact step gives the integral of xi_a over the step, which enters the kick as the OU channel's.
+exact step gives the integral of xi_a over the step, which enters the kick as the parametric
+noise's integral does.
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ from typing import Any
 from stochpend.model.parameters import Parameter
 from stochpend.model.terms import TABLE
 
-__all__ = ["FAMILY", "MOVES_REST", "POSITION", "RECORD", "TERMS", "additive_arrays", "additive_ou", "channel", "channel_parameters",
+__all__ = ["FAMILY", "MOVES_REST", "POSITION", "RECORD", "TERMS", "additive_arrays", "channel", "channel_name", "channel_parameters",
            "channel_record", "names", "record", "terms_of", "terms_of_config"]
 
 
@@ -85,19 +86,16 @@ _ORDER = tuple(p.name for p in FAMILY.parameters)
 _DEFAULTS = {p.name: p.default for p in FAMILY.parameters}
 
 #: The terms a kernel can be specialised for, and the parameter that switches each on. The
-#: additive noise is one of three terms: "additive" (white, additive_tau = 0) or "additive_ou"
-#: (additive_tau > 0) when ``additive_noise`` is unset, "white" or "ou"; "additive_noise" (the
-#: generic channel) for any other registered noise, by :func:`terms_of`.
-TERMS = {**{term.name: term.switch for term in TABLE}, "additive": "additive_D", "additive_ou": "additive_D",
-         "additive_noise": "additive_D"}
+#: additive noise is one of two terms (:func:`terms_of`): "additive", the white channel, or
+#: "additive_noise", the generic channel of any coloured noise (OU by ``additive_tau`` > 0).
+TERMS = {**{term.name: term.switch for term in TABLE}, "additive": "additive_D", "additive_noise": "additive_D"}
 
 #: The terms that push a path at rest: the table's forces and the additive channel.
-MOVES_REST = frozenset({term.name for term in TABLE if term.moves_rest} | {"additive", "additive_ou",
-                                                                         "additive_noise"})
+MOVES_REST = frozenset({term.name for term in TABLE if term.moves_rest} | {"additive", "additive_noise"})
 
-#: ``additive_noise`` names that select today's two terms (white, OU) rather than the generic
-#: channel: their numbers stay those of a run without the setting.
-CLASSIC = (None, "white", "ou")
+#: ``additive_noise`` names that select the white channel (with ``additive_tau`` = 0), the exact
+#: Ornstein-Uhlenbeck flow of Omega, rather than the generic channel (issue 33, item 5).
+WHITE = (None, "white")
 
 
 def names() -> tuple[str, ...]:
@@ -137,17 +135,25 @@ def value(pairs: tuple[tuple[str, float], ...], name: str) -> float:
     return dict(pairs).get(name, _DEFAULTS[name])
 
 
+def channel_name(pairs: tuple[tuple[str, float], ...], additive_noise: str | None = None) -> str | None:
+    """The generic channel's noise of a run: ``additive_noise``, or "ou" when it is unset and
+    ``additive_tau`` > 0 (the Ornstein-Uhlenbeck additive noise is the channel's "ou", one
+    mechanism with every other coloured noise); None for the white channel (unset or "white"
+    with ``additive_tau`` = 0)."""
+    if additive_noise is None:
+        return "ou" if value(pairs, "additive_tau") > 0.0 else None
+    return None if additive_noise in WHITE else additive_noise
+
+
 def terms_of(pairs: tuple[tuple[str, float], ...], additive_noise: str | None = None) -> frozenset[str]:
     """The terms that are on (their parameter nonzero): what a kernel is specialised for. The
-    additive noise is "additive" (white) when ``additive_tau`` is 0, else "additive_ou", when
-    ``additive_noise`` is unset, "white" or "ou"; "additive_noise" (the generic channel) for
-    any other noise name."""
-    generic = additive_noise not in CLASSIC
-    ou = value(pairs, "additive_tau") > 0.0 and not generic
-    white = not ou and not generic
+    additive noise is "additive" (white, the exact Ornstein-Uhlenbeck flow of Omega) when
+    :func:`channel_name` is None, else "additive_noise" (the generic channel: OU when
+    ``additive_tau`` > 0 and ``additive_noise`` is unset, else that noise)."""
+    generic = channel_name(pairs, additive_noise) is not None
     return frozenset(term for term, name in TERMS.items()
-                     if value(pairs, name) != 0.0 and (term != "additive" or white)
-                     and (term != "additive_ou" or ou) and (term != "additive_noise" or generic))
+                     if value(pairs, name) != 0.0 and (term != "additive" or not generic)
+                     and (term != "additive_noise" or generic))
 
 
 def terms_of_config(config: Any) -> frozenset[str]:
@@ -176,11 +182,6 @@ def record(config: Any) -> tuple[float, ...]:
     return tuple(derived[name] if name in derived else float(value(pairs, name)) for name in RECORD)
 
 
-def additive_ou(config: Any) -> bool:
-    """Whether the run's additive noise is the Ornstein-Uhlenbeck one (a per-path state xi_a)."""
-    return "additive_ou" in terms_of_config(config)
-
-
 def channel(config: Any) -> Any:
     """The generic additive channel's noise (:class:`stochpend.noises.Noise`) of a run with it
     on (``additive_noise`` neither unset, "white" nor "ou", and ``additive_D`` > 0), else None."""
@@ -188,17 +189,16 @@ def channel(config: Any) -> Any:
         return None
     from stochpend.model import noises
 
-    return noises.get(config.additive_noise)
+    name = channel_name(getattr(config, "dyn_params", ()), getattr(config, "additive_noise", None))
+    assert name is not None  # the term is on
+    return noises.get(name)
 
 
 def additive_arrays(config: Any) -> tuple[str, ...]:
     """The per-path arrays of the run's additive channel, placed after the others in the
-    kernels' state and written to its checkpoints: ``("xi_a",)`` for the OU channel,
-    ``("xi_a", "aux_a")`` for the generic one, none for any other run."""
-    terms = terms_of_config(config)
-    if "additive_noise" in terms:
-        return ("xi_a", "aux_a")
-    return ("xi_a",) if "additive_ou" in terms else ()
+    kernels' state and written to its checkpoints: ``("xi_a", "aux_a")`` for the channel of a
+    coloured noise, none for any other run."""
+    return ("xi_a", "aux_a") if "additive_noise" in terms_of_config(config) else ()
 
 
 def channel_omega_noise(noise: Any, pairs: tuple[tuple[str, float], ...]) -> float:

@@ -37,7 +37,7 @@ from stochpend.numerics import rng
 from stochpend.numerics._jitcache import own_index
 from stochpend.numerics.mathlib import LIBM
 
-__all__ = ["MAX_ATTEMPTS", "additive_state", "additive_states", "boltzmann", "check", "temperature"]
+__all__ = ["MAX_ATTEMPTS", "additive_states", "boltzmann", "check", "temperature"]
 
 #: Rejection attempts per path before the path is given up as non-finite (NaN): at the lowest
 #: acceptance rate a run can ask for (check), the chance of reaching it is below 1e-300.
@@ -135,30 +135,6 @@ def _root(values, power):  # pragma: no cover - compiled
     return out
 
 
-@numba.njit(nogil=True, cache=True)
-@own_index("additive-start")  # the code digest in its cache index, as every cached kernel
-def _additive_draw(out, key0, key1, path0, scale):  # pragma: no cover - compiled
-    first = np.uint64(rng.N_INIT_ADDITIVE)
-    for i in range(out.shape[0]):
-        z, _ = rng.draw_normals(key0, key1, np.uint64(path0 + np.uint64(i)), first)
-        out[i] = scale * z
-
-
-def additive_state(config: Any, path0: int, n: int) -> np.ndarray:
-    """xi_a(0) of global paths path0 .. path0 + n - 1 for a run whose additive noise is the
-    Ornstein-Uhlenbeck one (``additive_tau`` > 0, stochpend.model.dynamics): its stationary law
-    N(0, D_a/(2 tau_a)), from Philox draw ``rng.N_INIT_ADDITIVE`` of each path (its own), on the
-    host in float64 for every backend and for the bias pairs. Zeros for any other run."""
-    out = np.zeros(n)
-    if not dynamics.additive_ou(config):
-        return out
-    pairs = getattr(config, "dyn_params", ())
-    scale = math.sqrt(dynamics.value(pairs, "additive_D") / (2.0 * dynamics.value(pairs, "additive_tau")))
-    key0, key1 = rng.run_keys(config.seed).main
-    _additive_draw(out, key0, key1, np.uint64(path0), scale)
-    return out
-
-
 @functools.cache
 def _channel_init(noise: Any):
     """The generic additive channel's start for ``noise``: its own ``init`` (float64, the C
@@ -175,15 +151,12 @@ def _channel_init(noise: Any):
 
 def additive_states(config: Any, path0: int, n: int) -> tuple[np.ndarray, ...]:
     """The additive channel's per-path arrays at t = 0 for global paths path0 .. path0 + n - 1,
-    in the order of :func:`stochpend.model.dynamics.additive_arrays`: ``(xi_a,)`` for the OU channel
-    (:func:`additive_state`), ``(xi_a, aux_a)`` for the generic channel (``additive_noise``):
-    its noise's stationary start (``init``), drawn under the channel's Philox key
+    in the order of :func:`stochpend.model.dynamics.additive_arrays`: ``(xi_a, aux_a)`` for the
+    channel of a coloured noise (``additive_tau`` > 0 or ``additive_noise``): its noise's
+    stationary start (``init``), drawn under the channel's Philox key
     (:func:`stochpend.numerics.rng.additive_key`), on the host in float64 for every backend and for the
     bias pairs; ``()`` for any other run. Each array (n,) float64."""
-    names = dynamics.additive_arrays(config)
-    if names == ("xi_a",):
-        return (additive_state(config, path0, n),)
-    if not names:
+    if not dynamics.additive_arrays(config):
         return ()
     noise = dynamics.channel(config)
     xa = np.zeros(n)

@@ -509,14 +509,15 @@ def _hist_E_max(hist_E_max: Any, grid: np.ndarray, *, noise: str, D: float, tau:
 
 
 def _additive_noise(name: Any) -> Any:
-    """The generic additive channel's noise for ``additive_noise=name`` (None for unset,
-    "white", "ou": today's two terms), or a one-line refusal listing the registered noises."""
+    """The generic additive channel's noise for ``additive_noise=name`` (None for unset or
+    "white": the white channel, or OU by ``additive_tau``), or a one-line refusal listing the
+    registered noises."""
     if name is None:
         return None
     noise = _noises.get(name)
     if noise is None:
         _fail("additive_noise", name, f"one of {', '.join(_noises.names())} (a registered noise's name)")
-    return None if name in _dynamics.CLASSIC else noise
+    return None if name in _dynamics.WHITE else noise
 
 
 def _check_channel(name: str | None, noise: Any, pairs: tuple) -> None:

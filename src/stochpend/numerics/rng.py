@@ -71,10 +71,6 @@ N_ADDITIVE = 1 << 62
 #: Draw index of the Boltzmann initial conditions (stochpend.model.initial): Omega from N_BOLTZMANN, x's
 #: rejection attempts from N_BOLTZMANN + 1 + j.
 N_BOLTZMANN = 1 << 61
-#: Draw index of the additive Ornstein-Uhlenbeck noise's initial value xi_a(0) (stochpend.model.dynamics,
-#: ``additive_tau`` > 0): a normal, between the Boltzmann start's range (N_BOLTZMANN + 1 + j,
-#: j < 1e5) and the additive noise's steps (N_ADDITIVE + k).
-N_INIT_ADDITIVE = 3 << 60
 
 
 @register_jitable
