@@ -17,7 +17,8 @@ import numpy as np
 
 #: Each case a configuration (``SimulationConfig.build``): one path's Spec with adaptive steps
 #: (no family terms), the family's time-dependent terms with the additive white noise and fixed
-#: steps, the additive OU channel and the generic channel (a harmonic noise) with adaptive steps.
+#: steps, the additive channel with the OU noise (additive_tau > 0) and with a harmonic noise,
+#: adaptive steps.
 CASES: dict[str, dict[str, Any]] = {
     "ou": dict(noise="ou", D=1.0, tau=1.0, omega=1.0, h_max=0.1, step_c=0.25),
     "family": dict(noise="white", D=0.5, omega=1.0, h_max=0.1, step_c=0.0,

@@ -446,8 +446,8 @@ def the_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNa
 
     The finest member's steps draw the noise (``draws.noise``, a leaf of :func:`_draw_tree`;
     ``noise_state = (xi, aux, S)``) and the additive channel (``channel_state = (xi_a, aux_a,
-    S_a)``: the OU channel ``draws.ou``, the generic channel ``draws.channel`` under its own
-    keys, else the white channel's normals ``draws.white``); each coarser member uses its
+    S_a)``: a coloured noise's channel ``draws.channel`` under its own keys, else the white
+    channel's normals ``draws.white``); each coarser member uses its
     halves' integrals summed (``members``). ``keys = (k0, k1, ka0, ka1)`` the noise's and the
     generic channel's keys and ``path`` the path, in the form the leaves take them (the
     one-path loops: Philox keys and the path number; the lanes: round keys and the path's
@@ -661,7 +661,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
     The bundles are :func:`build`'s pieces for the Spec, by name: ``noise`` (the noise's device
     functions and its exact step ``step``), ``oscillator`` (``real``, ``half``, ``verlet``,
     ``step_size``), ``family`` (the family's terms: ``FAMILY``, ``family_step``, the additive
-    white and OU channels), ``channel`` (the generic additive channel, ``CHANNEL``) and ``control``
+    white channel), ``channel`` (the additive channel of a coloured noise, ``CHANNEL``) and ``control``
     (``ADAPTIVE``, ``escape``, the accumulators' ``TRACK``, ``track_step``). The step loop's
     closure captures each piece as it did when it was written inside :func:`build`."""
     real = oscillator.real
@@ -958,8 +958,8 @@ def _noise_pieces(spec: Spec, real: Any, mathlib: Any) -> SimpleNamespace:
 def _family_pieces(spec: Spec, real: Any, mathlib: Any, oscillator: SimpleNamespace) -> SimpleNamespace:
     """The family's terms of ``spec`` (:mod:`stochpend.model.dynamics`): their flags, the step with
     them (``family_step``, and ``family_step_inline`` for the lane machines), their step bounds,
-    the additive white and OU channels' leaves of the draw tree and the coarse members'
-    combination of their halves' draws (``additive_sum``). Without terms, pieces that are never
+    the additive white channel's leaf of the draw tree and the coarse members' combination of
+    their halves' additive draws (``additive_sum``). Without terms, pieces that are never
     called (every use is under a compile-time ``if FAMILY``)."""
     half = oscillator.half
     G = oscillator.G

@@ -244,8 +244,8 @@ def philox4x32_10_keyed(c0, c1, c2, c3, rk0, rk1):
 class RunKeys(NamedTuple):
     """The Philox keys of one run, made from its seed by :func:`run_keys` and nowhere else in the
     package (a driver reads ``config.keys``): ``main`` the seed's key words (the multiplicative
-    noise, the initial conditions, the white/OU additive noise), ``additive`` the generic additive
-    channel's (:func:`additive_key`). Each a pair of uint64 holding 32-bit words."""
+    noise, the initial conditions, the white additive noise), ``additive`` the additive channel
+    of a coloured noise (:func:`additive_key`). Each a pair of uint64 holding 32-bit words."""
 
     main: tuple[np.uint64, np.uint64]
     additive: tuple[np.uint64, np.uint64]
@@ -276,7 +276,7 @@ def additive_key(seed: int) -> tuple[np.uint64, np.uint64]:
     from ``N_FIRST_STEP + k``, ...) with this key instead of the seed's: a different key is a
     different Philox permutation, so within a run the channel's numbers are independent of
     every draw under the seed's key (the multiplicative noise xi, the initial conditions, the
-    white/OU additive channel), and they are still a function of (seed, path, draw) alone.
+    white additive channel), and they are still a function of (seed, path, draw) alone.
     (The key differs from the seed's for every seed; it equals the key of the seed
     ``seed ^ mix``, a different run, which does not matter: runs are never mixed.)"""
     k0, k1 = seed_to_key(seed)
