@@ -223,6 +223,45 @@ def test_two_levels_are_the_bias_estimates_pair():
     assert integrator.level_positions(1) == integrator.state_positions(False)
 
 
+def test_the_state_is_declared_once_by_name():
+    """The kernels' state tuple is stochpend.engine.layout's declaration: the positions every
+    loop reads (``_loop_positions``, ``level_positions``) are generated from its names, and
+    every engine passes its arrays in that order (a broken engine that put the channel's
+    arrays before the tracks, or a member out of place, fails here)."""
+    from stochpend.engine import layout
+
+    for levels in (1, 2, 3, 4):
+        for tracked in (False, True):
+            for channel in (False, True):
+                names = layout.state_arrays(levels, tracked, channel)
+                at = layout.state_positions(levels, tracked, channel)
+                assert len(set(names)) == len(names) == len(at)
+                loop = integrator._loop_positions(levels, tracked, channel)
+                assert (loop.XI, loop.XA, loop.T, loop.TC, loop.K, loop.ST) == tuple(
+                    at[name] for name in layout.AFTER_MEMBERS) == integrator.level_positions(levels)
+                for m in range(1, 4):
+                    assert (loop.X1, loop.X2, loop.X3)[m - 1] == at.get(f"x{m}", 0)
+                    assert (loop.O1, loop.O2, loop.O3)[m - 1] == at.get(f"Omega{m}", 1)
+                assert loop.TRK == at.get("tracks", 0) and loop.ADD == at.get("xi_a", 0)
+                assert loop.AUXA == at.get("aux_a", 0)
+                assert names[:2 * levels] == layout.member_arrays(levels)
+    # The engines: a chunk with accumulators and the channel; three coupled members with it.
+    from stochpend.model.settings import SimulationConfig
+    from stochpend.runs import bias
+
+    config = SimulationConfig.build(**cases.CASES["channel"], paths=64, t_max=1.0, n_times=2, seed=1,
+                                    observables=("displacement",))
+    engine = cpu.Engine(config, integrator.Spec.of(config), 8, 1)
+    engine.start(0, 8, 1)
+    assert engine.layout == layout.state_arrays(1, True, True)
+    assert [a is getattr(engine, name) for a, name in zip(engine.state(), engine.layout, strict=True)] == [True] * 11
+    members = cpu.LevelEngine(config, bias.pair_spec(config), 8, 1, levels=3)
+    members.start(0, 8, 1)
+    assert members.layout == layout.state_arrays(3, False, True)
+    held = [a is members.held[name] for a, name in zip(members.state(), members.layout, strict=True)]
+    assert held == [True] * 14 and members.members[4] is members.held["x2"]
+
+
 def test_the_runner_drives_three_levels_whatever_the_chunks():
     """``runner.run_batches(levels=3)``: the host loop of every run drives coupled levels (the
     backend's ``LevelEngine``): per batch and output time each member's sums count every set

@@ -59,7 +59,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from stochpend.engine import integrator
+from stochpend.engine import integrator, layout
 from stochpend.engine.integrator import Spec
 from stochpend.engine.layout import CHUNK_ARRAYS, path_dtypes
 from stochpend.model import dynamics, initial, settings
@@ -747,6 +747,8 @@ class Engine:
         # The additive channel's per-path arrays (xi_a, aux_a), after the others in the state:
         # only for a run with a coloured additive noise.
         self.additive = dynamics.additive_arrays(config)
+        # The kernels' state tuple, by name (stochpend.engine.layout).
+        self.layout = layout.state_arrays(1, tracked=bool(self.accs), channel=bool(self.additive))
         self.n_times = len(config.times)
         self.n_e = config.hist_bins + 2  # the energy histogram's columns
         self.n_cols = settings.hist_columns(config)
@@ -815,14 +817,11 @@ class Engine:
         return max(MIN_STEPS_PER_CALL, WORK_PER_CALL // max(self.n, 1))
 
     def state(self) -> tuple[np.ndarray, ...]:
-        """The chunk's arrays as the kernels take them: (x, Omega, xi, xi_aux, t, t_comp, k,
-        status), then the accumulators' slots ``tracks`` (a run with accumulators) and the
-        additive channel's arrays (``xi_a``; ``aux_a`` for the generic channel: a run with it)."""
-        state: tuple[np.ndarray, ...] = (self.x, self.Omega, self.xi, self.xi_aux, self.t, self.t_comp,
-                                         self.k, self.status)
-        if self.accs:
-            state = (*state, self.tracks)
-        return (*state, *(getattr(self, name) for name in self.additive))
+        """The chunk's arrays as the kernels take them, in the order of ``self.layout``
+        (:func:`stochpend.engine.layout.state_arrays`: x, Omega, xi, xi_aux, t, t_comp, k,
+        status, then the accumulators' slots ``tracks`` for a run with accumulators and the
+        additive channel's ``xi_a, aux_a`` for a run with it)."""
+        return tuple(getattr(self, name) for name in self.layout)
 
     def advance(self, t_target: float, max_steps: int) -> bool:
         _, unfinished = self.kernels.advance(self.state(), t_target, max_steps, self.key0,
@@ -900,6 +899,10 @@ class LevelEngine:
         self.key0, self.key1 = config.keys.main
         self.record = spec.noise.record(config)
         self.run = integrator.run_record(config)
+        # The kernels' state tuple, by name (stochpend.engine.layout): the members' arrays, the
+        # shared noise, clock and status, then the additive channel's (a run with it).
+        self.additive = dynamics.additive_arrays(config)
+        self.layout = layout.state_arrays(levels, channel=bool(self.additive))
         self.n_times = len(config.times)
         self.n_sums = observables_.n_sums(config)
         self.n_tracks = len(observables_.accumulators(observables_.objects(config.observables)))
@@ -925,18 +928,18 @@ class LevelEngine:
         c = self.config
         self.p0, self.n, self.nb = p0, n, nb
         self.path0 = _U64(rng.COUPLED_PATH0 + p0)
-        self.members = [np.empty(n) for _ in range(2 * self.levels)]
-        self.xi, self.xi_aux, self.t, self.t_comp = (np.empty(n) for _ in range(4))
-        self.k = np.empty(n, dtype=np.uint64)
-        self.status = np.empty(n, dtype=np.uint8)
+        dtypes = path_dtypes("cpu", "float64")
+        self.held = {name: np.empty(n, dtype=dtypes.get(name, dtypes["x"])) for name in self.layout}
+        self.members = [self.held[name] for name in layout.member_arrays(self.levels)]
         x, Omega = self.members[0], self.members[1]
-        self.init((x, Omega, self.xi, self.xi_aux, self.t, self.t_comp, self.k, self.status), self.key0,
+        self.init(tuple(self.held[name] for name in layout.state_arrays(1)), self.key0,
                   self.key1, self.path0, 0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
                   0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
         if initial.temperature(c) > 0.0:  # as the run's paths (stochpend.model.initial)
             x[:], Omega[:] = initial.boltzmann(c, int(self.path0), n)
         # The additive channel's state, shared by the members as xi is (a run with it).
-        self.additive = initial.additive_states(c, int(self.path0), n)
+        for name, value in zip(self.additive, initial.additive_states(c, int(self.path0), n), strict=True):
+            self.held[name][:] = value
         for m in range(1, self.levels):
             self.members[2 * m][:] = x
             self.members[2 * m + 1][:] = Omega
@@ -949,9 +952,9 @@ class LevelEngine:
         return max(MIN_STEPS_PER_CALL, WORK_PER_CALL // 2 // max(self.n, 1))
 
     def state(self) -> tuple[np.ndarray, ...]:
-        """The kernels' state tuple (``integrator.level_positions``)."""
-        return (*self.members, self.xi, self.xi_aux, self.t, self.t_comp, self.k, self.status,
-                *self.additive)
+        """The kernels' state tuple, in the order of ``self.layout``
+        (:func:`stochpend.engine.layout.state_arrays` of the members)."""
+        return tuple(self.held[name] for name in self.layout)
 
     def advance(self, t_target: float, max_steps: int) -> bool:
         _, unfinished = self.advance_k(self.state(), t_target, max_steps, self.key0, self.key1,
@@ -959,11 +962,11 @@ class LevelEngine:
         return unfinished == 0
 
     def time_sum(self, t_target: float, done: bool) -> float:
-        return float(np.sum(self.t))
+        return float(np.sum(self.held["t"]))
 
     def host_members(self) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
         """The members' (x, Omega) arrays, xi, t and status, on the host."""
-        return self.members, self.xi, self.t, self.status
+        return self.members, self.held["xi"], self.held["t"], self.held["status"]
 
     def put_status(self, status: np.ndarray) -> None:
         """The status the accumulate kernel marked, back where the kernels read it."""
@@ -999,7 +1002,7 @@ class LevelEngine:
     def steps(self) -> int:
         """The finest member's draws (each of its steps one; member m takes 2**(m + 1 - levels)
         as many steps)."""
-        return int(np.sum(self.k, dtype=np.uint64))
+        return int(np.sum(self.held["k"], dtype=np.uint64))
 
     def arrays(self) -> dict[str, np.ndarray]:
         raise NotImplementedError("coupled levels are not checkpointed")

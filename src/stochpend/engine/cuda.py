@@ -46,7 +46,7 @@ from numba.core.errors import NumbaPerformanceWarning
 from numba.extending import register_jitable
 from numba.np import numpy_support
 
-from stochpend.engine import cpu, integrator
+from stochpend.engine import cpu, integrator, layout
 from stochpend.engine.integrator import Spec
 from stochpend.engine.layout import path_dtypes
 from stochpend.model import dynamics, initial, observables
@@ -367,15 +367,14 @@ class LevelEngine(cpu.LevelEngine):
         c = self.config
         self.p0, self.n, self.nb = p0, n, nb
         self.path0 = np.uint64(rng.COUPLED_PATH0 + p0)
+        dtypes = path_dtypes("cpu", "float64")
         with _quiet():
-            self.d = [cuda.device_array(n, dtype=np.float64) for _ in range(2 * self.levels + 4)]
-            self.d_k = cuda.device_array(n, dtype=np.uint64)
-            self.d_status = cuda.device_array(n, dtype=np.uint8)
+            # The kernels' state, by name (self.layout: stochpend.engine.layout.state_arrays).
+            self.d = {name: cuda.device_array(n, dtype=dtypes.get(name, dtypes["x"])) for name in self.layout}
             self.flag = cuda.device_array(1, dtype=np.int32)
-            x, Omega = self.d[0], self.d[1]
-            xi, xi_aux, t, t_comp = self.d[2 * self.levels:]
+            x, Omega = self.d["x"], self.d["Omega"]
             self.init[_blocks(n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
-                (x, Omega, xi, xi_aux, t, t_comp, self.d_k, self.d_status), self.key0, self.key1,
+                tuple(self.d[name] for name in layout.state_arrays(1)), self.key0, self.key1,
                 self.path0, 0.0 if c.theta0 is None else c.theta0, c.theta0 is None, c.Omega0,
                 0.0 if c.xi0 is None else c.xi0, c.xi0 is None, self.record)
             if initial.temperature(c) > 0.0:  # as the run's paths (Engine.start)
@@ -383,10 +382,12 @@ class LevelEngine(cpu.LevelEngine):
                 x.copy_to_device(bx)
                 Omega.copy_to_device(bO)
             # The additive channel's state (a run with it), shared by the members as xi is.
-            self.extra = tuple(cuda.to_device(a) for a in initial.additive_states(c, int(self.path0), n))
+            for name, value in zip(self.additive, initial.additive_states(c, int(self.path0), n), strict=True):
+                self.d[name].copy_to_device(value)
+            member = layout.member_arrays(self.levels)
             for m in range(1, self.levels):
-                self.d[2 * m].copy_to_device(x)
-                self.d[2 * m + 1].copy_to_device(Omega)
+                self.d[member[2 * m]].copy_to_device(x)
+                self.d[member[2 * m + 1]].copy_to_device(Omega)
         self._zero_flag = np.zeros(1, dtype=np.int32)
         self.chunk_sums = np.zeros((nb, self.n_times, self.levels, self.n_sums))
 
@@ -395,7 +396,7 @@ class LevelEngine(cpu.LevelEngine):
         with _quiet():
             self.flag.copy_to_device(self._zero_flag)
             self.advance_k[_blocks(self.n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
-                (*self.d, self.d_k, self.d_status, *self.extra), t_target, max_steps, self.key0,
+                tuple(self.d[name] for name in self.layout), t_target, max_steps, self.key0,
                 self.key1, self.path0, self.record, self.run, self.flag)
             return int(self.flag.copy_to_host()[0]) == 0
 
@@ -404,15 +405,14 @@ class LevelEngine(cpu.LevelEngine):
 
     def host_members(self) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
         """Host copies of the members' (x, Omega), xi, t and the status (the members share xi, t)."""
-        members = [a.copy_to_host() for a in self.d[:2 * self.levels]]
-        xi, t = self.d[2 * self.levels].copy_to_host(), self.d[2 * self.levels + 2].copy_to_host()
-        return members, xi, t, self.d_status.copy_to_host()
+        members = [self.d[name].copy_to_host() for name in layout.member_arrays(self.levels)]
+        return members, self.d["xi"].copy_to_host(), self.d["t"].copy_to_host(), self.d["status"].copy_to_host()
 
     def put_status(self, status: np.ndarray) -> None:
-        self.d_status.copy_to_device(status)
+        self.d["status"].copy_to_device(status)
 
     def steps(self) -> int:
-        return int(np.sum(self.d_k.copy_to_host(), dtype=np.uint64))
+        return int(np.sum(self.d["k"].copy_to_host(), dtype=np.uint64))
 
 
 def accumulate_kernel(spec: Spec, observables_: tuple[str, ...] = ()):
@@ -644,6 +644,8 @@ class Engine:
         self.capacity = capacity
         # The additive channel's per-path arrays (xi_a; aux_a for the generic channel).
         self.additive = dynamics.additive_arrays(config)
+        # The kernels' state tuple, by name (stochpend.engine.layout).
+        self.layout = layout.state_arrays(1, tracked=bool(self.accs), channel=bool(self.additive))
         self.n_times = len(config.times)
         from stochpend.model import settings
 
@@ -688,18 +690,22 @@ class Engine:
         free, _ = cuda.current_context().get_memory_info()
         return int(max(1, min(DEFAULT_CHUNK_PATHS, free // (2 * _bytes_per_path(precision)))))
 
+    def _view(self, name: str) -> Any:
+        """The chunk's paths of device array ``d_<name>`` (the accumulators' slots: every slot)."""
+        if name == "tracks":
+            return self.d_tracks[:, : self.n]
+        return getattr(self, "d_" + name)[: self.n]
+
     def _views(self) -> tuple:
-        n = self.n
-        return (self.d_x[:n], self.d_Omega[:n], self.d_xi[:n], self.d_xi_aux[:n], self.d_t[:n],
-                self.d_t_comp[:n], self.d_k[:n], self.d_status[:n])
+        """The views of a path's state, ``layout.state_arrays(1)``: (x, Omega, xi, xi_aux, t,
+        t_comp, k, status), as the init and accumulate kernels take them."""
+        return tuple(self._view(name) for name in layout.state_arrays(1))
 
     def _state(self) -> tuple:
-        """The views as the advance kernel takes them: then the accumulators' slots (a run with
-        accumulators) and the additive channel's arrays (a run with them)."""
-        views = self._views()
-        if self.accs:
-            views = (*views, self.d_tracks[:, : self.n])
-        return (*views, *(getattr(self, "d_" + name)[: self.n] for name in self.additive))
+        """The views as the advance kernel takes them, in the order of ``self.layout``: then the
+        accumulators' slots (a run with accumulators) and the additive channel's arrays (a run
+        with them)."""
+        return tuple(self._view(name) for name in self.layout)
 
     def start(self, p0: int, n: int, nb: int) -> None:
         """Initial conditions of global paths p0 .. p0 + n - 1."""
@@ -739,8 +745,7 @@ class Engine:
         self.n = arrays["x"].shape[0]
         self.nb = arrays["chunk_sums"].shape[0]
         with _quiet():
-            for name, view in zip(("x", "Omega", "xi", "xi_aux", "t", "t_comp", "k", "status"),
-                                  self._views(), strict=True):
+            for name, view in zip(layout.state_arrays(1), self._views(), strict=True):
                 view.copy_to_device(np.ascontiguousarray(arrays[name], dtype=view.dtype))
             sums = np.zeros(self.d_sums.shape)
             sums[: self.nb] = arrays["chunk_sums"]
@@ -787,8 +792,7 @@ class Engine:
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Host copies of the chunk's state (for a checkpoint)."""
-        names = ("x", "Omega", "xi", "xi_aux", "t", "t_comp", "k", "status")
-        out = {name: view.copy_to_host() for name, view in zip(names, self._views(), strict=True)}
+        out = {name: view.copy_to_host() for name, view in zip(layout.state_arrays(1), self._views(), strict=True)}
         out["chunk_sums"], out["chunk_hist"] = self.results()
         out["tracks"] = self.d_tracks.copy_to_host()[: len(self.accs), : self.n]
         for name in ("xi_a", "aux_a"):

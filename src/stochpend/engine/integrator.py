@@ -53,6 +53,7 @@ import numba
 import numpy as np
 from numba.extending import register_jitable
 
+from stochpend.engine import layout
 from stochpend.model import dynamics as _dynamics
 from stochpend.model import noises as _noises
 from stochpend.model import observables
@@ -100,10 +101,12 @@ LEVELS = (1, 2, 3, 4)
 
 def level_positions(levels: int) -> tuple[int, int, int, int, int, int]:
     """Where the state tuple of ``levels`` coupled members keeps ``(xi, xi_aux, t, t_comp, k,
-    status)``: after the members' ``x, Omega`` pairs, member m (0 the coarsest, step h; m the
-    step h/2**m) at positions ``2 m``, ``2 m + 1``."""
-    J = 2 * (levels - 1)
-    return 2 + J, 3 + J, 4 + J, 5 + J, 6 + J, 7 + J
+    status)`` (:data:`stochpend.engine.layout.AFTER_MEMBERS`): after the members' ``x, Omega``
+    pairs, member m (0 the coarsest, step h; m the step h/2**m) at positions ``2 m``,
+    ``2 m + 1`` (:func:`stochpend.engine.layout.state_arrays`)."""
+    at = layout.state_positions(levels)
+    XI, XA, T, TC, K, ST = (at[name] for name in layout.AFTER_MEMBERS)
+    return XI, XA, T, TC, K, ST
 
 
 def state_positions(pair: bool) -> tuple[int, int, int, int, int, int]:
@@ -504,25 +507,27 @@ def _finest(LEVELS: int, real: Any) -> Any:
 
 
 def _loop_positions(LEVELS: int, TRACKED: bool, CHANNEL: bool) -> SimpleNamespace:
-    """Where a step loop's state tuple keeps each array, by name: member m's x and Omega at
-    ``X<m>``, ``O<m>`` (2 m and 2 m + 1, :func:`level_positions`; x's and Omega's, read and
-    never written, for a member beyond ``LEVELS``: ``HAS<m>`` false), ``XI, XA, T, TC, K, ST``
-    (xi, xi_aux, t, t_comp, k, status), then the accumulators' slots ``TRK`` and the additive
-    channel's xi_a ``ADD`` and aux_a ``AUXA``, each only when the Spec has it (``TRACKED``,
-    ``CHANNEL``: the generic channel); 0 (x's, never read) otherwise.
+    """Where a step loop's state tuple keeps each array (:func:`stochpend.engine.layout.state_positions`,
+    the one declaration of the state by name), as the loop's constants: member m's x and Omega at
+    ``X<m>``, ``O<m>`` (x's and Omega's, read and never written, for a member beyond ``LEVELS``:
+    ``HAS<m>`` false), ``XI, XA, T, TC, K, ST`` (xi, xi_aux, t, t_comp, k, status), then the
+    accumulators' slots ``TRK`` and the additive channel's xi_a ``ADD`` and aux_a ``AUXA``, each
+    only when the Spec has it (``TRACKED``, ``CHANNEL``: the generic channel); 0 (x's, never
+    read) otherwise.
 
     Constant indices, like every array of the loop: not a function returning ``state[8]``,
     which numba-cuda refuses ("Only accept returning of array passed into the function as
     argument"), so the tracked kernels did not compile for a real GPU (the CPU and the
     simulator accept it)."""
-    XI, XA, T, TC, K, ST = level_positions(LEVELS)
-    ADD = ST + 1 + (1 if TRACKED else 0) if CHANNEL else 0
-    X1, X2, X3 = (2 * m if m < LEVELS else 0 for m in range(1, _MAX_LEVELS))
-    O1, O2, O3 = (2 * m + 1 if m < LEVELS else 1 for m in range(1, _MAX_LEVELS))
+    at = layout.state_positions(LEVELS, TRACKED, CHANNEL)  # the one declaration, by name
+    XI, XA, T, TC, K, ST = (at[name] for name in layout.AFTER_MEMBERS)
+    # x's and Omega's positions (read, never written) stand in for the members beyond LEVELS
+    X1, X2, X3 = (at.get(f"x{m}", 0) for m in range(1, _MAX_LEVELS))
+    O1, O2, O3 = (at.get(f"Omega{m}", 1) for m in range(1, _MAX_LEVELS))
     HAS1, HAS2, HAS3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
     return SimpleNamespace(X1=X1, X2=X2, X3=X3, O1=O1, O2=O2, O3=O3, HAS1=HAS1, HAS2=HAS2, HAS3=HAS3,
-                           XI=XI, XA=XA, T=T, TC=TC, K=K, ST=ST, TRK=ST + 1 if TRACKED else 0,
-                           ADD=ADD, AUXA=ADD + 1 if CHANNEL else 0, CHANNEL=CHANNEL)
+                           XI=XI, XA=XA, T=T, TC=TC, K=K, ST=ST, TRK=at.get("tracks", 0),
+                           ADD=at.get("xi_a", 0), AUXA=at.get("aux_a", 0), CHANNEL=CHANNEL)
 
 
 def _path_io(LEVELS: int, at: SimpleNamespace, real: Any, a_load_aux: Any, flat: Any) -> tuple[Any, Any]:
