@@ -95,9 +95,9 @@ def _worker_stochpend(spec):
         kw.update(gamma=GAMMA)
     if mode == "adaptive_libm":
         from stochpend.engine import cpu
-        from stochpend.engine.integrator import Spec
+        from stochpend.engine.integrator import KernelSpec
 
-        cpu.spec_for = lambda config, precision="float64": Spec.of(config, precision=precision)
+        cpu.spec_for = lambda config, precision="float64": KernelSpec.of(config, precision=precision)
     # Warm-up (loads or compiles the kernels), not timed.
     simulate(paths=min(paths, 64), t_max=min(t_max, 0.05), times=[min(t_max, 0.05)], **kw)
     import tracemalloc
@@ -218,9 +218,9 @@ def _worker_bias_share(spec):
     from stochpend.runs.simulate import simulate
 
     if spec["engine"] == "one_pair_libm":
-        from stochpend.engine.integrator import Spec
+        from stochpend.engine.integrator import KernelSpec
 
-        bias.pair_spec = lambda config, backend="cpu": Spec.of(config)
+        bias.pair_spec = lambda config, backend="cpu": KernelSpec.of(config)
         bias.default_bias_paths = lambda paths: int(max(2, min(paths, max(256, paths // 32))))
     kw = dict(noise="ou", D=D, tau=TAU, omega=OMEGA, seed=SEED, n_times=40)
     simulate(paths=256, t_max=1.0, **kw)  # loads or compiles the kernels, not timed

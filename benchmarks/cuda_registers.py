@@ -275,7 +275,7 @@ def in_ci_subset(label: str) -> bool:
             parts[2:5] == ["ou", "float64", "adaptive"])
     if kind == "pairs":
         return "+" in rest or parts[:3] == ["pendulum", "force", "ou"]
-    if kind == "levels":  # the deepest, four members, of every Spec it lists
+    if kind == "levels":  # the deepest, four members, of every KernelSpec it lists
         return rest.endswith("[L=4]")
     if kind == "tracked":
         return rest.endswith("[all]") or "/float64/adaptive/" in rest

@@ -71,7 +71,7 @@ def digests() -> dict[str, str]:
                     raise RuntimeError(f"no assembly for {obj.py_func.__qualname__} (loaded from a cache?)")
                 name = _TAG.sub("", f"{obj.py_func.__module__}.{obj.py_func.__qualname__}|{sig}")
                 texts.setdefault(name, []).append(_normalised(asm))
-    # One digest per compiled function, sorted: a kernel of one Spec that changed shows as one
+    # One digest per compiled function, sorted: a kernel of one KernelSpec that changed shows as one
     # differing entry, not as a change of every kernel sharing its name and signature.
     return {name: ",".join(sorted(hashlib.sha256(x.encode()).hexdigest()[:16] for x in t))
             for name, t in sorted(texts.items())}

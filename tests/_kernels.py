@@ -1,4 +1,4 @@
-"""Drive the CPU kernels of a Spec on raw arrays (for tests that look below the runner)."""
+"""Drive the CPU kernels of a KernelSpec on raw arrays (for tests that look below the runner)."""
 
 from __future__ import annotations
 
@@ -11,14 +11,14 @@ from stochpend.numerics import rng
 
 
 def kernels(noise="ou", potential="pendulum", coupling="force", *, adaptive=True, fast_math=False):
-    """``cpu.kernels`` of the Spec with these names; the lock-step driver when ``fast_math``."""
+    """``cpu.kernels`` of the KernelSpec with these names; the lock-step driver when ``fast_math``."""
     return cpu.kernels(integrator.spec(noise, potential, coupling, adaptive=adaptive,
                                        fast_math=fast_math))
 
 
 def record(kern, D=1.0, tau=1.0, W=0.0):
-    """The noise record of ``kern``'s Spec (``Noise.record``) for these D, tau and W; without a
-    Spec, the triple (D, tau, W)."""
+    """The noise record of ``kern``'s KernelSpec (``Noise.record``) for these D, tau and W; without a
+    KernelSpec, the triple (D, tau, W)."""
     spec = getattr(kern, "spec", None)
     if spec is None:
         return (float(D), float(tau), float(W))

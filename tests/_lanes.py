@@ -10,7 +10,7 @@ from stochpend.engine import cpu
 
 
 def assert_lanes_equal_one_path(run: dict, config, monkeypatch, *, finite_bias: bool = True) -> None:
-    """``simulate(**run)`` in the SIMD lanes equals the one-path loop of the same fast-math Spec,
+    """``simulate(**run)`` in the SIMD lanes equals the one-path loop of the same fast-math KernelSpec,
     bit for bit (a run with an accumulator goes one path at a time), and so do the bias pairs'
     lanes against the one-pair loop (``bias.estimate`` of ``config``, the same run's
     configuration, with ``cpu.levels_kernel`` replaced by the one-pair kernel through

@@ -19,7 +19,7 @@ if _SITE not in os.environ.get("PYTHONPATH", "").split(os.pathsep):
 # No compile helper (stochpend.runs._compile_helper) in the suite's runs and the processes they start:
 # the helper buys wall time from an idle core, and the suite keeps both cores busy, so there it
 # only adds a process that imports stochpend and compiles beside the run (about 3.7 s of CPU per
-# cold Spec, measured; 30 helpers in a cold suite). The numbers are the same either way (the
+# cold KernelSpec, measured; 30 helpers in a cold suite). The numbers are the same either way (the
 # helper compiles the same kernel under the same name). The helper's own tests turn it back on:
 # tests/system/test_compile_time.py, tests/unit/test_compile_helper.py.
 os.environ.setdefault("STOCHPEND_COMPILE_HELPER", "0")

@@ -28,7 +28,7 @@ _xarray_nodask.install()  # xarray's check for Dask arrays imports Dask only onc
 
 try:  # STOCHPEND_CPU_TARGET=baseline: before anything compiles (Numba is not imported here)
     _cputarget.apply_environment()
-except ValueError:  # a word it does not know, or a CPU that cannot: said when a run starts (Run.build)
+except ValueError:  # a word it does not know, or a CPU that cannot: said when a run starts (RunOptions.build)
     pass
 
 #: Submodules reachable as attributes of the package, imported on first use.

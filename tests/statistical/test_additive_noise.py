@@ -224,7 +224,7 @@ def _config(run, **extra):
 @pytest.mark.parametrize("step", [dict(), dict(step_c=0.0, h_max=0.02)])
 def test_the_lanes_give_the_one_path_numbers(step, gain_ou, monkeypatch):
     """A channel noise with draw_keyed and no events (the user's gain-ou) runs in the SIMD lanes
-    (the runs' and the pairs'), which agree with the one-path loops of the same fast-math Spec
+    (the runs' and the pairs'), which agree with the one-path loops of the same fast-math KernelSpec
     (a run with an accumulator goes one path at a time)."""
     from stochpend.engine import cpu
 
@@ -240,7 +240,7 @@ def test_a_channel_without_keyed_draws_or_with_events_runs_one_path_at_a_time(na
     from stochpend.engine import cpu
 
     config = _config({**PENDULUM, "additive_noise": name})
-    fast = integrator.Spec.of(config, fast_math=True)
+    fast = integrator.KernelSpec.of(config, fast_math=True)
     assert not integrator.lanes_supported(fast)
     spec = cpu.spec_for(config)
     assert not spec.fast_math and spec.additive is noises.get(name)

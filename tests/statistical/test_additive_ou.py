@@ -180,7 +180,7 @@ FAMILY_RUN = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=600, t_max=6.0, n
 @pytest.mark.parametrize("step", [dict(), dict(step_c=0.0, h_max=0.02)])
 def test_the_lanes_give_the_one_path_numbers(step, monkeypatch):
     """The SIMD lane machines (the runs' and the pairs') against the one-path loops of the same
-    fast-math Spec (a run with an accumulator goes one path at a time)."""
+    fast-math KernelSpec (a run with an accumulator goes one path at a time)."""
     from stochpend.engine import cpu
     from stochpend.model.settings import SimulationConfig
 

@@ -3,7 +3,7 @@
 Each figure is run once at a tiny quick size (a few hundred paths, short times): its table has
 rows of the common layout with finite values, errors and theory columns, and it draws. Each
 figure's theory values are the functions of stochpend.theory.family (computed here again from
-the runs' attributes). A RunSpec without the family's fields keeps the keyword arguments (so
+the runs' attributes). A FigureRun without the family's fields keeps the keyword arguments (so
 the cache key) of the paper's figures, and ``all`` does not run the gallery.
 """
 
@@ -14,7 +14,7 @@ import math
 import pytest
 
 from stochpend.paper import reproduce as rep
-from stochpend.paper.figures import CASES, COLUMNS, FIGURES, GALLERY, RunSpec
+from stochpend.paper.figures import CASES, COLUMNS, FIGURES, GALLERY, FigureRun
 from stochpend.paper.figures import family_boltzmann as fb
 from stochpend.paper.figures import family_kramers as fk
 from stochpend.paper.figures import family_random_frequency as frf
@@ -48,11 +48,11 @@ def test_names_and_all() -> None:
 
 
 def test_paper_runspec_kwargs_unchanged() -> None:
-    s = RunSpec(key="k", label="l", noise="white", D=1.0, tau=None, omega=1.0, t_max=10.0, seed=1, paths=10)
+    s = FigureRun(key="k", label="l", noise="white", D=1.0, tau=None, omega=1.0, t_max=10.0, seed=1, paths=10)
     kw = s.simulate_kwargs()
     assert "dyn_params" not in kw and "observables" not in kw
     assert kw["theta0"] == "uniform" and kw["Omega0"] == 0.0
-    fam_spec = RunSpec(key="k", label="l", noise="white", D=0.0, tau=None, omega=1.0, t_max=10.0, seed=1,
+    fam_spec = FigureRun(key="k", label="l", noise="white", D=0.0, tau=None, omega=1.0, t_max=10.0, seed=1,
                        paths=10, params=(("additive_D", 1.0), ("gamma", 0.5)), observables=("displacement",))
     assert fam_spec.cache_key("v") != s.cache_key("v")
     assert fam_spec.simulate_kwargs()["dyn_params"] == {"additive_D": 1.0, "gamma": 0.5}

@@ -124,7 +124,7 @@ def test_the_estimate_line_counts_the_compile_time():
     assert first <= sum(resources.COMPILE_S.values())
 
 
-#: A cold run of the demo's Spec in a fresh process, with the compile helper (or, with
+#: A cold run of the demo's KernelSpec in a fresh process, with the compile helper (or, with
 #: ``fail``, a helper that exits at once): per kernel, Numba's cache hits and misses in this
 #: process, and every data variable of the result.
 _HELPER_SCRIPT = """

@@ -2,7 +2,7 @@
 
 Numba names each compiled function ``<qualname>$<n>``, ``n`` a counter unique in one process
 only; a cached kernel refers to the integrator's pieces (``_step_loop.<locals>.advance_path``) by
-those names. Without care, process B that compiles another Spec's pieces first gives them the
+those names. Without care, process B that compiles another KernelSpec's pieces first gives them the
 names the writer process A gave the cached kernel's pieces, and the cached kernel, once
 loaded, calls B's functions: other noise, wrong numbers, no error. (Seen in the test suite:
 the fixed-step OU kernel computed with the dichotomous noise's step after the bias estimate

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-#: Each case a configuration (``SimulationConfig.build``): one path's Spec with adaptive steps
+#: Each case a configuration (``SimulationConfig.build``): one path's KernelSpec with adaptive steps
 #: (no family terms), the family's time-dependent terms with the additive white noise and fixed
 #: steps, the additive channel with the OU noise (additive_tau > 0) and with a harmonic noise,
 #: adaptive steps.
@@ -70,7 +70,7 @@ def main(out_path: str) -> None:
     out: dict[str, np.ndarray] = {}
     for name in CASES:
         cfg = config(name)
-        spec = integrator.Spec.of(cfg)
+        spec = integrator.KernelSpec.of(cfg)
         key0, key1 = rng.seed_to_key(cfg.seed)
         for levels in LEVELS:
             kernel = backend.levels_kernel(spec, levels)
@@ -80,7 +80,7 @@ def main(out_path: str) -> None:
                 while True:
                     flag.copy_to_device(np.zeros(1, dtype=np.int32))
                     kernel[1, PATHS](state, t_target, MAX_STEPS, key0, key1, PATH0,
-                                     spec.noise.record(cfg), integrator.run_record(cfg), flag)
+                                     spec.noise.record(cfg), integrator.step_record(cfg), flag)
                     if int(flag.copy_to_host()[0]) == 0:
                         break
             for j, a in enumerate(state):

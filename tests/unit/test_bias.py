@@ -221,8 +221,8 @@ def test_spec_pair_function_exists_for_every_noise():
 
 def test_each_spec_has_its_own_cache_index():
     """Numba's index file is shared by every overload of one function; two processes adding
-    different Specs to it at once can leave one Spec's key pointing at another's code. Each
-    Spec's kernels therefore get their own index file (stochpend.numerics._jitcache.own_index)."""
+    different Specs to it at once can leave one KernelSpec's key pointing at another's code. Each
+    KernelSpec's kernels therefore get their own index file (stochpend.numerics._jitcache.own_index)."""
     from stochpend.engine import cpu
 
     paths = set()
@@ -238,7 +238,7 @@ def test_each_spec_has_its_own_cache_index():
 @pytest.mark.parametrize(("noise", "adaptive"), [("ou", True), ("white", True), ("ou", False)])
 def test_pairs_in_simd_lanes_are_the_one_pair_kernel_bit_for_bit(noise, adaptive):
     """The pairs run in SIMD lanes with the run's fast math (integrator.build_pair_lanes): the
-    same numbers as advance_pair of that Spec one pair at a time, however the calls are cut
+    same numbers as advance_pair of that KernelSpec one pair at a time, however the calls are cut
     (max_steps) and whatever the thread count; a lane that swapped its draws, shared a
     neighbour's counter or dropped a half step differs at once."""
     import numba

@@ -359,7 +359,7 @@ def test_rng_in_kernel_equals_cpu(simulated):
 
 
 def test_float32_pieces_compute_in_float32():
-    """The float32 Spec's device functions, built by the same factories as float64's (no source
+    """The float32 KernelSpec's device functions, built by the same factories as float64's (no source
     rewriting), type as float32 in Numba and agree with float64 to float32 round-off."""
     import numba
 
@@ -467,15 +467,15 @@ def test_gpu_sweep_equals_each_set_alone(simulated):
 
 
 def test_gpu_bias_pairs_equal_cpu(simulated, monkeypatch):
-    """A GPU run's bias pairs run on the GPU (one thread a pair, the run's Spec: the C library's
-    math): every statistic's bias and coarse value equal the CPU's one-pair kernel of that Spec
+    """A GPU run's bias pairs run on the GPU (one thread a pair, the run's KernelSpec: the C library's
+    math): every statistic's bias and coarse value equal the CPU's one-pair kernel of that KernelSpec
     to the last bits, and the pairs' path-steps exactly."""
     from stochpend import bias
     from stochpend.engine import cpu
-    from stochpend.engine.integrator import Spec
+    from stochpend.engine.integrator import KernelSpec
 
     case = next(c for c in EXTRAS if c["name"] == "bias_pairs")
-    monkeypatch.setattr(cpu, "spec_for", lambda config, precision="float64": Spec.of(config, precision=precision))
+    monkeypatch.setattr(cpu, "spec_for", lambda config, precision="float64": KernelSpec.of(config, precision=precision))
     est = bias.estimate(SimulationConfig.build(**case["config"]), case["pairs"])
     assert int(simulated["bias_pairs/path_steps"]) == est.path_steps
     checked = 0
@@ -507,7 +507,7 @@ def test_simulated_cases_are_small(simulated):
 # -- on-disk cache of the kernels ---------------------------------------------------------------
 def test_kernels_of_builtin_pieces_are_cached_on_disk_and_user_models_are_not(monkeypatch):
     """Each kernel factory declares ``cuda.jit(cache=...)`` from what the kernel depends on:
-    the init kernel on the noise, the advance kernel on the whole Spec, the statistics kernel
+    the init kernel on the noise, the advance kernel on the whole KernelSpec, the statistics kernel
     on the oscillator. A user's pieces live in memory only, so their kernels are not cached.
     (Loading a cached kernel needs a GPU; this checks the declarations.)"""
     declared = []

@@ -167,12 +167,12 @@ def test_simd_drivers_are_used_only_in_their_cases():
                    dict(noise="ou", potential="harmonic", coupling="position")):
         config = SimulationConfig.build(**kwargs)
         spec = cpu.spec_for(config)
-        assert spec == integrator.Spec.of(config) and not spec.fast_math, kwargs
+        assert spec == integrator.KernelSpec.of(config) and not spec.fast_math, kwargs
         assert cpu.advance_kernel(spec) is cpu.path_kernel(spec)
 
 
 def test_lockstep_driver_gives_the_fast_one_path_numbers():
-    """The lock-step lanes and the one-path code of the fast-math Spec are the same numbers,
+    """The lock-step lanes and the one-path code of the fast-math KernelSpec are the same numbers,
     bit for bit (the arithmetic is advance_path's, operation for operation)."""
     steps = integrator.build(FAST.spec)
     one_path = cpu.kernels(FAST.spec)  # the lock-step driver
@@ -260,7 +260,7 @@ def test_uniform_open_bits_is_uniform_open():
 @pytest.mark.parametrize("h,tau", [(0.05, 1.0), (0.003, 1.0), (1e-7, 1.0), (0.05, 0.0835),
                                    (0.05, 0.08), (0.05, 0.01), (2.0, 0.5), (0.05, 1e-9), (0.01, 50.0)])
 def test_branch_free_ou_coefficients_agree_with_the_c_library_ones(h, tau):
-    """The fast-math Spec's OU coefficients (expm1 polynomial, tanh(x/2) = b/(2 - b) in the
+    """The fast-math KernelSpec's OU coefficients (expm1 polynomial, tanh(x/2) = b/(2 - b) in the
     direct form, both forms evaluated and one selected) against noises.ou.step_coefficients:
     within 1e-14 relative for every coefficient (h/tau on both sides of the series' 0.6)."""
     from stochpend.noises import ou

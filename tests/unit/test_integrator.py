@@ -1,6 +1,6 @@
 """The integrator's pieces, checked against independent formulas (plain-Python calls).
 
-The device functions of a Spec (``integrator.build``) are ``register_jitable`` closures, so
+The device functions of a KernelSpec (``integrator.build``) are ``register_jitable`` closures, so
 Python can call them; they are the code the kernels inline.
 """
 
@@ -110,12 +110,12 @@ def test_step_size_rules():
 
 
 def test_zero_step_c_compiles_the_fixed_step():
-    """step_c = 0 selects the fixed-step Spec (no step control compiled in): every path takes
+    """step_c = 0 selects the fixed-step KernelSpec (no step control compiled in): every path takes
     exactly t/h_max steps, however fast it turns or however large the noise."""
     config = SimulationConfig.build(noise="ou", D=400.0, tau=0.1, paths=50, t_max=2.0, times=[1.0, 2.0],
                                     h_max=0.05, step_c=0.0, Omega0=100.0, n_batches=2)
-    assert integrator.Spec.of(config).adaptive is False
-    assert integrator.Spec.of(SimulationConfig.build(step_c=0.1)).adaptive is True
+    assert integrator.KernelSpec.of(config).adaptive is False
+    assert integrator.KernelSpec.of(SimulationConfig.build(step_c=0.1)).adaptive is True
     ds = stochpend.simulate(noise="ou", D=400.0, tau=0.1, paths=50, t_max=2.0, times=[1.0, 2.0],
                             h_max=0.05, step_c=0.0, Omega0=100.0, n_batches=2)
     assert ds.attrs["path_steps"] == 50 * 40
@@ -196,9 +196,9 @@ def test_step_of_an_oscillator_is_constant_along_its_orbit():
     assert a == pytest.approx(c / 3.0) and b == pytest.approx(c / 1.0)
 
 
-def test_the_run_record_is_read_by_its_declared_names():
-    """``integrator.RUN_RECORD`` declares the run record's fields once; the kernels read them by
-    their ``RUN_*`` positions: each holds the configuration's value (the generic additive
+def test_the_step_record_is_read_by_its_declared_names():
+    """``integrator.STEP_RECORD`` declares the step record's fields once; the kernels read them by
+    their ``STEP_*`` positions: each holds the configuration's value (the generic additive
     channel's run, which has every field)."""
     from stochpend.engine import integrator
     from stochpend.model import dynamics
@@ -208,9 +208,9 @@ def test_the_run_record_is_read_by_its_declared_names():
     cfg = SimulationConfig.build(noise="white", D=0.5, omega=1.5, h_max=0.03, step_c=0.2, seed=11,
                                  additive_noise="harmonic",
                                  noise_params=dict(gamma=0.3, additive_D=0.4, additive_tau=0.5))
-    run = integrator.run_record(cfg)
-    assert len(run) == len(integrator.RUN_RECORD)
-    assert run[integrator.RUN_OMEGA2] == 1.5**2 and run[integrator.RUN_H_MAX] == 0.03
-    assert run[integrator.RUN_STEP_C] == 0.2 and run[integrator.RUN_D] == dynamics.record(cfg)
-    assert run[integrator.RUN_CHANNEL_RECORD] == dynamics.channel_record(cfg)
-    assert run[integrator.RUN_CHANNEL_KEY] == rng.run_keys(11).additive
+    run = integrator.step_record(cfg)
+    assert len(run) == len(integrator.STEP_RECORD)
+    assert run[integrator.STEP_OMEGA2] == 1.5**2 and run[integrator.STEP_H_MAX] == 0.03
+    assert run[integrator.STEP_STEP_C] == 0.2 and run[integrator.STEP_D] == dynamics.record(cfg)
+    assert run[integrator.STEP_CHANNEL_RECORD] == dynamics.channel_record(cfg)
+    assert run[integrator.STEP_CHANNEL_KEY] == rng.run_keys(11).additive

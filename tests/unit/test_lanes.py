@@ -2,9 +2,9 @@
 
 Each lane carries one path with its own time, step, coefficients and Philox counter; lanes
 are refilled as paths finish. Its arithmetic is ``advance_path``'s with the same fast-math
-Spec, so every test here is bit for bit: against the one-path kernel of that Spec
+KernelSpec, so every test here is bit for bit: against the one-path kernel of that KernelSpec
 (``cpu.path_kernel``), and against itself across call splits, thread counts, chunks and
-neighbours. (The fast-math Spec against the C library's math is statistical:
+neighbours. (The fast-math KernelSpec against the C library's math is statistical:
 tests/statistical/test_simd_agreement.py.)
 """
 

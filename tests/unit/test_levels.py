@@ -124,7 +124,7 @@ def _reference(spec):
 
 def _run_cpu(name, levels, kernel=None):
     cfg = cases.config(name)
-    spec = integrator.Spec.of(cfg)
+    spec = integrator.KernelSpec.of(cfg)
     kernel = kernel or cpu.levels_kernel(spec, levels)
     state = cases.initial_state(cfg, levels)
     key0, key1 = rng.seed_to_key(cfg.seed)
@@ -132,7 +132,7 @@ def _run_cpu(name, levels, kernel=None):
     for t_target in cases.TIMES:
         while True:
             d, unfinished = kernel(state, t_target, cases.MAX_STEPS, key0, key1, cases.PATH0,
-                                   spec.noise.record(cfg), integrator.run_record(cfg))
+                                   spec.noise.record(cfg), integrator.step_record(cfg))
             draws += d
             if unfinished == 0:
                 break
@@ -147,7 +147,7 @@ def test_each_member_is_a_single_run_at_its_own_step_fed_the_summed_increments(n
     last bit, the noise, clock and draw count too; the members differ (a coupled set, not one
     path L times)."""
     cfg = cases.config(name)
-    spec = integrator.Spec.of(cfg)
+    spec = integrator.KernelSpec.of(cfg)
     reference = _reference(spec)
     key0, key1 = rng.seed_to_key(cfg.seed)
     for levels in cases.LEVELS:
@@ -159,7 +159,7 @@ def test_each_member_is_a_single_run_at_its_own_step_fed_the_summed_increments(n
         xaa0 = extra[1] if len(extra) > 1 else np.zeros(cases.PATHS)
         ref = reference(levels, start[0], start[1], start[I_XI], start[I_XI + 1], xad0, xaa0,
                         np.array(cases.TIMES), key0, key1, cases.PATH0, spec.noise.record(cfg),
-                        integrator.run_record(cfg))
+                        integrator.step_record(cfg))
         for m in range(levels):
             assert np.array_equal(state[2 * m], ref[m, 0]), (name, levels, m)
             assert np.array_equal(state[2 * m + 1], ref[m, 1]), (name, levels, m)
@@ -171,16 +171,16 @@ def test_each_member_is_a_single_run_at_its_own_step_fed_the_summed_increments(n
 @pytest.mark.parametrize("name", list(cases.CASES))
 def test_the_simd_lanes_give_every_members_one_path_numbers(name):
     """L = 3, 4 in the CPU's SIMD lanes (``integrator.build_level_lanes``: the step of
-    ``the_step`` with keyed draws) against the one-path loop of the same fast-math Spec, bit for
+    ``the_step`` with keyed draws) against the one-path loop of the same fast-math KernelSpec, bit for
     bit: every array of the state (members, noise, channel, clock, draw count) and the draws
-    taken. 40 paths in calls of 7 steps: lanes are refilled, and resumed mid-way. A Spec the
+    taken. 40 paths in calls of 7 steps: lanes are refilled, and resumed mid-way. A KernelSpec the
     lanes cannot run (a channel noise without keyed draws) goes one path at a time. (L = 1 and
     2, the run's lanes and the bias pairs', against the one-path loops: test_lanes.py,
     test_bias.py and the family's tests, tests/_lanes.py.) L = 4 for the OU pendulum only: the
     family's and the channel's machines at 4 are those at 3 with one more level of the member
     tree, and each costs about 20 s of compiling (the suite's time, issue 33)."""
     cfg = cases.config(name)
-    spec = integrator.Spec.of(cfg, fast_math=True)
+    spec = integrator.KernelSpec.of(cfg, fast_math=True)
     built = integrator.build(spec)
     key0, key1 = rng.seed_to_key(cfg.seed)
     for levels in ((3, 4) if name == "ou" else (3,)):
@@ -197,7 +197,7 @@ def test_the_simd_lanes_give_every_members_one_path_numbers(name):
             for t_target in cases.TIMES:
                 while True:
                     d, unfinished = kernel(state, t_target, cases.MAX_STEPS, key0, key1, cases.PATH0,
-                                           spec.noise.record(cfg), integrator.run_record(cfg))
+                                           spec.noise.record(cfg), integrator.step_record(cfg))
                     draws.append((int(d), int(unfinished)))
                     if unfinished == 0:
                         break
@@ -213,7 +213,7 @@ def test_two_levels_are_the_bias_estimates_pair():
     """L = 2 is ``advance_pair`` (the bias estimate's step loop) and its CPU kernel the one-pair
     kernel; 1 is ``advance_path``. (The pair's numbers: the reference above at L = 2, and
     test_bias's SIMD pair lanes against the one-pair kernel.)"""
-    spec = integrator.Spec.of(cases.config("ou"))
+    spec = integrator.KernelSpec.of(cases.config("ou"))
     built = integrator.build(spec)
     assert built.advance_levels[2] is built.advance_pair and built.advance_levels[1] is built.advance_path
     assert cpu.levels_kernel(spec, 2) is cpu._pair_path_kernel(spec)
@@ -251,7 +251,7 @@ def test_the_state_is_declared_once_by_name():
 
     config = SimulationConfig.build(**cases.CASES["channel"], paths=64, t_max=1.0, n_times=2, seed=1,
                                     observables=("displacement",))
-    engine = cpu.Engine(config, integrator.Spec.of(config), 8, 1)
+    engine = cpu.Engine(config, integrator.KernelSpec.of(config), 8, 1)
     engine.start(0, 8, 1)
     assert engine.layout == layout.state_arrays(1, True, True)
     assert [a is getattr(engine, name) for a, name in zip(engine.state(), engine.layout, strict=True)] == [True] * 11
@@ -324,13 +324,13 @@ def test_member_l_has_the_law_of_an_ordinary_run_at_step_h_over_2_to_the_l():
                 for m in range(len(state) // 2 - 3)]
 
     cfg = SimulationConfig.build(**cfg_kw, h_max=h, seed=5)
-    spec = integrator.Spec.of(cfg)
+    spec = integrator.KernelSpec.of(cfg)
     state = cases.initial_state(cfg, L, n)
     key0, key1 = rng.seed_to_key(cfg.seed)
     members = {}
     for t_target in (2.0, 4.0):
         cpu.levels_kernel(spec, L)(state, t_target, 10**6, key0, key1, np.uint64(0), spec.noise.record(cfg),
-                                   integrator.run_record(cfg))
+                                   integrator.step_record(cfg))
         members[t_target] = energies(state)
     ordinary = {}
     for level in range(L):
@@ -338,7 +338,7 @@ def test_member_l_has_the_law_of_an_ordinary_run_at_step_h_over_2_to_the_l():
         paths = cases.initial_state(c, 1, n)
         k0, k1 = rng.seed_to_key(c.seed)
         for t_target in (2.0, 4.0):
-            cpu.path_kernel(spec)(paths, t_target, 10**6, k0, k1, 0, spec.noise.record(c), integrator.run_record(c))
+            cpu.path_kernel(spec)(paths, t_target, 10**6, k0, k1, 0, spec.noise.record(c), integrator.step_record(c))
             ordinary[t_target, level] = energies(paths)[0]
 
     def z(a, b):

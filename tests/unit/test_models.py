@@ -26,10 +26,10 @@ def test_user_pendulum_is_the_builtin_pendulum_bit_for_bit(noise, monkeypatch):
     cannot: there the two agree to rounding (relative 1e-9), not bit for bit."""
     default = stochpend.simulate(noise=noise, **_KW)
     from stochpend.engine import cpu
-    from stochpend.engine.integrator import Spec
+    from stochpend.engine.integrator import KernelSpec
 
     monkeypatch.setattr(cpu, "spec_for", lambda config, precision="float64":
-                        Spec.of(config, precision=precision))
+                        KernelSpec.of(config, precision=precision))
     a = stochpend.simulate(noise=noise, **_KW)
     b = stochpend.simulate(noise=noise, potential=USER_PENDULUM.name, **_KW)
     assert set(a.data_vars) == set(b.data_vars)

@@ -423,7 +423,7 @@ def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
 
     cfg = SimulationConfig.build(noise="white", D=0.5, omega=OMEGA, t_max=1.0, times=[1.0])
     spec = bias.pair_spec(cfg, "cpu")
-    q = integrator.run_record(cfg)[1]
+    q = integrator.step_record(cfg)[1]
     rng = np.random.default_rng(35)
     n = 2000
     x, Omega = rng.uniform(-3.0, 3.0, n), rng.normal(size=n)

@@ -54,7 +54,7 @@ def test_the_drive_moves_the_pendulum_as_its_integral_says():
                    t_max=T, times=[T], theta0=math.pi / 2, Omega0=0.0, seed=3, step_c=0.0,
                    h_max=0.01, n_batches=4)
     config = SimulationConfig.build(**ds_args)
-    engine = stochpend.engine.cpu.Engine(config, integrator.Spec.of(config), 64, 1)
+    engine = stochpend.engine.cpu.Engine(config, integrator.KernelSpec.of(config), 64, 1)
     engine.start(0, 64, 1)
     engine.advance(T, 10**6)
     key0, key1 = rng.seed_to_key(3)

@@ -61,11 +61,11 @@ def reference():
 def test_the_record_carries_the_declared_parameter():
     config = SimulationConfig.build(**{k: v for k, v in SMALL.items() if k != "a"}, noise_params={"a": 0.2})
     assert config.osc_params == (("a", 0.2),) and config.noise_params == ()
-    assert integrator.run_record(config)[1] == (0.2,)
+    assert integrator.step_record(config)[1] == (0.2,)
     assert SimulationConfig.build(potential="tilted-well").osc_params == (("a", 0.0),)  # the default
     power = SimulationConfig.build(potential="power", power_n=3)
-    assert integrator.run_record(power)[1] == (3.0,) and power.osc_params == ()
-    assert integrator.run_record(SimulationConfig.build())[1] == (0.0,)  # the pendulum: none
+    assert integrator.step_record(power)[1] == (3.0,) and power.osc_params == ()
+    assert integrator.step_record(SimulationConfig.build())[1] == (0.0,)  # the pendulum: none
     attrs = config.to_attrs()
     assert attrs["potential_parameters"] == "a=0.2" and attrs["potential_a"] == 0.2
     assert "osc_params" not in attrs and "potential_parameters" not in SimulationConfig.build().to_attrs()

@@ -398,12 +398,12 @@ def test_the_runs_table_labels_each_run_with_its_own_noise_and_model() -> None:
     "OU noise, D = 1, τ = 1, ω = 1", and the quartic runs only "white noise ..."; the paper's
     pendulum runs keep their labels."""
     from stochpend.paper.figures import exponents
-    from stochpend.paper.figures._common import RunSpec
+    from stochpend.paper.figures._common import FigureRun
 
-    def spec(**kw) -> RunSpec:
+    def spec(**kw) -> FigureRun:
         base = {"key": "k", "label": "l", "noise": "ou", "D": 1.0, "tau": 1.0, "omega": 1.0,
                 "t_max": 10.0, "seed": 1, "paths": 10}
-        return RunSpec(**{**base, **kw})
+        return FigureRun(**{**base, **kw})
 
     assert spec().describe() == "OU noise, D = 1, τ = 1, ω = 1"
     assert spec(noise="white", tau=None).describe() == "white noise, D = 1, ω = 1"

@@ -395,7 +395,7 @@ def simulate(
 
     if ctx is not None:
         _config_keys_in_use(ctx)
-    from stochpend.runs.lifecycle import Run, execute, resolve_backend
+    from stochpend.runs.lifecycle import RunOptions, execute, resolve_backend
 
     load_plugins(plugin)
     if out is not None:
@@ -474,7 +474,7 @@ def simulate(
         # The API raises its notes as warnings; the command prints them itself, below the table.
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", StochpendWarning)
-            ds = execute(Run.build(config, backend=backend, precision=precision, threads=threads,
+            ds = execute(RunOptions.build(config, backend=backend, precision=precision, threads=threads,
                                    bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
                                    max_path_steps=max_path_steps), progress=progress)[0]
         _provenance(ds, config_file, ctx)

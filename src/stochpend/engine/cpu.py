@@ -1,7 +1,7 @@
 """CPU drivers: the integrator's step loop run on threads, and two SIMD drivers.
 
 The drivers only orchestrate: every step is :mod:`stochpend.engine.integrator`'s, specialised for the
-run's :class:`~stochpend.engine.integrator.Spec` and compiled once per Spec (cached on disk for the
+run's :class:`~stochpend.engine.integrator.KernelSpec` and compiled once per KernelSpec (cached on disk for the
 built-in oscillators and noises). They allocate nothing per step and call no Python; the SIMD
 drivers' per-worker scratch is allocated by their Python wrapper (:func:`_with_workers`).
 
@@ -18,17 +18,17 @@ drivers' per-worker scratch is allocated by their Python wrapper (:func:`_with_w
   the coefficients are computed once per block (``Integrator.advance_lanes``). A block whose
   paths are not in lock step (a path frozen as non-finite, paths at different times after a
   resumed checkpoint), and the rest of a block where a path turned non-finite, go one path at a
-  time through the same Spec's ``advance_path``.
+  time through the same KernelSpec's ``advance_path``.
 * ``accumulate``: the per-batch power sums and histogram at one output time, each batch summed
   sequentially in path order (so the sums do not depend on the thread count).
 * ``joint`` (:func:`joint_kernel`): the joint (x, Omega) histogram's per-batch counts at one
   output time, only for a run that asks for it (``joint_bins``), after ``accumulate``.
 
 The SIMD drivers use the branch-free log/sin/cos/expm1 of :mod:`stochpend.numerics.fastmath`
-(``Spec.fast_math``, chosen by :func:`spec_for`), whose loops LLVM vectorizes; their
-arithmetic is ``advance_path``'s with that Spec, operation for operation, so a path's numbers
+(``KernelSpec.fast_math``, chosen by :func:`spec_for`), whose loops LLVM vectorizes; their
+arithmetic is ``advance_path``'s with that KernelSpec, operation for operation, so a path's numbers
 are a function of (seed, path) alone, whatever its lane, block, chunk or thread (tested bit for
-bit against ``path_kernel`` of the same Spec). They differ from the C library's by an ulp or so
+bit against ``path_kernel`` of the same KernelSpec). They differ from the C library's by an ulp or so
 per call, which the chaotic dynamics amplify: the ensembles agree statistically
 (tests/statistical/test_simd_agreement.py).
 
@@ -60,7 +60,7 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from stochpend.engine import integrator, layout
-from stochpend.engine.integrator import Spec
+from stochpend.engine.integrator import KernelSpec
 from stochpend.engine.layout import CHUNK_ARRAYS, path_dtypes
 from stochpend.model import dynamics, initial, settings
 from stochpend.model import observables as observables_
@@ -81,8 +81,8 @@ MIN_STEPS_PER_CALL = 1000
 _U64 = np.uint64
 
 
-def spec_for(config, precision: str = "float64") -> Spec:
-    """The Spec the CPU runs ``config`` with.
+def spec_for(config, precision: str = "float64") -> KernelSpec:
+    """The KernelSpec the CPU runs ``config`` with.
 
     The pendulum with the noise on the force, in float64, runs on the SIMD drivers with the
     branch-free math of :mod:`stochpend.numerics.fastmath` (``fast_math``): the fixed-step OU noise in
@@ -91,9 +91,9 @@ def spec_for(config, precision: str = "float64") -> Spec:
     dichotomous and harmonic noises, a user's pieces) runs the C library's functions one path
     at a time.
     """
-    spec = Spec.of(config, precision=precision)
+    spec = KernelSpec.of(config, precision=precision)
     if spec.oscillator is PENDULUM and spec.coupling == "force" and precision == "float64":
-        fast = Spec.of(config, precision=precision, fast_math=True)
+        fast = KernelSpec.of(config, precision=precision, fast_math=True)
         if integrator.build(fast).lockstep or integrator.lanes_supported(fast):
             return fast
     return spec
@@ -109,7 +109,7 @@ _TWO_PI = 2.0 * math.pi
 
 
 @functools.cache
-def init_kernel(spec: Spec):
+def init_kernel(spec: KernelSpec):
     """``init(state, key0, key1, path0, theta0, uniform_theta0, Omega0, xi0, stationary_xi0,
     p)``: initial conditions of global paths path0 .. path0 + len(x) - 1 (draws 0 and 1) into
     ``state = (x, Omega, xi, xi_aux, t, t_comp, k, status)``; ``p`` the noise's record
@@ -181,13 +181,13 @@ def _ranges(kernel, items: int = 0, summed: bool = False):
 
 
 @functools.cache
-def advance_kernel(spec: Spec):
-    """``advance(state, t_target, max_steps, key0, key1, path0, p, run) -> (steps_taken,
+def advance_kernel(spec: KernelSpec):
+    """``advance(state, t_target, max_steps, key0, key1, path0, p, step_rec) -> (steps_taken,
     paths_unfinished)``: every unfinished path of ``state = (x, Omega, xi, xi_aux, t, t_comp,
     k, status)`` towards ``t_target``, at most ``max_steps`` steps each (the SIMD drivers when
-    the Spec allows them; see the module docstring). ``p`` the noise's record
-    (``Noise.record``), ``run`` the run's ``(omega2, q, h_max, step_c)``
-    (``integrator.run_record``)."""
+    the KernelSpec allows them; see the module docstring). ``p`` the noise's record
+    (``Noise.record``), ``step_rec`` the run's ``(omega2, q, h_max, step_c)``
+    (``integrator.step_record``)."""
     if spec.fast_math and integrator.build(spec).lockstep:
         return _with_workers(_lockstep_kernel(spec), (6, BLOCK), (2, BLOCK), (0, BLOCK),
                              items=lambda n_paths: (n_paths + BLOCK - 1) // BLOCK)
@@ -198,7 +198,7 @@ def advance_kernel(spec: Spec):
 
 def _one_at_a_time(advance_one, index: str | None, cache: bool, levels: int):
     """The driver of the one-at-a-time kernels: ``advance(lo, hi, state, t_target, max_steps,
-    key0, key1, path0, p, run) -> (steps, unfinished)`` over paths (or coupled levels) ``lo ..
+    key0, key1, path0, p, step_rec) -> (steps, unfinished)`` over paths (or coupled levels) ``lo ..
     hi - 1``, each the integrator's ``advance_one`` (``advance_path``, ``advance_pair`` or
     ``advance_levels[levels]``), on ranges of paths (:func:`_ranges`). ``index``: the kernel's
     name (:func:`own_index`; None: none, a kernel compiled in memory only); ``cache``: whether
@@ -215,7 +215,7 @@ def _one_at_a_time(advance_one, index: str | None, cache: bool, levels: int):
     _, _, I_T, _, _, I_ST = integrator.level_positions(levels)
 
     def advance(lo, hi, state, t_target, max_steps, key0, key1, path0, p,
-                run):  # pragma: no cover - compiled
+                step_rec):  # pragma: no cover - compiled
         steps_taken = 0
         unfinished = 0
         t = state[I_T]
@@ -223,7 +223,7 @@ def _one_at_a_time(advance_one, index: str | None, cache: bool, levels: int):
         for i in range(lo, hi):
             if status[i] != 0 or t[i] >= t_target:
                 continue
-            s, u = advance_one(i, state, t_target, max_steps, key0, key1, path0, p, run)
+            s, u = advance_one(i, state, t_target, max_steps, key0, key1, path0, p, step_rec)
             steps_taken += s
             unfinished += u
         return steps_taken, unfinished
@@ -235,20 +235,20 @@ def _one_at_a_time(advance_one, index: str | None, cache: bool, levels: int):
 
 
 @functools.cache
-def path_kernel(spec: Spec):
+def path_kernel(spec: KernelSpec):
     """``advance`` (the signature of :func:`advance_kernel`) one path at a time: ranges of
-    paths, each the integrator's ``advance_path``. The driver of every Spec without a SIMD one;
-    for a fast-math Spec, the reference the SIMD drivers agree with bit for bit (tests)."""
+    paths, each the integrator's ``advance_path``. The driver of every KernelSpec without a SIMD one;
+    for a fast-math KernelSpec, the reference the SIMD drivers agree with bit for bit (tests)."""
     return _one_at_a_time(integrator.build(spec).advance_path, spec.label, spec.cacheable, 1)
 
 
 @functools.cache
-def tracked_kernel(spec: Spec, accs: tuple):
+def tracked_kernel(spec: KernelSpec, accs: tuple):
     """``advance`` of a run with per-path accumulators ``accs``
     (:func:`stochpend.observables.track_step`): :func:`path_kernel`'s driver, one path at a
-    time, with ``state`` holding the accumulators' slots as ``state[8]``. The same Spec (fast
+    time, with ``state`` holding the accumulators' slots as ``state[8]``. The same KernelSpec (fast
     math included), so every other number of the run is what the run without them gives, bit
-    for bit (the SIMD drivers agree with ``path_kernel`` of their Spec). Compiled in memory (a
+    for bit (the SIMD drivers agree with ``path_kernel`` of their KernelSpec). Compiled in memory (a
     user's functions)."""
     from stochpend.model import observables
 
@@ -288,7 +288,7 @@ def _take(typingctx, counter):
     return types.int64(counter), codegen
 
 
-def _lanes_kernel(spec: Spec, levels: int = 1):
+def _lanes_kernel(spec: KernelSpec, levels: int = 1):
     """One worker of the lane machine of ``levels`` coupled members (``build_level_lanes``; 1:
     the run's paths, 2: the bias estimate's pairs): takes pieces of the paths from the shared
     counter ``next_piece`` until none is left; :func:`_with_workers` runs ``nw`` of them on
@@ -299,7 +299,7 @@ def _lanes_kernel(spec: Spec, levels: int = 1):
 
     @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index({1: spec.label, 2: spec.label + "/pairs"}.get(levels, f"{spec.label}/lanes{levels}"))
-    def advance(state, t_target, max_steps, key0, key1, path0, p, run, scratch, next_piece,
+    def advance(state, t_target, max_steps, key0, key1, path0, p, step_rec, scratch, next_piece,
                 nw):  # pragma: no cover - compiled
         n_paths = state[0].shape[0]
         n_pieces, size = _pieces(n_paths, nw)
@@ -309,7 +309,7 @@ def _lanes_kernel(spec: Spec, levels: int = 1):
         piece = _take(next_piece)
         while piece < n_pieces:
             s, uf = advance_range(piece * size, min((piece + 1) * size, n_paths), state, t_target,
-                                  max_steps, rk0, rk1, path0, p, run, scratch)
+                                  max_steps, rk0, rk1, path0, p, step_rec, scratch)
             steps_taken += s
             unfinished += uf
             piece = _take(next_piece)
@@ -412,12 +412,12 @@ def _with_workers(kernel, f_shape, u_shape, i_shape, items=None):
 
 
 @functools.cache
-def pair_advance_kernel(spec: Spec):
-    """``advance(state, t_target, max_steps, key0, key1, path0, p, run) -> (draws_taken,
+def pair_advance_kernel(spec: KernelSpec):
+    """``advance(state, t_target, max_steps, key0, key1, path0, p, step_rec) -> (draws_taken,
     pairs_unfinished)``: the coupled pairs ``state = (x, Omega, xf, Omegaf, xi, xi_aux, t,
     t_comp, k, status)`` of the bias estimate (:mod:`stochpend.bias`) towards ``t_target``.
 
-    In SIMD lanes (``integrator.build_pair_lanes``) when the Spec has them, with the run's fast
+    In SIMD lanes (``integrator.build_pair_lanes``) when the KernelSpec has them, with the run's fast
     math, so the pairs cost what the run's own paths cost per step; else one pair at a time
     (``Integrator.advance_pair``), as the run's paths go one at a time."""
     if integrator.lanes_supported(spec):
@@ -426,27 +426,27 @@ def pair_advance_kernel(spec: Spec):
 
 
 @functools.cache
-def _level_lanes(spec: Spec, levels: int):
+def _level_lanes(spec: KernelSpec, levels: int):
     """The lane machine of ``levels`` members on the workers (:func:`_lanes_kernel`): one per
-    (Spec, levels), whichever kernel function asks (the compiled kernels' statistics read it)."""
+    (KernelSpec, levels), whichever kernel function asks (the compiled kernels' statistics read it)."""
     return _with_workers(_lanes_kernel(spec, levels), (integrator.lane_f_rows(levels), integrator.LANE_COUNT),
                          (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
                          (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
 
 
 @functools.cache
-def _pair_path_kernel(spec: Spec):
+def _pair_path_kernel(spec: KernelSpec):
     return _one_at_a_time(integrator.build(spec).advance_pair, spec.label + "/pairs",
                           spec.cacheable, 2)
 
 
 @functools.cache
-def levels_kernel(spec: Spec, levels: int):
-    """``advance(state, t_target, max_steps, key0, key1, path0, p, run) -> (draws_taken,
+def levels_kernel(spec: KernelSpec, levels: int):
+    """``advance(state, t_target, max_steps, key0, key1, path0, p, step_rec) -> (draws_taken,
     unfinished)``: ``levels`` coupled members (``integrator.build(spec).advance_levels``: steps
     h, h/2, ..., h/2**(levels-1) driven by one noise path), ``state`` of
     :func:`integrator.level_positions` (members 0 .. levels-1, then ``xi, xi_aux, t, t_comp, k,
-    status`` and the additive channel's arrays): in SIMD lanes when the Spec has them
+    status`` and the additive channel's arrays): in SIMD lanes when the KernelSpec has them
     (``integrator.build_level_lanes``, the same numbers), else one path at a time (``levels``
     1 is :func:`path_kernel`, 2 the bias estimate's one-pair kernel)."""
     if integrator.lanes_supported(spec):
@@ -459,7 +459,7 @@ def levels_kernel(spec: Spec, levels: int):
                           spec.cacheable, levels)
 
 
-def _lockstep_kernel(spec: Spec):
+def _lockstep_kernel(spec: KernelSpec):
     steps = integrator.build(spec)
     advance_path = steps.advance_path
     advance_lanes = steps.advance_lanes
@@ -467,7 +467,7 @@ def _lockstep_kernel(spec: Spec):
 
     @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
     @own_index(spec.label)
-    def advance(state, t_target, max_steps, key0, key1, path0, p, run, scratch, next_piece,
+    def advance(state, t_target, max_steps, key0, key1, path0, p, step_rec, scratch, next_piece,
                 nw):  # pragma: no cover - compiled
         x = state[0]
         Omega = state[1]
@@ -516,7 +516,7 @@ def _lockstep_kernel(spec: Spec):
                     if status[i0 + lane] != 0 or t[i0 + lane] >= t_target:
                         continue  # landed or stopped: no call (as in _one_at_a_time)
                     s, u = advance_path(i0 + lane, state, t_target, max_steps, key0, key1,
-                                        path0, p, run)
+                                        path0, p, step_rec)
                     steps_taken += s
                     unfinished += u
                 continue
@@ -530,7 +530,7 @@ def _lockstep_kernel(spec: Spec):
                 bc2[lane] = path & rng._MASK32
                 bc3[lane] = path >> rng._SHIFT32
             s, tt, tc, kk, finite = advance_lanes((bx, bO, bxi, bxa, bc2, bc3, br, bph), t0,
-                                                  tc0, k0, t_target, max_steps, rk0, rk1, p, run)
+                                                  tc0, k0, t_target, max_steps, rk0, rk1, p, step_rec)
             for lane in range(m):
                 x[i0 + lane] = bx[lane]
                 Omega[i0 + lane] = bO[lane]
@@ -549,7 +549,7 @@ def _lockstep_kernel(spec: Spec):
                         status[i0 + lane] = 1
                 for lane in range(m):
                     s2, u = advance_path(i0 + lane, state, t_target, max_steps - s, key0, key1,
-                                         path0, p, run)
+                                         path0, p, step_rec)
                     steps_taken += s2
                     unfinished += u
             elif tt < t_target:
@@ -559,7 +559,7 @@ def _lockstep_kernel(spec: Spec):
     return advance
 
 
-def accumulate_kernel(spec: Spec, observables: tuple[str, ...] = ()):
+def accumulate_kernel(spec: KernelSpec, observables: tuple[str, ...] = ()):
     """``accumulate(x, Omega, xi, t, status, tracks, omega2, q, batch_size, edges, sums, hist)``:
     per-batch sums of the values of the statistics table (:mod:`stochpend.observables`) and of
     the run's user ``observables`` (a per-path accumulator's columns read from its slot of
@@ -578,7 +578,7 @@ def accumulate_kernel(spec: Spec, observables: tuple[str, ...] = ()):
 
 
 @functools.cache
-def _accumulate_kernel(spec: Spec, user: tuple):
+def _accumulate_kernel(spec: KernelSpec, user: tuple):
     path_values = integrator.statistics(spec.oscillator, spec.coupling)
     user_values = observables_.user_values(user, spec.oscillator)
     n_values = len(observables_.SUMS)
@@ -627,7 +627,7 @@ def _accumulate_kernel(spec: Spec, user: tuple):
 
 
 @functools.cache
-def difference_kernel(spec: Spec):
+def difference_kernel(spec: KernelSpec):
     """``differences(x, Omega, xf, Omegaf, status, omega2, q, out)``: over the pairs whose
     ``status`` is 0 (both members finite, after the accumulate kernel marked the rest), the raw
     power sums of each summed value's difference between the fine and the coarse member,
@@ -697,10 +697,10 @@ def joint_sums(counts: np.ndarray, n_b: np.ndarray, out: np.ndarray) -> None:
     out[2 * cells:] = (counts * n_b.astype(np.int64)[:, None]).sum(axis=0)
 
 
-def compiled_kernels(spec: Spec, *, pairs: bool = True) -> dict[str, object]:
+def compiled_kernels(spec: KernelSpec, *, pairs: bool = True) -> dict[str, object]:
     """The Numba dispatchers a run of ``spec`` calls, by kind (``resources.COMPILE_S``):
     ``init``, ``advance``, ``accumulate`` and, with ``pairs`` (the bias estimate), ``pairs``;
-    ``advance_one_path`` and ``pairs_one_path`` for a Spec without a SIMD driver. Nothing is
+    ``advance_one_path`` and ``pairs_one_path`` for a KernelSpec without a SIMD driver. Nothing is
     compiled here."""
     one_path = advance_kernel(spec) is path_kernel(spec)  # no SIMD driver: less to compile
     suffix = "_one_path" if one_path else ""
@@ -711,7 +711,7 @@ def compiled_kernels(spec: Spec, *, pairs: bool = True) -> dict[str, object]:
     return {kind: getattr(kernel, "kernel", kernel) for kind, kernel in out.items()}
 
 
-def kernels(spec: Spec) -> SimpleNamespace:
+def kernels(spec: KernelSpec) -> SimpleNamespace:
     """``init``, ``advance`` and ``accumulate`` for ``spec`` (compiled on first call)."""
     return SimpleNamespace(init=init_kernel(spec), advance=advance_kernel(spec),
                            accumulate=accumulate_kernel(spec), spec=spec)
@@ -731,7 +731,7 @@ class Engine:
     k: np.ndarray
     status: np.ndarray
 
-    def __init__(self, config, spec: Spec, capacity: int, n_chunk_batches: int) -> None:
+    def __init__(self, config, spec: KernelSpec, capacity: int, n_chunk_batches: int) -> None:
         self.config = config
         self.spec = spec
         self.kernels = kernels(spec)
@@ -743,7 +743,7 @@ class Engine:
             self.kernels.advance = tracked_kernel(spec, self.accs)
         self.key0, self.key1 = config.keys.main
         self.record = spec.noise.record(config)
-        self.run = integrator.run_record(config)
+        self.step_rec = integrator.step_record(config)
         # The additive channel's per-path arrays (xi_a, aux_a), after the others in the state:
         # only for a run with a coloured additive noise.
         self.additive = dynamics.additive_arrays(config)
@@ -825,7 +825,7 @@ class Engine:
 
     def advance(self, t_target: float, max_steps: int) -> bool:
         _, unfinished = self.kernels.advance(self.state(), t_target, max_steps, self.key0,
-                                             self.key1, self.p0, self.record, self.run)
+                                             self.key1, self.p0, self.record, self.step_rec)
         return unfinished == 0
 
     def time_sum(self, t_target: float, done: bool) -> float:
@@ -834,7 +834,7 @@ class Engine:
     def accumulate(self, j: int, edges_j: np.ndarray) -> None:
         c = self.config
         nb = self.nb
-        self.kernels.accumulate(self.x, self.Omega, self.xi, self.t, self.status, self.tracks, c.omega**2, self.run[integrator.RUN_Q],
+        self.kernels.accumulate(self.x, self.Omega, self.xi, self.t, self.status, self.tracks, c.omega**2, self.step_rec[integrator.STEP_Q],
                                 c.batch_size, edges_j, self.chunk_sums[:, j, :], self.hist[:nb])
         self.chunk_hist[j, :self.n_e] = self.hist[:nb].sum(axis=0)
         if self.joint_grid is not None:
@@ -885,7 +885,7 @@ class LevelEngine:
     name = "cpu"
     accs: tuple = ()
 
-    def __init__(self, config, spec: Spec, capacity: int, n_chunk_batches: int, *, levels: int,
+    def __init__(self, config, spec: KernelSpec, capacity: int, n_chunk_batches: int, *, levels: int,
                  differences: bool = False) -> None:
         if differences and levels != 2:
             raise ValueError(f"differences of levels={levels!r} are not accepted: only of 2 members")
@@ -898,7 +898,7 @@ class LevelEngine:
         self.difference_k = difference_kernel(spec) if differences else None
         self.key0, self.key1 = config.keys.main
         self.record = spec.noise.record(config)
-        self.run = integrator.run_record(config)
+        self.step_rec = integrator.step_record(config)
         # The kernels' state tuple, by name (stochpend.engine.layout): the members' arrays, the
         # shared noise, clock and status, then the additive channel's (a run with it).
         self.additive = dynamics.additive_arrays(config)
@@ -911,7 +911,7 @@ class LevelEngine:
         self.n = 0
 
     @staticmethod
-    def kernels(spec: Spec, levels: int) -> tuple[Any, Any]:
+    def kernels(spec: KernelSpec, levels: int) -> tuple[Any, Any]:
         """The backend's init and levels kernels."""
         return init_kernel(spec), levels_kernel(spec, levels)
 
@@ -958,7 +958,7 @@ class LevelEngine:
 
     def advance(self, t_target: float, max_steps: int) -> bool:
         _, unfinished = self.advance_k(self.state(), t_target, max_steps, self.key0, self.key1,
-                                       self.path0, self.record, self.run)
+                                       self.path0, self.record, self.step_rec)
         return unfinished == 0
 
     def time_sum(self, t_target: float, done: bool) -> float:
@@ -980,7 +980,7 @@ class LevelEngine:
         members, xi, t, status = self.host_members()
         hist = np.zeros((self.nb, 2), dtype=np.int64)  # the kernel counts energies; not used
         tracks = np.zeros((self.n_tracks, self.n))  # the accumulators' slots, which the members lack
-        q = self.run[integrator.RUN_Q]
+        q = self.step_rec[integrator.STEP_Q]
         sums = self.chunk_sums[:, j]
 
         def add(m: int) -> None:

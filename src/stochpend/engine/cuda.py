@@ -2,7 +2,7 @@
 
 The kernels only orchestrate, exactly like the CPU drivers: every step is
 :mod:`stochpend.engine.integrator`'s ``advance_path``, specialised for the run's
-:class:`~stochpend.engine.integrator.Spec` (oscillator, coupling, noise, precision, step mode), so
+:class:`~stochpend.engine.integrator.KernelSpec` (oscillator, coupling, noise, precision, step mode), so
 each model compiles to its own kernel with no branch on a model code. Everything a path needs
 is a pure function of (seed, global path index, step number), so a path takes the same Philox
 draws on both backends (the same steps, up to the floating-point differences of a real GPU:
@@ -47,7 +47,7 @@ from numba.extending import register_jitable
 from numba.np import numpy_support
 
 from stochpend.engine import cpu, integrator, layout
-from stochpend.engine.integrator import Spec
+from stochpend.engine.integrator import KernelSpec
 from stochpend.engine.layout import path_dtypes
 from stochpend.model import dynamics, initial, observables
 from stochpend.model.observables import N_SUMS, S_COUNT, S_NONFINITE
@@ -205,9 +205,9 @@ def _register_mulhilo() -> bool:
 PHILOX_MUL_WIDE_U32 = _register_mulhilo()
 
 
-def spec_for(config: SimulationConfig, precision: str = "float64") -> Spec:
-    """The Spec the GPU runs ``config`` with (the C library's math, every model)."""
-    return Spec.of(config, precision=precision)
+def spec_for(config: SimulationConfig, precision: str = "float64") -> KernelSpec:
+    """The KernelSpec the GPU runs ``config`` with (the C library's math, every model)."""
+    return KernelSpec.of(config, precision=precision)
 
 
 # -- device helpers ---------------------------------------------------------------------------
@@ -231,9 +231,9 @@ def hist_column(edges, j, E):
     return lo
 
 
-# -- the kernels of a Spec ----------------------------------------------------------------------
+# -- the kernels of a KernelSpec ----------------------------------------------------------------------
 @functools.cache
-def init_kernel(spec: Spec):
+def init_kernel(spec: KernelSpec):
     """``init[blocks, threads](state, key0, key1, path0, theta0, uniform_theta0, Omega0, xi0,
     stationary_xi0, p)``: one path per thread of ``state = (x, Omega, xi, xi_aux, t, t_comp,
     k, status)``, the initial values computed in float64 (they depend on the noise only); ``p``
@@ -271,9 +271,9 @@ def init_kernel(spec: Spec):
 
 
 @functools.cache
-def advance_kernel(spec: Spec):
-    """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, run,
-    unfinished)``: the integrator's ``advance_path`` (its ``state``, ``p`` and ``run``) for one
+def advance_kernel(spec: KernelSpec):
+    """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, step_rec,
+    unfinished)``: the integrator's ``advance_path`` (its ``state``, ``p`` and ``step_rec``) for one
     path per thread; sets ``unfinished[0] = 1`` if a
     path stopped short of ``t_target`` (step budget spent). The clock's compensation ``t_comp``
     is path state, so the result does not depend on how a segment is split into launches."""
@@ -281,12 +281,12 @@ def advance_kernel(spec: Spec):
 
     @cuda.jit(cache=spec.cacheable)
     @own_index(spec.label)
-    def advance(state, t_target, max_steps, key0, key1, path0, p, run,
+    def advance(state, t_target, max_steps, key0, key1, path0, p, step_rec,
                 unfinished):  # pragma: no cover
         i = cuda.grid(1)
         if i >= state[0].shape[0]:
             return
-        _, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)
+        _, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, step_rec)
         if u != 0:
             unfinished[0] = 1
 
@@ -294,19 +294,19 @@ def advance_kernel(spec: Spec):
 
 
 @functools.cache
-def tracked_kernel(spec: Spec, accs: tuple):
+def tracked_kernel(spec: KernelSpec, accs: tuple):
     """:func:`advance_kernel` of a run with per-path accumulators ``accs``
     (:func:`stochpend.observables.track_step`): ``state`` holds their slots as ``state[8]``,
     (n_slots, n_paths) float64. Compiled in memory (a user's functions)."""
     advance_path = integrator.build(spec, observables.track_step(accs)).advance_path
 
     @cuda.jit
-    def advance(state, t_target, max_steps, key0, key1, path0, p, run,
+    def advance(state, t_target, max_steps, key0, key1, path0, p, step_rec,
                 unfinished):  # pragma: no cover
         i = cuda.grid(1)
         if i >= state[0].shape[0]:
             return
-        _, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)
+        _, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, step_rec)
         if u != 0:
             unfinished[0] = 1
 
@@ -314,8 +314,8 @@ def tracked_kernel(spec: Spec, accs: tuple):
 
 
 @functools.cache
-def pair_advance_kernel(spec: Spec):
-    """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, run,
+def pair_advance_kernel(spec: KernelSpec):
+    """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, step_rec,
     unfinished)``: the integrator's ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate) for
     one pair per thread, as :func:`advance_kernel` runs ``advance_path``: :func:`levels_kernel` with
     2 members (its device variant ``device_levels[2]``: the same operations, the draw tree's nodes
@@ -324,8 +324,8 @@ def pair_advance_kernel(spec: Spec):
 
 
 @functools.cache
-def levels_kernel(spec: Spec, levels: int):
-    """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, run,
+def levels_kernel(spec: KernelSpec, levels: int):
+    """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, step_rec,
     unfinished)``: ``levels`` coupled members (the integrator's ``advance_levels[levels]``:
     steps h, h/2, ..., h/2**(levels-1) driven by one noise path; ``state`` of
     ``integrator.level_positions``) for one path per thread, as :func:`advance_kernel` runs one
@@ -337,12 +337,12 @@ def levels_kernel(spec: Spec, levels: int):
 
     @cuda.jit(cache=spec.cacheable)
     @own_index(label)
-    def advance(state, t_target, max_steps, key0, key1, path0, p, run,
+    def advance(state, t_target, max_steps, key0, key1, path0, p, step_rec,
                 unfinished):  # pragma: no cover
         i = cuda.grid(1)
         if i >= state[0].shape[0]:
             return
-        _, u = advance_levels(i, state, t_target, max_steps, key0, key1, path0, p, run)
+        _, u = advance_levels(i, state, t_target, max_steps, key0, key1, path0, p, step_rec)
         if u != 0:
             unfinished[0] = 1
 
@@ -352,14 +352,14 @@ def levels_kernel(spec: Spec, levels: int):
 class LevelEngine(cpu.LevelEngine):
     """Device arrays of a chunk of coupled members (``runner.run_batches`` with ``levels`` > 1
     on a GPU run: the bias estimate's pairs): the members start like the run's paths (the
-    Spec's ``init`` kernel, then every member at member 0's start) and are advanced by
+    KernelSpec's ``init`` kernel, then every member at member 0's start) and are advanced by
     :func:`levels_kernel`; per output time the host copies back the members' state, which the
     CPU's accumulate kernel then sums (so, given the states, the CPU's sums)."""
 
     name = "cuda"
 
     @staticmethod
-    def kernels(spec: Spec, levels: int) -> tuple[Any, Any]:
+    def kernels(spec: KernelSpec, levels: int) -> tuple[Any, Any]:
         _require(spec.precision)
         return init_kernel(spec), levels_kernel(spec, levels)
 
@@ -397,7 +397,7 @@ class LevelEngine(cpu.LevelEngine):
             self.flag.copy_to_device(self._zero_flag)
             self.advance_k[_blocks(self.n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
                 tuple(self.d[name] for name in self.layout), t_target, max_steps, self.key0,
-                self.key1, self.path0, self.record, self.run, self.flag)
+                self.key1, self.path0, self.record, self.step_rec, self.flag)
             return int(self.flag.copy_to_host()[0]) == 0
 
     def time_sum(self, t_target: float, done: bool) -> float:
@@ -415,7 +415,7 @@ class LevelEngine(cpu.LevelEngine):
         return int(np.sum(self.d["k"].copy_to_host(), dtype=np.uint64))
 
 
-def accumulate_kernel(spec: Spec, observables_: tuple[str, ...] = ()):
+def accumulate_kernel(spec: KernelSpec, observables_: tuple[str, ...] = ()):
     """``accumulate[n_batches, STATS_THREADS](x, Omega, xi, t, status, tracks, omega2, q,
     batch_size, edges, j, sums, hist)``: the CPU's per-batch sums at output time j, block b
     summing batch b of the chunk into ``sums[b, j, :]`` in path order (the statistics table's
@@ -426,7 +426,7 @@ def accumulate_kernel(spec: Spec, observables_: tuple[str, ...] = ()):
 
 
 @functools.cache
-def _accumulate_kernel(spec: Spec, user: tuple):
+def _accumulate_kernel(spec: KernelSpec, user: tuple):
     path_values = integrator.statistics(spec.oscillator, spec.coupling)
     user_values = observables.user_values(user, spec.oscillator)
     tpb = STATS_THREADS
@@ -629,7 +629,7 @@ class Engine:
     d_xi_a: Any  # a run with the additive channel of a coloured noise only
     d_aux_a: Any  # a run with the generic additive channel only
 
-    def __init__(self, config: SimulationConfig, spec: Spec, capacity: int,
+    def __init__(self, config: SimulationConfig, spec: KernelSpec, capacity: int,
                  n_chunk_batches: int) -> None:
         _require(spec.precision)
         self.config = config
@@ -674,7 +674,7 @@ class Engine:
         self._fill_checked = False
         self.key0, self.key1 = config.keys.main
         self.record = spec.noise.record(config)
-        self.run = integrator.run_record(config)
+        self.step_rec = integrator.step_record(config)
         self.n = 0
         self.nb = 0
         self.p0 = 0
@@ -766,7 +766,7 @@ class Engine:
             self.flag.copy_to_device(self._zero_flag)
             self.advance_k[_blocks(self.n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
                 self._state(), t_target, max_steps, self.key0, self.key1, self.p0, self.record,
-                self.run, self.flag)
+                self.step_rec, self.flag)
             return int(self.flag.copy_to_host()[0]) == 0
 
     def time_sum(self, t_target: float, done: bool) -> float:
@@ -777,7 +777,7 @@ class Engine:
         x, Omega, xi, _, t, _, _, status = self._views()
         with _quiet():
             self.accumulate_k[self.nb, STATS_THREADS](
-                x, Omega, xi, t, status, self.d_tracks[:, : self.n], c.omega**2, self.run[integrator.RUN_Q],
+                x, Omega, xi, t, status, self.d_tracks[:, : self.n], c.omega**2, self.step_rec[integrator.STEP_Q],
                 c.batch_size, self.d_edges, j, self.d_sums, self.d_hist)
             if self.joint_grid is not None:
                 x_edges, O_edges = self.joint_grid
@@ -915,20 +915,20 @@ def _other_kernels(precisions: tuple[str, ...]) -> list[tuple[str, object, tuple
     user = _user_objects()
     for precision in precisions:
         for noise in noises.BUILTIN:
-            out.append((f"init {noise.name}/{precision}", init_kernel(Spec(pendulum, "force", noise, precision, True)).py_func,
+            out.append((f"init {noise.name}/{precision}", init_kernel(KernelSpec(pendulum, "force", noise, precision, True)).py_func,
                         _init_signature(precision, noise)))
     # Tracked advance: each accumulator kind, then all of them, on the paper's OU pendulum; and
     # all of them with the family's damping and the generic additive channel (the state's
     # arrays: the slots, then the channel's).
     for precision in precisions:
         for adaptive in (True, False):
-            spec = Spec(pendulum, "force", builtin["ou"], precision, adaptive)
+            spec = KernelSpec(pendulum, "force", builtin["ou"], precision, adaptive)
             for kind, objs in user.items():
                 accs = observables.accumulators(objs)
                 out.append((f"tracked {spec.label} [{kind}]", tracked_kernel(spec, accs).py_func,
                             _advance_signature(precision, spec.noise, pendulum, tracks=True)))
         terms = frozenset({"damping", "additive_noise"})
-        spec = Spec(pendulum, "force", builtin["white"], precision, True, False, terms, builtin["dichotomous"])
+        spec = KernelSpec(pendulum, "force", builtin["white"], precision, True, False, terms, builtin["dichotomous"])
         accs = observables.accumulators(user["all"])
         out.append((f"tracked {spec.label} [all]", tracked_kernel(spec, accs).py_func,
                     _advance_signature(precision, spec.noise, pendulum, terms, spec.additive, tracks=True)))
@@ -940,10 +940,10 @@ def _other_kernels(precisions: tuple[str, ...]) -> list[tuple[str, object, tuple
             for coupling in oscillators.COUPLINGS:
                 if osc.periodic and coupling == "position":
                     continue
-                spec = Spec(osc, coupling, builtin["ou"], precision, True)
+                spec = KernelSpec(osc, coupling, builtin["ou"], precision, True)
                 out.append((f"accumulate {osc.name}/{coupling}/{precision}",
                             _accumulate_kernel(spec, ()).py_func, _accumulate_signature(precision, osc)))
-        spec = Spec(pendulum, "force", builtin["ou"], precision, True)
+        spec = KernelSpec(pendulum, "force", builtin["ou"], precision, True)
         for kind, objs in user.items():
             out.append((f"accumulate pendulum/force/{precision} [{kind}]",
                         _accumulate_kernel(spec, objs).py_func, _accumulate_signature(precision, pendulum)))
@@ -955,9 +955,9 @@ def _other_kernels(precisions: tuple[str, ...]) -> list[tuple[str, object, tuple
 
 def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: frozenset = frozenset(),
                        additive: Any = None, tracks: bool = False):
-    """(state, t_target, max_steps, key0, key1, path0, p, run, unfinished) as the host launches
+    """(state, t_target, max_steps, key0, key1, path0, p, step_rec, unfinished) as the host launches
     the advance kernel of ``noise`` and ``oscillator``: the noise's record, one float64 per
-    ``noise.parameters``; the run record (omega2, q, h_max, step_c) with the oscillator's record
+    ``noise.parameters``; the step record (omega2, q, h_max, step_c) with the oscillator's record
     q, one float64 per ``oscillator.parameters`` (at least one: ``Oscillator.record``); with the
     generic additive channel (``additive``, its noise), its record and its Philox key; with
     per-path accumulators (``tracks``, :func:`tracked_kernel`), their slots after ``status``."""
@@ -972,15 +972,15 @@ def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: froze
     # The oscillator's record as Oscillator.record builds it: an integer setting (power_n) stays
     # an integer, everything else is a float.
     q = _q_type(oscillator)
-    run_fields = [nbtypes.float64, q, nbtypes.float64, nbtypes.float64]
+    step_fields = [nbtypes.float64, q, nbtypes.float64, nbtypes.float64]
     if terms:  # the family's record d (stochpend.model.dynamics.record): ten float64
-        run_fields.append(nbtypes.UniTuple(nbtypes.float64, 10))
+        step_fields.append(nbtypes.UniTuple(nbtypes.float64, 10))
     if additive is not None:  # the channel's record pa and key (ka0, ka1)
-        run_fields.append(nbtypes.UniTuple(nbtypes.float64, len(additive.parameters)))
-        run_fields.append(nbtypes.UniTuple(nbtypes.uint64, 2))
-    run = nbtypes.Tuple(tuple(run_fields))
+        step_fields.append(nbtypes.UniTuple(nbtypes.float64, len(additive.parameters)))
+        step_fields.append(nbtypes.UniTuple(nbtypes.uint64, 2))
+    step_rec = nbtypes.Tuple(tuple(step_fields))
     return (state, nbtypes.float64, nbtypes.int64, nbtypes.uint64, nbtypes.uint64, nbtypes.int64,
-            record, run, nbtypes.Array(nbtypes.int32, 1, "C"))
+            record, step_rec, nbtypes.Array(nbtypes.int32, 1, "C"))
 
 
 def _pair_advance_signature(noise: Any, oscillator: Any, terms: frozenset = frozenset(),
@@ -1019,7 +1019,7 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
                     continue
                 for noise in noises.BUILTIN:
                     for adaptive in (True, False):
-                        spec = Spec(osc, coupling, noise, precision, adaptive)
+                        spec = KernelSpec(osc, coupling, noise, precision, adaptive)
                         kernel = advance_kernel(spec)
                         out.append((f"advance {spec.label}", kernel.py_func,
                                     _advance_signature(precision, noise, osc)))
@@ -1035,7 +1035,7 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
             for noise in noises.BUILTIN:
                 if noise.name not in ("ou", "white"):
                     continue
-                spec = Spec(pendulum, "force", noise, precision, True, False, terms)
+                spec = KernelSpec(pendulum, "force", noise, precision, True, False, terms)
                 out.append((f"advance {spec.label}", advance_kernel(spec).py_func,
                             _advance_signature(precision, noise, pendulum, terms)))
                 if precision == "float64":
@@ -1050,7 +1050,7 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
         channel = builtin[channel_name]
         terms = frozenset({"damping", "additive_noise"})
         for precision in precisions:
-            spec = Spec(pendulum, "force", white, precision, True, False, terms, channel)
+            spec = KernelSpec(pendulum, "force", white, precision, True, False, terms, channel)
             out.append((f"advance {spec.label}", advance_kernel(spec).py_func,
                         _advance_signature(precision, white, pendulum, terms, channel)))
             if precision == "float64":
@@ -1061,22 +1061,22 @@ def kernel_variants(precisions: tuple[str, ...] = PRECISIONS) -> list[tuple[str,
 
 def _levels_kernels() -> list[tuple[str, object, tuple]]:
     """The coupled levels' kernels (:func:`levels_kernel`, 3 and 4 members; 2 is ``pairs``),
-    float64 as the pairs, labelled ``levels <Spec> [L=n]``: the paper's pendulum with each
+    float64 as the pairs, labelled ``levels <KernelSpec> [L=n]``: the paper's pendulum with each
     built-in noise (adaptive steps), OU with fixed steps, the family's term sets of
     :func:`kernel_variants` and the generic additive channel."""
     from stochpend.model import noises, oscillators
 
     builtin = {noise.name: noise for noise in noises.BUILTIN}
     pendulum = oscillators.BUILTIN["pendulum"]
-    specs = [(Spec(pendulum, "force", noise, "float64", True), ()) for noise in noises.BUILTIN]
-    specs.append((Spec(pendulum, "force", builtin["ou"], "float64", False), ()))
+    specs = [(KernelSpec(pendulum, "force", noise, "float64", True), ()) for noise in noises.BUILTIN]
+    specs.append((KernelSpec(pendulum, "force", builtin["ou"], "float64", False), ()))
     for terms in (frozenset({"damping", "additive"}),
                   frozenset({"additive", *(term.name for term in TABLE)})):
-        specs.append((Spec(pendulum, "force", builtin["white"], "float64", True, False, terms), ()))
+        specs.append((KernelSpec(pendulum, "force", builtin["white"], "float64", True, False, terms), ()))
     for channel_name in ("ou", "harmonic", "dichotomous"):
         channel = builtin[channel_name]
         terms = frozenset({"damping", "additive_noise"})
-        specs.append((Spec(pendulum, "force", builtin["white"], "float64", True, False, terms, channel), ()))
+        specs.append((KernelSpec(pendulum, "force", builtin["white"], "float64", True, False, terms, channel), ()))
     out = []
     for spec, _ in specs:
         for levels in integrator.LEVELS[2:]:

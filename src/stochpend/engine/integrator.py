@@ -16,7 +16,7 @@ loading, the step control, the landing and events, the clock, the finiteness che
 write-back. :func:`build` assembles it from four bundles, each from its own builder: the
 oscillator's pieces, the noise's, the family's terms and the generic additive channel's.
 
-:func:`build` compiles nothing itself: for one :class:`Spec` -- (oscillator, coupling, noise,
+:func:`build` compiles nothing itself: for one :class:`KernelSpec` -- (oscillator, coupling, noise,
 precision, adaptive or fixed step, math library) -- it returns the ``register_jitable``
 functions that the backends' thin drivers call:
 
@@ -37,7 +37,7 @@ functions that the backends' thin drivers call:
   coupled members (:func:`build_pair_lanes`: L = 2, the bias estimate's pairs);
 * ``init_path`` (initial conditions) and ``path_values`` (what the statistics sum).
 
-Every choice in the Spec is a Python constant captured by these closures, so each combination
+Every choice in the KernelSpec is a Python constant captured by these closures, so each combination
 compiles to its own straight-line code: no branch on a noise or model code inside a kernel.
 """
 
@@ -65,7 +65,7 @@ from stochpend.numerics import rng
 from stochpend.numerics._jitcache import name_closures
 from stochpend.numerics.mathlib import FAST, LIBM
 
-__all__ = ["SCHEME", "Spec", "build", "landing_step", "advance_clock", "run_record"]
+__all__ = ["SCHEME", "KernelSpec", "build", "landing_step", "advance_clock", "step_record"]
 
 #: Integrator metadata, stored in every result's attrs.
 SCHEME = {
@@ -156,13 +156,13 @@ def advance_clock(t, t_comp, h, last, t_target):
     return t_new, (t_new - t) - y
 
 
-#: The run record's fields (:func:`run_record`), in order: declared once, read by name (the
-#: ``RUN_*`` positions below) in every kernel.
-RUN_RECORD = ("omega2", "q", "h_max", "step_c", "d", "channel_record", "channel_key")
-RUN_OMEGA2, RUN_Q, RUN_H_MAX, RUN_STEP_C, RUN_D, RUN_CHANNEL_RECORD, RUN_CHANNEL_KEY = range(len(RUN_RECORD))
+#: The step record's fields (:func:`step_record`), in order: declared once, read by name (the
+#: ``STEP_*`` positions below) in every kernel.
+STEP_RECORD = ("omega2", "q", "h_max", "step_c", "d", "channel_record", "channel_key")
+STEP_OMEGA2, STEP_Q, STEP_H_MAX, STEP_STEP_C, STEP_D, STEP_CHANNEL_RECORD, STEP_CHANNEL_KEY = range(len(STEP_RECORD))
 
 
-def run_record(config: Any) -> tuple[Any, ...]:
+def step_record(config: Any) -> tuple[Any, ...]:
     """The run's scalars as the kernels take them, one record ``(omega2, q, h_max, step_c)``
     (and, for a run with the family's terms on, their record ``d`` fifth; with the generic
     additive channel, its noise's record ``pa`` (:func:`stochpend.model.dynamics.channel_record`) and
@@ -174,19 +174,19 @@ def run_record(config: Any) -> tuple[Any, ...]:
     everything of the configuration a step reads."""
     oscillator = _oscillators.get(config.potential)
     assert oscillator is not None, config.potential  # validated when the config was built
-    run = (float(config.omega**2), oscillator.record(config), float(config.h_max), float(config.step_c))
+    head = (float(config.omega**2), oscillator.record(config), float(config.h_max), float(config.step_c))
     terms = _dynamics.terms_of_config(config)
     if "additive_noise" in terms:  # the generic additive channel: its noise's record, its key
-        return (*run, _dynamics.record(config), _dynamics.channel_record(config),
+        return (*head, _dynamics.record(config), _dynamics.channel_record(config),
                 rng.run_keys(config.seed).additive)
     if terms:  # terms on: their record d
-        return (*run, _dynamics.record(config))
-    return run
+        return (*head, _dynamics.record(config))
+    return head
 
 
 # -- what a kernel is specialised for ------------------------------------------------------------
 @dataclass(frozen=True)
-class Spec:
+class KernelSpec:
     """Everything a compiled kernel is specialised for.
 
     ``adaptive``: the step control h = min(h_max, c/v, c/sqrt(k)) (``step_c > 0``), else the
@@ -220,8 +220,8 @@ class Spec:
                              "term 'additive_noise' and its noise go together")
 
     @classmethod
-    def of(cls, config: Any, *, precision: str = "float64", fast_math: bool = False) -> Spec:
-        """The Spec of a validated :class:`stochpend.model.settings.SimulationConfig`."""
+    def of(cls, config: Any, *, precision: str = "float64", fast_math: bool = False) -> KernelSpec:
+        """The KernelSpec of a validated :class:`stochpend.model.settings.SimulationConfig`."""
         oscillator = _oscillators.get(config.potential)
         noise = _noises.get(config.noise)
         if oscillator is None or noise is None:  # validated configs never get here
@@ -269,13 +269,13 @@ def _inline(function: Any) -> Any:
 
 
 @register_jitable
-def _no_dyn(run):
+def _no_dyn(step_rec):
     return (0.0,)
 
 
 @register_jitable
-def _dyn_of(run):
-    return run[RUN_D]
+def _dyn_of(step_rec):
+    return step_rec[STEP_D]
 
 
 #: Where the kernels read the family's record d (:data:`stochpend.model.dynamics.RECORD`).
@@ -286,13 +286,13 @@ _EPS, _NU_P = _AT["parametric_amplitude"], _AT["parametric_frequency"]
 
 
 @register_jitable
-def _channel_of(run):
-    """The generic additive channel's noise record and Philox key from the run record."""
-    return run[RUN_CHANNEL_RECORD], run[RUN_CHANNEL_KEY]
+def _channel_of(step_rec):
+    """The generic additive channel's noise record and Philox key from the step record."""
+    return step_rec[STEP_CHANNEL_RECORD], step_rec[STEP_CHANNEL_KEY]
 
 
 @register_jitable
-def _no_channel(run):
+def _no_channel(step_rec):
     return (0.0,), (_U64(0), _U64(0))
 
 
@@ -512,7 +512,7 @@ def _loop_positions(LEVELS: int, TRACKED: bool, CHANNEL: bool) -> SimpleNamespac
     ``X<m>``, ``O<m>`` (x's and Omega's, read and never written, for a member beyond ``LEVELS``:
     ``HAS<m>`` false), ``XI, XA, T, TC, K, ST`` (xi, xi_aux, t, t_comp, k, status), then the
     accumulators' slots ``TRK`` and the additive channel's xi_a ``ADD`` and aux_a ``AUXA``, each
-    only when the Spec has it (``TRACKED``, ``CHANNEL``: the generic channel); 0 (x's, never
+    only when the KernelSpec has it (``TRACKED``, ``CHANNEL``: the generic channel); 0 (x's, never
     read) otherwise.
 
     Constant indices, like every array of the loop: not a function returning ``state[8]``,
@@ -663,7 +663,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
     times (:func:`_draw_tree`) and advances the members (:func:`_member_tree`). ``LEVELS`` is
     a compile-time constant: each variant compiles to its own straight-line code.
 
-    The bundles are :func:`build`'s pieces for the Spec, by name: ``noise`` (the noise's device
+    The bundles are :func:`build`'s pieces for the KernelSpec, by name: ``noise`` (the noise's device
     functions and its exact step ``step``), ``oscillator`` (``real``, ``half``, ``verlet``,
     ``step_size``), ``family`` (the family's terms: ``FAMILY``, ``family_step``, the additive
     white channel), ``channel`` (the additive channel of a coloured noise, ``CHANNEL``) and ``control``
@@ -702,7 +702,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
     load_channel, write_back = _path_io(LEVELS, at, real, channel.a_load_aux, flat)
     choose_step, at_events = _step_choice(LEVELS, noise, oscillator, family, channel, control)
 
-    def advance(i, state, t_target, max_steps, key0, key1, path0, p, run):
+    def advance(i, state, t_target, max_steps, key0, key1, path0, p, step_rec):
         # The arrays of a tuple are taken by index, never unpacked (``x, Omega, ... =
         # state``): with an unpacked tuple, Numba (0.68) dropped the stores into the arrays
         # once it had inlined an ``inline="always"`` function (the fast-math OU
@@ -710,13 +710,13 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         # takes a tuple of arrays.
         if state[I_ST][i] != 0 or state[I_T][i] >= t_target:
             return 0, 0
-        omega2 = run[RUN_OMEGA2]
-        q = run[RUN_Q]
-        h_max = run[RUN_H_MAX]
-        d = dyn_of(run)
+        omega2 = step_rec[STEP_OMEGA2]
+        q = step_rec[STEP_Q]
+        h_max = step_rec[STEP_H_MAX]
+        d = dyn_of(step_rec)
         omega2_r = real(omega2)
         h_max_r = real(h_max)
-        c_r = real(run[RUN_STEP_C])
+        c_r = real(step_rec[STEP_STEP_C])
         path = _U64(path0 + i)
         mem = nest(state[0][i], state[1][i], state[I_X1][i], state[I_O1][i], state[I_X2][i],
                    state[I_O2][i], state[I_X3][i], state[I_O3][i])
@@ -732,7 +732,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
         # The additive channel's state, record and key; t_ev, t_ev_a the noise's and the
         # channel's next events.
         xc, xca = load_channel(i, state)
-        p_channel, keys_channel = channel_of(run)
+        p_channel, keys_channel = channel_of(step_rec)
         keys = (key0, key1, keys_channel[0], keys_channel[1])
         Sa = a_scratch0()
         # Everything of the noise's step that depends on h only (with several members, on the
@@ -799,11 +799,11 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
 
 
 def _lockstep_lanes(*, real, coefficients, update, verlet, mathlib_log, mathlib_sincos) -> Any:
-    """``advance_lanes`` of a Spec from :func:`build`'s pieces of the same names (see
+    """``advance_lanes`` of a KernelSpec from :func:`build`'s pieces of the same names (see
     :func:`_step_loop`)."""
 
     @register_jitable
-    def advance_lanes(block, t0, tc0, k0, t_target, max_steps, rk0, rk1, p, run):
+    def advance_lanes(block, t0, tc0, k0, t_target, max_steps, rk0, rk1, p, step_rec):
         """The steps of :func:`advance_path` for ``LANES`` lanes in lock step (fixed step, a noise
         with ``pair_draws``): every lane has the time ``t0``, compensation ``tc0`` and step
         count ``k0``, so the landing, the clock and the noise coefficients are computed once,
@@ -816,7 +816,7 @@ def _lockstep_lanes(*, real, coefficients, update, verlet, mathlib_log, mathlib_
 
         The arithmetic is advance_path's, operation for operation. ``block``: the lanes' arrays
         ``(bx, bO, bxi, bxa, bc2, bc3, br, bph)``; the state arrays (``bx``, ``bO``, ``bxi``,
-        ``bxa``) are updated in place. ``p``, ``run`` as for :func:`advance_path` (``step_c``
+        ``bxa``) are updated in place. ``p``, ``step_rec`` as for :func:`advance_path` (``step_c``
         unused). Returns ``(steps, t, t_comp, k, finite)``; on a non-finite lane the block stops
         after that step (``finite`` False) and the caller finishes its paths one by one.
         """
@@ -829,9 +829,9 @@ def _lockstep_lanes(*, real, coefficients, update, verlet, mathlib_log, mathlib_
         bc3 = block[5]
         br = block[6]
         bph = block[7]
-        omega2 = run[RUN_OMEGA2]
-        q = run[RUN_Q]
-        h_max = run[RUN_H_MAX]
+        omega2 = step_rec[STEP_OMEGA2]
+        q = step_rec[STEP_Q]
+        h_max = step_rec[STEP_H_MAX]
         omega2_r = real(omega2)
         h_max_r = real(h_max)
         tt = t0
@@ -876,7 +876,7 @@ def _lockstep_lanes(*, real, coefficients, update, verlet, mathlib_log, mathlib_
 
 
 
-def _oscillator_pieces(spec: Spec, real: Any, mathlib: Any) -> SimpleNamespace:
+def _oscillator_pieces(spec: KernelSpec, real: Any, mathlib: Any) -> SimpleNamespace:
     """The oscillator's pieces of ``spec`` in precision ``real`` with ``mathlib``: ``G`` (what the
     noise multiplies), ``step_size`` (the step control), ``verlet`` (one drift-kick-drift step)
     and ``verlet_step`` (``verlet`` under the member tree's arguments), with ``force``, ``wrap``
@@ -939,7 +939,7 @@ def _oscillator_pieces(spec: Spec, real: Any, mathlib: Any) -> SimpleNamespace:
                            verlet=verlet, verlet_step=verlet_step)
 
 
-def _noise_pieces(spec: Spec, real: Any, mathlib: Any) -> SimpleNamespace:
+def _noise_pieces(spec: KernelSpec, real: Any, mathlib: Any) -> SimpleNamespace:
     """The noise's pieces of ``spec`` (:class:`stochpend.noises.base.NoiseKernel`'s functions in
     precision ``real`` with ``mathlib``), with ``step``: its exact step as a leaf of the draw
     tree (:func:`_draw_tree`)."""
@@ -960,7 +960,7 @@ def _noise_pieces(spec: Spec, real: Any, mathlib: Any) -> SimpleNamespace:
                            at_event=nz.at_event, step=noise_step)
 
 
-def _family_pieces(spec: Spec, real: Any, mathlib: Any, oscillator: SimpleNamespace) -> SimpleNamespace:
+def _family_pieces(spec: KernelSpec, real: Any, mathlib: Any, oscillator: SimpleNamespace) -> SimpleNamespace:
     """The family's terms of ``spec`` (:mod:`stochpend.model.dynamics`): their flags, the step with
     them (``family_step``, and ``family_step_inline`` for the lane machines), their step bounds,
     the additive white channel's leaf of the draw tree and the coarse members' combination of
@@ -1050,7 +1050,7 @@ def _family_pieces(spec: Spec, real: Any, mathlib: Any, oscillator: SimpleNamesp
     @register_jitable
     def additive_normal(key0, key1, path, n):
         """The additive noise's normal of draw n (its own Philox draws, ``rng.N_ADDITIVE + n``),
-        with the Spec's math (the lane machine's keyed draw gives the same number)."""
+        with the KernelSpec's math (the lane machine's keyed draw gives the same number)."""
         if ADDITIVE:
             z, _ = additive_normals(key0, key1, path, _U64(rng.N_ADDITIVE) + n)
             return z
@@ -1083,7 +1083,7 @@ def _family_pieces(spec: Spec, real: Any, mathlib: Any, oscillator: SimpleNamesp
         additive_sum_inline=additive_sum_inline)
 
 
-def _channel_pieces(spec: Spec, real: Any, mathlib: Any, noise: SimpleNamespace,
+def _channel_pieces(spec: KernelSpec, real: Any, mathlib: Any, noise: SimpleNamespace,
                     family: SimpleNamespace) -> SimpleNamespace:
     """The generic additive channel of ``spec`` (term "additive_noise"): its noise's functions,
     with ``step`` its exact step as a leaf of the draw tree under the channel's own key."""
@@ -1100,8 +1100,8 @@ def _channel_pieces(spec: Spec, real: Any, mathlib: Any, noise: SimpleNamespace,
     def no_coefficients(h, p):
         return zeros5
 
-    # The generic additive channel (additive_noise): its noise's device functions, in the Spec's
-    # precision and math, called with the channel's own Philox key (run record, _channel_of);
+    # The generic additive channel (additive_noise): its noise's device functions, in the KernelSpec's
+    # precision and math, called with the channel's own Philox key (step record, _channel_of);
     # without it, stubs that are never called (every use is under a compile-time ``if CHANNEL``).
     CHANNEL = "additive_noise" in spec.terms
     channel_of = _channel_of if CHANNEL else _no_channel
@@ -1143,14 +1143,14 @@ def _channel_pieces(spec: Spec, real: Any, mathlib: Any, noise: SimpleNamespace,
 
 
 @functools.cache
-def build(spec: Spec, track: Any = None) -> SimpleNamespace:
-    """The device functions of ``spec`` (see the module docstring); cached per Spec.
+def build(spec: KernelSpec, track: Any = None) -> SimpleNamespace:
+    """The device functions of ``spec`` (see the module docstring); cached per KernelSpec.
 
     ``track``: the per-path accumulators' step update
     (:func:`stochpend.observables.track_step`), called by ``advance_path`` after each step of a
     path that stays finite, with the state before and after it; their slots are ``state[8]``,
     a float64 array (n_slots, n_paths). ``None`` (every run without accumulators): no tracking
-    is compiled, and the kernels are those of the Spec alone.
+    is compiled, and the kernels are those of the KernelSpec alone.
     """
     real = np.float32 if spec.precision == "float32" else np.float64
     mathlib = FAST if spec.fast_math else LIBM
@@ -1164,24 +1164,24 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     pieces: dict[str, Any] = dict(noise=noise, oscillator=oscillator, family=family, channel=channel,
                                   control=control)
 
-    #: ``advance_path(i, state, t_target, max_steps, key0, key1, path0, p, run)``: advance path
+    #: ``advance_path(i, state, t_target, max_steps, key0, key1, path0, p, step_rec)``: advance path
     #: i of the arrays towards ``t_target``, at most ``max_steps`` steps.
     #:
     #: ``state``: the arrays ``(x, Omega, xi, xi_aux, t, t_comp, k, status)`` (with per-path
     #: accumulators, their slots ``tracks`` last); ``p``: the noise's record
-    #: (``Noise.record``); ``run``: ``(omega2, q, h_max, step_c)`` (:func:`run_record`).
+    #: (``Noise.record``); ``step_rec``: ``(omega2, q, h_max, step_c)`` (:func:`step_record`).
     #:
     #: The last step is shortened to land exactly on ``t_target`` (and, for a noise with events,
     #: a step is cut at each event). A path whose state becomes non-finite, or whose step
     #: control asks for less than ``ESCAPE_STEP_FRACTION * h_max``, gets status 1 and is never
-    #: advanced again. The step, the noise and the dynamics run in the Spec's precision; the
+    #: advanced again. The step, the noise and the dynamics run in the KernelSpec's precision; the
     #: clock, the landing rule and the step counter in float64/uint64, with the float64 h_max
     #: whenever the step is the largest one, so float32 takes the same steps and draws as
     #: float64. Returns ``(steps_taken, unfinished)`` (1 if the path stopped short of
     #: ``t_target``).
     advance_path = _step_loop(1, **pieces)
 
-    #: ``advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, run)``: advance a
+    #: ``advance_pair(i, state, t_target, max_steps, key0, key1, path0, p, step_rec)``: advance a
     #: *coupled pair* of path i towards ``t_target`` (the bias estimate, :mod:`stochpend.bias`).
     #:
     #: The coarse member (``x``, ``Omega``) takes exactly :func:`advance_path`'s steps: the step
@@ -1190,12 +1190,12 @@ def build(spec: Spec, track: Any = None) -> SimpleNamespace:
     #: noise: the half steps draw it (draws ``2m`` and ``2m + 1`` for coarse step m; the noise
     #: state ``xi``, ``xi_aux`` is shared) and the coarse kick uses the sum of the two half-step
     #: integrals, which is the exact integral over the whole step. So the coarse member has the
-    #: law of an ordinary path of this Spec, the fine one that of the same scheme at half the
+    #: law of an ordinary path of this KernelSpec, the fine one that of the same scheme at half the
     #: step, and their difference is small path by path (strong order 1), which is what makes
     #: the bias estimate cheap.
     #:
     #: ``state``: the arrays ``(x, Omega, xf, Omegaf, xi, xi_aux, t, t_comp, k, status)``;
-    #: ``p``, ``run`` as for ``advance_path``. ``k`` counts draws (two per coarse step). Returns
+    #: ``p``, ``step_rec`` as for ``advance_path``. ``k`` counts draws (two per coarse step). Returns
     #: ``(draws_taken, unfinished)``; a pair with either member non-finite or escaped gets
     #: status 1.
     advance_pair = _step_loop(2, **pieces, inline=True)
@@ -1294,8 +1294,8 @@ def statistics(oscillator: Oscillator, coupling: str):
 
 def spec(noise: str = "ou", potential: str = "pendulum", coupling: str = "force", *,
          precision: str = "float64", adaptive: bool = True, fast_math: bool = False,
-         terms: frozenset = frozenset(), additive: str | None = None) -> Spec:
-    """A Spec from names (for tests and benchmarks): ``spec("white", "harmonic", adaptive=False)``;
+         terms: frozenset = frozenset(), additive: str | None = None) -> KernelSpec:
+    """A KernelSpec from names (for tests and benchmarks): ``spec("white", "harmonic", adaptive=False)``;
     ``terms``: the family's terms that are on (``frozenset({"damping", "additive"})``);
     ``additive``: the generic additive channel's noise (with the term "additive_noise")."""
     oscillator = _oscillators.get(potential)
@@ -1307,7 +1307,7 @@ def spec(noise: str = "ou", potential: str = "pendulum", coupling: str = "force"
     channel = None if additive is None else _noises.get(additive)
     if additive is not None and channel is None:
         raise ValueError(f"additive={additive!r} is not accepted: not registered")
-    return Spec(oscillator, coupling, noise_piece, precision, adaptive, fast_math, frozenset(terms), channel)
+    return KernelSpec(oscillator, coupling, noise_piece, precision, adaptive, fast_math, frozenset(terms), channel)
 
 
 # -- the SIMD lane machine (CPU) -----------------------------------------------------------------
@@ -1324,11 +1324,11 @@ LANE_U_ROWS = 3
 LANE_I_ROWS = 4
 
 
-def lanes_supported(spec: Spec) -> bool:
+def lanes_supported(spec: KernelSpec) -> bool:
     """Whether :func:`build_lanes` runs ``spec``: float64, a noise without events whose fast-math
     kernel has ``draw_keyed``, the fast math library; with the generic additive channel, its
     noise likewise (else the run goes one path at a time: ``cpu.spec_for`` then picks the C
-    library's Spec and ``advance_path``)."""
+    library's KernelSpec and ``advance_path``)."""
     if not spec.fast_math or spec.precision != "float64" or spec.noise.has_events:
         return False
     if spec.additive is not None and (spec.additive.has_events
@@ -1338,7 +1338,7 @@ def lanes_supported(spec: Spec) -> bool:
 
 
 @functools.cache
-def build_lanes(spec: Spec) -> SimpleNamespace:
+def build_lanes(spec: KernelSpec) -> SimpleNamespace:
     """The step loop of :func:`build`'s ``advance_path`` for ``LANE_COUNT`` paths side by side.
 
     Each lane carries one path with its own time, clock compensation, step count, step size
@@ -1351,9 +1351,9 @@ def build_lanes(spec: Spec) -> SimpleNamespace:
     path's numbers are the same in any lane, at any time, next to any other paths: a function
     of (seed, path) alone, as for every driver. Needs :func:`lanes_supported`.
 
-    ``advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch) ->
+    ``advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, step_rec, scratch) ->
     (steps_taken, unfinished)``: advance_path for paths lo .. hi - 1 of the arrays ``state``
-    (``p``, ``run`` as for ``advance_path``); ``rk0``, ``rk1`` the seed's round keys
+    (``p``, ``step_rec`` as for ``advance_path``); ``rk0``, ``rk1`` the seed's round keys
     (``rng.round_keys``); ``scratch = (fs, us, js)`` the thread's scratch, shapes
     (``LANE_F_ROWS``, ``LANE_COUNT``), (``LANE_U_ROWS``, ...), (``LANE_I_ROWS``, ...).
     """
@@ -1367,7 +1367,7 @@ def lane_f_rows(levels: int) -> int:
 
 
 @functools.cache
-def build_pair_lanes(spec: Spec) -> SimpleNamespace:
+def build_pair_lanes(spec: KernelSpec) -> SimpleNamespace:
     """:func:`build`'s ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate)
     for ``LANE_COUNT`` pairs side by side, as :func:`build_lanes` runs ``advance_path``
     (:func:`build_level_lanes` of 2 members). ``k`` counts draws (two per coarse step)."""
@@ -1375,14 +1375,14 @@ def build_pair_lanes(spec: Spec) -> SimpleNamespace:
 
 
 @functools.cache
-def build_level_lanes(spec: Spec, levels: int) -> SimpleNamespace:
+def build_level_lanes(spec: KernelSpec, levels: int) -> SimpleNamespace:
     """:func:`build`'s ``advance_levels[levels]`` (``levels`` coupled members at steps h, h/2,
     ..., h/2**(levels-1) driven by one noise path) for ``LANE_COUNT`` paths side by side, as
     :func:`build_lanes` runs ``advance_path``: the same numbers, operation for operation, so a
     member's numbers do not depend on its lane or its neighbours, and member 0 has the law of
     the run's own paths. Needs :func:`lanes_supported`.
 
-    ``advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch) ->
+    ``advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, step_rec, scratch) ->
     (draws_taken, unfinished)``, ``state`` the arrays of ``advance_levels[levels]``
     (:func:`level_positions`); ``scratch = (fs, us, js)``, ``fs`` of shape
     (:func:`lane_f_rows` ``(levels)``, ``LANE_COUNT``), ``us`` and ``js`` as for
@@ -1396,7 +1396,7 @@ def build_level_lanes(spec: Spec, levels: int) -> SimpleNamespace:
     return _lane_machine(spec, levels)
 
 
-def _keyed_draws(spec: Spec, steps: SimpleNamespace) -> SimpleNamespace:
+def _keyed_draws(spec: KernelSpec, steps: SimpleNamespace) -> SimpleNamespace:
     """The lane machine's leaves of the draw trees (:func:`_draw_tree`): :func:`build`'s
     ``noise_step``, ``additive_step`` and ``channel_step`` with the same numbers,
     drawn by ``draw_keyed`` and ``rng.normals_keyed_with`` from the seed's round keys and the
@@ -1433,7 +1433,7 @@ def _keyed_draws(spec: Spec, steps: SimpleNamespace) -> SimpleNamespace:
     return SimpleNamespace(noise=noise_keyed, white=white_keyed, channel=channel_keyed)
 
 
-def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleNamespace:
+def _lane_load_store(spec: KernelSpec, LEVELS: int, steps: SimpleNamespace) -> SimpleNamespace:
     """The lane machine's scalar part: ``fill(lane, nxt, hi, state, t_target, path0, scratch)
     -> (nxt, loaded)`` loads the next path of ``nxt .. hi - 1`` that is neither frozen nor
     finished into ``lane``; ``store(lane, state, scratch, t_target) -> (draws, unfinished)``
@@ -1577,14 +1577,14 @@ def _lane_load_store(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> SimpleN
     return SimpleNamespace(fill=fill, store=store, idle=idle, refill=refill, store_and_refill=store_and_refill)
 
 
-def _lane_scalars(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> tuple[Any, Any, Any, Any]:
+def _lane_scalars(spec: KernelSpec, LEVELS: int, steps: SimpleNamespace) -> tuple[Any, Any, Any, Any]:
     """The lane machine's scalar pieces, inlined into its lane loop (:func:`_inline`):
     ``lane_step(mem, xn, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d) -> (h, h_clock,
     last, escaped)``, the step control's step (or h_max) landing on t_target, without a branch;
     ``lane_clock(tt, tc, h_clock, last, t_target) -> (t, t_comp)``, :func:`advance_clock`'s
     compensated sum written branch-free; ``lane_finite(m, ns)``, whether the members (``flat``)
     and the noise after the step are finite (bitwise ands: no short-circuit branch);
-    ``lane_records(run) -> (p_channel, keys)``: the additive channel's record and the round
+    ``lane_records(step_rec, rk0, rk1) -> (p_channel, keys)``: the additive channel's record and the round
     keys of the noise and the channel."""
     real = steps.real
     bound = _step_bound(steps.pieces["oscillator"], steps.pieces["family"], steps.pieces["control"], inline=True)
@@ -1616,8 +1616,8 @@ def _lane_scalars(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> tuple[Any,
             finite = finite & math.isfinite(m[6]) & math.isfinite(m[7])
         return finite
 
-    def lane_records(run, rk0, rk1):
-        p_channel, keys_channel = channel_of(run)
+    def lane_records(step_rec, rk0, rk1):
+        p_channel, keys_channel = channel_of(step_rec)
         rka0, rka1 = rng.round_keys(keys_channel[0], keys_channel[1])  # the channel's, the same for every path
         return p_channel, (rk0, rk1, rka0, rka1)
 
@@ -1625,7 +1625,7 @@ def _lane_scalars(spec: Spec, LEVELS: int, steps: SimpleNamespace) -> tuple[Any,
             _inline(_named(lane_finite, f"lane_finite{LEVELS}")), _inline(lane_records))
 
 
-def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
+def _lane_machine(spec: KernelSpec, LEVELS: int) -> SimpleNamespace:
     """The lane machine of :func:`build_level_lanes`: the lanes' loading, masking, step control,
     landing, clock, write-back and refill around :func:`the_step` of ``LEVELS`` members with
     keyed draws (:func:`_keyed_draws`). ``LEVELS`` is a compile-time constant, so each machine
@@ -1649,8 +1649,8 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
                                oscillator.half, True)
     else:
         members = _member_tree(LEVELS - 1, oscillator.verlet_step, _first, oscillator.half, True)
-    # The member trees are shared between the machines of one Spec (a tree of L members holds
-    # that of L - 1): named for the Spec, not for the machine built first in a process (else the
+    # The member trees are shared between the machines of one KernelSpec (a tree of L members holds
+    # that of L - 1): named for the KernelSpec, not for the machine built first in a process (else the
     # pair machine a compile helper builds alone and the one built after the run's would differ
     # in name and never share a cache entry).
     name_closures([members], f"lane-members/{spec.label}")
@@ -1667,16 +1667,16 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
     lane_step, lane_clock, lane_finite, lane_records = _lane_scalars(spec, LEVELS, steps)
 
     @register_jitable
-    def advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, run, scratch):
+    def advance_range(lo, hi, state, t_target, max_steps, rk0, rk1, path0, p, step_rec, scratch):
         fs = scratch[0]
         us = scratch[1]
         js = scratch[2]
-        q = run[RUN_Q]
-        h_max = run[RUN_H_MAX]
-        d = dyn_of(run)
-        omega2_r = real(run[RUN_OMEGA2])
+        q = step_rec[STEP_Q]
+        h_max = step_rec[STEP_H_MAX]
+        d = dyn_of(step_rec)
+        omega2_r = real(step_rec[STEP_OMEGA2])
         h_max_r = real(h_max)
-        c_r = real(run[RUN_STEP_C])
+        c_r = real(step_rec[STEP_STEP_C])
         bx0 = fs[0]
         bO0 = fs[1]
         bx1 = fs[R1]
@@ -1697,7 +1697,7 @@ def _lane_machine(spec: Spec, LEVELS: int) -> SimpleNamespace:
         bs = js[1]
         ba = js[2]
         bbad = js[3]
-        p_channel, keys = lane_records(run, rk0, rk1)
+        p_channel, keys = lane_records(step_rec, rk0, rk1)
         idle(scratch, t_target)
         steps_taken = 0
         unfinished = 0

@@ -14,7 +14,7 @@ values that differ from their defaults), checkpoints, NetCDF attributes, ``show`
 carry it, exactly as a noise's own parameters.
 
 A term that is zero is not compiled: a kernel is specialised for the terms that are on
-(:attr:`stochpend.engine.integrator.Spec.terms`), so a run with every term zero runs today's kernel,
+(:attr:`stochpend.engine.integrator.KernelSpec.terms`), so a run with every term zero runs today's kernel,
 bit for bit (the golden fixture).
 
 The additive noise xi_a is white, <xi_a(t) xi_a(s)> = D_a delta(t - s) (the package's

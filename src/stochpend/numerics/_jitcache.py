@@ -5,13 +5,13 @@ from another module (``rng.draw_normals``, the integrator's pieces) is pickled b
 an edit of that module, or an upgrade of stochpend, would reuse the old machine code under the
 new code's name. And Numba names each compiled function ``<module>.<qualname>$<n>``, ``n`` from
 a counter unique in one process only: a cached kernel calls the pieces it does not inline by
-those names, so when two pieces share a qualname (every Spec's ``build.<locals>.verlet``), a
-process that compiled another Spec's piece first can give it the very name the cached kernel
+those names, so when two pieces share a qualname (every KernelSpec's ``build.<locals>.verlet``), a
+process that compiled another KernelSpec's piece first can give it the very name the cached kernel
 was written with, and the kernel, once loaded, calls it (another noise's step, no error).
 
 Both are closed by names, whatever the cache directory and whichever process wrote it:
 
-* every cached kernel's qualname carries a tag of its key (the Spec's label, the noise's name)
+* every cached kernel's qualname carries a tag of its key (the KernelSpec's label, the noise's name)
   and of :func:`stochpend.numerics._sources.digest`, so its cache index file is the new code's own
   (:func:`own_index`); an edit of any source that decides the numbers compiles afresh;
 * every closure a builder makes (the integrator's pieces, a noise's or an oscillator's device
@@ -48,7 +48,7 @@ def name_closures(functions: Iterable[Any], key: str) -> None:
     such name yet; functions defined at module level keep theirs.
 
     ``key`` must name everything that decides the closures' code besides the sources (e.g.
-    ``"ou/float64/libm"`` for a noise's device functions, a Spec's label for the
+    ``"ou/float64/libm"`` for a noise's device functions, a KernelSpec's label for the
     integrator's): call it where the closures are made, before anything compiles them (Numba
     reads the qualname when it compiles).
     """
@@ -146,16 +146,16 @@ fall_back_to_a_temporary_cache()
 
 def own_index(key: str):
     """Decorator (under ``numba.njit(cache=True)`` or ``cuda.jit(cache=True)``): name a cached
-    kernel after ``key`` (what decides its code besides the sources: the Spec's label, the
+    kernel after ``key`` (what decides its code besides the sources: the KernelSpec's label, the
     noise's name) and the code digest, so that it has its own cache index file, and name the
     closures it captures that have no name yet (:func:`name_closures`).
 
     The digest in the name makes a kernel of other code unreachable (see the module
-    docstring). One index per Spec also keeps racing processes apart: Numba keeps one index
+    docstring). One index per KernelSpec also keeps racing processes apart: Numba keeps one index
     file per function and, when two processes add entries to it at once, both may pick the
-    same data file name, so one Spec's key could map to another Spec's machine code (seen here:
+    same data file name, so one KernelSpec's key could map to another KernelSpec's machine code (seen here:
     the dichotomous kernel running another noise's step after concurrent test processes).
-    With one index per Spec and code, processes that race write the same code.
+    With one index per KernelSpec and code, processes that race write the same code.
     """
 
     def rename(fn):
@@ -169,7 +169,7 @@ def own_index(key: str):
 
 def in_cache(kernel) -> bool:
     """Whether calling the Numba dispatcher ``kernel`` will not compile: compiled (or loaded)
-    in this process already, or with an index in Numba's on-disk cache (one per Spec, see
+    in this process already, or with an index in Numba's on-disk cache (one per KernelSpec, see
     :func:`own_index`; a kernel of other code has another name, so no index). A kernel that is
     not cacheable (a user's model) is compiled once per process."""
     import os

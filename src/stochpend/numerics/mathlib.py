@@ -1,6 +1,6 @@
 """The transcendental functions a kernel is compiled with: the C library's, or fastmath's.
 
-An integrator is specialised for one :class:`MathLib` at compile time (``integrator.Spec``):
+An integrator is specialised for one :class:`MathLib` at compile time (``integrator.KernelSpec``):
 
 * :data:`LIBM`: ``math.log``/``math.sin``/``math.cos``/``math.expm1`` (the C library,
   correctly rounded or < 1 ulp); the CUDA kernels and the CPU's one-path-at-a-time driver use it;

@@ -35,7 +35,7 @@ import xarray as xr
 from stochpend._version import __version__
 from stochpend.files._files import reason, write_atomic
 from stochpend.paper.figures import CASES, FIGURES, GALLERY
-from stochpend.paper.figures._common import COLUMNS, SUM_COMPONENTS, Row, RunSpec
+from stochpend.paper.figures._common import COLUMNS, SUM_COMPONENTS, FigureRun, Row
 from stochpend.text.progress import NoProgress, Progress
 
 __all__ = [
@@ -80,7 +80,7 @@ class RunRecord:
     """One stored simulation and where it came from in this call."""
 
     key: str
-    spec: RunSpec
+    spec: FigureRun
     path: Path
     cache_key: str
     status: str  # "simulated", "cached" (read from disk) or "shared" (used by an earlier figure)
@@ -265,7 +265,7 @@ def reproduce(
     _note_partial_report(out, names, same, log)
 
     # Which runs need simulating (for the overall bar).
-    unique: dict[Path, RunSpec] = {}
+    unique: dict[Path, FigureRun] = {}
     for name_specs in specs.values():
         for s in name_specs:
             unique.setdefault(_run_path(out, s, where), s)
@@ -378,7 +378,7 @@ def _checked_size(paths: Any, t_max: Any, quick: bool) -> tuple[int, float | Non
     return paths, t_max
 
 
-def _estimates(specs: dict[str, list[RunSpec]], *, backend: str, precision: str,
+def _estimates(specs: dict[str, list[FigureRun]], *, backend: str, precision: str,
                max_path_steps: float | None, threads: int | None) -> dict[tuple[str, str], Any]:
     """Every run validated before any work (a one-line ValueError naming the parameter), and
     its cost: ``resources.Estimate`` by (figure, run key)."""
@@ -401,7 +401,7 @@ def _module(name: str) -> Any:
     return FIGURES[name] if name in FIGURES else GALLERY[name] if name in GALLERY else CASES[name]
 
 
-def _cost_lines(specs: dict[str, list[RunSpec]], estimates: dict, to_simulate: set, out: Path,
+def _cost_lines(specs: dict[str, list[FigureRun]], estimates: dict, to_simulate: set, out: Path,
                 where: tuple[str, str]) -> list[str]:
     """One line per run to simulate, then the total: the lower bound on the work and a duration
     at the assumed rate (:func:`stochpend.runs.resources.estimate`), and for the named long runs
@@ -461,7 +461,7 @@ def _figure_names(figures: str | Iterable[str]) -> list[str]:
     return names
 
 
-def _run_path(out: Path, spec: RunSpec, where: tuple[str, str] = ("cpu", "float64")) -> Path:
+def _run_path(out: Path, spec: FigureRun, where: tuple[str, str] = ("cpu", "float64")) -> Path:
     return out / "runs" / f"{spec.key}-n{spec.paths}-T{spec.t_max:g}-{spec.cache_key(__version__, *where)[:12]}.nc"
 
 
@@ -476,7 +476,7 @@ def _late_bias(ds: xr.Dataset) -> tuple[float, float, int] | None:
     return float(ds["mean_E_bias"].values[-1]), float(ds["mean_E_bias_stderr"].values[-1]), verdict
 
 
-def _load_cached(path: Path, spec: RunSpec, where: tuple[str, str] = ("cpu", "float64"),
+def _load_cached(path: Path, spec: FigureRun, where: tuple[str, str] = ("cpu", "float64"),
                  log: Callable[[str], None] = lambda message: None) -> xr.Dataset | None:
     """The stored run if it exists, its checksum holds and its stored hash matches the spec;
     else None (it is simulated again). A damaged or unverifiable stored run is never reused:
@@ -527,7 +527,7 @@ class _SubProgress:
         self.inner.finish()
 
 
-def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None,
+def _simulate(spec: FigureRun, *, progress: Progress, threads: int | None = None,
               where: tuple[str, str] = ("cpu", "float64"), max_path_steps: float | None = None) -> xr.Dataset:
     """Simulate one run; the Dataset of :func:`stochpend.simulate` plus ``batch_sums``.
 
@@ -536,10 +536,10 @@ def _simulate(spec: RunSpec, *, progress: Progress, threads: int | None = None,
     per-batch sums, which the tables need for jackknife errors of late-time fits.
     """
     from stochpend.model.settings import SimulationConfig
-    from stochpend.runs.lifecycle import Run, execute
+    from stochpend.runs.lifecycle import RunOptions, execute
 
     config = SimulationConfig.build(**spec.simulate_kwargs())
-    ds, sums = execute(Run.build(config, backend=where[0], precision=where[1], threads=threads,
+    ds, sums = execute(RunOptions.build(config, backend=where[0], precision=where[1], threads=threads,
                                  max_path_steps=max_path_steps), progress=progress)
     ds["batch_sums"] = (
         ("batch", "time", "sum_component"),
@@ -567,7 +567,7 @@ def _sum_components(config: Any) -> list[str]:
     return names
 
 
-def _draw_and_tabulate(module: Any, out: Path, specs: list[RunSpec], datasets: dict[str, xr.Dataset],
+def _draw_and_tabulate(module: Any, out: Path, specs: list[FigureRun], datasets: dict[str, xr.Dataset],
                        fig_runs: list[RunRecord], started: float) -> FigureResult:
     theory = module.theory(datasets)
     fig = module.draw(datasets, theory)

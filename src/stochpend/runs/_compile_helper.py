@@ -4,14 +4,14 @@ A first run (an empty kernel cache) spends most of its time compiling, and Numba
 one lock per process: the run's SIMD kernel, then the bias estimate's pair kernel, each a few
 seconds, one after the other on a machine with idle cores. On a machine with two or more CPUs,
 :func:`start` launches ``python -m stochpend.runs._compile_helper``: it runs a two-pair bias
-estimate of the same Spec, which compiles the pair kernel into Numba's on-disk cache while this
+estimate of the same KernelSpec, which compiles the pair kernel into Numba's on-disk cache while this
 process compiles and runs the ensemble; the bias estimate here then waits for the helper
 (:meth:`Helper.wait`, counted as compile time) and loads the kernel instead of compiling it.
 
 The kernel is the same code under the same name (:mod:`stochpend.numerics._jitcache`: the name carries
-the Spec and the code digest), so the numbers are those of a kernel compiled here, bit for bit.
+the KernelSpec and the code digest), so the numbers are those of a kernel compiled here, bit for bit.
 Both processes may write the kernels they share (``init``, ``accumulate``) to the cache at
-once; each Spec's kernel has its own index, so whichever write wins holds the same code.
+once; each KernelSpec's kernel has its own index, so whichever write wins holds the same code.
 
 Off (nothing is launched) for another backend, a run without bias estimate, a user's model (its
 kernels are not cached), a pair kernel or the run's kernels already cached (nothing to

@@ -44,7 +44,7 @@ from stochpend.model.power_sums import STATISTICS
 from stochpend.text.progress import NoProgress, Progress
 
 if TYPE_CHECKING:  # pragma: no cover
-    from stochpend.engine.integrator import Spec
+    from stochpend.engine.integrator import KernelSpec
     from stochpend.model.settings import SimulationConfig
     from stochpend.numerics._jitcache import CompileClock
 
@@ -124,8 +124,8 @@ def check_accuracy(accuracy: Any, rtol: Any) -> tuple[str, float | None]:
 
 
 # -- kernels ------------------------------------------------------------------------------------
-def pair_spec(config: SimulationConfig, backend: str = "cpu") -> Spec:
-    """The Spec the pairs run with: the run's own kernel on ``backend`` (``spec_for`` of
+def pair_spec(config: SimulationConfig, backend: str = "cpu") -> KernelSpec:
+    """The KernelSpec the pairs run with: the run's own kernel on ``backend`` (``spec_for`` of
     :mod:`stochpend.engine.cpu` or ``.cuda``), so the coarse member has the law of the run's
     paths, and on the CPU the pairs run in SIMD lanes with the run's fast math wherever the run
     does. Always float64, also for a float32 GPU run: in float32 the difference of the members
@@ -190,7 +190,7 @@ def estimate(config: SimulationConfig, n_paths: int, *, progress: Progress | Non
              chunk_pairs: int = CHUNK_PAIRS, backend: str = "cpu") -> BiasEstimate:
     """Estimate the bias of ``config``'s statistics from ``n_paths`` coupled pairs, in float64,
     on the run's ``backend``: the CPU's SIMD lanes (or one pair at a time where the run goes one
-    path at a time), or one GPU thread per pair (``"cuda"``), with the run's own Spec.
+    path at a time), or one GPU thread per pair (``"cuda"``), with the run's own KernelSpec.
 
     The numbers depend on (config, n_paths, backend) only: not on ``chunk_pairs`` or the threads.
     """

@@ -73,7 +73,7 @@ from stochpend.model.settings import SimulationConfig, hist_columns
 from stochpend.numerics import _cputarget
 from stochpend.numerics._sources import BUILD
 from stochpend.runs import bias, multilevel
-from stochpend.runs.lifecycle import Checkpointing, Run, execute
+from stochpend.runs.lifecycle import Checkpointing, RunOptions, execute
 from stochpend.text.progress import Progress
 
 __all__ = [
@@ -1153,7 +1153,7 @@ def _run_owned(config: SimulationConfig, *, checkpoint_path: str | os.PathLike, 
         )
     saving = Checkpointing(checkpointer, None if _resume is None else _resume.state,
                            None if _resume is None else _resume.choice)
-    run = Run.build(config, backend=backend, precision=precision, threads=threads, chunk_paths=chunk_paths,
+    run = RunOptions.build(config, backend=backend, precision=precision, threads=threads, chunk_paths=chunk_paths,
                     bias_paths=bias_paths, accuracy=accuracy, rtol=rtol, max_path_steps=max_path_steps,
                     checkpointing=saving)
     ds, _ = execute(run, progress=progress)

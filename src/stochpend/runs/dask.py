@@ -41,7 +41,7 @@ from stochpend.numerics._sources import BUILD
 from stochpend.runs._blocks import BlockResult, Task, run_block
 
 if TYPE_CHECKING:  # pragma: no cover - annotations only
-    from stochpend.runs.sweep import SweepSpec
+    from stochpend.runs.sweep import SweepPlan
 
 __all__ = ["connect"]
 
@@ -70,7 +70,7 @@ class LocalSchedulerEngine:
     def info(self) -> dict[str, Any]:
         return {"engine": f"dask-{self.scheduler}", "scheduler": self.scheduler, "workers": self.workers}
 
-    def run(self, spec: SweepSpec, tasks: list[Task], tracker: Any,
+    def run(self, spec: SweepPlan, tasks: list[Task], tracker: Any,
             on_result: Callable[[BlockResult], None], *, backend: str = "cpu",
             precision: str = "float64") -> None:
         numba_threads = None
@@ -166,7 +166,7 @@ class DistributedEngine:
         return {"engine": "dask-distributed", "scheduler": self.address, "workers": self.n_workers,
                 "worker_cpu_targets": "; ".join(self.cpu_targets)}
 
-    def run(self, spec: SweepSpec, tasks: list[Task], tracker: Any,
+    def run(self, spec: SweepPlan, tasks: list[Task], tracker: Any,
             on_result: Callable[[BlockResult], None], *, backend: str = "cpu",
             precision: str = "float64") -> None:
         futures = [

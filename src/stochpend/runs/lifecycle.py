@@ -1,4 +1,4 @@
-"""One run's lifecycle, written once: a validated :class:`Run` and :func:`execute`.
+"""One run's lifecycle, written once: a validated :class:`RunOptions` and :func:`execute`.
 
 A run of one configuration goes through the same steps whoever asks for it (``stochpend.
 simulate`` and :func:`stochpend.runs.simulate.run`, a checkpointed run or its resume in
@@ -6,7 +6,7 @@ simulate`` and :func:`stochpend.runs.simulate.run`, a checkpointed run or its re
 compile clock and its note, the compile helper, ``accuracy="auto"``'s pilot, the host loop
 (:func:`stochpend.engine.runner.run_batches`, saving and resuming through a checkpointer when given),
 the bias estimate, and the Dataset with its provenance. :func:`execute` does them in that order;
-the callers only validate and hand over a :class:`Run`, and add what is theirs (where the result
+the callers only validate and hand over a :class:`RunOptions`, and add what is theirs (where the result
 goes, the per-batch sums). Where a run runs is decided here too (:func:`resolve_backend`,
 :func:`check_precision`; importable from :mod:`stochpend.simulate` as before).
 
@@ -42,7 +42,7 @@ from stochpend.numerics._jitcache import CompileClock
 from stochpend.runs import _compile_helper, bias, resources
 from stochpend.text.progress import NoProgress, Progress
 
-__all__ = ["Checkpointing", "Run", "Saver", "check_precision", "check_threads", "compile_note", "cuda_status", "execute",
+__all__ = ["Checkpointing", "RunOptions", "Saver", "check_precision", "check_threads", "compile_note", "cuda_status", "execute",
            "numba_threads", "provenance", "resolve_backend"]
 
 
@@ -74,8 +74,10 @@ class Checkpointing:
 
 
 @dataclass(frozen=True)
-class Run:
-    """A validated run: build it with :meth:`build`.
+class RunOptions:
+    """How one configuration is run, validated: backend, precision, threads, chunk, bias pairs,
+    accuracy, budget and checkpoints (what is simulated is the
+    :class:`~stochpend.model.settings.SimulationConfig`). Build it with :meth:`build`.
 
     ``bias_paths`` is resolved (0: no estimate; with ``accuracy="auto"`` the pilot's pairs, the
     default when 0); ``threads``/``chunk_paths`` None: Numba's threads and the backend's chunk.
@@ -96,7 +98,7 @@ class Run:
     def build(cls, config: SimulationConfig, *, backend: str = "cpu", precision: str = "float64",
               threads: Any = None, chunk_paths: Any = None, bias_paths: Any = None,
               accuracy: Any = "fixed", rtol: Any = None, max_path_steps: float | None = None,
-              checkpointing: Checkpointing | None = None) -> Run:
+              checkpointing: Checkpointing | None = None) -> RunOptions:
         """Validate the settings of a run of ``config`` (a ``ValueError`` of one line naming the
         parameter; memory and work are checked too, :func:`stochpend.runs.resources.check`) and
         resolve ``backend="auto"`` and the default ``bias_paths``."""
@@ -193,7 +195,7 @@ def numba_threads(threads: int | None) -> Iterator[int]:
         numba.set_num_threads(previous)
 
 
-def execute(run: Run, *, progress: Progress | None = None) -> tuple[xr.Dataset, EnsembleSums]:
+def execute(run: RunOptions, *, progress: Progress | None = None) -> tuple[xr.Dataset, EnsembleSums]:
     """Run ``run`` from start (or from its checkpoint) to its Dataset.
 
     Returns the Dataset of :func:`stochpend.simulate` (with ``checkpoint``, ``resumed`` and
@@ -282,7 +284,7 @@ class _Calibrating:
     compile time against the built-in figure of the kernels it compiles, and its rate of
     lower-bound path-steps (what :func:`stochpend.runs.resources.estimate` divides by the rate)."""
 
-    def __init__(self, config: SimulationConfig, run: Run, *, pairs: bool) -> None:
+    def __init__(self, config: SimulationConfig, run: RunOptions, *, pairs: bool) -> None:
         from stochpend.numerics import _calibration
 
         self.backend = run.backend

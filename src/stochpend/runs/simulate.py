@@ -17,7 +17,7 @@ from stochpend.model.settings import (
 from stochpend.runs import bias
 
 # Where a run runs is decided in stochpend.runs.lifecycle; the names stay importable from here.
-from stochpend.runs.lifecycle import Run, execute
+from stochpend.runs.lifecycle import RunOptions, execute
 from stochpend.runs.lifecycle import check_precision as check_precision
 from stochpend.runs.lifecycle import cuda_status as cuda_status
 from stochpend.runs.lifecycle import resolve_backend as resolve_backend
@@ -239,7 +239,7 @@ def simulate(
         raise ValueError(f"max_seconds={max_seconds!r} is not accepted without target_error: the "
                          "wall-time budget is a target run's (bound other runs' work with max_path_steps)")
     # Refused here, before any work (run validates again what it is handed: a few checks).
-    settings = Run.build(config, backend=backend, precision=precision, threads=threads,
+    settings = RunOptions.build(config, backend=backend, precision=precision, threads=threads,
                          chunk_paths=chunk_paths, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
                          max_path_steps=max_path_steps)
     ds = run(config, backend=settings.backend, threads=threads, chunk_paths=chunk_paths,
@@ -299,12 +299,12 @@ def run(
     max_path_steps: float | None = None,
 ) -> xr.Dataset:
     """Run a configuration and build the Dataset (see :func:`simulate`): the settings are
-    validated (:meth:`stochpend.runs.lifecycle.Run.build`) and run by :func:`stochpend.runs.lifecycle.execute`.
+    validated (:meth:`stochpend.runs.lifecycle.RunOptions.build`) and run by :func:`stochpend.runs.lifecycle.execute`.
 
     ``bias_paths``: pairs for the bias estimate (0: none; None: the default,
     :func:`stochpend.bias.default_bias_paths`).
     """
-    settings = Run.build(config, backend=backend, precision=precision, threads=threads,
+    settings = RunOptions.build(config, backend=backend, precision=precision, threads=threads,
                          chunk_paths=chunk_paths, bias_paths=bias_paths, accuracy=accuracy, rtol=rtol,
                          max_path_steps=max_path_steps)
     return execute(settings, progress=progress)[0]

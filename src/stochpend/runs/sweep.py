@@ -69,7 +69,7 @@ from stochpend.runs.lifecycle import provenance
 from stochpend.text._docs import documented
 from stochpend.text.progress import NoProgress, Progress
 
-__all__ = ["BlockResult", "SweepSpec", "Task", "load_spec", "plan_tasks", "run_block", "sweep"]
+__all__ = ["BlockResult", "SweepPlan", "Task", "load_spec", "plan_tasks", "run_block", "sweep"]
 
 #: Every parameter a sweep may set: the keywords of SimulationConfig.build.
 PARAMETERS: tuple[str, ...] = tuple(
@@ -102,7 +102,7 @@ SCHEDULER_HELP = "sync, threads, local, or a scheduler address such as tcp://HOS
 
 
 @dataclass(frozen=True)
-class SweepSpec:
+class SweepPlan:
     """A validated sweep: the configurations in row-major order over ``shape``."""
 
     kind: str  # "grid" or "case"
@@ -211,13 +211,13 @@ def _check_count(n: int, source: str, key: str, how: str) -> None:
                          f"{MAX_SETS:,}; split it into several sweeps")
 
 
-def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepSpec) -> SweepSpec:
+def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepPlan) -> SweepPlan:
     """Parse and validate a sweep (a TOML file or the same structure as a dict).
 
     Every parameter set is built (and so validated) here, before any work. Refusals are one
     ``ValueError`` line naming the file and the key.
     """
-    if isinstance(spec, SweepSpec):
+    if isinstance(spec, SweepPlan):
         return spec
     if isinstance(spec, Mapping):
         data = dict(spec)
@@ -313,13 +313,13 @@ def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepSpec) -> SweepS
         raise ValueError(f"{source}: hist_bins is not accepted: it differs between sets ({sorted(bins)}); "
                          f"every set must have the same number of histogram bins")
     target = {k: data[k] for k in TARGET_KEYS if k in data}
-    spec_ = SweepSpec(kind=kind, dims=dims, shape=shape, coords=coords, configs=tuple(configs),
+    spec_ = SweepPlan(kind=kind, dims=dims, shape=shape, coords=coords, configs=tuple(configs),
                       swept=tuple(swept), description=description, source=source, text=text, target=target)
     targets(spec_)  # a bad target in the file is refused here, with everything else
     return spec_
 
 
-def targets(spec: SweepSpec, given: Mapping[str, Any] | None = None, *, precision: str = "float64",
+def targets(spec: SweepPlan, given: Mapping[str, Any] | None = None, *, precision: str = "float64",
             max_path_steps: Any = None) -> list[multilevel.Target] | None:
     """Each set's validated target (None: the sweep has none): the file's :data:`TARGET_KEYS`,
     overridden by those ``given`` that are not None (:func:`sweep`'s keywords), with what
@@ -364,7 +364,7 @@ def _check_positive_int(name: str, value: Any) -> int | None:
     return int(value)
 
 
-def plan_tasks(spec: SweepSpec, tasks_per_set: int) -> list[Task]:
+def plan_tasks(spec: SweepPlan, tasks_per_set: int) -> list[Task]:
     """Cut every set's batches into at most ``tasks_per_set`` contiguous blocks."""
     tasks = []
     for i, c in enumerate(spec.configs):
@@ -434,7 +434,7 @@ class _PartialProgress:
         pass
 
 
-def _run_inprocess(spec: SweepSpec, tasks: list[Task], tracker: _Tracker,
+def _run_inprocess(spec: SweepPlan, tasks: list[Task], tracker: _Tracker,
                    on_result: Callable[[BlockResult], None], backend: str,
                    precision: str) -> dict[str, Any]:
     for task in tasks:
@@ -466,7 +466,7 @@ def check_scheduler(scheduler: Any) -> None:
     _dask_backend(scheduler)
 
 
-def default_tasks_per_set(spec: SweepSpec, slots: int) -> int:
+def default_tasks_per_set(spec: SweepPlan, slots: int) -> int:
     """About 8 tasks per worker thread, at least one a set: sets differ in cost (Fig. 2's
     dearest set takes a third of the work), so one task a set balances badly."""
     return max(1, math.ceil(8 * slots / spec.n_sets))
@@ -475,7 +475,7 @@ def default_tasks_per_set(spec: SweepSpec, slots: int) -> int:
 # -- the sweep -------------------------------------------------------------------------------
 @documented  # help() shows the signature's defaults and the paper's equation numbers
 def sweep(
-    spec: Mapping[str, Any] | str | os.PathLike | SweepSpec,
+    spec: Mapping[str, Any] | str | os.PathLike | SweepPlan,
     *,
     scheduler: Any = None,
     workers: int | None = None,
@@ -494,7 +494,7 @@ def sweep(
 
     Parameters
     ----------
-    spec : path, dict or SweepSpec
+    spec : path, dict or SweepPlan
         A TOML file (format in the module docstring and docs/scale-out.md) or the same
         structure as a dict; validated whole before any work.
     scheduler : None, str or distributed.Client
@@ -598,7 +598,7 @@ def sweep(
     return _assemble(spec, results, info=info, n_tasks=len(tasks), wall_time_s=wall, estimates=estimates)
 
 
-def _bias_estimates(spec: SweepSpec, bias_paths: int | None, backend: str,
+def _bias_estimates(spec: SweepPlan, bias_paths: int | None, backend: str,
                     tracker: _Tracker) -> list[bias.BiasEstimate] | None:
     """Each set's bias estimate, as :func:`stochpend.simulate` makes it (None: ``bias_paths=0``)."""
     if bias_paths == 0:
@@ -608,7 +608,7 @@ def _bias_estimates(spec: SweepSpec, bias_paths: int | None, backend: str,
                           backend=backend) for c in spec.configs]
 
 
-def _target_sweep(spec: SweepSpec, sets: list[multilevel.Target], *, scheduler: Any, backend: str,
+def _target_sweep(spec: SweepPlan, sets: list[multilevel.Target], *, scheduler: Any, backend: str,
                   precision: str, max_path_steps: Any, progress: Progress | None) -> xr.Dataset:
     """Every set as a target run (:func:`stochpend.runs.multilevel.target_run`), in this process."""
     if scheduler is not None:
@@ -646,7 +646,7 @@ def _target_sweep(spec: SweepSpec, sets: list[multilevel.Target], *, scheduler: 
                     compute_s=float(sum(ds.attrs["total_wall_time_s"] for ds in datasets)))
 
 
-def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[str, Any], n_tasks: int,
+def _assemble(spec: SweepPlan, results: list[list[BlockResult]], *, info: dict[str, Any], n_tasks: int,
               wall_time_s: float, estimates: list[bias.BiasEstimate] | None = None) -> xr.Dataset:
     datasets = []
     per_set_attrs = []
@@ -676,7 +676,7 @@ def _assemble(spec: SweepSpec, results: list[list[BlockResult]], *, info: dict[s
                     wall_time_s=wall_time_s, compute_s=compute_s)
 
 
-def _stacked(spec: SweepSpec, datasets: list[xr.Dataset], per_set_attrs: list[dict[str, Any]],
+def _stacked(spec: SweepPlan, datasets: list[xr.Dataset], per_set_attrs: list[dict[str, Any]],
              path_steps: list[int], *, info: dict[str, Any], n_tasks: int, wall_time_s: float,
              compute_s: float) -> xr.Dataset:
     """The sets' Datasets (alike in variables and shapes) as one, the swept dimensions first;

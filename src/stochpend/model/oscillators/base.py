@@ -8,7 +8,7 @@ The oscillator is
 energy E = Omega**2/2 + omega**2 U(x) (Eq. `defenergie`). The noise multiplies the force
 (``coupling="force"``, G = the oscillator's ``noise_shape``, U' unless it says otherwise) or
 the position (``coupling="position"``, G = x: the random-frequency oscillator). The coupling
-is chosen when a kernel is compiled (``integrator.Spec``).
+is chosen when a kernel is compiled (``integrator.KernelSpec``).
 
 Because the noise multiplies a function of x alone and enters only the Omega equation, the Ito
 and Stratonovich readings of the white-noise system coincide.

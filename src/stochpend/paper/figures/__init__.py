@@ -4,7 +4,7 @@ and its table.
 Each module in :data:`FIGURES` provides
 
 * ``NAME``, ``TITLE`` and ``CONFIG`` (the runs of the caption, their seeds and final times),
-* ``runs(paths, t_max, quick) -> list[RunSpec]``: the simulations to make,
+* ``runs(paths, t_max, quick) -> list[FigureRun]``: the simulations to make,
 * ``caption(specs) -> str``: what was run and why the time range,
 * ``theory(datasets) -> dict``: the predictions needed to draw (e.g. B.F.P.E. solutions),
 * ``draw(datasets, theory) -> matplotlib.figure.Figure`` (Agg canvas, no pyplot),
@@ -15,7 +15,7 @@ Each module in :data:`FIGURES` provides
 interface; ``all`` does not include them. :data:`CASES` holds named long runs for a GPU (``fig4-crossover``, ``fig2-long``:
 :mod:`stochpend.paper.figures.cases`), with the same interface; ``all`` does not include them.
 
-``datasets`` maps each run's key (``RunSpec.key``) to its result ``Dataset``, in the order of
+``datasets`` maps each run's key (``FigureRun.key``) to its result ``Dataset``, in the order of
 ``runs``. :func:`stochpend.paper.reproduce.reproduce` ties them together.
 """
 
@@ -34,7 +34,7 @@ from stochpend.paper.figures import (
     fig3,
     fig4,
 )
-from stochpend.paper.figures._common import COLUMNS, Fit, Row, RunSpec
+from stochpend.paper.figures._common import COLUMNS, FigureRun, Fit, Row
 from stochpend.paper.figures.cases import CASES
 
 #: Figure name -> module.
@@ -49,4 +49,4 @@ GALLERY: dict[str, ModuleType] = {
     m.NAME: m for m in (family_boltzmann, family_kramers, family_washboard, family_random_frequency)
 }
 
-__all__ = ["CASES", "COLUMNS", "FIGURES", "GALLERY", "Fit", "Row", "RunSpec"]
+__all__ = ["CASES", "COLUMNS", "FIGURES", "GALLERY", "Fit", "Row", "FigureRun"]

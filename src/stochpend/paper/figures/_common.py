@@ -1,7 +1,7 @@
 """Shared pieces of the figure modules: run specifications, time grids, late-time fits, table rows.
 
 A figure module (``fig1`` ... ``fig4``) declares the simulations named in the paper's caption
-as :class:`RunSpec` objects, draws the figure from their datasets and builds a table of
+as :class:`FigureRun` objects, draws the figure from their datasets and builds a table of
 late-time values against the predictions as :class:`Row` objects. Nothing here simulates.
 
 Late-time values and their extrapolation
@@ -47,12 +47,12 @@ FIT_WINDOW = 10.0
 
 
 # ---------------------------------------------------------------------------------------------
-# Run specifications
+# The runs a figure needs
 # ---------------------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
-class RunSpec:
+class FigureRun:
     """One simulation of a figure: its physics, its size and its seed.
 
     ``key`` names the physical run (noise, D, tau, omega); two figures that need the same

@@ -20,7 +20,7 @@ from stochpend.paper.figures._common import _jackknife, leave_one_out
 
 
 def params(**terms: float) -> tuple[tuple[str, float], ...]:
-    """The family's terms as sorted (name, value) pairs (:attr:`RunSpec.params`)."""
+    """The family's terms as sorted (name, value) pairs (:attr:`FigureRun.params`)."""
     return tuple(sorted((k, float(v)) for k, v in terms.items()))
 
 

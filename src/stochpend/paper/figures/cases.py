@@ -22,7 +22,7 @@ from typing import Any
 
 from stochpend.model.settings import DEFAULT_H_MAX
 from stochpend.paper.figures import fig2, fig4
-from stochpend.paper.figures._common import RunSpec, fmt_num
+from stochpend.paper.figures._common import FigureRun, fmt_num
 
 __all__ = ["CASES", "Case", "expected_path_steps"]
 
@@ -34,7 +34,7 @@ WHITE_STEPS = 4.7
 COLOURED_STEPS = 6.6
 
 
-def expected_path_steps(spec: RunSpec) -> float:
+def expected_path_steps(spec: FigureRun) -> float:
     """Path-steps of an OU pendulum run by the cost model (:data:`WHITE_STEPS`,
     :data:`COLOURED_STEPS`): a rough figure, good to a factor of about 1.5."""
     D, tau, T = float(spec.D), float(spec.tau or 0.0), float(spec.t_max)
@@ -63,7 +63,7 @@ class Case:
         self.CONFIG = {"figure": figure.NAME, "D": D, "tau": tau, "t_max": t_max,
                        "quick_t_max": figure.CONFIG["quick_t_max"]}
 
-    def runs(self, paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
+    def runs(self, paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
         T = t_max if t_max is not None else (self.CONFIG["quick_t_max"] if quick else self.t_max)
         picked = [s for s in self.figure.runs(paths, None, quick) if (s.D, s.tau) == (self.D, self.tau)]
         if len(picked) != 1:  # pragma: no cover - a figure's CONFIG changed under the case
@@ -71,7 +71,7 @@ class Case:
                              f"({self.D:g}, {self.tau:g})")
         return [dataclasses.replace(picked[0], t_max=float(T))]
 
-    def caption(self, specs: list[RunSpec]) -> str:
+    def caption(self, specs: list[FigureRun]) -> str:
         s = specs[0]
         return (f"{self.figure.NAME}'s run (D, τ) = ({s.D:g}, {s.tau:g}), ω = {s.omega:g}, OU noise, "
                 f"{s.paths} realizations, seed {s.seed}, to t = {fmt_num(s.t_max)} ({self.why}); "
@@ -88,7 +88,7 @@ class Case:
         return self.figure.table(datasets, theory_values)
 
     @staticmethod
-    def expected_path_steps(spec: RunSpec) -> float:
+    def expected_path_steps(spec: FigureRun) -> float:
         return expected_path_steps(spec)
 
 

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from stochpend.paper.figures._common import Row, RunSpec, fmt_num
+from stochpend.paper.figures._common import FigureRun, Row, fmt_num
 
 #: The reproduction's default paths per run: each case's ``paths`` is its size at that default
 #: (``reproduce(paths=...)`` scales them all, e.g. --quick's 500 gives 5 %).
@@ -63,7 +63,7 @@ CASES: list[dict[str, Any]] = [
 QUICK_T_MAX = 30.0  # --quick: a smoke test of the pipeline
 
 
-def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
+def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
     specs = []
     for case in CASES:
         T = case["t_max"]
@@ -71,7 +71,7 @@ def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
             T = t_max
         elif quick:
             T = min(T, QUICK_T_MAX)
-        specs.append(RunSpec(
+        specs.append(FigureRun(
             key=f"exponent_{case['key']}", label=case["label"], noise=case["noise"], D=1.0,
             tau=case["tau"], omega=1.0, t_max=T, seed=case["seed"],
             paths=max(16, round(case["paths"] * paths / DEFAULT_PATHS)),
@@ -81,7 +81,7 @@ def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
     return specs
 
 
-def caption(specs: list[RunSpec]) -> str:
+def caption(specs: list[FigureRun]) -> str:
     lines = ", ".join(f"{s.label} ({s.paths} paths, t ≤ {fmt_num(s.t_max)}, seed {s.seed})" for s in specs)
     return (
         "Long-time growth of ⟨E⟩ for D = 1, ω = 1, τ = 1 (harmonic noise: W = 2/τ), θ(0) or x(0) "

@@ -15,7 +15,7 @@ from typing import Any
 
 import xarray as xr
 
-from stochpend.paper.figures._common import Row, RunSpec, at_last, fmt_num
+from stochpend.paper.figures._common import FigureRun, Row, at_last, fmt_num
 from stochpend.paper.figures._family import params
 
 NAME = "family-boltzmann"
@@ -37,11 +37,11 @@ DEFAULT_PATHS = 10_000
 COLORS = ("C0", "C1", "C3")
 
 
-def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
+def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
     T_end = t_max if t_max is not None else (CONFIG["quick_t_max"] if quick else CONFIG["t_max"])
     n = max(2, round(CONFIG["paths"] * paths / DEFAULT_PATHS))
     g, w = CONFIG["gamma"], CONFIG["omega"]
-    return [RunSpec(key=f"family_boltzmann_T{r['T']:g}_gamma{g:g}", label=f"T = {r['T']:g}", noise="white",
+    return [FigureRun(key=f"family_boltzmann_T{r['T']:g}_gamma{g:g}", label=f"T = {r['T']:g}", noise="white",
                     D=0.0, tau=None, omega=w, t_max=float(T_end), seed=r["seed"], paths=n,
                     params=params(gamma=g, additive_D=2.0 * g * r["T"]))
             for r in CONFIG["runs"]]
@@ -52,7 +52,7 @@ def _T(ds: xr.Dataset) -> tuple[float, float, float]:
     return D_a, gamma, D_a / (2.0 * gamma)
 
 
-def caption(specs: list[RunSpec]) -> str:
+def caption(specs: list[FigureRun]) -> str:
     s = specs[0]
     temps = ", ".join(f"{x.param('additive_D') / (2 * x.param('gamma')):g}" for x in specs)
     seeds = ", ".join(str(x.seed) for x in specs)

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from stochpend.paper.figures._common import Row, RunSpec, fmt_num
+from stochpend.paper.figures._common import FigureRun, Row, fmt_num
 from stochpend.paper.figures._family import increment_rate, params
 
 NAME = "family-kramers"
@@ -48,21 +48,21 @@ def t_max_of(x: float) -> float:
     return max(CONFIG["t_max_min"], CONFIG["t_max_at_6"] * math.exp(x - 6.0))
 
 
-def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
+def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
     n = max(2, round(CONFIG["paths"] * paths / DEFAULT_PATHS))
     g, w = CONFIG["gamma"], CONFIG["omega"]
     out = []
     for r in CONFIG["runs"]:
         T = 2.0 * w * w / r["x"]
         T_end = t_max if t_max is not None else t_max_of(r["x"]) * (CONFIG["quick_factor"] if quick else 1.0)
-        out.append(RunSpec(key=f"family_kramers_dUT{r['x']:g}_gamma{g:g}", label=f"ΔU/T = {r['x']:g}",
+        out.append(FigureRun(key=f"family_kramers_dUT{r['x']:g}_gamma{g:g}", label=f"ΔU/T = {r['x']:g}",
                            noise="white", D=0.0, tau=None, omega=w, t_max=float(T_end), seed=r["seed"],
                            paths=n, params=params(gamma=g, additive_D=2.0 * g * T),
                            observables=("displacement",)))
     return out
 
 
-def caption(specs: list[RunSpec]) -> str:
+def caption(specs: list[FigureRun]) -> str:
     s = specs[0]
     g = s.param("gamma")
     xs = ", ".join(f"{2 * x.omega**2 * 2 * g / x.param('additive_D'):g}" for x in specs)

@@ -20,7 +20,7 @@ import numpy as np
 import xarray as xr
 
 from stochpend.model import observables
-from stochpend.paper.figures._common import Row, RunSpec, fmt_num
+from stochpend.paper.figures._common import FigureRun, Row, fmt_num
 from stochpend.paper.figures._family import window_slope
 
 
@@ -64,11 +64,11 @@ DEFAULT_PATHS = 10_000
 WINDOW_START = 0.5
 
 
-def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
+def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
     T_end = t_max if t_max is not None else (CONFIG["quick_t_max"] if quick else CONFIG["t_max"])
     n = max(2, round(CONFIG["paths"] * paths / DEFAULT_PATHS))
     g, w = CONFIG["gamma"], CONFIG["omega"]
-    return [RunSpec(key=f"family_random_frequency_D{D:g}_gamma{g:g}", label=f"D = {D:g}", noise="white",
+    return [FigureRun(key=f"family_random_frequency_D{D:g}_gamma{g:g}", label=f"D = {D:g}", noise="white",
                     D=float(D), tau=None, omega=w, t_max=float(T_end), seed=CONFIG["seed0"] + i + 1, paths=n,
                     potential="harmonic", coupling="position", h_max=CONFIG["h"], step_c=0.0,
                     params=(("gamma", g),), theta0=CONFIG["x0"], Omega0=0.0,
@@ -76,7 +76,7 @@ def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
             for i, D in enumerate(CONFIG["D"])]
 
 
-def caption(specs: list[RunSpec]) -> str:
+def caption(specs: list[FigureRun]) -> str:
     s = specs[0]
     g = s.param("gamma")
     Ds = ", ".join(f"{x.D:g}" for x in specs)

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from stochpend.paper.figures._common import Row, RunSpec, fmt_num
+from stochpend.paper.figures._common import FigureRun, Row, fmt_num
 from stochpend.paper.figures._family import increment_rate, params
 
 NAME = "family-washboard"
@@ -53,7 +53,7 @@ DEFAULT_PATHS = 10_000
 WINDOW_START = 0.5  # the mean velocity is taken over [0.5 t_max, t_max]
 
 
-def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
+def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
     T_end = t_max if t_max is not None else (CONFIG["quick_t_max"] if quick else CONFIG["t_max"])
     n = max(2, round(CONFIG["paths"] * paths / DEFAULT_PATHS))
     g, w = CONFIG["gamma"], CONFIG["omega"]
@@ -68,7 +68,7 @@ def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
                     theta0, Omega0 = math.asin(min(F / (w * w), 1.0)), 0.0
                 else:
                     theta0, Omega0 = 0.0, F / g
-                out.append(RunSpec(
+                out.append(FigureRun(
                     key=f"family_washboard_T{T:g}_F{F:g}_{ens}_gamma{g:g}", label=f"T = {T:g}, F = {F:g}, {ens}",
                     noise="white", D=0.0, tau=None, omega=w, t_max=float(T_end), seed=seed, paths=n,
                     params=params(gamma=g, torque=F, additive_D=2.0 * g * T), theta0=theta0, Omega0=Omega0,
@@ -84,7 +84,7 @@ def _info(ds: xr.Dataset) -> tuple[float, float, float, str]:
     return T, F, g, ens
 
 
-def caption(specs: list[RunSpec]) -> str:
+def caption(specs: list[FigureRun]) -> str:
     s = specs[0]
     g = s.param("gamma")
     Fs = ", ".join(f"{F:g}" for F in sorted({x.param("torque") for x in specs}))

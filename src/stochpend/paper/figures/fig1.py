@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from stochpend.paper.figures._common import Row, RunSpec, at_last, extrapolate, fmt_num, run_key
+from stochpend.paper.figures._common import FigureRun, Row, at_last, extrapolate, fmt_num, run_key
 
 NAME = "fig1"
 TITLE = "Fig. 1 — white noise: mean energy, skewness and flatness"
@@ -35,20 +35,20 @@ ALT_POWER = 0.5
 COLORS = {1.0: "C0", 0.0: "C3"}
 
 
-def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
+def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
     """The simulations of the caption (``t_max`` overrides the default final time)."""
     T = t_max if t_max is not None else (CONFIG["quick_t_max"] if quick else CONFIG["t_max"])
     D = CONFIG["D"]
     out = []
     for r in CONFIG["runs"]:
-        out.append(RunSpec(
+        out.append(FigureRun(
             key=run_key("white", D, None, r["omega"]), label=f"ω = {r['omega']:g}", noise="white",
             D=D, tau=None, omega=r["omega"], t_max=T, seed=r["seed"], paths=paths,
         ))
     return out
 
 
-def caption(specs: list[RunSpec]) -> str:
+def caption(specs: list[FigureRun]) -> str:
     s = specs[0]
     seeds = ", ".join(str(x.seed) for x in specs)
     return (

@@ -12,8 +12,8 @@ from typing import Any
 import xarray as xr
 
 from stochpend.paper.figures._common import (
+    FigureRun,
     Row,
-    RunSpec,
     at_last,
     attr_float,
     extrapolate,
@@ -50,12 +50,12 @@ TAU_COLORS = {0.1: "C0", 1.0: "C2", 10.0: "C3"}
 D_STYLES = {1.0: "-", 10.0: "--", 100.0: (0, (5, 1, 1, 1))}
 
 
-def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
+def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
     out = []
     omega = CONFIG["omega"]
     for r in CONFIG["runs"]:
         T = t_max if t_max is not None else (CONFIG["quick_t_max"] if quick else r["t_max"])
-        out.append(RunSpec(
+        out.append(FigureRun(
             key=run_key("ou", r["D"], r["tau"], omega), label=f"D = {r['D']:g}, τ = {r['tau']:g}",
             noise="ou", D=r["D"], tau=r["tau"], omega=omega, t_max=T, seed=r["seed"], paths=paths,
         ))
@@ -67,7 +67,7 @@ def slowest_time(D: float, tau: float, omega: float) -> float:
     return max(1.0 / (D * tau**2), tau**2 * omega**4 / D)
 
 
-def caption(specs: list[RunSpec]) -> str:
+def caption(specs: list[FigureRun]) -> str:
     s = specs[0]
     t_maxes = sorted({x.t_max for x in specs})
     if len(t_maxes) == 1:

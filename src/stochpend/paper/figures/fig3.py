@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from stochpend.paper.figures._common import Row, RunSpec, at_last, attr_float, fmt_num, run_key
+from stochpend.paper.figures._common import FigureRun, Row, at_last, attr_float, fmt_num, run_key
 from stochpend.paper.figures.fig2 import fit_if_asymptotic, slowest_time
 
 NAME = "fig3"
@@ -36,17 +36,17 @@ CONFIG: dict[str, Any] = {
 COLORS = {1.0: "C0", 0.0: "C3"}
 
 
-def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
+def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
     T = t_max if t_max is not None else (CONFIG["quick_t_max"] if quick else CONFIG["t_max"])
     D, tau = CONFIG["D"], CONFIG["tau"]
     return [
-        RunSpec(key=run_key("ou", D, tau, r["omega"]), label=f"ω = {r['omega']:g}", noise="ou", D=D,
+        FigureRun(key=run_key("ou", D, tau, r["omega"]), label=f"ω = {r['omega']:g}", noise="ou", D=D,
                 tau=tau, omega=r["omega"], t_max=T, seed=r["seed"], paths=paths)
         for r in CONFIG["runs"]
     ]
 
 
-def caption(specs: list[RunSpec]) -> str:
+def caption(specs: list[FigureRun]) -> str:
     s = specs[0]
     seeds = ", ".join(str(x.seed) for x in specs)
     return (

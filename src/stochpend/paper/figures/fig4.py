@@ -17,8 +17,8 @@ import xarray as xr
 
 from stochpend.paper.figures._common import (
     DASH,
+    FigureRun,
     Row,
-    RunSpec,
     at_last,
     attr_float,
     extrapolate,
@@ -53,17 +53,17 @@ FIT_POWER = 0.5
 ALT_POWER = 1.0
 
 
-def runs(paths: int, t_max: float | None, quick: bool) -> list[RunSpec]:
+def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
     D, omega = CONFIG["D"], CONFIG["omega"]
     out = []
     for r in CONFIG["runs"]:
         T = t_max if t_max is not None else (CONFIG["quick_t_max"] if quick else r["t_max"])
-        out.append(RunSpec(key=run_key("ou", D, r["tau"], omega), label=f"τ = {r['tau']:g}", noise="ou",
+        out.append(FigureRun(key=run_key("ou", D, r["tau"], omega), label=f"τ = {r['tau']:g}", noise="ou",
                            D=D, tau=r["tau"], omega=omega, t_max=T, seed=r["seed"], paths=paths))
     return out
 
 
-def caption(specs: list[RunSpec]) -> str:
+def caption(specs: list[FigureRun]) -> str:
     s = specs[0]
     parts = ", ".join(f"τ = {x.tau:g} to t = {fmt_num(x.t_max)} (t_c = {fmt_num(x.t_c)}, seed {x.seed})"
                       for x in specs)
