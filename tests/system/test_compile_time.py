@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -32,7 +33,10 @@ before = resources.compile_seconds(config, pairs=False)
 ds = stochpend.simulate(**kw, bias_paths=0)
 after = resources.compile_seconds(config, pairs=False)
 a = ds.attrs
-print(json.dumps({"before": before, "after": after, "compile": float(a["compile_time_s"]),
+# The built-in accumulator and observable (their code is the package's): cached on disk too.
+tracked = stochpend.simulate(**kw, bias_paths=0, observables=("displacement", "log_energy"))
+print(json.dumps({"tracked_compile": float(tracked.attrs["compile_time_s"]),
+                  "before": before, "after": after, "compile": float(a["compile_time_s"]),
                   "wall": float(a["wall_time_s"]), "sim": float(a["simulation_wall_time_s"]),
                   "rate": float(a["path_steps_per_s"]), "steps": int(a["path_steps"])}))
 """
@@ -51,20 +55,26 @@ def test_a_cold_cache_compiles_once_with_a_note_and_reports_it_apart(tmp_path):
     """An empty kernel cache (a fresh NUMBA_CACHE_DIR): the run says once, before compiling,
     which kernels compile and for about how long, and stores the compile time apart: the wall
     time and the rate are the run's own. The same run again (cached kernels): no note, no
-    compile time, no expected compile time."""
+    compile time, no expected compile time; also for a run with the built-in accumulator and
+    observable (displacement, log_energy)."""
     cold, err = _run(tmp_path)
     notes = [line for line in err.splitlines() if line.startswith("compiling kernels for ")]
-    assert notes == ["compiling kernels for pendulum/force/ou/float64/adaptive/fast (first use: "
-                     f"~{cold['before']:.2g} s, cached after)"], err
+    assert notes[0] == ("compiling kernels for pendulum/force/ou/float64/adaptive/fast (first use: "
+                        f"~{cold['before']:.2g} s, cached after)"), err
+    # The tracked run compiles its own two kernels, and says so with their expected time.
+    assert len(notes) == 2 and re.fullmatch(r"compiling kernels for \S+ \(first use: ~[0-9.]+ s, cached after\)",
+                                            notes[1]), err
     assert cold["before"] > 0 and cold["after"] == 0
     assert cold["compile"] > 0.5  # seconds of Numba compiling, at least
     assert 0 < cold["wall"] < cold["compile"]  # a few ms of work, compiling left out
     assert cold["sim"] <= cold["wall"]
     assert np.isclose(cold["rate"], cold["steps"] / cold["wall"])
 
+    assert cold["tracked_compile"] > 0.5  # the one-path loop with tracking, the accumulate kernel
     warm, err = _run(tmp_path)
     assert "compiling kernels" not in err, err
     assert warm["before"] == 0 and warm["compile"] == 0.0
+    assert warm["tracked_compile"] == 0.0  # a run with built-in accumulators compiles once, ever
     assert warm["steps"] == cold["steps"]
 
 

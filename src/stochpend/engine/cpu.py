@@ -243,17 +243,22 @@ def path_kernel(spec: KernelSpec):
 
 
 @functools.cache
+@functools.cache
 def tracked_kernel(spec: KernelSpec, accs: tuple):
     """``advance`` of a run with per-path accumulators ``accs``
     (:func:`stochpend.observables.track_step`): :func:`path_kernel`'s driver, one path at a
-    time, with ``state`` holding the accumulators' slots as ``state[8]``. The same KernelSpec (fast
-    math included), so every other number of the run is what the run without them gives, bit
-    for bit (the SIMD drivers agree with ``path_kernel`` of their KernelSpec). Compiled in memory (a
-    user's functions)."""
+    time, with ``state`` holding the accumulators' slots after the path's arrays
+    (:func:`stochpend.engine.layout.state_arrays`). The same KernelSpec (fast math included), so
+    every other number of the run is what the run without them gives, bit for bit (the SIMD
+    drivers agree with ``path_kernel`` of their KernelSpec). Cached on disk when the KernelSpec
+    is and every accumulator is built in (``observables.builtin_key``: the displacement), else
+    compiled in memory once per process (a user's functions)."""
     from stochpend.model import observables
 
+    builtin = observables.builtin_key(accs)
+    cache = spec.cacheable and builtin is not None
     return _one_at_a_time(integrator.build(spec, observables.track_step(accs)).advance_path,
-                          None, False, 1)
+                          f"{spec.label}/track:{builtin}" if cache else None, cache, 1)
 
 
 #: Pieces of work per worker: the workers take them one after the other, so that a worker that
@@ -585,8 +590,13 @@ def _accumulate_kernel(spec: KernelSpec, user: tuple):
     n_user = observables_.n_user_columns(user)
     first_user = N_SUMS
 
-    @numba.njit(nogil=True, cache=spec.oscillator.builtin and not user, error_model="numpy")
-    @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables_.TABLE_KEY}/{observables_.user_key(user)}")
+    # Cached on disk when the oscillator and every user observable are built in (their code is
+    # the package's: observables_.builtin_key), else compiled in memory once per process.
+    builtin = not user or observables_.builtin_key(user) is not None
+    users = observables_.builtin_key(user) or observables_.user_key(user)
+
+    @numba.njit(nogil=True, cache=spec.oscillator.builtin and builtin, error_model="numpy")
+    @own_index(f"{spec.oscillator.name}/{spec.coupling}/{observables_.TABLE_KEY}/{users}")
     def accumulate(b_lo, b_hi, x, Omega, xi, t, status, tracks, omega2, q, batch_size, edges, sums,
                    hist):  # pragma: no cover - compiled
         n_paths = x.shape[0]
@@ -697,15 +707,20 @@ def joint_sums(counts: np.ndarray, n_b: np.ndarray, out: np.ndarray) -> None:
     out[2 * cells:] = (counts * n_b.astype(np.int64)[:, None]).sum(axis=0)
 
 
-def compiled_kernels(spec: KernelSpec, *, pairs: bool = True) -> dict[str, object]:
+def compiled_kernels(spec: KernelSpec, *, pairs: bool = True, observables: tuple[str, ...] = ()) -> dict[str, object]:
     """The Numba dispatchers a run of ``spec`` calls, by kind (``resources.COMPILE_S``):
     ``init``, ``advance``, ``accumulate`` and, with ``pairs`` (the bias estimate), ``pairs``;
-    ``advance_one_path`` and ``pairs_one_path`` for a KernelSpec without a SIMD driver. Nothing is
-    compiled here."""
+    ``advance_one_path`` and ``pairs_one_path`` for a KernelSpec without a SIMD driver, and
+    ``advance_one_path`` (:func:`tracked_kernel`) for a run with per-path accumulators among its
+    ``observables`` (whose ``accumulate`` kernel is theirs too). Nothing is compiled here."""
+    accs = observables_.accumulators(observables_.objects(observables))
     one_path = advance_kernel(spec) is path_kernel(spec)  # no SIMD driver: less to compile
     suffix = "_one_path" if one_path else ""
-    out = {"init": init_kernel(spec), "advance" + suffix: advance_kernel(spec),
-           "accumulate": accumulate_kernel(spec)}
+    out = {"init": init_kernel(spec), "accumulate": accumulate_kernel(spec, observables)}
+    if accs:
+        out["advance_one_path"] = tracked_kernel(spec, accs)
+    else:
+        out["advance" + suffix] = advance_kernel(spec)
     if pairs:
         out["pairs" + suffix] = pair_advance_kernel(spec)
     return {kind: getattr(kernel, "kernel", kernel) for kind, kernel in out.items()}

@@ -294,10 +294,12 @@ def advance_kernel(spec: KernelSpec):
 
 
 @functools.cache
+@functools.cache
 def tracked_kernel(spec: KernelSpec, accs: tuple):
     """:func:`advance_kernel` of a run with per-path accumulators ``accs``
-    (:func:`stochpend.observables.track_step`): ``state`` holds their slots as ``state[8]``,
-    (n_slots, n_paths) float64. Compiled in memory (a user's functions)."""
+    (:func:`stochpend.observables.track_step`): ``state`` holds their slots after the path's
+    arrays (:func:`stochpend.engine.layout.state_arrays`), (n_slots, n_paths) float64. Compiled
+    in memory, once per process."""
     advance_path = integrator.build(spec, observables.track_step(accs)).advance_path
 
     @cuda.jit

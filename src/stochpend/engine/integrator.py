@@ -1229,7 +1229,10 @@ def build(spec: KernelSpec, track: Any = None) -> SimpleNamespace:
     # and never share a cache entry.
     name_closures([oscillator.G, oscillator.step_size, oscillator.verlet, *advance_levels.values(),
                    *device_levels.values(), advance_lanes, family.family_step_inline, family.additive_sum_inline],
-                  spec.label if track is None else f"{spec.label}/track/{id(track):x}")
+                  # A tracked build is named by its track's name, which names its accumulators
+                  # (observables.track_step: the same in every process for built-in ones, whose
+                  # kernel is then cached on disk; an object's identity for a user's).
+                  spec.label if track is None else f"{spec.label}/track/{track.__qualname__}")
     return SimpleNamespace(
         spec=spec, real=real, G=oscillator.G, step_size=oscillator.step_size, verlet=oscillator.verlet,
         family_step=family.family_step, family_step_inline=family.family_step_inline,

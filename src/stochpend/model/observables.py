@@ -395,7 +395,7 @@ def user_values(observables: tuple[Any, ...], oscillator: Any = None) -> Callabl
     function.__module__, function.__qualname__ = __name__, "user_values.<locals>.user_values"
     from stochpend.numerics._jitcache import name_closures
 
-    name_closures([function], f"user_values/{user_key(observables)}")
+    name_closures([function], f"user_values/{builtin_key(observables) or user_key(observables)}")
     return register_jitable(function)
 
 
@@ -458,7 +458,9 @@ def track_step(accs: tuple[Any, ...]) -> Callable | None:
     function.__module__, function.__qualname__ = __name__, "track_step.<locals>.track"
     from stochpend.numerics._jitcache import name_closures
 
-    name_closures([function], f"track/{user_key(accs)}")
+    # A built-in set is named by its names alone, the same in every process (its kernel is
+    # cached on disk, and Numba keys a cached kernel on its closures' names).
+    name_closures([function], f"track/{builtin_key(accs) or user_key(accs)}")
     return register_jitable(function)
 
 
@@ -769,3 +771,19 @@ register(DISPLACEMENT)
 LOG_ENERGY = EnergyObservable("log_energy", math.log, label="⟨ln(E − E_min)⟩",
                               description="<ln(E - E_min)>, over the paths above the potential's floor")
 register(LOG_ENERGY)
+
+#: The built-in observables, as this module registered them: their code is the package's, under
+#: its code digest (stochpend.numerics._sources), so a kernel that tracks only these can be
+#: cached on disk (:func:`builtin_key`).
+_BUILTIN = dict(_REGISTRY)
+
+
+def builtin_key(objects: tuple[Any, ...]) -> str | None:
+    """What names a kernel compiled for the observables or accumulators ``objects`` when every
+    one is built in (the very object this module registered: ``"displacement"``,
+    ``"log_energy"``), their names in order; None when there are none or any is a user's (its
+    functions are not the package's code: compiled in memory only, named by
+    :func:`user_key`)."""
+    if not objects or any(_BUILTIN.get(o.name) is not o for o in objects):
+        return None
+    return "+".join(o.name for o in objects)

@@ -143,7 +143,8 @@ def compile_seconds(config: Any, *, backend: str = "cpu", precision: str = "floa
     from stochpend.numerics._jitcache import in_cache
 
     seconds = 0.0
-    for kind, kernel in cpu.compiled_kernels(cpu.spec_for(config, precision), pairs=pairs).items():
+    spec = cpu.spec_for(config, precision)
+    for kind, kernel in cpu.compiled_kernels(spec, pairs=pairs, observables=getattr(config, "observables", ())).items():
         if in_cache(kernel) or (counted is not None and kernel in counted):
             continue
         seconds += COMPILE_S[kind]
