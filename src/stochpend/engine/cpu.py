@@ -243,7 +243,6 @@ def path_kernel(spec: KernelSpec):
 
 
 @functools.cache
-@functools.cache
 def tracked_kernel(spec: KernelSpec, accs: tuple):
     """``advance`` of a run with per-path accumulators ``accs``
     (:func:`stochpend.observables.track_step`): :func:`path_kernel`'s driver, one path at a

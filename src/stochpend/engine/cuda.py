@@ -294,7 +294,6 @@ def advance_kernel(spec: KernelSpec):
 
 
 @functools.cache
-@functools.cache
 def tracked_kernel(spec: KernelSpec, accs: tuple):
     """:func:`advance_kernel` of a run with per-path accumulators ``accs``
     (:func:`stochpend.observables.track_step`): ``state`` holds their slots after the path's
