@@ -12,6 +12,7 @@ and show. The calibration over 100 seeds is tests/statistical/test_multilevel_ca
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -98,6 +99,51 @@ def test_a_plan_over_the_wall_time_budget_is_refused_with_what_it_would_take():
                                          r"[0-9.e+]+ path-steps \([0-9.e+]+ already spent\), more than the "
                                          r"wall-time budget max_seconds=10 leaves"):
         stochpend.simulate(**CHEAP, target_error=1e-5, max_seconds=10)
+
+
+#: The pendulum from a uniform angle: its mean displacement is 0 at every time, by symmetry.
+ZERO_MEAN = dict(noise="ou", D=1.0, tau=1.0, t_max=1.0, times=(1.0,), observables=("displacement",),
+                 target_statistics=("mean_displacement",), target_error=0.05)
+
+
+def test_a_relative_target_of_a_statistic_that_is_zero_within_its_error_is_refused():
+    """A relative error of 0 has no plan: before the check, the rounds grew (6.8e4, then 2.4e7
+    samples) past 600 s. Refused once level 0 has had a round beyond its pilot, naming the
+    statistic, the time and the estimate, and what to do instead."""
+    with pytest.raises(ValueError) as err:
+        stochpend.simulate(**ZERO_MEAN)
+    msg = str(err.value)
+    assert "\n" not in msg
+    assert re.search(r"target_error=0\.05 is not accepted for mean_displacement at t = 1: it is 0 within its "
+                     r"statistical error \(\S+ \+- \S+ at 95 % from (\d+) paths\)", msg), msg
+    paths = int(re.search(r"from (\d+) paths", msg).group(1))
+    assert paths > multilevel.PILOT_SAMPLES  # not judged on the pilot alone
+    assert "target_times" in msg and "max_seconds" in msg
+
+
+def test_the_cli_refuses_a_zero_statistic_in_one_line_exit_2_naming_its_options(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(app, ["simulate", "--t-max", "1", "--times", "1", "--observable", "displacement",
+                                      "--target-statistics", "mean_displacement", "--target-error", "0.05",
+                                      "--out", "o.nc", "--quiet"])
+    assert result.exit_code == 2, result.output
+    text = " ".join(result.output.split())
+    assert "--target-error 0.05 is not accepted for mean_displacement at t = 1: it is 0 within" in text
+    assert "(--target-statistics, --target-times)" in text and "(--max-seconds)" in text
+    assert "Traceback" not in result.output and len(result.output.strip().splitlines()) == 1, result.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_nonzero_mean_of_the_same_observable_is_not_refused_as_zero():
+    """The refusal is the estimate's, not the observable's: started at x = 1, the mean
+    displacement is far from 0 and its target is met."""
+    ds = stochpend.simulate(**{**ZERO_MEAN, "theta0": 1.0, "target_error": 0.05})
+    assert bool(ds["mean_displacement_certified"].values.all())
+
+
+def test_with_a_wall_time_budget_a_zero_statistic_is_refused_by_the_budget():
+    with pytest.raises(ValueError, match=r"more than the wall-time budget max_seconds=5 leaves"):
+        stochpend.simulate(**ZERO_MEAN, max_seconds=5)
 
 
 def test_a_budget_the_run_fits_in_changes_no_number():

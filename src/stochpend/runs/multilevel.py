@@ -58,7 +58,9 @@ and the bias bound is finite.
 Budget: ``max_path_steps`` and, when given, the wall time ``max_seconds`` (:class:`Budget`: the
 seconds become path-steps at the rate measured here, then at the run's own). The pilot and every
 round's plan are checked against it first: a target the budget cannot buy is refused, saying
-what it would take, before the work it could not finish.
+what it would take, before the work it could not finish. Without a wall-time budget, a
+statistic that is 0 within its error once level 0 has had a round beyond its pilot is refused
+(:func:`_refuse_zero`): a relative error of it has no plan, and the rounds would grow without end.
 
 Nonlinear statistics. S = <E^3>/<E^2>^(3/2) and F = <E^4>/<E^2>^2 are g(means): level 0's
 value is g of its paths' means, level l's difference Y_l = g(fine means) - g(coarse means) of
@@ -884,6 +886,14 @@ class Budget:
         left = self.seconds - elapsed - (self.compile_s if spent == 0 else 0.0)
         return min(self.path_steps, spent + max(left, 0.0) * rate)
 
+    def seconds_for(self, path_steps: float, spent: float = 0.0, compiling_s: float = 0.0) -> float:
+        """Seconds that ``path_steps`` more take at the rate :meth:`limit` uses (NaN: unknown)."""
+        elapsed = _time.perf_counter() - self.started
+        rate = self.rate
+        if spent > 0 and elapsed - compiling_s >= RATE_MEASURED_AFTER_S:
+            rate = spent / (elapsed - compiling_s)
+        return path_steps / rate if 0.0 < rate < math.inf else math.nan
+
     def exceeded(self, total: float, spent: float = 0.0, compiling_s: float = 0.0) -> str | None:
         """None when ``total`` path-steps fit; else the limit that they break, for a message."""
         if total <= self.path_steps and total <= self.limit(spent, compiling_s):
@@ -913,8 +923,8 @@ def check_pilot(config: SimulationConfig, target: Target, *, backend: str = "cpu
     cfg = _target_config(config, target)
     budget = Budget(resources.work_limit(max_path_steps), check_max_seconds(max_seconds),
                     started=_time.perf_counter() if started is None else started)
+    budget.rate = resources._rate(backend == "cuda", None, resources.kernel_kind(cfg))[0]
     if budget.seconds is not None:
-        budget.rate = resources._rate(backend == "cuda", None, resources.kernel_kind(cfg))[0]
         budget.compile_s = resources.compile_seconds(cfg, backend=backend)
     pilot_cost = sum(_path_steps_guess(cfg, level, PILOT_SAMPLES) for level in range(PILOT_LEVELS))
     broken = budget.exceeded(pilot_cost)
@@ -1050,6 +1060,8 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             # plan's samples (its split of the target between bias and statistics).
             st = _state(levels, conf, times)
             active = st.coupled & np.isfinite(st.estimate) & (st.estimate != 0)
+            if budget.seconds is None:
+                _refuse_zero(target, st, conf, active, times)
             L = len(levels) - 1
             step, need, least = _guarded_plan(st, eps, conf, active)
             more = np.maximum(step - st.N, 0)
@@ -1067,7 +1079,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             # a round adds at least a tenth of a level's samples: fewer rounds, each worth its start
             more = np.where(more > 0.1 * st.N, more, 0)
             if np.any(more):
-                _top_up(add, more, st, note)
+                _top_up(add, more, st, note, budget.seconds_for(_staircase_cost(more, st.C), spent, clock.seconds))
                 continue
             if L < MAX_LEVEL and _levels_wanted(st, eps, conf, active):
                 guess = _path_steps_guess(cfg, L + 1, PILOT_SAMPLES)
@@ -1085,7 +1097,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
                                            _staircase_cost(np.maximum(least - st.N, 0), st.C)), spent, clock.seconds):
                 _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), budget,
                         "the plan", clock.seconds)
-            _top_up(add, more, st, note)
+            _top_up(add, more, st, note, budget.seconds_for(_staircase_cost(more, st.C), spent, clock.seconds))
         st = _state(levels, conf, times)
         route = _certify_by_independent_runs(cfg, target, st, sum(lv.nonfinite for lv in levels),
                                              budget.limit(spent, clock.seconds) - spent, of, backend, note,
@@ -1096,13 +1108,49 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
     return _dataset(config, cfg, target, levels, st, spent, wall, clock.seconds, backend, route)
 
 
-def _top_up(add: Any, more: np.ndarray, st: State, note: Any) -> None:
-    """Run ``more`` (L+1, T) samples as rounds of :func:`staircase`."""
+def _top_up(add: Any, more: np.ndarray, st: State, note: Any, seconds: float = math.nan) -> None:
+    """Run ``more`` (L+1, T) samples as rounds of :func:`staircase`; ``seconds``: their expected
+    wall time, announced when known."""
+    about = f", about {_duration(seconds)} at this machine's rate" if math.isfinite(seconds) else ""
     note(f"target: samples per level at the last time {', '.join(str(int(n)) for n in st.N[:, -1] + more[:, -1])}"
-         f" ({_staircase_cost(more, st.C):.3g} more path-steps)")
+         f" ({_staircase_cost(more, st.C):.3g} more path-steps{about})")
     for level in range(more.shape[0]):
         for stop, n in staircase(more[level]):
             add(level, n, stop)
+
+
+def _duration(seconds: float) -> str:
+    """``seconds`` as a person reads a wait: 4 s, 12 min, 3.2 h, 5.1 days."""
+    if seconds < 60:
+        return f"{seconds:.2g} s"
+    if seconds < 3600:
+        return f"{seconds / 60:.2g} min"
+    if seconds < 86400:
+        return f"{seconds / 3600:.2g} h"
+    return f"{seconds / 86400:.2g} days"
+
+
+def _refuse_zero(target: Target, st: State, conf: float, active: np.ndarray, times: np.ndarray) -> None:
+    """Refuse (``ValueError``, one line) a relative target of a statistic that is 0 within its
+    statistical error at a time where level 0 has had more than its pilot: a relative error of
+    a value that may be 0 has no number of samples that is known to reach it, and the plan,
+    made from |estimate| two standard errors up, grows round after round without end (the mean
+    displacement of the pendulum from a uniform angle is 0 by symmetry: at eps = 0.05 the
+    rounds asked 6.8e4, then 2.4e7 samples, and the run went on past 600 s). Called only
+    without a wall-time budget: with one, the plan is refused when it no longer fits it."""
+    z = _quantile((1.0 - conf) / 2.0)
+    with np.errstate(invalid="ignore"):
+        se = np.sqrt(np.maximum(st.stat_var, 0.0))
+        zero = active & (st.N[0][None, :] > PILOT_SAMPLES) & (np.abs(st.estimate) <= z * se)
+    if not np.any(zero):
+        return
+    s, t = (int(i[0]) for i in np.nonzero(zero))
+    raise ValueError(f"target_error={target.error:g} is not accepted for {target.statistics[s]} at t = "
+                     f"{times[t]:g}: it is 0 within its statistical error ({st.estimate[s, t]:.3g} +- "
+                     f"{z * se[s, t]:.2g} at {100 * conf:g} % from {int(st.N[0, t])} paths), so no number "
+                     "of paths is known to reach a relative error of it; ask for statistics or times away "
+                     "from 0 (target_statistics= (--target-statistics), target_times= (--target-times)), or "
+                     "give a wall-time budget (max_seconds= (--max-seconds)) to try within it")
 
 
 def _refuse(target: Target, spent: int, total: float, budget: Budget, what: str, compiling_s: float) -> None:
