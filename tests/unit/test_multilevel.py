@@ -503,3 +503,36 @@ def test_a_levels_kurtosis_combines_its_rounds_raw_moments():
     assert mixed.kurtosis()[0, 0] == pytest.approx(3.0 * (1 + 16) / 2 / ((1 + 4) / 2) ** 2, rel=1e-9)
     assert np.isnan(multilevel.Level(0, [multilevel.Round(np.array([5]), 0, 1.0, 5, 1, 5, *(np.zeros((1, 1)),) * 6,
                                                           0)]).kurtosis()[0, 0])
+
+
+def test_a_target_run_records_its_own_rate_and_the_next_budget_converts_at_it(monkeypatch, tmp_path):
+    """The wall-time budget's prior rate was the ordinary run's of the same kernel (its
+    lower-bound work over a wall time holding its bias pairs: 20x below what a target run
+    computes here). A finished target run now stores its own, every path-step it spent over its
+    computing seconds, under its own name, and the next budget converts seconds at it."""
+    from stochpend.numerics import _calibration as cal
+    from stochpend.runs import resources
+
+    file = tmp_path / cal.FILE_NAME
+    monkeypatch.setattr(cal, "path", lambda: file)
+    monkeypatch.setattr(cal, "MIN_RATE_SECONDS", 0.0)  # a cheap run counts here
+    monkeypatch.setattr(cal, "current_load", lambda: 0.0)
+    config = SimulationConfig.build(**{k: v for k, v in CHEAP.items() if k not in ("gamma", "additive_D",
+                                                                                  "initial_temperature")},
+                                    dyn_params=dict(gamma=GAMMA, additive_D=D_A,
+                                                    initial_temperature=T_BOLTZMANN))
+    target = multilevel.check_target(config, 0.05)
+    cfg = multilevel._target_config(config, target)
+    kind = multilevel.rate_kind(cfg)
+    assert kind == f"target {resources.kernel_kind(cfg)}"
+    assert cal.read().get("rate", {}).get(kind) is None
+    ds = multilevel.target_run(config, target)
+    rates = cal.read()["rate"]
+    assert list(rates) == [kind]  # not the ordinary run's kind
+    (per_thread,) = rates[kind]
+    cores = resources._cores(None)
+    spent = float(ds.attrs["path_steps"])
+    computing = float(ds.attrs["total_wall_time_s"]) - float(ds.attrs["compile_time_s"])
+    assert per_thread * cores == pytest.approx(spent / computing, rel=0.05)
+    budget = multilevel.check_pilot(config, target, max_seconds=100)
+    assert budget.rate == pytest.approx(per_thread * cores)

@@ -923,7 +923,7 @@ def check_pilot(config: SimulationConfig, target: Target, *, backend: str = "cpu
     cfg = _target_config(config, target)
     budget = Budget(resources.work_limit(max_path_steps), check_max_seconds(max_seconds),
                     started=_time.perf_counter() if started is None else started)
-    budget.rate = resources._rate(backend == "cuda", None, resources.kernel_kind(cfg))[0]
+    budget.rate = resources._rate(backend == "cuda", None, rate_kind(cfg))[0]
     if budget.seconds is not None:
         budget.compile_s = resources.compile_seconds(cfg, backend=backend)
     pilot_cost = sum(_path_steps_guess(cfg, level, PILOT_SAMPLES) for level in range(PILOT_LEVELS))
@@ -933,6 +933,29 @@ def check_pilot(config: SimulationConfig, target: Target, *, backend: str = "cpu
                          f"samples on each of levels 0..{PILOT_LEVELS - 1}) needs about {pilot_cost:.3g} "
                          f"path-steps, {broken}; or use a larger h_max or a shorter t_max")
     return budget
+
+
+def rate_kind(cfg: SimulationConfig) -> str:
+    """The calibration's name (:mod:`stochpend.numerics._calibration`) of target runs of
+    ``cfg``'s kernel: their rate is their own, every path-step they spend (the pairs' fine half
+    steps counted) over their computing seconds, recorded by each target run. Not the ordinary
+    run's rate of the same kernel, which counts only its lower-bound work against a wall time
+    that holds its bias pairs and histograms: on this 2-core machine that rate was 3.3-3.9e6
+    path-steps/s a thread against the target run's 8e7, and a wall-time budget converted at it
+    refused targets that fit (the run's own rate takes over only after 2 s)."""
+    from stochpend.runs import resources
+
+    return f"target {resources.kernel_kind(cfg)}"
+
+
+def _record_rate(cfg: SimulationConfig, backend: str, path_steps: float, computing_s: float, load: float) -> None:
+    """Store a finished target run's rate for the next one's budget (:func:`rate_kind`)."""
+    if backend != "cpu":
+        return
+    from stochpend.numerics import _calibration
+    from stochpend.runs import resources
+
+    _calibration.record_rate(rate_kind(cfg), path_steps, computing_s, resources._cores(None), load=load)
 
 
 @dataclass
@@ -1026,6 +1049,10 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
     journal = journal or Journal()
     cfg = _target_config(config, target)
     started = _time.perf_counter() - journal.elapsed_s  # the budget and the wall time span the sessions
+    resumed = journal.elapsed_s > 0 or bool(journal.rounds)
+    from stochpend.numerics import _calibration
+
+    load = _calibration.current_load()  # before this run adds its own threads
     budget = check_pilot(config, target, backend=backend, max_path_steps=max_path_steps, max_seconds=max_seconds,
                          started=started)
     of = statistics_of(config, target.statistics)
@@ -1105,6 +1132,8 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
         if route is not None:
             spent += route.path_steps
     wall = _time.perf_counter() - started
+    if not resumed:  # a resumed run's rounds ran in other sessions, under other loads
+        _record_rate(cfg, backend, spent, wall - clock.seconds, load)
     return _dataset(config, cfg, target, levels, st, spent, wall, clock.seconds, backend, route)
 
 
