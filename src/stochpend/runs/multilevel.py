@@ -1106,7 +1106,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             # a round adds at least a tenth of a level's samples: fewer rounds, each worth its start
             more = np.where(more > 0.1 * st.N, more, 0)
             if np.any(more):
-                _top_up(add, more, st, note, budget.seconds_for(_staircase_cost(more, st.C), spent, clock.seconds))
+                _top_up(add, more, st, note, times, budget.seconds_for(_staircase_cost(more, st.C), spent, clock.seconds))
                 continue
             if L < MAX_LEVEL and _levels_wanted(st, eps, conf, active):
                 guess = _path_steps_guess(cfg, L + 1, PILOT_SAMPLES)
@@ -1124,11 +1124,12 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
                                            _staircase_cost(np.maximum(least - st.N, 0), st.C)), spent, clock.seconds):
                 _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), budget,
                         "the plan", clock.seconds)
-            _top_up(add, more, st, note, budget.seconds_for(_staircase_cost(more, st.C), spent, clock.seconds))
+            _top_up(add, more, st, note, times, budget.seconds_for(_staircase_cost(more, st.C), spent, clock.seconds))
         st = _state(levels, conf, times)
+        per_step = budget.seconds_for(1.0, spent, clock.seconds)  # the levels' rate, for the notes
         route = _certify_by_independent_runs(cfg, target, st, sum(lv.nonfinite for lv in levels),
                                              budget.limit(spent, clock.seconds) - spent, of, backend, note,
-                                             journal)
+                                             journal, seconds_for=lambda n: n * per_step)
         if route is not None:
             spent += route.path_steps
     wall = _time.perf_counter() - started
@@ -1137,15 +1138,21 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
     return _dataset(config, cfg, target, levels, st, spent, wall, clock.seconds, backend, route)
 
 
-def _top_up(add: Any, more: np.ndarray, st: State, note: Any, seconds: float = math.nan) -> None:
+def _top_up(add: Any, more: np.ndarray, st: State, note: Any, times: np.ndarray, seconds: float = math.nan) -> None:
     """Run ``more`` (L+1, T) samples as rounds of :func:`staircase`; ``seconds``: their expected
-    wall time, announced when known."""
-    about = f", about {_duration(seconds)} at this machine's rate" if math.isfinite(seconds) else ""
-    note(f"target: samples per level at the last time {', '.join(str(int(n)) for n in st.N[:, -1] + more[:, -1])}"
-         f" ({_staircase_cost(more, st.C):.3g} more path-steps{about})")
+    wall time, announced when known; ``times``: the output times, (T,)."""
+    # the samples at the latest time this round reaches (the last output time may need none)
+    j = int(np.flatnonzero(np.any(more > 0, axis=0))[-1]) if np.any(more > 0) else more.shape[1] - 1
+    note(f"target: samples per level at t = {times[j]:g}: {', '.join(str(int(n)) for n in st.N[:, j] + more[:, j])}"
+         f" ({_staircase_cost(more, st.C):.3g} more path-steps{_about(seconds)})")
     for level in range(more.shape[0]):
         for stop, n in staircase(more[level]):
             add(level, n, stop)
+
+
+def _about(seconds: float) -> str:
+    """``", about 12 min at this machine's rate"``, or nothing where the rate is not known."""
+    return f", about {_duration(seconds)} at this machine's rate" if math.isfinite(seconds) else ""
 
 
 def _duration(seconds: float) -> str:
@@ -1254,7 +1261,8 @@ def _ensemble(cfg: SimulationConfig, h: float, n: int, seed: int, stop: int,
 
 def _certify_by_independent_runs(cfg: SimulationConfig, target: Target, st: State, nonfinite: int,
                                  room: float, of: Callable[[np.ndarray], np.ndarray], backend: str,
-                                 note: Any, journal: Journal) -> Route | None:
+                                 note: Any, journal: Journal, *,
+                                 seconds_for: Callable[[float], float] = lambda _steps: math.nan) -> Route | None:
     """Issue 35, item 3: each time that the levels could not certify and for which two
     independent ensembles at h_k and h_k/2 are the cheaper route (:func:`_cost_independent`) is
     run that way while the route fits in ``room`` path-steps: N paths at each step, the finer
@@ -1263,7 +1271,8 @@ def _certify_by_independent_runs(cfg: SimulationConfig, target: Target, st: Stat
     |P| two standard errors up (the pilot's few hundred samples say little of a late time), then
     up to :data:`ROUTE_ROUNDS` rounds top both ensembles up to the N the measured variances,
     mean and difference ask for. Seeds ``SeedSequence(seed, spawn_key=(35, 1000 + j, 64 t +
-    round))``, j = 0, 1 the two steps: independent of the levels, of each other and across rounds."""
+    round))``, j = 0, 1 the two steps: independent of the levels, of each other and across rounds.
+    ``seconds_for``: the expected seconds of a number of path-steps, for the notes."""
     eps, conf = target.error, target.confidence
     v = _verdict(st, eps, conf, nonfinite, cfg.h_max)
     S, T = st.estimate.shape
@@ -1299,7 +1308,7 @@ def _certify_by_independent_runs(cfg: SimulationConfig, target: Target, st: Stat
                          f"{n_more * per_path:.3g} more path-steps than the limit leaves")
                 break
             note(f"target: t = {cfg.times[t]:g} by two independent runs at h = {h:.3g}, {h / 2:.3g}: "
-                 f"{n_more} more paths each")
+                 f"{n_more} more paths each ({n_more * per_path:.3g} path-steps{_about(seconds_for(n_more * per_path))})")
             for j, hh in enumerate((h, 0.5 * h)):
                 seed = level_seed(cfg.seed, 1000 + j, 64 * t + round_)
                 seeds.append(seed)
