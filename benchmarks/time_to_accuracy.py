@@ -85,8 +85,13 @@ def method_a(case: dict, t: float, eps: float, budget: float, seed: int, h_max: 
     seconds = time.perf_counter() - started
     certified = all(bool(ds[f"{s}_certified"].values.all()) for s in STATISTICS)
     worst = max(float(ds[f"{s}_relative_total_error"].values.max()) for s in STATISTICS)
+    # where the work went: each level's share of the path-steps (level 0 first); the speed-up
+    # over one level at the best step is bounded by the coarse levels' share, which no bias
+    # machinery (more levels, Richardson) reduces
+    per_level = ds["level_path_steps"].values.astype(float)
+    shares = "/".join(f"{100 * x / per_level.sum():.0f}" for x in per_level)
     return Row("", t, eps, label, seconds, float(ds.attrs["path_steps"]), "run",
-               f"levels {ds.sizes['level']}, worst relative total {worst:.2g}, "
+               f"levels {ds.sizes['level']} (% of path-steps {shares}), worst relative total {worst:.2g}, "
                f"{'certified' if certified else 'NOT certified'}")
 
 
