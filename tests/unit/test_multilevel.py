@@ -461,6 +461,24 @@ def test_a_decorrelated_late_time_is_certified_by_two_independent_runs():
     assert diff <= float(ds["mean_E_total_error"].values[-1]) + 4 * float(plain["mean_E_stderr"].values[-1])
 
 
+def test_the_late_times_route_says_its_least_cost_and_time_before_it_runs():
+    """The README's command with a 1 % target left 16 late times to the independent route, at
+    least 1.9e11 path-steps (about 21 min here) after the levels' 1.4e10: said first, in one
+    note, and a lower bound of what the route then spends."""
+    config = SimulationConfig.build(noise="ou", t_max=100.0, times=(1.0, 100.0), seed=2)
+    target = multilevel.check_target(config, 0.05, target_statistics=["mean_E"])
+    notes: list[str] = []
+    ds = multilevel.target_run(config, target, note=notes.append)
+    said = [i for i, n in enumerate(notes) if "to be certified by independent runs" in n]
+    assert len(said) == 1, notes
+    m = re.fullmatch(r"target: 1 time\(s\) from t = 100 to be certified by independent runs: at least "
+                     r"(\S+) path-steps, about .+ at this machine's rate", notes[said[0]])
+    assert m, notes[said[0]]
+    assert 0 < float(m.group(1)) <= ds.attrs["target_route_path_steps"]
+    runs = [i for i, n in enumerate(notes) if "by two independent runs at h" in n]
+    assert runs and min(runs) > said[0]
+
+
 # -- the kurtosis of the level differences (Giles' diagnostic) ------------------------------------
 def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
     from stochpend import bias

@@ -1281,6 +1281,11 @@ def _certify_by_independent_runs(cfg: SimulationConfig, target: Target, st: Stat
     z = float(_quantile((1.0 - conf) / 2.0))
     z_b = float(_quantile((1.0 - conf) / 4.0))
     seeds: list[int] = []
+    eligible = [t for t in range(T) if np.any(v.independent[:, t])]
+    if eligible:  # said first: a late time's route may take far longer than the levels did
+        least = sum(float(np.max(v.cost[v.independent[:, t], t])) for t in eligible)
+        note(f"target: {len(eligible)} time(s) from t = {cfg.times[eligible[0]]:g} to be certified by "
+             f"independent runs: at least {least:.3g} path-steps{_about(seconds_for(least))}")
     for t in range(T):
         todo = v.independent[:, t]
         if not np.any(todo):
