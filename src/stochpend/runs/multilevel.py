@@ -1151,8 +1151,8 @@ def _top_up(add: Any, more: np.ndarray, st: State, note: Any, times: np.ndarray,
 
 
 def _about(seconds: float) -> str:
-    """``", about 12 min at this machine's rate"``, or nothing where the rate is not known."""
-    return f", about {_duration(seconds)} at this machine's rate" if math.isfinite(seconds) else ""
+    """``", about 12 min here"`` (at the rate measured on this machine), or nothing where it is not known."""
+    return f", about {_duration(seconds)} here" if math.isfinite(seconds) else ""
 
 
 def _duration(seconds: float) -> str:
