@@ -46,7 +46,7 @@ def _check_complete(result) -> None:
             assert len(cells) == len(COLUMNS)
             assert all(c.strip() for c in cells), (name, cells)
         assert f.table_csv.read_text(encoding="utf-8").count("\n") == len(f.rows) + 1
-        assert f.caption and str(f.runs[0].spec.paths) in f.caption
+        assert f.caption and str(f.runs[0].figure_run.paths) in f.caption
     html = result.report.read_text(encoding="utf-8")
     assert html.count("data:image/png;base64,") == 5
     for f in result.figures.values():
@@ -75,9 +75,9 @@ def test_tiny_reproduce_all_produces_every_file_and_fills_every_table(tiny) -> N
         try:
             assert ds.attrs["reproduce_cache_key"] == r.cache_key
             assert ds["batch_sums"].shape[0] == int(ds.attrs["n_batches"])
-            assert int(ds.attrs["paths"]) == r.spec.paths
-            if not r.spec.key.startswith("exponent_"):  # the exponent runs scale their own sizes
-                assert r.spec.paths == TINY["paths"]
+            assert int(ds.attrs["paths"]) == r.figure_run.paths
+            if not r.figure_run.key.startswith("exponent_"):  # the exponent runs scale their own sizes
+                assert r.figure_run.paths == TINY["paths"]
             assert ds["batch_sum_E"].shape[0] == int(ds.attrs["n_batches"])
         finally:
             ds.close()
@@ -175,11 +175,11 @@ def test_backend_is_passed_through_and_keys_the_stored_runs(tiny, monkeypatch) -
     from stochpend.engine import runner
 
     result, _ = tiny
-    spec = FIGURES["fig1"].runs(TINY["paths"], TINY["t_max"], True)[0]
-    keys = {spec.cache_key(__version__, b, p) for b, p in
+    figure_run = FIGURES["fig1"].runs(TINY["paths"], TINY["t_max"], True)[0]
+    keys = {figure_run.cache_key(__version__, b, p) for b, p in
             (("cpu", "float64"), ("cuda", "float64"), ("cuda", "float32"))}
     assert len(keys) == 3
-    assert rep._run_path(result.out, spec) != rep._run_path(result.out, spec, ("cuda", "float64"))
+    assert rep._run_path(result.out, figure_run) != rep._run_path(result.out, figure_run, ("cuda", "float64"))
     seen = []
     real = runner.run_batches
 
@@ -225,7 +225,7 @@ def test_figure_registry_and_default_runs() -> None:
     assert {s.omega for s in sizes["fig2"]} == {1.0}
     fig3 = {s.omega: s for s in sizes["fig3"]}
     fig4 = {s.tau: s for s in sizes["fig4"]}
-    # Shared runs: identical specs (so one cached file), and every other run has its own seed.
+    # Shared runs: identical figure_runs (so one cached file), and every other run has its own seed.
     assert fig2[(1.0, 1.0)].cache_key(__version__) == fig3[1.0].cache_key(__version__)
     assert fig4[1.0].cache_key(__version__) == fig3[0.0].cache_key(__version__)
     assert fig2[(1.0, 0.1)].cache_key(__version__) != fig4[0.1].cache_key(__version__)
@@ -400,17 +400,17 @@ def test_the_runs_table_labels_each_run_with_its_own_noise_and_model() -> None:
     from stochpend.paper.figures import exponents
     from stochpend.paper.figures._common import FigureRun
 
-    def spec(**kw) -> FigureRun:
+    def figure_run(**kw) -> FigureRun:
         base = {"key": "k", "label": "l", "noise": "ou", "D": 1.0, "tau": 1.0, "omega": 1.0,
                 "t_max": 10.0, "seed": 1, "paths": 10}
         return FigureRun(**{**base, **kw})
 
-    assert spec().describe() == "OU noise, D = 1, τ = 1, ω = 1"
-    assert spec(noise="white", tau=None).describe() == "white noise, D = 1, ω = 1"
-    assert spec(noise="dichotomous").describe() == "dichotomous noise, D = 1, τ = 1, ω = 1"
-    assert spec(noise="harmonic", omega_noise=2.0, potential="power", coupling="position").describe() == \
+    assert figure_run().describe() == "OU noise, D = 1, τ = 1, ω = 1"
+    assert figure_run(noise="white", tau=None).describe() == "white noise, D = 1, ω = 1"
+    assert figure_run(noise="dichotomous").describe() == "dichotomous noise, D = 1, τ = 1, ω = 1"
+    assert figure_run(noise="harmonic", omega_noise=2.0, potential="power", coupling="position").describe() == \
         "quartic oscillator (x⁴/4), position coupling, harmonic noise, D = 1, τ = 1, W = 2, ω = 1"
-    assert spec(noise="white", tau=None, potential="harmonic").describe() == \
+    assert figure_run(noise="white", tau=None, potential="harmonic").describe() == \
         "harmonic oscillator, white noise, D = 1, ω = 1"
     names = {"ou": "OU", "white": "white", "dichotomous": "dichotomous", "harmonic": "harmonic"}
     for s in exponents.runs(10, 1.0, True):

@@ -88,12 +88,12 @@ def _figure_table(rows: list[Any]) -> str:
     return _table(list(COLUMNS), body, classes)
 
 
-def _fmt_float(x: Any, spec: str = ".3g") -> str:
+def _fmt_float(x: Any, figure_run: str = ".3g") -> str:
     try:
         v = float(x)
     except (TypeError, ValueError):
         return DASH
-    return format(v, spec) if math.isfinite(v) else DASH
+    return format(v, figure_run) if math.isfinite(v) else DASH
 
 
 def _runs_table(records: list[Any]) -> str:
@@ -102,7 +102,7 @@ def _runs_table(records: list[Any]) -> str:
     rows = []
     for r in records:
         a = r.attrs
-        s = r.spec
+        s = r.figure_run
         rows.append([
             r.path.name,
             s.describe(),

@@ -80,7 +80,7 @@ class RunRecord:
     """One stored simulation and where it came from in this call."""
 
     key: str
-    spec: FigureRun
+    figure_run: FigureRun
     path: Path
     cache_key: str
     status: str  # "simulated", "cached" (read from disk) or "shared" (used by an earlier figure)
@@ -255,8 +255,8 @@ def reproduce(
     except ImportError:  # pragma: no cover - matplotlib is in the test extra
         raise ValueError("matplotlib is not installed: pip install 'stochpend[plot]'") from None
 
-    specs = {name: _module(name).runs(paths, t_max, quick) for name in names}
-    estimates = _estimates(specs, backend=backend, precision=precision,
+    figure_runs = {name: _module(name).runs(paths, t_max, quick) for name in names}
+    estimates = _estimates(figure_runs, backend=backend, precision=precision,
                            max_path_steps=max_path_steps, threads=threads)
 
     _prepare_out(out)
@@ -266,13 +266,13 @@ def reproduce(
 
     # Which runs need simulating (for the overall bar).
     unique: dict[Path, FigureRun] = {}
-    for name_specs in specs.values():
-        for s in name_specs:
+    for name_runs in figure_runs.values():
+        for s in name_runs:
             unique.setdefault(_run_path(out, s, where), s)
     preloaded = {} if force else {p: _load_cached(p, s, where, log) for p, s in unique.items()}
     to_simulate = {p: s for p, s in unique.items() if preloaded.get(p) is None}
     total_work = float(sum(s.paths * s.t_max for s in to_simulate.values()))
-    for line in _cost_lines(specs, estimates, set(to_simulate.values()), out, where):
+    for line in _cost_lines(figure_runs, estimates, set(to_simulate.values()), out, where):
         log(line)
     progress.start(max(total_work, 1.0), f"reproduce {' '.join(names)}")
     done_work = 0.0
@@ -286,7 +286,7 @@ def reproduce(
             fig_started = time.perf_counter()
             datasets: dict[str, xr.Dataset] = {}
             fig_runs: list[RunRecord] = []
-            for s in specs[name]:
+            for s in figure_runs[name]:
                 path = _run_path(out, s, where)
                 ds: xr.Dataset | None
                 if path in loaded:
@@ -311,7 +311,7 @@ def reproduce(
                 records.setdefault(path, rec)
                 fig_runs.append(rec)
                 datasets[s.key] = ds
-            results[name] = _draw_and_tabulate(module, out, specs[name], datasets, fig_runs, fig_started)
+            results[name] = _draw_and_tabulate(module, out, figure_runs[name], datasets, fig_runs, fig_started)
             n_sim = sum(r.status == "simulated" for r in fig_runs)
             log(f"{name}: {len(fig_runs)} runs ({n_sim} simulated, {len(fig_runs) - n_sim} reused), "
                 f"{results[name].wall_time_s:.1f} s -> {results[name].png}")
@@ -378,7 +378,7 @@ def _checked_size(paths: Any, t_max: Any, quick: bool) -> tuple[int, float | Non
     return paths, t_max
 
 
-def _estimates(specs: dict[str, list[FigureRun]], *, backend: str, precision: str,
+def _estimates(figure_runs: dict[str, list[FigureRun]], *, backend: str, precision: str,
                max_path_steps: float | None, threads: int | None) -> dict[tuple[str, str], Any]:
     """Every run validated before any work (a one-line ValueError naming the parameter), and
     its cost: ``resources.Estimate`` by (figure, run key)."""
@@ -386,8 +386,8 @@ def _estimates(specs: dict[str, list[FigureRun]], *, backend: str, precision: st
     from stochpend.runs import resources
 
     estimates: dict[tuple[str, str], resources.Estimate] = {}
-    for name, name_specs in specs.items():
-        for s in name_specs:
+    for name, name_runs in figure_runs.items():
+        for s in name_runs:
             estimates[name, s.key] = resources.check(
                 SimulationConfig.build(**s.simulate_kwargs()), backend=backend, precision=precision,
                 max_path_steps=max_path_steps, threads=threads)
@@ -401,7 +401,7 @@ def _module(name: str) -> Any:
     return FIGURES[name] if name in FIGURES else GALLERY[name] if name in GALLERY else CASES[name]
 
 
-def _cost_lines(specs: dict[str, list[FigureRun]], estimates: dict, to_simulate: set, out: Path,
+def _cost_lines(figure_runs: dict[str, list[FigureRun]], estimates: dict, to_simulate: set, out: Path,
                 where: tuple[str, str]) -> list[str]:
     """One line per run to simulate, then the total: the lower bound on the work and a duration
     at the assumed rate (:func:`stochpend.runs.resources.estimate`), and for the named long runs
@@ -413,9 +413,9 @@ def _cost_lines(specs: dict[str, list[FigureRun]], estimates: dict, to_simulate:
     lower = model = seconds = 0.0
     seen: set[Path] = set()
     counted: set = set()  # kernels compiled for an earlier run of this call
-    for name, name_specs in specs.items():
+    for name, name_runs in figure_runs.items():
         estimator = getattr(_module(name), "expected_path_steps", None)
-        for s in name_specs:
+        for s in name_runs:
             path = _run_path(out, s, where)
             if s not in to_simulate or path in seen:
                 continue
@@ -461,8 +461,8 @@ def _figure_names(figures: str | Iterable[str]) -> list[str]:
     return names
 
 
-def _run_path(out: Path, spec: FigureRun, where: tuple[str, str] = ("cpu", "float64")) -> Path:
-    return out / "runs" / f"{spec.key}-n{spec.paths}-T{spec.t_max:g}-{spec.cache_key(__version__, *where)[:12]}.nc"
+def _run_path(out: Path, figure_run: FigureRun, where: tuple[str, str] = ("cpu", "float64")) -> Path:
+    return out / "runs" / f"{figure_run.key}-n{figure_run.paths}-T{figure_run.t_max:g}-{figure_run.cache_key(__version__, *where)[:12]}.nc"
 
 
 def _late_bias(ds: xr.Dataset) -> tuple[float, float, int] | None:
@@ -476,9 +476,9 @@ def _late_bias(ds: xr.Dataset) -> tuple[float, float, int] | None:
     return float(ds["mean_E_bias"].values[-1]), float(ds["mean_E_bias_stderr"].values[-1]), verdict
 
 
-def _load_cached(path: Path, spec: FigureRun, where: tuple[str, str] = ("cpu", "float64"),
+def _load_cached(path: Path, figure_run: FigureRun, where: tuple[str, str] = ("cpu", "float64"),
                  log: Callable[[str], None] = lambda message: None) -> xr.Dataset | None:
-    """The stored run if it exists, its checksum holds and its stored hash matches the spec;
+    """The stored run if it exists, its checksum holds and its stored hash matches the figure run;
     else None (it is simulated again). A damaged or unverifiable stored run is never reused:
     ``log`` says so."""
     if not path.is_file():
@@ -497,7 +497,7 @@ def _load_cached(path: Path, spec: FigureRun, where: tuple[str, str] = ("cpu", "
         return None
     except ValueError:
         return None
-    if ds.attrs.get("reproduce_cache_key") != spec.cache_key(__version__, *where) or "batch_sums" not in ds:
+    if ds.attrs.get("reproduce_cache_key") != figure_run.cache_key(__version__, *where) or "batch_sums" not in ds:
         return None
     return ds
 
@@ -527,7 +527,7 @@ class _SubProgress:
         self.inner.finish()
 
 
-def _simulate(spec: FigureRun, *, progress: Progress, threads: int | None = None,
+def _simulate(figure_run: FigureRun, *, progress: Progress, threads: int | None = None,
               where: tuple[str, str] = ("cpu", "float64"), max_path_steps: float | None = None) -> xr.Dataset:
     """Simulate one run; the Dataset of :func:`stochpend.simulate` plus ``batch_sums``.
 
@@ -538,7 +538,7 @@ def _simulate(spec: FigureRun, *, progress: Progress, threads: int | None = None
     from stochpend.model.settings import SimulationConfig
     from stochpend.runs.lifecycle import RunOptions, execute
 
-    config = SimulationConfig.build(**spec.simulate_kwargs())
+    config = SimulationConfig.build(**figure_run.simulate_kwargs())
     ds, sums = execute(RunOptions.build(config, backend=where[0], precision=where[1], threads=threads,
                                  max_path_steps=max_path_steps), progress=progress)
     ds["batch_sums"] = (
@@ -548,9 +548,9 @@ def _simulate(spec: FigureRun, *, progress: Progress, threads: int | None = None
          "components": ", ".join(SUM_COMPONENTS)},
     )
     ds = ds.assign_coords(sum_component=("sum_component", _sum_components(config)))
-    ds.attrs["reproduce_cache_key"] = spec.cache_key(__version__, *where)
-    ds.attrs["reproduce_run_key"] = spec.key
-    ds.attrs["reproduce_label"] = spec.label
+    ds.attrs["reproduce_cache_key"] = figure_run.cache_key(__version__, *where)
+    ds.attrs["reproduce_run_key"] = figure_run.key
+    ds.attrs["reproduce_label"] = figure_run.label
     ds.attrs["command_line"] = "stochpend reproduce"
     return ds
 
@@ -567,7 +567,7 @@ def _sum_components(config: Any) -> list[str]:
     return names
 
 
-def _draw_and_tabulate(module: Any, out: Path, specs: list[FigureRun], datasets: dict[str, xr.Dataset],
+def _draw_and_tabulate(module: Any, out: Path, figure_runs: list[FigureRun], datasets: dict[str, xr.Dataset],
                        fig_runs: list[RunRecord], started: float) -> FigureResult:
     theory = module.theory(datasets)
     fig = module.draw(datasets, theory)
@@ -592,7 +592,7 @@ def _draw_and_tabulate(module: Any, out: Path, specs: list[FigureRun], datasets:
     for r in rows:
         w.writerow(r.cells())
     write_atomic(table_csv, text.getvalue().encode("utf-8"), overwrite=True)
-    return FigureResult(module.NAME, module.TITLE, module.caption(specs), png, pdf, table_csv, rows,
+    return FigureResult(module.NAME, module.TITLE, module.caption(figure_runs), png, pdf, table_csv, rows,
                         fig_runs, time.perf_counter() - started, FIT_METHOD)
 
 
@@ -671,8 +671,8 @@ def _write_results_json(result: ReproduceResult) -> None:
             for name, f in result.figures.items()
         },
         "runs": {
-            name: {"key": r.key, "status": r.status, "seed": r.spec.seed, "paths": r.spec.paths,
-                   "t_max": r.spec.t_max, "wall_time_s": r.wall_time_s, "path_steps": r.path_steps,
+            name: {"key": r.key, "status": r.status, "seed": r.figure_run.seed, "paths": r.figure_run.paths,
+                   "t_max": r.figure_run.t_max, "wall_time_s": r.wall_time_s, "path_steps": r.path_steps,
                    "nonfinite_paths": r.nonfinite_paths, "cache_key": r.cache_key}
             for name, r in result.runs.items()
         },

@@ -70,7 +70,7 @@ class LocalSchedulerEngine:
     def info(self) -> dict[str, Any]:
         return {"engine": f"dask-{self.scheduler}", "scheduler": self.scheduler, "workers": self.workers}
 
-    def run(self, spec: SweepPlan, tasks: list[Task], tracker: Any,
+    def run(self, plan: SweepPlan, tasks: list[Task], tracker: Any,
             on_result: Callable[[BlockResult], None], *, backend: str = "cpu",
             precision: str = "float64") -> None:
         numba_threads = None
@@ -79,7 +79,7 @@ class LocalSchedulerEngine:
             numba_threads = max(1, numba.config.NUMBA_NUM_THREADS // self.workers)
         calls = [
             dask.delayed(run_block, pure=False)(
-                dask.delayed(spec.configs[t.set_index], traverse=False), t.set_index, t.b0, t.b1,
+                dask.delayed(plan.configs[t.set_index], traverse=False), t.set_index, t.b0, t.b1,
                 numba_threads=numba_threads, backend=backend, precision=precision, plugins=plugins.loaded(),
             )
             for t in tasks
@@ -166,11 +166,11 @@ class DistributedEngine:
         return {"engine": "dask-distributed", "scheduler": self.address, "workers": self.n_workers,
                 "worker_cpu_targets": "; ".join(self.cpu_targets)}
 
-    def run(self, spec: SweepPlan, tasks: list[Task], tracker: Any,
+    def run(self, plan: SweepPlan, tasks: list[Task], tracker: Any,
             on_result: Callable[[BlockResult], None], *, backend: str = "cpu",
             precision: str = "float64") -> None:
         futures = [
-            self.client.submit(_remote_block, spec.configs[t.set_index], t.set_index, t.b0, t.b1,
+            self.client.submit(_remote_block, plan.configs[t.set_index], t.set_index, t.b0, t.b1,
                                self.threads_by_host, BUILD, backend, precision, plugins.loaded(), pure=False,
                                key=f"stochpend-block-{t.set_index}-{t.b0}-{os.urandom(4).hex()}")
             for t in tasks

@@ -319,7 +319,7 @@ def load_spec(spec: Mapping[str, Any] | str | os.PathLike | SweepPlan) -> SweepP
     return spec_
 
 
-def targets(spec: SweepPlan, given: Mapping[str, Any] | None = None, *, precision: str = "float64",
+def targets(plan: SweepPlan, given: Mapping[str, Any] | None = None, *, precision: str = "float64",
             max_path_steps: Any = None) -> list[multilevel.Target] | None:
     """Each set's validated target (None: the sweep has none): the file's :data:`TARGET_KEYS`,
     overridden by those ``given`` that are not None (:func:`sweep`'s keywords), with what
@@ -327,15 +327,15 @@ def targets(spec: SweepPlan, given: Mapping[str, Any] | None = None, *, precisio
     ``max_path_steps``). Refused in one line naming the key (and the set whose output times a
     ``target_times`` misses)."""
     ours = {k: v for k, v in (given or {}).items() if v is not None}
-    keys = {**spec.target, **ours}
+    keys = {**plan.target, **ours}
     if keys.get("target_error") is None:
         if keys:
             name = next(iter(keys))
-            source = "" if name in ours else f"{spec.source}: "
+            source = "" if name in ours else f"{plan.source}: "
             raise ValueError(f"{source}{name}={keys[name]!r} is not accepted without target_error")
         return None
     out = []
-    for i, config in enumerate(spec.configs):
+    for i, config in enumerate(plan.configs):
         try:
             out.append(multilevel.check_run(config, keys["target_error"], keys.get("target_confidence", 0.95),
                                             keys.get("target_statistics"), keys.get("target_times"),
@@ -343,8 +343,8 @@ def targets(spec: SweepPlan, given: Mapping[str, Any] | None = None, *, precisio
                                             max_path_steps=max_path_steps))
         except ValueError as exc:
             # the file named only for its own values: a keyword's is the caller's (the CLI's option)
-            source = "" if str(exc).split("=", 1)[0] in ours else f"{spec.source}: "
-            where = f" (parameter set {i + 1} of {spec.n_sets})" if spec.n_sets > 1 and i > 0 else ""
+            source = "" if str(exc).split("=", 1)[0] in ours else f"{plan.source}: "
+            where = f" (parameter set {i + 1} of {plan.n_sets})" if plan.n_sets > 1 and i > 0 else ""
             raise ValueError(f"{source}{exc}{where}") from None
     return out
 
@@ -364,10 +364,10 @@ def _check_positive_int(name: str, value: Any) -> int | None:
     return int(value)
 
 
-def plan_tasks(spec: SweepPlan, tasks_per_set: int) -> list[Task]:
+def plan_tasks(plan: SweepPlan, tasks_per_set: int) -> list[Task]:
     """Cut every set's batches into at most ``tasks_per_set`` contiguous blocks."""
     tasks = []
-    for i, c in enumerate(spec.configs):
+    for i, c in enumerate(plan.configs):
         n = min(tasks_per_set, c.n_batches)
         edges = [round(k * c.n_batches / n) for k in range(n + 1)]
         for b0, b1 in itertools.pairwise(edges):
@@ -434,11 +434,11 @@ class _PartialProgress:
         pass
 
 
-def _run_inprocess(spec: SweepPlan, tasks: list[Task], tracker: _Tracker,
+def _run_inprocess(plan: SweepPlan, tasks: list[Task], tracker: _Tracker,
                    on_result: Callable[[BlockResult], None], backend: str,
                    precision: str) -> dict[str, Any]:
     for task in tasks:
-        config = spec.configs[task.set_index]
+        config = plan.configs[task.set_index]
         r = run_block(config, task.set_index, task.b0, task.b1,
                       progress=_PartialProgress(tracker, config.t_max), backend=backend,
                       precision=precision)
@@ -466,10 +466,10 @@ def check_scheduler(scheduler: Any) -> None:
     _dask_backend(scheduler)
 
 
-def default_tasks_per_set(spec: SweepPlan, slots: int) -> int:
+def default_tasks_per_set(plan: SweepPlan, slots: int) -> int:
     """About 8 tasks per worker thread, at least one a set: sets differ in cost (Fig. 2's
     dearest set takes a third of the work), so one task a set balances badly."""
-    return max(1, math.ceil(8 * slots / spec.n_sets))
+    return max(1, math.ceil(8 * slots / plan.n_sets))
 
 
 # -- the sweep -------------------------------------------------------------------------------
@@ -551,64 +551,64 @@ def sweep(
     """
     from stochpend.runs.simulate import check_precision, resolve_backend
 
-    spec = load_spec(spec)
+    plan = load_spec(spec)
     backend = resolve_backend(backend)
     check_precision(precision, backend)
     workers = _check_positive_int("workers", workers)
     tasks_per_set = _check_positive_int("tasks_per_set", tasks_per_set)
     if bias_paths is not None:
         bias_paths = bias.check_bias_paths(bias_paths, 0)
-    sets = targets(spec, {"target_error": target_error, "target_confidence": target_confidence,
+    sets = targets(plan, {"target_error": target_error, "target_confidence": target_confidence,
                           "target_statistics": target_statistics, "target_times": target_times},
                    precision=precision, max_path_steps=max_path_steps)
     if sets is not None:
-        return _target_sweep(spec, sets, scheduler=scheduler, backend=backend, precision=precision,
+        return _target_sweep(plan, sets, scheduler=scheduler, backend=backend, precision=precision,
                              max_path_steps=max_path_steps, progress=progress)
     check_scheduler(scheduler)
     started = _time.perf_counter()
 
-    results: list[list[BlockResult]] = [[] for _ in spec.configs]
+    results: list[list[BlockResult]] = [[] for _ in plan.configs]
 
     def on_result(r: BlockResult) -> None:
         results[r.set_index].append(r)
 
     if scheduler is None:
-        tasks = plan_tasks(spec, tasks_per_set or 1)
+        tasks = plan_tasks(plan, tasks_per_set or 1)
         tracker = _Tracker(progress or NoProgress(), sum(t.paths for t in tasks), len(tasks))
         tracker.start()
         try:
-            info = _run_inprocess(spec, tasks, tracker, on_result, backend, precision)
+            info = _run_inprocess(plan, tasks, tracker, on_result, backend, precision)
         finally:
             tracker.finish()
     else:
         with _dask_backend(scheduler).connect(scheduler, workers) as engine:
-            tasks = plan_tasks(spec, tasks_per_set or default_tasks_per_set(spec, engine.slots))
+            tasks = plan_tasks(plan, tasks_per_set or default_tasks_per_set(plan, engine.slots))
             tracker = _Tracker(progress or NoProgress(), sum(t.paths for t in tasks), len(tasks))
             if engine.dashboard:
                 tracker.note(f"Dask dashboard: {engine.dashboard}")
             tracker.start()
             try:
-                engine.run(spec, tasks, tracker, on_result, backend=backend, precision=precision)
+                engine.run(plan, tasks, tracker, on_result, backend=backend, precision=precision)
             finally:
                 tracker.finish()
             info = engine.info()
-    estimates = _bias_estimates(spec, bias_paths, backend, tracker)
+    estimates = _bias_estimates(plan, bias_paths, backend, tracker)
     wall = _time.perf_counter() - started
     info = {**info, "backend": backend, "precision": precision}
-    return _assemble(spec, results, info=info, n_tasks=len(tasks), wall_time_s=wall, estimates=estimates)
+    return _assemble(plan, results, info=info, n_tasks=len(tasks), wall_time_s=wall, estimates=estimates)
 
 
-def _bias_estimates(spec: SweepPlan, bias_paths: int | None, backend: str,
+def _bias_estimates(plan: SweepPlan, bias_paths: int | None, backend: str,
                     tracker: _Tracker) -> list[bias.BiasEstimate] | None:
     """Each set's bias estimate, as :func:`stochpend.simulate` makes it (None: ``bias_paths=0``)."""
     if bias_paths == 0:
         return None
-    tracker.note(f"estimating the discretisation bias of {spec.n_sets} parameter sets")
+    tracker.note(f"estimating the discretisation bias of {plan.n_sets} parameter sets")
     return [bias.estimate(c, bias.default_bias_paths(c.paths) if bias_paths is None else bias_paths,
-                          backend=backend) for c in spec.configs]
+                          backend=backend) for c in plan.configs]
 
 
-def _target_sweep(spec: SweepPlan, sets: list[multilevel.Target], *, scheduler: Any, backend: str,
+def _target_sweep(plan: SweepPlan, sets: list[multilevel.Target], *, scheduler: Any, backend: str,
                   precision: str, max_path_steps: Any, progress: Progress | None) -> xr.Dataset:
     """Every set as a target run (:func:`stochpend.runs.multilevel.target_run`), in this process."""
     if scheduler is not None:
@@ -616,19 +616,19 @@ def _target_sweep(spec: SweepPlan, sets: list[multilevel.Target], *, scheduler: 
         raise ValueError(f"scheduler={shown!r} is not accepted with target_error: a target run plans each "
                          "round from the last, so a target sweep runs its sets one after another in this "
                          "process; leave the scheduler unset")
-    for i, (config, target) in enumerate(zip(spec.configs, sets, strict=True)):
+    for i, (config, target) in enumerate(zip(plan.configs, sets, strict=True)):
         try:  # every set's pilot within the limit, before the first set's work
             multilevel.check_pilot(config, target, backend=backend, max_path_steps=max_path_steps)
         except ValueError as exc:
-            raise ValueError(f"{spec.source}: {exc} (parameter set {i + 1} of {spec.n_sets})") from None
+            raise ValueError(f"{plan.source}: {exc} (parameter set {i + 1} of {plan.n_sets})") from None
     started = _time.perf_counter()
-    tracker = _Tracker(progress or NoProgress(), 0, spec.n_sets)
-    tracker.progress.start(float(spec.n_sets), "sweep")
+    tracker = _Tracker(progress or NoProgress(), 0, plan.n_sets)
+    tracker.progress.start(float(plan.n_sets), "sweep")
     datasets = []
     try:
-        for i, (config, target) in enumerate(zip(spec.configs, sets, strict=True)):
+        for i, (config, target) in enumerate(zip(plan.configs, sets, strict=True)):
             def note(text: str, i: int = i) -> None:
-                tracker.note(f"set {i + 1} of {spec.n_sets}: {text}")
+                tracker.note(f"set {i + 1} of {plan.n_sets}: {text}")
 
             datasets.append(multilevel.target_run(config, target, backend=backend, max_path_steps=max_path_steps,
                                                   note=note))
@@ -640,19 +640,19 @@ def _target_sweep(spec: SweepPlan, sets: list[multilevel.Target], *, scheduler: 
         name: 0 if np.issubdtype(var.dtype, np.integer) else np.nan
         for name, var in ds.data_vars.items() if "level" in var.dims}) for ds in datasets]
     info = {"engine": "in-process", "scheduler": "none", "workers": 1, "backend": backend, "precision": precision}
-    return _stacked(spec, padded, [dict(ds.attrs) for ds in datasets],
-                    [int(ds.attrs["path_steps"]) for ds in datasets], info=info, n_tasks=spec.n_sets,
+    return _stacked(plan, padded, [dict(ds.attrs) for ds in datasets],
+                    [int(ds.attrs["path_steps"]) for ds in datasets], info=info, n_tasks=plan.n_sets,
                     wall_time_s=_time.perf_counter() - started,
                     compute_s=float(sum(ds.attrs["total_wall_time_s"] for ds in datasets)))
 
 
-def _assemble(spec: SweepPlan, results: list[list[BlockResult]], *, info: dict[str, Any], n_tasks: int,
+def _assemble(plan: SweepPlan, results: list[list[BlockResult]], *, info: dict[str, Any], n_tasks: int,
               wall_time_s: float, estimates: list[bias.BiasEstimate] | None = None) -> xr.Dataset:
     datasets = []
     per_set_attrs = []
     path_steps = []
     compute_s = 0.0
-    for i, (config, rs) in enumerate(zip(spec.configs, results, strict=True)):
+    for i, (config, rs) in enumerate(zip(plan.configs, results, strict=True)):
         acc = EnsembleSums.empty(config.n_batches, len(config.times), config.hist_bins, config.observables,
                                  config.paths, joint_cells(config))
         steps = 0
@@ -672,16 +672,16 @@ def _assemble(spec: SweepPlan, results: list[list[BlockResult]], *, info: dict[s
                                            precision=info.get("precision", "float64"), threads=0,
                                            wall_time_s=0.0, path_steps=steps), **ds.attrs})
         path_steps.append(steps)
-    return _stacked(spec, datasets, per_set_attrs, path_steps, info=info, n_tasks=n_tasks,
+    return _stacked(plan, datasets, per_set_attrs, path_steps, info=info, n_tasks=n_tasks,
                     wall_time_s=wall_time_s, compute_s=compute_s)
 
 
-def _stacked(spec: SweepPlan, datasets: list[xr.Dataset], per_set_attrs: list[dict[str, Any]],
+def _stacked(plan: SweepPlan, datasets: list[xr.Dataset], per_set_attrs: list[dict[str, Any]],
              path_steps: list[int], *, info: dict[str, Any], n_tasks: int, wall_time_s: float,
              compute_s: float) -> xr.Dataset:
     """The sets' Datasets (alike in variables and shapes) as one, the swept dimensions first;
     attributes common to every set stay attributes, the others become variables."""
-    shape = spec.shape
+    shape = plan.shape
     first = datasets[0]
     times = np.stack([np.asarray(ds.time.values) for ds in datasets])
     same_times = bool(np.all(times == times[0]))
@@ -692,40 +692,40 @@ def _stacked(spec: SweepPlan, datasets: list[xr.Dataset], per_set_attrs: list[di
         if "censoring" in attrs_:  # the first set's counts would read as every set's
             attrs_["censoring"] = ("right-censored at each set's last output time: the paths not passed by "
                                    "then are its fpt_<name>_censored, the non-finite ones excluded")
-        data_vars[str(name)] = (spec.dims + var.dims, stacked, attrs_)
-    data_vars["path_steps"] = (spec.dims, np.asarray(path_steps, dtype=np.int64).reshape(shape),
+        data_vars[str(name)] = (plan.dims + var.dims, stacked, attrs_)
+    data_vars["path_steps"] = (plan.dims, np.asarray(path_steps, dtype=np.int64).reshape(shape),
                                {"long_name": "path-steps taken by this parameter set"})
 
-    coords: dict[str, Any] = {k: (d, v) for k, (d, v) in spec.coords.items()}
+    coords: dict[str, Any] = {k: (d, v) for k, (d, v) in plan.coords.items()}
     for name, coord in first.coords.items():  # a first passage's probabilities: the same in every set
         if name != "time" and name not in coords:
             coords[str(name)] = (coord.dims, coord.values, dict(coord.attrs))
     if same_times:
         coords["time"] = ("time", times[0], dict(first.time.attrs))
     else:
-        coords["times"] = (spec.dims + ("time",), times.reshape(shape + (times.shape[1],)),
+        coords["times"] = (plan.dims + ("time",), times.reshape(shape + (times.shape[1],)),
                            {"long_name": "output times of each parameter set", **first.time.attrs})
 
     attrs: dict[str, Any] = {"title": "stochpend parameter sweep"}
     for key, value in per_set_attrs[0].items():
-        if key in _RUN_ATTRS or key in spec.coords:
+        if key in _RUN_ATTRS or key in plan.coords:
             continue
         values = [a[key] for a in per_set_attrs]
         if all(v == value or (v != v and value != value) for v in values):  # NaN: the same too
             if key != "title":
                 attrs[key] = value
         elif key not in data_vars:
-            data_vars[key] = (spec.dims, _coord_array(values).reshape(shape),
+            data_vars[key] = (plan.dims, _coord_array(values).reshape(shape),
                               {"long_name": f"{key} of each parameter set"})
     total_steps = int(sum(path_steps))
     attrs.update({
-        "description": spec.description,
-        "sweep_kind": spec.kind,
-        "sweep_dims": ",".join(spec.dims),
-        "sweep_swept": ",".join(spec.swept),
-        "sweep_source": spec.source,
-        "sweep_spec": spec.text,
-        "sweep_sets": spec.n_sets,
+        "description": plan.description,
+        "sweep_kind": plan.kind,
+        "sweep_dims": ",".join(plan.dims),
+        "sweep_swept": ",".join(plan.swept),
+        "sweep_source": plan.source,
+        "sweep_spec": plan.text,
+        "sweep_sets": plan.n_sets,
         "sweep_tasks": n_tasks,
         "sweep_engine": info.get("engine", ""),
         "sweep_scheduler": str(info.get("scheduler", "")),

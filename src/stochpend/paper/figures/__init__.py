@@ -5,7 +5,7 @@ Each module in :data:`FIGURES` provides
 
 * ``NAME``, ``TITLE`` and ``CONFIG`` (the runs of the caption, their seeds and final times),
 * ``runs(paths, t_max, quick) -> list[FigureRun]``: the simulations to make,
-* ``caption(specs) -> str``: what was run and why the time range,
+* ``caption(figure_runs) -> str``: what was run and why the time range,
 * ``theory(datasets) -> dict``: the predictions needed to draw (e.g. B.F.P.E. solutions),
 * ``draw(datasets, theory) -> matplotlib.figure.Figure`` (Agg canvas, no pyplot),
 * ``table(datasets, theory=None) -> list[Row]``: late-time values against the predictions.

@@ -34,11 +34,11 @@ WHITE_STEPS = 4.7
 COLOURED_STEPS = 6.6
 
 
-def expected_path_steps(spec: FigureRun) -> float:
+def expected_path_steps(figure_run: FigureRun) -> float:
     """Path-steps of an OU pendulum run by the cost model (:data:`WHITE_STEPS`,
     :data:`COLOURED_STEPS`): a rough figure, good to a factor of about 1.5."""
-    D, tau, T = float(spec.D), float(spec.tau or 0.0), float(spec.t_max)
-    h_max = spec.h_max or DEFAULT_H_MAX
+    D, tau, T = float(figure_run.D), float(figure_run.tau or 0.0), float(figure_run.t_max)
+    h_max = figure_run.h_max or DEFAULT_H_MAX
     if tau <= 0.0:  # white noise: white-like throughout
         per_path = WHITE_STEPS * T**1.5
     else:
@@ -46,7 +46,7 @@ def expected_path_steps(spec: FigureRun) -> float:
         per_path = WHITE_STEPS * min(T, t_c) ** 1.5
         if T > t_c:
             per_path += COLOURED_STEPS * D**0.25 / math.sqrt(tau) * (T**1.25 - t_c**1.25)
-    return float(spec.paths) * max(per_path, T / h_max)
+    return float(figure_run.paths) * max(per_path, T / h_max)
 
 
 class Case:
@@ -71,8 +71,8 @@ class Case:
                              f"({self.D:g}, {self.tau:g})")
         return [dataclasses.replace(picked[0], t_max=float(T))]
 
-    def caption(self, specs: list[FigureRun]) -> str:
-        s = specs[0]
+    def caption(self, figure_runs: list[FigureRun]) -> str:
+        s = figure_runs[0]
         return (f"{self.figure.NAME}'s run (D, τ) = ({s.D:g}, {s.tau:g}), ω = {s.omega:g}, OU noise, "
                 f"{s.paths} realizations, seed {s.seed}, to t = {fmt_num(s.t_max)} ({self.why}); "
                 f"t_c = 1/(Dτ²) = {fmt_num(s.t_c)}; stationary ξ(0), θ(0) uniform, Ω(0) = 0, times "
@@ -88,8 +88,8 @@ class Case:
         return self.figure.table(datasets, theory_values)
 
     @staticmethod
-    def expected_path_steps(spec: FigureRun) -> float:
-        return expected_path_steps(spec)
+    def expected_path_steps(figure_run: FigureRun) -> float:
+        return expected_path_steps(figure_run)
 
 
 #: Name -> case (``stochpend reproduce NAME``; not part of ``all``).

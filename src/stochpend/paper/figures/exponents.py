@@ -64,25 +64,25 @@ QUICK_T_MAX = 30.0  # --quick: a smoke test of the pipeline
 
 
 def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
-    specs = []
+    figure_runs = []
     for case in CASES:
         T = case["t_max"]
         if t_max is not None:
             T = t_max
         elif quick:
             T = min(T, QUICK_T_MAX)
-        specs.append(FigureRun(
+        figure_runs.append(FigureRun(
             key=f"exponent_{case['key']}", label=case["label"], noise=case["noise"], D=1.0,
             tau=case["tau"], omega=1.0, t_max=T, seed=case["seed"],
             paths=max(16, round(case["paths"] * paths / DEFAULT_PATHS)),
             t_min=min(1e-2, T / 1e3), per_decade=8, potential=case.get("potential", "pendulum"),
             coupling=case.get("coupling", "force"),
         ))
-    return specs
+    return figure_runs
 
 
-def caption(specs: list[FigureRun]) -> str:
-    lines = ", ".join(f"{s.label} ({s.paths} paths, t ≤ {fmt_num(s.t_max)}, seed {s.seed})" for s in specs)
+def caption(figure_runs: list[FigureRun]) -> str:
+    lines = ", ".join(f"{s.label} ({s.paths} paths, t ≤ {fmt_num(s.t_max)}, seed {s.seed})" for s in figure_runs)
     return (
         "Long-time growth of ⟨E⟩ for D = 1, ω = 1, τ = 1 (harmonic noise: W = 2/τ), θ(0) or x(0) "
         "uniform on [−π, π), Ω(0) = 0, stationary noise. Power laws: least-squares slope of "

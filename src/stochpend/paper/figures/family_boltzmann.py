@@ -52,10 +52,10 @@ def _T(ds: xr.Dataset) -> tuple[float, float, float]:
     return D_a, gamma, D_a / (2.0 * gamma)
 
 
-def caption(specs: list[FigureRun]) -> str:
-    s = specs[0]
-    temps = ", ".join(f"{x.param('additive_D') / (2 * x.param('gamma')):g}" for x in specs)
-    seeds = ", ".join(str(x.seed) for x in specs)
+def caption(figure_runs: list[FigureRun]) -> str:
+    s = figure_runs[0]
+    temps = ", ".join(f"{x.param('additive_D') / (2 * x.param('gamma')):g}" for x in figure_runs)
+    seeds = ", ".join(str(x.seed) for x in figure_runs)
     return (
         f"Damped pendulum with additive white noise only (D = 0): dΩ/dt = −γΩ − ω² sin x + ξ_a, "
         f"⟨ξ_a ξ_a′⟩ = D_a δ, γ = {s.param('gamma'):g}, ω = {s.omega:g}, D_a = 2γT for T = {temps}; "

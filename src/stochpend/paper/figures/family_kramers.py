@@ -62,12 +62,12 @@ def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
     return out
 
 
-def caption(specs: list[FigureRun]) -> str:
-    s = specs[0]
+def caption(figure_runs: list[FigureRun]) -> str:
+    s = figure_runs[0]
     g = s.param("gamma")
-    xs = ", ".join(f"{2 * x.omega**2 * 2 * g / x.param('additive_D'):g}" for x in specs)
-    tms = ", ".join(fmt_num(x.t_max) for x in specs)
-    seeds = ", ".join(str(x.seed) for x in specs)
+    xs = ", ".join(f"{2 * x.omega**2 * 2 * g / x.param('additive_D'):g}" for x in figure_runs)
+    tms = ", ".join(fmt_num(x.t_max) for x in figure_runs)
+    seeds = ", ".join(str(x.seed) for x in figure_runs)
     return (
         f"Kramers escape of the damped pendulum with additive white noise (D = 0), γ = {g:g}, ω = {s.omega:g}, "
         f"ΔU = 2ω², ΔU/T = {xs} (T = D_a/(2γ)), to t = {tms}, {s.paths} realizations each (seeds {seeds}); "

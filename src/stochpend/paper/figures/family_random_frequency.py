@@ -76,11 +76,11 @@ def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
             for i, D in enumerate(CONFIG["D"])]
 
 
-def caption(specs: list[FigureRun]) -> str:
-    s = specs[0]
+def caption(figure_runs: list[FigureRun]) -> str:
+    s = figure_runs[0]
     g = s.param("gamma")
-    Ds = ", ".join(f"{x.D:g}" for x in specs)
-    seeds = f"{min(x.seed for x in specs)}–{max(x.seed for x in specs)}"
+    Ds = ", ".join(f"{x.D:g}" for x in figure_runs)
+    seeds = f"{min(x.seed for x in figure_runs)}–{max(x.seed for x in figure_runs)}"
     t1 = WINDOW_START * s.t_max
     return (
         f"Damped random-frequency oscillator x'' + γx' + (ω² + ξ)x = 0 (potential 'harmonic', noise on x), "

@@ -84,16 +84,16 @@ def _info(ds: xr.Dataset) -> tuple[float, float, float, str]:
     return T, F, g, ens
 
 
-def caption(specs: list[FigureRun]) -> str:
-    s = specs[0]
+def caption(figure_runs: list[FigureRun]) -> str:
+    s = figure_runs[0]
     g = s.param("gamma")
-    Fs = ", ".join(f"{F:g}" for F in sorted({x.param("torque") for x in specs}))
+    Fs = ", ".join(f"{F:g}" for F in sorted({x.param("torque") for x in figure_runs}))
     Ts = ", ".join(f"{T:g}" for T, _ in CONFIG["temperatures"])
-    seeds = f"{min(x.seed for x in specs)}–{max(x.seed for x in specs)}"
+    seeds = f"{min(x.seed for x in figure_runs)}–{max(x.seed for x in figure_runs)}"
     T_lo, T_hi = CONFIG["temperatures"][0][0], CONFIG["temperatures"][-1][0]
     return (
         f"Tilted washboard: damped pendulum with constant torque F and additive white noise (D = 0), "
-        f"γ = {g:g}, ω = {s.omega:g}, F = {Fs}, T = D_a/(2γ) = {Ts}; {len(specs)} runs of {s.paths} "
+        f"γ = {g:g}, ω = {s.omega:g}, F = {Fs}, T = D_a/(2γ) = {Ts}; {len(figure_runs)} runs of {s.paths} "
         f"realizations to t = {fmt_num(s.t_max)} (seeds {seeds}), two initial ensembles each: 'locked', "
         f"at rest at the tilted well's bottom x = arcsin(F/ω²) (its inflection for F ≥ ω²), and "
         f"'running', x = 0, Ω = F/γ. ⟨Ω⟩ is [⟨x(t)−x(0)⟩ at t_max − at t₁]/(t_max − t₁), t₁ the "

@@ -67,16 +67,16 @@ def slowest_time(D: float, tau: float, omega: float) -> float:
     return max(1.0 / (D * tau**2), tau**2 * omega**4 / D)
 
 
-def caption(specs: list[FigureRun]) -> str:
-    s = specs[0]
-    t_maxes = sorted({x.t_max for x in specs})
+def caption(figure_runs: list[FigureRun]) -> str:
+    s = figure_runs[0]
+    t_maxes = sorted({x.t_max for x in figure_runs})
     if len(t_maxes) == 1:
         trange = f"up to t = {fmt_num(t_maxes[0])}"
     else:
         trange = ("up to t = " + ", ".join(
-            f"{fmt_num(T)} for D = " + "/".join(sorted({f"{x.D:g}" for x in specs if x.t_max == T}, key=float))
+            f"{fmt_num(T)} for D = " + "/".join(sorted({f"{x.D:g}" for x in figure_runs if x.t_max == T}, key=float))
             for T in t_maxes))
-    seeds = ", ".join(str(x.seed) for x in specs)
+    seeds = ", ".join(str(x.seed) for x in figure_runs)
     return (
         f"Stochastic pendulum with Ornstein–Uhlenbeck noise (Eqs. dyncolOmega–OU), ω = {s.omega:g}, "
         f"(D, τ) ∈ {{1, 10, 100}} × {{0.1, 1, 10}}, {s.paths} realizations each (seeds {seeds}, in "

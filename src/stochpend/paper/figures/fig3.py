@@ -46,9 +46,9 @@ def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
     ]
 
 
-def caption(specs: list[FigureRun]) -> str:
-    s = specs[0]
-    seeds = ", ".join(str(x.seed) for x in specs)
+def caption(figure_runs: list[FigureRun]) -> str:
+    s = figure_runs[0]
+    seeds = ", ".join(str(x.seed) for x in figure_runs)
     return (
         f"Stochastic pendulum with Ornstein–Uhlenbeck noise (Eqs. dyncolOmega–OU), D = {s.D:g}, "
         f"τ = {s.tau:g}, ω = 1.0 and 0.0, {s.paths} realizations each (seeds {seeds}), stationary "

@@ -63,11 +63,11 @@ def runs(paths: int, t_max: float | None, quick: bool) -> list[FigureRun]:
     return out
 
 
-def caption(specs: list[FigureRun]) -> str:
-    s = specs[0]
+def caption(figure_runs: list[FigureRun]) -> str:
+    s = figure_runs[0]
     parts = ", ".join(f"τ = {x.tau:g} to t = {fmt_num(x.t_max)} (t_c = {fmt_num(x.t_c)}, seed {x.seed})"
-                      for x in specs)
-    short = [x for x in specs if x.t_max < 10 * x.t_c]
+                      for x in figure_runs)
+    short = [x for x in figure_runs if x.t_max < 10 * x.t_c]
     note = ""
     if short:
         note = (" The run(s) with " + ", ".join(f"τ = {x.tau:g}" for x in short)
