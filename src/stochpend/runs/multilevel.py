@@ -179,7 +179,13 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
     conf = _number("target_confidence", target_confidence, "a number in (0.5, 1), e.g. 0.95",
                    lambda v: 0.5 < v < 1.0)
     known = [s.name for s in observables.STATISTICS if s.name.startswith("mean_")] + list(NONLINEAR)
-    known += [f"mean_{u}" for u in config.observables]
+    # A per-path accumulator (a time average, a running sum such as the displacement, a first
+    # passage) is not carried by the coupled levels' members: their differences of it would be
+    # 0, and the bias bound with them (a target on the mean displacement was "certified" with a
+    # bias bound of exactly 0). Refused, named; the ordinary run reports its bias as unresolved.
+    carried = set(observables.accumulators(observables.objects(config.observables)))
+    known += [f"mean_{u}" for u in config.observables if observables.get(u) not in carried]
+    not_carried = {f"mean_{u}": u for u in config.observables if observables.get(u) in carried}
     if target_statistics is None:
         names: tuple[str, ...] = DEFAULT_STATISTICS
     else:
@@ -189,6 +195,12 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
             names = tuple(str(s).strip() for s in given)
         except TypeError:
             names = ()
+        for s in names:
+            if s in not_carried:
+                raise ValueError(f"target_statistics={target_statistics!r} is not accepted: {s} is the mean of "
+                                 f"the per-path accumulator {not_carried[s]!r}, which the coupled levels do not "
+                                 "carry, so no bias bound of it can be made; a target takes the means of the "
+                                 f"table and of observables of the state, skewness and flatness ({', '.join(known)})")
         bad = [s for s in names if s not in known]
         if not names or bad or len(set(names)) != len(names):
             raise ValueError(f"target_statistics={target_statistics!r} is not accepted: distinct names "
