@@ -142,6 +142,25 @@ def test_the_same_statistic_away_from_zero_is_not_refused():
     assert bool(ds["mean_E_certified"].values.all())
 
 
+def test_a_wall_time_budget_counts_the_paths_started_and_refuses_before_overrunning(monkeypatch):
+    """The budget converted seconds at the rate of path-steps while a round of short paths
+    (to t = 1e-3 < h: one step each) is mostly their start: max_seconds=5 ran 176 s here, with
+    2.8e9 path-steps spent at the refusal (its plan had costed that round at 4e8: a sample to
+    t = 1e-3 at h_0/1000 of a step). At a fixed rate of 2e8 path-steps a second (the conversion
+    made deterministic, as this machine's), the run may never have spent more than 1e9."""
+    from stochpend.runs import resources
+
+    monkeypatch.setattr(resources, "_rate", lambda *_a, **_k: (2e8, "fixed"))
+    monkeypatch.setattr(resources, "compile_seconds", lambda *_a, **_k: 0.0)
+    monkeypatch.setattr(multilevel, "RATE_MEASURED_AFTER_S", math.inf)
+    with pytest.raises(ValueError) as err:
+        stochpend.simulate(**ZERO_MEAN, max_seconds=5)
+    msg = str(err.value)
+    assert "more than the wall-time budget max_seconds=5 leaves (about " in msg, msg
+    spent = float(re.search(r"\(([0-9.e+]+) already spent\)", msg).group(1))
+    assert spent <= 1e9, msg
+
+
 @pytest.mark.parametrize("accumulator", ["displacement", "cos_avg"])
 def test_a_target_on_a_per_path_accumulator_is_refused_before_any_work(monkeypatch, accumulator):
     """The coupled levels' members carry no per-path accumulators: their differences of one were
@@ -571,6 +590,9 @@ def test_a_target_run_records_its_own_rate_and_the_next_budget_converts_at_it(mo
     cores = resources._cores(None)
     spent = float(ds.attrs["path_steps"])
     computing = float(ds.attrs["total_wall_time_s"]) - float(ds.attrs["compile_time_s"])
-    assert per_thread * cores == pytest.approx(spent / computing, rel=0.05)
+    # its work: the path-steps and the paths started (PATH_OVERHEAD_STEPS a member)
+    started = ds["n_samples"].values.max(axis=1)
+    work = spent + multilevel.PATH_OVERHEAD_STEPS * (started[0] + 2 * started[1:].sum())
+    assert per_thread * cores == pytest.approx(work / computing, rel=1e-9)
     budget = multilevel.check_pilot(config, target, max_seconds=100)
     assert budget.rate == pytest.approx(per_thread * cores)

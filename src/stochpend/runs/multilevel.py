@@ -870,51 +870,90 @@ def _cost_independent(st: State, eps: float, conf: float) -> tuple[np.ndarray, n
 
 
 # -- the run ------------------------------------------------------------------------------------
+#: The work of starting a path and summing its statistics, in path-steps: a level-0 path of one
+#: fixed step took 77 ns, of 5 steps 100 ns, of 50 steps 335 ns (4e6 paths, 2 threads, this
+#: 2-core Zen 4), so 5.2 ns a step and 72 ns, 14 steps' worth, a path. It is no path-step, but a
+#: round of many short paths (a target at t = 1e-3 < h) is mostly this: counted in the work the
+#: wall-time budget converts (:class:`Budget`), not in the plan's costs.
+PATH_OVERHEAD_STEPS = 14.0
+
+
+def steps_to(times: np.ndarray, h: float) -> np.ndarray:
+    """Fixed steps of ``h`` that a path takes to each output time, landing on every one, (T,):
+    at least one step a time (a target run's levels take exactly these)."""
+    gaps = np.diff(np.concatenate([[0.0], np.asarray(times, dtype=float)]))
+    return np.cumsum(np.maximum(np.ceil(gaps / h - 1e-9), 1.0))
+
+
+def work_per_sample(cfg: SimulationConfig, n_levels: int) -> np.ndarray:
+    """The work of one sample of each level to each output time, (n_levels, T), in path-steps
+    with :data:`PATH_OVERHEAD_STEPS` a member: level 0 a path at h_0; level l a coarse member at
+    h_{l-1} and a fine one at h_l (three path-steps a coarse step)."""
+    times = np.asarray(cfg.times, dtype=float)
+    rows = [steps_to(times, cfg.h_max) + PATH_OVERHEAD_STEPS]
+    rows += [3.0 * steps_to(times, cfg.h_max * 0.5 ** (level - 1)) + 2.0 * PATH_OVERHEAD_STEPS
+             for level in range(1, n_levels)]
+    return np.array(rows)
+
+
 @dataclass
 class Budget:
     """What a target run may spend: ``path_steps`` (``max_path_steps``) and, when given, the
     wall time ``seconds`` (``max_seconds``), counted from ``started`` (``time.perf_counter``).
-    The wall time becomes path-steps at the run's rate: the rate measured on this machine for
-    its kernel (:func:`stochpend.runs.resources._rate`) until the run has computed for
-    :data:`RATE_MEASURED_AFTER_S`, then the run's own (path-steps over the seconds spent outside
-    compiling), and the compiling expected (``compile_s``) is set aside before the first. Every plan is checked against :meth:`limit`,
-    so a target that the budget cannot buy is refused before the work it would not finish."""
+    The wall time becomes work (path-steps and :data:`PATH_OVERHEAD_STEPS` a path started,
+    ``work_spent`` so far) at the run's rate: the rate earlier target runs of its kernel
+    measured on this machine (:func:`rate_kind`) until the run has computed for
+    :data:`RATE_MEASURED_AFTER_S`, then the run's own (its work over the seconds spent outside
+    compiling), and the compiling expected (``compile_s``) is set aside before the first. Every
+    plan is checked (:meth:`exceeded`), so a target that the budget cannot buy is refused before
+    the work it would not finish. Before the paths' start was counted, a round of short paths
+    was converted at the rate of long ones: ``max_seconds=5`` ran 176 s."""
 
     path_steps: float
     seconds: float | None = None
     rate: float = math.inf
     compile_s: float = 0.0
     started: float = 0.0
+    work_spent: float = 0.0
+
+    def _rate(self, compiling_s: float) -> float:
+        computing = _time.perf_counter() - self.started - compiling_s
+        if self.work_spent > 0 and computing >= RATE_MEASURED_AFTER_S:
+            return self.work_spent / computing
+        return self.rate
+
+    def work_left(self, compiling_s: float = 0.0) -> float:
+        """The work the wall-time budget leaves (inf without one), ``compiling_s`` of the seconds
+        since the start spent compiling."""
+        if self.seconds is None:
+            return math.inf
+        elapsed = _time.perf_counter() - self.started
+        left = self.seconds - elapsed - (self.compile_s if self.work_spent == 0 else 0.0)
+        return max(left, 0.0) * self._rate(compiling_s)
 
     def limit(self, spent: float = 0.0, compiling_s: float = 0.0) -> float:
-        """The path-steps the run may reach in all, ``spent`` so far, ``compiling_s`` of the
-        seconds since the start spent compiling."""
-        if self.seconds is None:
-            return self.path_steps
-        elapsed = _time.perf_counter() - self.started
-        rate = self.rate
-        if spent > 0 and elapsed - compiling_s >= RATE_MEASURED_AFTER_S:
-            rate = spent / (elapsed - compiling_s)
-        left = self.seconds - elapsed - (self.compile_s if spent == 0 else 0.0)
-        return min(self.path_steps, spent + max(left, 0.0) * rate)
+        """The path-steps the run may reach in all, ``spent`` so far (the work left counted as
+        path-steps: what the late-time route, of long paths, may spend)."""
+        return min(self.path_steps, spent + self.work_left(compiling_s))
 
-    def seconds_for(self, path_steps: float, spent: float = 0.0, compiling_s: float = 0.0) -> float:
-        """Seconds that ``path_steps`` more take at the rate :meth:`limit` uses (NaN: unknown)."""
-        elapsed = _time.perf_counter() - self.started
-        rate = self.rate
-        if spent > 0 and elapsed - compiling_s >= RATE_MEASURED_AFTER_S:
-            rate = spent / (elapsed - compiling_s)
-        return path_steps / rate if 0.0 < rate < math.inf else math.nan
+    def seconds_for(self, work: float, compiling_s: float = 0.0) -> float:
+        """Seconds that ``work`` more take at the rate :meth:`work_left` uses (NaN: unknown)."""
+        rate = self._rate(compiling_s)
+        return work / rate if 0.0 < rate < math.inf else math.nan
 
-    def exceeded(self, total: float, spent: float = 0.0, compiling_s: float = 0.0) -> str | None:
-        """None when ``total`` path-steps fit; else the limit that they break, for a message."""
-        if total <= self.path_steps and total <= self.limit(spent, compiling_s):
+    def exceeded(self, total: float, spent: float = 0.0, compiling_s: float = 0.0,
+                 work: float | None = None) -> str | None:
+        """None when ``total`` path-steps in all, and ``work`` more (default: the path-steps
+        beyond ``spent``), fit; else the limit that they break, for a message."""
+        more = total - spent if work is None else work
+        if total <= self.path_steps and more <= self.work_left(compiling_s):
             return None
         if total > self.path_steps:
             return (f"above the limit of {self.path_steps:.3g} path-steps; raise it with max_path_steps= "
                     "(--max-path-steps)")
         return (f"more than the wall-time budget max_seconds={self.seconds:g} leaves (about "
-                f"{self.limit(spent, compiling_s):.3g} path-steps in all at this machine's rate); "
+                f"{self.seconds_for(more, compiling_s):.3g} s of work at this machine's rate, "
+                f"{self.seconds_for(self.work_left(compiling_s), compiling_s):.3g} s left); "
                 "raise it with max_seconds= (--max-seconds)")
 
 
@@ -939,7 +978,8 @@ def check_pilot(config: SimulationConfig, target: Target, *, backend: str = "cpu
     if budget.seconds is not None:
         budget.compile_s = resources.compile_seconds(cfg, backend=backend)
     pilot_cost = sum(_path_steps_guess(cfg, level, PILOT_SAMPLES) for level in range(PILOT_LEVELS))
-    broken = budget.exceeded(pilot_cost)
+    pilot_work = float(np.sum(work_per_sample(cfg, PILOT_LEVELS)[:, -1])) * PILOT_SAMPLES
+    broken = budget.exceeded(pilot_cost, work=pilot_work)
     if broken is not None:
         raise ValueError(f"target_error={target.error:g} is not accepted: its pilot alone ({PILOT_SAMPLES} "
                          f"samples on each of levels 0..{PILOT_LEVELS - 1}) needs about {pilot_cost:.3g} "
@@ -1085,6 +1125,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
                                                             columns=columns))
         levels[level].rounds.append(r)
         spent += r.path_steps
+        budget.work_spent += r.path_steps + PATH_OVERHEAD_STEPS * (1 if level == 0 else 2) * int(r.n[r.stop])
 
     eps, conf = target.error, target.confidence
     with CompileClock() as clock:
@@ -1106,9 +1147,11 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             more = np.maximum(step - st.N, 0)
             # refused on the least-cost plan (the half-and-half one may ask four times the work)
             _, need_lc, least_lc = _guarded_plan(st, eps, conf, active, slack=True)
-            if budget.exceeded(spent + _staircase_cost(np.maximum(least_lc - st.N, 0), st.C), spent, clock.seconds):
+            W = work_per_sample(cfg, L + 1)
+            if budget.exceeded(spent + _staircase_cost(np.maximum(least_lc - st.N, 0), st.C), spent, clock.seconds,
+                               work=_staircase_cost(np.maximum(least_lc - st.N, 0), W)):
                 _refuse(target, spent, spent + _staircase_cost(np.maximum(need_lc - st.N, 0), st.C), budget,
-                        "the plan", clock.seconds)
+                        "the plan", clock.seconds, _staircase_cost(np.maximum(need_lc - st.N, 0), W))
             # Level 0 up to the samples that every plan gives it (its variance alone filling the
             # target at |P| two standard errors up): a relative target needs |P|, and the pilot's
             # 256 paths may put it at a fifth of its value (OU pendulum, t = 1: 0.019 for 0.085),
@@ -1118,12 +1161,13 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             # a round adds at least a tenth of a level's samples: fewer rounds, each worth its start
             more = np.where(more > 0.1 * st.N, more, 0)
             if np.any(more):
-                _top_up(add, more, st, note, times, budget.seconds_for(_staircase_cost(more, st.C), spent, clock.seconds))
+                _top_up(add, more, st, note, times, budget.seconds_for(_staircase_cost(more, W), clock.seconds))
                 continue
             if L < MAX_LEVEL and _levels_wanted(st, eps, conf, active):
                 guess = _path_steps_guess(cfg, L + 1, PILOT_SAMPLES)
-                if budget.exceeded(spent + guess, spent, clock.seconds):
-                    _refuse(target, spent, spent + guess, budget, f"level {L + 1}'s pilot", clock.seconds)
+                guess_work = float(work_per_sample(cfg, L + 2)[-1, -1]) * PILOT_SAMPLES
+                if budget.exceeded(spent + guess, spent, clock.seconds, work=guess_work):
+                    _refuse(target, spent, spent + guess, budget, f"level {L + 1}'s pilot", clock.seconds, guess_work)
                 add(L + 1, PILOT_SAMPLES)
                 note(f"target: level {L + 1} added (h = {cfg.h_max * 0.5 ** (L + 1):.3g})")
                 continue
@@ -1133,12 +1177,13 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             if not np.any(more):
                 break
             if budget.exceeded(spent + max(_staircase_cost(more, st.C),
-                                           _staircase_cost(np.maximum(least - st.N, 0), st.C)), spent, clock.seconds):
+                                           _staircase_cost(np.maximum(least - st.N, 0), st.C)), spent, clock.seconds,
+                               work=max(_staircase_cost(more, W), _staircase_cost(np.maximum(least - st.N, 0), W))):
                 _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), budget,
-                        "the plan", clock.seconds)
-            _top_up(add, more, st, note, times, budget.seconds_for(_staircase_cost(more, st.C), spent, clock.seconds))
+                        "the plan", clock.seconds, _staircase_cost(np.maximum(need - st.N, 0), W))
+            _top_up(add, more, st, note, times, budget.seconds_for(_staircase_cost(more, W), clock.seconds))
         st = _state(levels, conf, times)
-        per_step = budget.seconds_for(1.0, spent, clock.seconds)  # the levels' rate, for the notes
+        per_step = budget.seconds_for(1.0, clock.seconds)  # the levels' rate, for the notes
         route = _certify_by_independent_runs(cfg, target, st, sum(lv.nonfinite for lv in levels),
                                              budget.limit(spent, clock.seconds) - spent, of, backend, note,
                                              journal, seconds_for=lambda n: n * per_step)
@@ -1146,7 +1191,8 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             spent += route.path_steps
     wall = _time.perf_counter() - started
     if not resumed:  # a resumed run's rounds ran in other sessions, under other loads
-        _record_rate(cfg, backend, spent, wall - clock.seconds, load)
+        _record_rate(cfg, backend, budget.work_spent + (route.path_steps if route is not None else 0),
+                     wall - clock.seconds, load)
     return _dataset(config, cfg, target, levels, st, spent, wall, clock.seconds, backend, route)
 
 
@@ -1201,8 +1247,10 @@ def _refuse_zero(target: Target, st: State, conf: float, active: np.ndarray, tim
                      "give a wall-time budget (max_seconds= (--max-seconds)) to try within it")
 
 
-def _refuse(target: Target, spent: int, total: float, budget: Budget, what: str, compiling_s: float) -> None:
-    broken = budget.exceeded(total, spent, compiling_s) or f"above the limit of {budget.path_steps:.3g} path-steps"
+def _refuse(target: Target, spent: int, total: float, budget: Budget, what: str, compiling_s: float,
+            work: float | None = None) -> None:
+    broken = (budget.exceeded(total, spent, compiling_s, work)
+              or f"above the limit of {budget.path_steps:.3g} path-steps")
     raise ValueError(f"target_error={target.error:g} is not accepted: {what} would bring the work to "
                      f"{total:.3g} path-steps ({spent:.3g} already spent), {broken}; or ask for a larger "
                      "target_error, fewer target_times or statistics")
