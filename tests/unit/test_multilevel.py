@@ -596,3 +596,21 @@ def test_a_target_run_records_its_own_rate_and_the_next_budget_converts_at_it(mo
     assert per_thread * cores == pytest.approx(work / computing, rel=1e-9)
     budget = multilevel.check_pilot(config, target, max_seconds=100)
     assert budget.rate == pytest.approx(per_thread * cores)
+
+
+def test_the_plans_cost_of_a_sample_is_the_path_steps_the_levels_spend():
+    """C was the measured rate times t: a sample to t = 0.05 < h_0 = 0.2 cost 0.35 path-steps
+    in the plan and one step in the run (at t = 1e-3, a thousandth of it: the plan bought
+    millions). steps_per_sample is exact, at early times and gaps that are no multiple of h."""
+    config = SimulationConfig.build(noise="ou", t_max=1.0, times=(0.05, 0.3, 1.0), h_max=0.2, seed=4)
+    target = multilevel.check_target(config, 0.1)
+    cfg = multilevel._target_config(config, target)
+    C = multilevel.steps_per_sample(cfg, 3)
+    assert C[0].tolist() == [1.0, 3.0, 7.0]  # 0.05, then 0.25 and 0.7 at steps of at most 0.2
+    of = multilevel.statistics_of(config, target.statistics)
+    for level in range(3):
+        for stop in (0, 2):
+            r = multilevel.run_level(cfg, level, 300, 0, of, stop)
+            assert r.path_steps == 300 * C[level, stop], (level, stop)
+    W = multilevel.work_per_sample(cfg, 3)
+    assert np.array_equal(W - C, multilevel.PATH_OVERHEAD_STEPS * np.array([[1.0], [2.0], [2.0]]) * np.ones((3, 3)))

@@ -575,13 +575,15 @@ class State:
     kurtosis: np.ndarray | None = None  # (L+1, S, T) of the level differences (Level.kurtosis)
 
 
-def _state(levels: list[Level], conf: float, times: np.ndarray) -> State:
+def _state(levels: list[Level], conf: float, cfg: SimulationConfig) -> State:
     L = len(levels) - 1
     m, m_var = zip(*(lv.combined("y") for lv in levels), strict=True)
     m_a, m_var_a = np.array(m), np.array(m_var)
     N = np.array([lv.n for lv in levels], dtype=np.int64)
     rates = np.array([lv.rate for lv in levels])
-    C = rates[:, None] * np.asarray(times, dtype=float)[None, :]
+    # the exact path-steps of a sample to each time (measured rate x t put a sample to
+    # t = 1e-3 < h_0 at a thousandth of its one step, and the plan bought millions of them)
+    C = steps_per_sample(cfg, L + 1)
     V = m_var_a * N[:, None, :]
     estimate = m_a.sum(axis=0)
     stat_var = m_var_a.sum(axis=0)
@@ -885,15 +887,21 @@ def steps_to(times: np.ndarray, h: float) -> np.ndarray:
     return np.cumsum(np.maximum(np.ceil(gaps / h - 1e-9), 1.0))
 
 
-def work_per_sample(cfg: SimulationConfig, n_levels: int) -> np.ndarray:
-    """The work of one sample of each level to each output time, (n_levels, T), in path-steps
-    with :data:`PATH_OVERHEAD_STEPS` a member: level 0 a path at h_0; level l a coarse member at
-    h_{l-1} and a fine one at h_l (three path-steps a coarse step)."""
+def steps_per_sample(cfg: SimulationConfig, n_levels: int) -> np.ndarray:
+    """The path-steps of one sample of each level to each output time, (n_levels, T): level 0 a
+    path at h_0; level l a coarse member at h_{l-1} and a fine one at h_l (three path-steps a
+    coarse step). Exact (the levels' rounds spend these to the step); the plan's cost C."""
     times = np.asarray(cfg.times, dtype=float)
-    rows = [steps_to(times, cfg.h_max) + PATH_OVERHEAD_STEPS]
-    rows += [3.0 * steps_to(times, cfg.h_max * 0.5 ** (level - 1)) + 2.0 * PATH_OVERHEAD_STEPS
-             for level in range(1, n_levels)]
+    rows = [steps_to(times, cfg.h_max)]
+    rows += [3.0 * steps_to(times, cfg.h_max * 0.5 ** (level - 1)) for level in range(1, n_levels)]
     return np.array(rows)
+
+
+def work_per_sample(cfg: SimulationConfig, n_levels: int) -> np.ndarray:
+    """:func:`steps_per_sample` and :data:`PATH_OVERHEAD_STEPS` a member started: the work the
+    wall-time budget converts, (n_levels, T)."""
+    members = np.where(np.arange(n_levels) == 0, 1.0, 2.0)[:, None]
+    return steps_per_sample(cfg, n_levels) + PATH_OVERHEAD_STEPS * members
 
 
 @dataclass
@@ -1138,7 +1146,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             # resolved), refused if the whole plan is over the limit; (b) a level more while it
             # makes the least-cost plan cheaper (or the target needs it); (c) the least-cost
             # plan's samples (its split of the target between bias and statistics).
-            st = _state(levels, conf, times)
+            st = _state(levels, conf, cfg)
             active = st.coupled & np.isfinite(st.estimate) & (st.estimate != 0)
             if budget.seconds is None:
                 _refuse_zero(target, st, conf, active, times)
@@ -1182,7 +1190,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
                 _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), budget,
                         "the plan", clock.seconds, _staircase_cost(np.maximum(need - st.N, 0), W))
             _top_up(add, more, st, note, times, budget.seconds_for(_staircase_cost(more, W), clock.seconds))
-        st = _state(levels, conf, times)
+        st = _state(levels, conf, cfg)
         per_step = budget.seconds_for(1.0, clock.seconds)  # the levels' rate, for the notes
         route = _certify_by_independent_runs(cfg, target, st, sum(lv.nonfinite for lv in levels),
                                              budget.limit(spent, clock.seconds) - spent, of, backend, note,
