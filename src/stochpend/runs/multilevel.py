@@ -1,7 +1,8 @@
 """A total-error target met by multilevel Monte Carlo on coupled levels (issue 35, items 1-3).
 
 ``simulate(..., target_error=eps)`` asks for a statistic P (a mean: ``mean_E``, ``mean_E2``, any
-``mean_<name>``; or the paper's skewness S or flatness F, functions of means, see below) at the
+``mean_<name>`` of a state observable, not of a per-path accumulator; or the paper's skewness S
+or flatness F, functions of means, see below) at the
 output times with a relative *total* error below eps, statistical and
 discretisation together, at a stated confidence (default 95 %). It is met by the multilevel
 estimator of Giles (2008) on the step ladder h_l = h_max / 2**l, l = 0 .. L (fixed steps:
