@@ -998,8 +998,9 @@ def check_pilot(config: SimulationConfig, target: Target, *, backend: str = "cpu
 
 def rate_kind(cfg: SimulationConfig) -> str:
     """The calibration's name (:mod:`stochpend.numerics._calibration`) of target runs of
-    ``cfg``'s kernel: their rate is their own, every path-step they spend (the pairs' fine half
-    steps counted) over their computing seconds, recorded by each target run. Not the ordinary
+    ``cfg``'s kernel: their rate is their own, their work (every path-step, the pairs' fine half
+    steps counted, and :data:`PATH_OVERHEAD_STEPS` a path started) over their computing seconds,
+    recorded by each target run. Not the ordinary
     run's rate of the same kernel, which counts only its lower-bound work against a wall time
     that holds its bias pairs and histograms: on this 2-core machine that rate was 3.3-3.9e6
     path-steps/s a thread against the target run's 8e7, and a wall-time budget converted at it
@@ -1237,9 +1238,9 @@ def _refuse_zero(target: Target, st: State, conf: float, active: np.ndarray, tim
     """Refuse (``ValueError``, one line) a relative target of a statistic that is 0 within its
     statistical error at a time where level 0 has had more than its pilot: a relative error of
     a value that may be 0 has no number of samples that is known to reach it, and the plan,
-    made from |estimate| two standard errors up, grows round after round without end (the mean
-    displacement of the pendulum from a uniform angle is 0 by symmetry: at eps = 0.05 the
-    rounds asked 6.8e4, then 2.4e7 samples, and the run went on past 600 s). Called only
+    made from |estimate| two standard errors up, grows round after round without end (<E> of
+    the pendulum from a uniform angle at rest is 0 at t = 0 and about 1e-6 at t = 1e-3: at
+    eps = 0.01 the second round planned 3.6e9 path-steps, and the run went on). Called only
     without a wall-time budget: with one, the plan is refused when it no longer fits it."""
     z = _quantile((1.0 - conf) / 2.0)
     with np.errstate(invalid="ignore"):
