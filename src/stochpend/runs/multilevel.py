@@ -966,13 +966,6 @@ class Budget:
                 "raise it with max_seconds= (--max-seconds)")
 
 
-def _path_steps_guess(config: SimulationConfig, level: int, n: int) -> float:
-    """A priori path-steps of ``n`` samples of ``level``: t_max/h_0 a plain path, 3 t_max/h_{l-1}
-    a pair (one coarse step and two fine half steps)."""
-    steps = config.t_max / config.h_max
-    return float(n) * (steps if level == 0 else 3.0 * steps * 2.0 ** (level - 1))
-
-
 def check_pilot(config: SimulationConfig, target: Target, *, backend: str = "cpu", max_path_steps: Any = None,
                 max_seconds: Any = None, started: float | None = None) -> Budget:
     """The :class:`Budget` of a target run of ``config`` (its wall time counted from ``started``,
@@ -986,7 +979,7 @@ def check_pilot(config: SimulationConfig, target: Target, *, backend: str = "cpu
     budget.rate = resources._rate(backend == "cuda", None, rate_kind(cfg))[0]
     if budget.seconds is not None:
         budget.compile_s = resources.compile_seconds(cfg, backend=backend)
-    pilot_cost = sum(_path_steps_guess(cfg, level, PILOT_SAMPLES) for level in range(PILOT_LEVELS))
+    pilot_cost = float(np.sum(steps_per_sample(cfg, PILOT_LEVELS)[:, -1])) * PILOT_SAMPLES
     pilot_work = float(np.sum(work_per_sample(cfg, PILOT_LEVELS)[:, -1])) * PILOT_SAMPLES
     broken = budget.exceeded(pilot_cost, work=pilot_work)
     if broken is not None:
@@ -1174,7 +1167,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
                 _top_up(add, more, st, note, times, budget.seconds_for(_staircase_cost(more, W), clock.seconds))
                 continue
             if L < MAX_LEVEL and _levels_wanted(st, eps, conf, active):
-                guess = _path_steps_guess(cfg, L + 1, PILOT_SAMPLES)
+                guess = float(steps_per_sample(cfg, L + 2)[-1, -1]) * PILOT_SAMPLES
                 guess_work = float(work_per_sample(cfg, L + 2)[-1, -1]) * PILOT_SAMPLES
                 if budget.exceeded(spent + guess, spent, clock.seconds, work=guess_work):
                     _refuse(target, spent, spent + guess, budget, f"level {L + 1}'s pilot", clock.seconds, guess_work)
