@@ -88,7 +88,8 @@ def test_a_pilot_over_the_work_limit_or_the_wall_time_budget_is_refused_before_a
 def test_a_plan_over_the_work_limit_is_refused_with_what_it_would_take():
     # The pilot (256 samples on three levels, ~1e4 path-steps) fits; 1e-5 relative does not.
     with pytest.raises(ValueError, match=r"target_error=1e-05 is not accepted: the plan would bring the work to "
-                                         r"[0-9.e+]+ path-steps \([0-9.e+]+ already spent\), above the limit"):
+                                         r"[0-9.e+]+ path-steps( at the estimates so far and to [0-9.e+]+(, about [^,]+ here)? if each "
+                                         r"target statistic is two standard errors larger)? \([0-9.e+]+ already spent\), above the limit"):
         stochpend.simulate(**CHEAP, target_error=1e-5, max_path_steps=1e6)
 
 
@@ -96,7 +97,8 @@ def test_a_plan_over_the_wall_time_budget_is_refused_with_what_it_would_take():
     """The pilot (~1e4 path-steps) fits in 10 s on any machine; the plan for 1e-5 relative (over
     1e10 path-steps, as the work-limit test's) does not, at the pilot's own measured rate."""
     with pytest.raises(ValueError, match=r"target_error=1e-05 is not accepted: the plan would bring the work to "
-                                         r"[0-9.e+]+ path-steps \([0-9.e+]+ already spent\), more than the "
+                                         r"[0-9.e+]+ path-steps( at the estimates so far and to [0-9.e+]+(, about [^,]+ here)? if each "
+                                         r"target statistic is two standard errors larger)? \([0-9.e+]+ already spent\), more than the "
                                          r"wall-time budget max_seconds=10 leaves"):
         stochpend.simulate(**CHEAP, target_error=1e-5, max_seconds=10)
 
@@ -140,6 +142,26 @@ def test_the_same_statistic_away_from_zero_is_not_refused():
     """The refusal is the estimate's, not the statistic's: <E> at t = 1 (0.085) meets its target."""
     ds = stochpend.simulate(**ZERO_MEAN, target_times=[1.0])
     assert bool(ds["mean_E_certified"].values.all())
+
+
+def test_a_refusal_after_the_pilot_names_the_plan_at_the_estimates_and_two_errors_up():
+    """After the pilot a relative target's plan goes as 1/|P|^2 with |P| from 256 samples: the
+    OU pendulum's <E> at t = 1, eps = 3e-4, was refused naming 1.71e12 path-steps, where the
+    same run at 1e-3 spent 2.2e9. The refusal now names the plan two standard errors up too (the
+    one that decides a refusal). Here, at eps = 3e-3 and a budget the pilot alone fills, the two
+    bracket what the run spends without a budget, and the first alone was over ten times it."""
+    kw = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, t_max=1.0, times=(1.0,), seed=1, h_max=0.2,
+              target_error=3e-3)
+    with pytest.raises(ValueError) as err:
+        stochpend.simulate(**kw, max_seconds=0.5)
+    msg = str(err.value)
+    m = re.search(r"bring the work to ([0-9.e+]+) path-steps at the estimates so far and to ([0-9.e+]+)"
+                  r"(, about [^,]+ here)? if each target statistic is two standard errors larger", msg)
+    assert m, msg
+    total, low = float(m.group(1)), float(m.group(2))
+    spent = stochpend.simulate(**kw).attrs["path_steps"]
+    assert low <= spent <= total, (low, spent, total)
+    assert total > 10 * spent, (total, spent)
 
 
 def test_a_wall_time_budget_counts_the_paths_started_and_refuses_before_overrunning(monkeypatch):

@@ -1154,7 +1154,9 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             if budget.exceeded(spent + _staircase_cost(np.maximum(least_lc - st.N, 0), st.C), spent, clock.seconds,
                                work=_staircase_cost(np.maximum(least_lc - st.N, 0), W)):
                 _refuse(target, spent, spent + _staircase_cost(np.maximum(need_lc - st.N, 0), st.C), budget,
-                        "the plan", clock.seconds, _staircase_cost(np.maximum(need_lc - st.N, 0), W))
+                        "the plan", clock.seconds, _staircase_cost(np.maximum(need_lc - st.N, 0), W),
+                        low=(spent + _staircase_cost(np.maximum(least_lc - st.N, 0), st.C),
+                             _staircase_cost(np.maximum(least_lc - st.N, 0), W)))
             # Level 0 up to the samples that every plan gives it (its variance alone filling the
             # target at |P| two standard errors up): a relative target needs |P|, and the pilot's
             # 256 paths may put it at a fifth of its value (OU pendulum, t = 1: 0.019 for 0.085),
@@ -1183,7 +1185,9 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
                                            _staircase_cost(np.maximum(least - st.N, 0), st.C)), spent, clock.seconds,
                                work=max(_staircase_cost(more, W), _staircase_cost(np.maximum(least - st.N, 0), W))):
                 _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), budget,
-                        "the plan", clock.seconds, _staircase_cost(np.maximum(need - st.N, 0), W))
+                        "the plan", clock.seconds, _staircase_cost(np.maximum(need - st.N, 0), W),
+                        low=(spent + _staircase_cost(np.maximum(least - st.N, 0), st.C),
+                             _staircase_cost(np.maximum(least - st.N, 0), W)))
             _top_up(add, more, st, note, times, budget.seconds_for(_staircase_cost(more, W), clock.seconds))
         st = _state(levels, conf, cfg)
         per_step = budget.seconds_for(1.0, clock.seconds)  # the levels' rate, for the notes
@@ -1251,11 +1255,22 @@ def _refuse_zero(target: Target, st: State, conf: float, active: np.ndarray, tim
 
 
 def _refuse(target: Target, spent: int, total: float, budget: Budget, what: str, compiling_s: float,
-            work: float | None = None) -> None:
+            work: float | None = None, low: tuple[float, float] | None = None) -> None:
+    """Refuse (``ValueError``, one line) naming the work ``total`` would bring. ``low``: (total
+    path-steps, work units left) of the plan with each target statistic two standard errors
+    larger than its estimate (the plan that decided the refusal), named where it is below
+    0.9 ``total``, with its time at the measured rate: a relative target's
+    cost goes as 1/|P|^2, and after the pilot |P| may be a fraction of its value (the OU
+    pendulum at t = 1, eps = 3e-4: 1.71e12 path-steps named, where eps = 1e-3 had run in 2.2e9,
+    about 2.4e10 at 3e-4), so the one number read as a cost 70 times too high."""
     broken = (budget.exceeded(total, spent, compiling_s, work)
               or f"above the limit of {budget.path_steps:.3g} path-steps")
+    span = ""
+    if low is not None and low[0] < 0.9 * total:
+        span = (f" at the estimates so far and to {low[0]:.3g}{_about(budget.seconds_for(low[1], compiling_s))} "
+                "if each target statistic is two standard errors larger")
     raise ValueError(f"target_error={target.error:g} is not accepted: {what} would bring the work to "
-                     f"{total:.3g} path-steps ({spent:.3g} already spent), {broken}; or ask for a larger "
+                     f"{total:.3g} path-steps{span} ({spent:.3g} already spent), {broken}; or ask for a larger "
                      "target_error, fewer target_times or statistics")
 
 
