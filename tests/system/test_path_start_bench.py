@@ -1,6 +1,7 @@
 """benchmarks/path_start.py runs and reports what it says (a smoke test of the script, not a
-measurement): at tiny sizes its rows, its fit and its three pieces are printed, and the fitted
-cost of a step is positive (50-step paths cost more than one-step paths)."""
+measurement): at tiny sizes its rows, its fit and its three pieces are printed. No timing is
+asserted: at these sizes the machine's noise decides any comparison (a benchmark's claims are
+its runs', benchmarks/RESULTS_ACCURACY.md)."""
 
 from __future__ import annotations
 
@@ -21,8 +22,6 @@ def test_the_script_prints_its_rows_fit_and_pieces(capsys):
     out = capsys.readouterr().out
     rows = re.findall(r"^\| (\d+) \| ([0-9.]+) \|$", out, flags=re.M)
     assert [int(s) for s, _ in rows] == [1, 50]
-    assert float(rows[1][1]) > float(rows[0][1])
-    step = float(re.search(r"fit: ([-0-9.]+) ns a step", out).group(1))
-    assert step > 0
+    assert re.search(r"^fit: -?[0-9.]+ ns a step, -?[0-9.]+ ns a path's start and statistics", out, flags=re.M), out
     pieces = dict(re.findall(r"(start|advance|accumulate) ([0-9.]+)", out))
     assert set(pieces) == {"start", "advance", "accumulate"} and all(float(v) > 0 for v in pieces.values())

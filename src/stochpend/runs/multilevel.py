@@ -1151,12 +1151,11 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             # refused on the least-cost plan (the half-and-half one may ask four times the work)
             _, need_lc, least_lc = _guarded_plan(st, eps, conf, active, slack=True)
             W = work_per_sample(cfg, L + 1)
-            if budget.exceeded(spent + _staircase_cost(np.maximum(least_lc - st.N, 0), st.C), spent, clock.seconds,
-                               work=_staircase_cost(np.maximum(least_lc - st.N, 0), W)):
+            low = (spent + _staircase_cost(np.maximum(least_lc - st.N, 0), st.C),
+                   _staircase_cost(np.maximum(least_lc - st.N, 0), W))
+            if budget.exceeded(low[0], spent, clock.seconds, work=low[1]):
                 _refuse(target, spent, spent + _staircase_cost(np.maximum(need_lc - st.N, 0), st.C), budget,
-                        "the plan", clock.seconds, _staircase_cost(np.maximum(need_lc - st.N, 0), W),
-                        low=(spent + _staircase_cost(np.maximum(least_lc - st.N, 0), st.C),
-                             _staircase_cost(np.maximum(least_lc - st.N, 0), W)))
+                        "the plan", clock.seconds, _staircase_cost(np.maximum(need_lc - st.N, 0), W), low=low)
             # Level 0 up to the samples that every plan gives it (its variance alone filling the
             # target at |P| two standard errors up): a relative target needs |P|, and the pilot's
             # 256 paths may put it at a fifth of its value (OU pendulum, t = 1: 0.019 for 0.085),
@@ -1181,13 +1180,12 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
             more = np.where((more > 0) & (more < 0.05 * st.N), np.ceil(0.05 * st.N), more).astype(np.int64)
             if not np.any(more):
                 break
-            if budget.exceeded(spent + max(_staircase_cost(more, st.C),
-                                           _staircase_cost(np.maximum(least - st.N, 0), st.C)), spent, clock.seconds,
-                               work=max(_staircase_cost(more, W), _staircase_cost(np.maximum(least - st.N, 0), W))):
+            low = (spent + _staircase_cost(np.maximum(least - st.N, 0), st.C),
+                   _staircase_cost(np.maximum(least - st.N, 0), W))
+            if budget.exceeded(max(spent + _staircase_cost(more, st.C), low[0]), spent, clock.seconds,
+                               work=max(_staircase_cost(more, W), low[1])):
                 _refuse(target, spent, spent + _staircase_cost(np.maximum(need - st.N, 0), st.C), budget,
-                        "the plan", clock.seconds, _staircase_cost(np.maximum(need - st.N, 0), W),
-                        low=(spent + _staircase_cost(np.maximum(least - st.N, 0), st.C),
-                             _staircase_cost(np.maximum(least - st.N, 0), W)))
+                        "the plan", clock.seconds, _staircase_cost(np.maximum(need - st.N, 0), W), low=low)
             _top_up(add, more, st, note, times, budget.seconds_for(_staircase_cost(more, W), clock.seconds))
         st = _state(levels, conf, cfg)
         per_step = budget.seconds_for(1.0, clock.seconds)  # the levels' rate, for the notes
