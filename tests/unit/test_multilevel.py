@@ -544,25 +544,57 @@ def test_the_late_times_route_says_its_least_cost_and_time_before_it_runs():
 def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
     from stochpend import bias
     from stochpend.engine import cpu, integrator
-    from stochpend.model import power_sums
+    from stochpend.model import observables, power_sums
+    from stochpend.observables import Observable, register, unregister
 
-    cfg = SimulationConfig.build(noise="white", D=0.5, omega=OMEGA, t_max=1.0, times=[1.0])
-    spec = bias.pair_spec(cfg, "cpu")
-    q = integrator.step_record(cfg)[1]
-    rng = np.random.default_rng(35)
-    n = 2000
-    x, Omega = rng.uniform(-3.0, 3.0, n), rng.normal(size=n)
-    xf, Omegaf = x + 0.1 * rng.normal(size=n), Omega + 0.1 * rng.standard_t(3, size=n)
-    status = np.zeros(n, dtype=np.uint8)
-    status[[7, 99]] = 1  # pairs the accumulate kernel marked: not summed
-    out = np.zeros((4, power_sums.N_SUMS))
-    cpu.difference_kernel(spec)(x, Omega, xf, Omegaf, status, OMEGA**2, q, out)
+    # A user's observable of the state (it reads xi and t, which the members share) has its
+    # differences summed after the table's, in its column of the run's sums.
+    register(Observable("ml_probe", lambda x, Omega, xi, t: Omega * math.cos(x) + xi * t))
+    try:
+        cfg = SimulationConfig.build(noise="white", D=0.5, omega=OMEGA, t_max=1.0, times=[1.0],
+                                     observables=("ml_probe",))
+        spec = bias.pair_spec(cfg, "cpu")
+        q = integrator.step_record(cfg)[1]
+        rng = np.random.default_rng(35)
+        n = 2000
+        x, Omega = rng.uniform(-3.0, 3.0, n), rng.normal(size=n)
+        xf, Omegaf = x + 0.1 * rng.normal(size=n), Omega + 0.1 * rng.standard_t(3, size=n)
+        xi, t = rng.normal(size=n), np.full(n, 1.0)
+        status = np.zeros(n, dtype=np.uint8)
+        status[[7, 99]] = 1  # pairs the accumulate kernel marked: not summed
+        out = np.zeros((4, observables.n_sums(cfg)))
+        assert out.shape[1] == power_sums.N_SUMS + 1
+        cpu.difference_kernel(spec, cfg.observables)(x, Omega, xf, Omegaf, xi, t, status, np.zeros((0, n)),
+                                                     OMEGA**2, q, out)
+    finally:
+        unregister("ml_probe")
     values = integrator.statistics(spec.oscillator, spec.coupling)  # the kernels' own, called from Python
+    ok = status == 0
     d = np.array([np.subtract(values(xf[i], Omegaf[i], OMEGA**2, q)[2], values(x[i], Omega[i], OMEGA**2, q)[2])
-                  for i in range(n) if status[i] == 0])
+                  for i in range(n) if ok[i]])
+    du = (Omegaf * np.cos(xf) - Omega * np.cos(x))[ok]  # xi t cancels: the members share it
     assert np.all(out[:, 0] == n - 2)
     for k in range(4):
         np.testing.assert_allclose(out[k, 1:1 + d.shape[1]], np.sum(d ** (k + 1), axis=0), rtol=1e-10)
+        np.testing.assert_allclose(out[k, power_sums.N_SUMS], np.sum(du ** (k + 1)), rtol=1e-10)
+
+
+def test_a_users_observable_has_its_level_kurtosis():
+    # A user's observable equal to E, path by path: its target estimate, errors and Giles'
+    # kurtosis are mean_E's (the kurtosis was NaN for every user's observable).
+    from stochpend.observables import Observable, register, unregister
+
+    register(Observable("e_twin", lambda x, Omega, xi, t: 0.5 * Omega * Omega - OMEGA**2 * math.cos(x)))
+    try:
+        ds = stochpend.simulate(**CHEAP, seed=7, target_error=0.05, observables=("e_twin",),
+                                target_statistics=["mean_E", "mean_e_twin"])
+    finally:
+        unregister("e_twin")
+    kurt, twin = ds["mean_E_level_kurtosis"].values, ds["mean_e_twin_level_kurtosis"].values
+    assert np.all(np.isnan(twin[0])) and np.all(twin[1:] >= 1.0), twin
+    np.testing.assert_allclose(twin[1:], kurt[1:], rtol=1e-6)
+    for what in ("", "_level_mean", "_level_variance", "_total_error"):
+        np.testing.assert_allclose(ds[f"mean_e_twin{what}"].values, ds[f"mean_E{what}"].values, rtol=1e-6)
 
 
 def test_a_levels_kurtosis_combines_its_rounds_raw_moments():

@@ -635,21 +635,35 @@ def _accumulate_kernel(spec: KernelSpec, user: tuple):
     return _ranges(accumulate, items=10)  # the batches, rows of sums
 
 
-@functools.cache
-def difference_kernel(spec: KernelSpec):
-    """``differences(x, Omega, xf, Omegaf, status, omega2, q, out)``: over the pairs whose
-    ``status`` is 0 (both members finite, after the accumulate kernel marked the rest), the raw
-    power sums of each summed value's difference between the fine and the coarse member,
-    d = v(xf, Omegaf) - v(x, Omega): ``out[k, 1 + c]`` += sum d_c**(k + 1), k = 0..3, for the
-    columns c of the statistics table (:data:`stochpend.observables.SUMS`), and ``out[:, 0]`` +=
-    the pairs summed. For the kurtosis of a multilevel estimator's level differences (Giles'
-    diagnostic, :mod:`stochpend.runs.multilevel`). Float64; depends on the oscillator and coupling."""
-    path_values = integrator.statistics(spec.oscillator, spec.coupling)
-    n_values = len(observables_.SUMS)
+def difference_kernel(spec: KernelSpec, observables: tuple[str, ...] = ()):
+    """``differences(x, Omega, xf, Omegaf, xi, t, status, tracks, omega2, q, out)``: over the
+    pairs whose ``status`` is 0 (both members finite, after the accumulate kernel marked the
+    rest), the raw power sums of each summed value's difference between the fine and the coarse
+    member, d = v(xf, Omegaf) - v(x, Omega): ``out[k, c]`` += sum d_c**(k + 1), k = 0..3, for the
+    columns c of the run's sums (:func:`accumulate_kernel`'s: the statistics table's
+    :data:`stochpend.observables.SUMS` from column 1, then the user ``observables``' from
+    N_SUMS, each member's value computed as the accumulate kernel computes it, with the pair's
+    shared ``xi``, ``t`` and ``tracks``), and ``out[:, 0]`` += the pairs summed. For the
+    kurtosis of a multilevel estimator's level differences (Giles' diagnostic,
+    :mod:`stochpend.runs.multilevel`). ``out``: (4, N_SUMS + user columns) float64. Float64;
+    depends on the oscillator, the coupling and the user observables."""
+    return _difference_kernel(spec, observables_.objects(observables))
 
-    @numba.njit(nogil=True, cache=spec.oscillator.builtin, error_model="numpy")
-    @own_index(f"differences/{spec.oscillator.name}/{spec.coupling}/{observables_.TABLE_KEY}")
-    def differences(x, Omega, xf, Omegaf, status, omega2, q, out):  # pragma: no cover - compiled
+
+@functools.cache
+def _difference_kernel(spec: KernelSpec, user: tuple):
+    path_values = integrator.statistics(spec.oscillator, spec.coupling)
+    user_values = observables_.user_values(user, spec.oscillator)
+    n_values = len(observables_.SUMS)
+    n_user = observables_.n_user_columns(user)
+    first_user = N_SUMS
+    # Cached on disk as the accumulate kernel is (its reasons: _accumulate_kernel).
+    builtin = not user or observables_.builtin_key(user) is not None
+    users = observables_.builtin_key(user) or observables_.user_key(user)
+
+    @numba.njit(nogil=True, cache=spec.oscillator.builtin and builtin, error_model="numpy")
+    @own_index(f"differences/{spec.oscillator.name}/{spec.coupling}/{observables_.TABLE_KEY}/{users}")
+    def differences(x, Omega, xf, Omegaf, xi, t, status, tracks, omega2, q, out):  # pragma: no cover - compiled
         for i in range(x.shape[0]):
             if status[i] != 0:
                 continue
@@ -657,6 +671,10 @@ def difference_kernel(spec: KernelSpec):
             ok_f, _, vf = path_values(np.float64(xf[i]), np.float64(Omegaf[i]), omega2, q)
             if not (ok_c and ok_f):
                 continue
+            uc = user_values(np.float64(x[i]), np.float64(Omega[i]), np.float64(xi[i]), t[i], tracks, i,
+                             omega2, q)
+            uf = user_values(np.float64(xf[i]), np.float64(Omegaf[i]), np.float64(xi[i]), t[i], tracks, i,
+                             omega2, q)
             for k in range(4):
                 out[k, 0] += 1.0
             for c in range(n_values):
@@ -666,6 +684,13 @@ def difference_kernel(spec: KernelSpec):
                 out[1, 1 + c] += d2
                 out[2, 1 + c] += d2 * d
                 out[3, 1 + c] += d2 * d2
+            for c in range(n_user):
+                d = uf[c] - uc[c]
+                d2 = d * d
+                out[0, first_user + c] += d
+                out[1, first_user + c] += d2
+                out[2, first_user + c] += d2 * d
+                out[3, first_user + c] += d2 * d2
 
     return differences
 
@@ -909,7 +934,7 @@ class LevelEngine:
         self.init, self.advance_k = self.kernels(spec, levels)
         # The CPU's accumulate kernel on every backend: the run's own (compiled once for all).
         self.accumulate_k = accumulate_kernel(spec, config.observables)
-        self.difference_k = difference_kernel(spec) if differences else None
+        self.difference_k = difference_kernel(spec, config.observables) if differences else None
         self.key0, self.key1 = config.keys.main
         self.record = spec.noise.record(config)
         self.step_rec = integrator.step_record(config)
@@ -920,7 +945,7 @@ class LevelEngine:
         self.n_times = len(config.times)
         self.n_sums = observables_.n_sums(config)
         self.n_tracks = len(observables_.accumulators(observables_.objects(config.observables)))
-        self.differences = np.zeros((self.n_times, 4, N_SUMS)) if differences else None
+        self.differences = np.zeros((self.n_times, 4, self.n_sums)) if differences else None
         self.p0 = 0
         self.n = 0
 
@@ -1010,8 +1035,8 @@ class LevelEngine:
                 add(m)
         self.put_status(status)  # sets whose moments overflowed stay excluded
         if self.difference_k is not None and self.differences is not None:
-            self.difference_k(members[0], members[1], members[2], members[3], status, c.omega**2, q,
-                              self.differences[j])
+            self.difference_k(members[0], members[1], members[2], members[3], xi, t, status, tracks,
+                              c.omega**2, q, self.differences[j])
 
     def steps(self) -> int:
         """The finest member's draws (each of its steps one; member m takes 2**(m + 1 - levels)

@@ -228,7 +228,7 @@ def pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, *, backend
     (:mod:`stochpend.runs.multilevel`): the runner's host loop (``runner.run_batches`` with 2
     levels, the backend's ``LevelEngine``), with :func:`pair_spec`;
     the numbers do not depend on ``chunk_pairs`` or the threads. ``what``: the progress bar's
-    label. ``differences``: (n_times, 4, N_SUMS) float64, where the raw power sums of the
+    label. ``differences``: (n_times, 4, n_sums) float64, where the raw power sums of the
     members' differences are added (``cpu.difference_kernel``; the kurtosis of a level's
     differences), from the host arrays on every backend."""
     from stochpend.engine import runner

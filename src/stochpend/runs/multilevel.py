@@ -85,8 +85,8 @@ consistency check (Giles: level l-1's fine mean against level l's coarse mean, i
 it. The kurtosis of each pair level's differences (Giles' check of the variances the plan rests
 on, ``<name>_level_kurtosis``, above :data:`KURTOSIS_WARN` named by ``show``) comes from the raw
 power sums of the members' differences, summed on the host beside the pairs' statistics
-(``bias.pair_sums(differences=...)``), for the statistics that are means of the table (NaN for
-S, F and users' observables). What this version does not do: the Richardson-extrapolated
+(``bias.pair_sums(differences=...)``), for the statistics that are means of the table or of
+a user's observable of the state (NaN for S and F, no per-sample mean). What this version does not do: the Richardson-extrapolated
 (multilevel Richardson-Romberg) estimate. A sweep (:func:`stochpend.sweep.sweep`) runs
 every set as this run; a checkpointed run saves its :class:`Journal` at round boundaries and
 replays it when resumed (:func:`stochpend.runs.checkpoint.run_target_checkpointed`).
@@ -291,8 +291,8 @@ class Round:
     y_var: np.ndarray
     nonfinite: int
     #: Per-sample raw moments E[Y^k], k = 1..4, of the pairs' difference Y of each statistic that
-    #: is a mean of the statistics table (for the kurtosis of the level's differences), (S, T);
-    #: NaN at level 0 and for the others (the skewness S, the flatness F, a user's observable).
+    #: is a mean of the statistics table or of a user's observable (for the kurtosis of the
+    #: level's differences), (S, T); NaN at level 0 and for the skewness S and flatness F.
     d1: np.ndarray | None = None
     d2: np.ndarray | None = None
     d3: np.ndarray | None = None
@@ -331,6 +331,7 @@ def _st(x: np.ndarray) -> np.ndarray:
 
 
 def _user_column(config: SimulationConfig, name: str) -> int:
+    """The first column of the run's sums of the user observable whose mean is ``name``."""
     c = power_sums.N_SUMS
     for u in config.observables:
         if f"mean_{u}" == name:
@@ -339,26 +340,18 @@ def _user_column(config: SimulationConfig, name: str) -> int:
     raise KeyError(name)
 
 
-def _column_of(column: int) -> Callable[[np.ndarray], np.ndarray]:
-    def of(m: np.ndarray) -> np.ndarray:
-        return m[..., column]
-
-    return of
-
-
 def statistics_of(config: SimulationConfig, names: Sequence[str]) -> Callable[[np.ndarray], np.ndarray]:
     """The target statistics ``names`` as one function of the means ``m[..., column]`` (sums
-    over count, the run's columns): ``of(m)`` has shape ``(..., S)``. A mean is its column; the
-    paper's skewness and flatness their functions of the means (:data:`observables.STATISTICS`),
-    so a level's difference of them is S(fine means) - S(coarse means) of its coupled samples and
-    every error of the multilevel estimate is the jackknife's of those values."""
+    over count, the run's columns): ``of(m)`` has shape ``(..., S)``. Each is the run's own
+    statistic of that name (:data:`observables.STATISTICS`, a user observable's
+    :func:`observables.user_statistics`): a mean is its column; the paper's skewness and
+    flatness, and a function of the energy's mean over the paths where it is finite
+    (:class:`observables.EnergyObservable`), their functions of the means. So a level's
+    difference of them is g(fine means) - g(coarse means) of its coupled samples and every error
+    of the multilevel estimate is the jackknife's of those values."""
     table = {s.name: s.of for s in observables.STATISTICS}
-    parts: list[Callable[[np.ndarray], np.ndarray]] = []
-    for name in names:
-        if name in table:
-            parts.append(table[name])
-        else:
-            parts.append(_column_of(_user_column(config, name)))
+    table.update({s.name: s.of for s in observables.user_statistics(tuple(config.observables), config.times)})
+    parts = [table[name] for name in names]
 
     def of(m: np.ndarray) -> np.ndarray:
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -367,11 +360,16 @@ def statistics_of(config: SimulationConfig, names: Sequence[str]) -> Callable[[n
     return of
 
 
-def _table_columns(config: SimulationConfig, names: Sequence[str]) -> list[int | None]:
-    """Each target statistic's column in the statistics table's sums when it is one of its
-    means (``mean_E``, ``mean_E2``, ...), else None."""
+def _difference_columns(config: SimulationConfig, names: Sequence[str]) -> list[int | None]:
+    """Each target statistic's column in the run's sums whose pairs' differences the difference
+    kernel sums (``cpu.difference_kernel``): a mean of the table (``mean_E``, ``mean_E2``, ...)
+    or of a user observable (the value column; for a function of the energy, its sum over the
+    paths where it is finite, counted as 0 elsewhere); None for the skewness and flatness, which
+    are no per-sample mean."""
     table = {s.name for s in observables.SUMS}
-    return [observables.column(n[5:]) if n.startswith("mean_") and n[5:] in table else None for n in names]
+    users = {f"mean_{u}" for u in config.observables}
+    return [observables.column(n[5:]) if n.startswith("mean_") and n[5:] in table
+            else _user_column(config, n) if n in users else None for n in names]
 
 
 def _batches(n: int) -> tuple[int, int]:
@@ -387,7 +385,7 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
     """``n`` samples of ``level`` (0: an ordinary ensemble at ``config``'s step; l >= 1: coupled
     pairs at ``refined(config, l - 1)``) with the seed :func:`level_seed`, run to the output time
     of index ``stop`` only, reduced to the statistics ``of`` (:func:`statistics_of`) of the means.
-    ``columns``: each statistic's column in the table's sums, or None (:func:`_table_columns`):
+    ``columns``: each statistic's column in the run's sums, or None (:func:`_difference_columns`):
     a pair level's raw moments of the differences of those (``Round.d1`` .. ``d4``)."""
     seed = level_seed(config.seed, level, round_)
     n_b, _ = _batches(n)
@@ -406,7 +404,7 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
         return Round(_counts(n, stop, T), stop, cfg.t_max, int(path_steps), seed, n_b, f, f_var,
                      nan, nan.copy(), f, f_var, nonfinite)
     cfg = replace(bias.refined(cfg, level - 1), seed=seed)
-    dsums = np.zeros((len(cfg.times), 4, power_sums.N_SUMS))
+    dsums = np.zeros((len(cfg.times), 4, observables.n_sums(cfg)))
     sums, path_steps = bias.pair_sums(cfg, n, n_b, backend=backend, progress=progress,
                                       what=f"level {level}", differences=dsums)  # (B, T', 2, n_sums)
     f, f_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :])))
@@ -496,8 +494,8 @@ class Level:
 
     def kurtosis(self) -> np.ndarray:
         """The kurtosis of the level's differences Y, E[(Y - m)^4] / V^2 from the rounds' raw
-        moments combined (weights: samples), (S, T); NaN where not known (level 0, a statistic
-        that is no mean of the table)."""
+        moments combined (weights: samples), (S, T); NaN where not known (level 0, the skewness
+        and flatness, no per-sample means)."""
         w = self._weights()
         zero = np.zeros_like(self.rounds[0].f)
         m1, m2, m3, m4 = (sum((np.where(wk > 0, wk * getattr(r, name), 0.0)
@@ -1111,7 +1109,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
     budget = check_pilot(config, target, backend=backend, max_path_steps=max_path_steps, max_seconds=max_seconds,
                          started=started)
     of = statistics_of(config, target.statistics)
-    columns = _table_columns(config, target.statistics)
+    columns = _difference_columns(config, target.statistics)
     levels: list[Level] = []
     spent = 0
 
@@ -1492,7 +1490,7 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
         kurtosis = st.kurtosis if st.kurtosis is not None else np.full_like(st.m, np.nan)
         data[f"{name}_level_kurtosis"] = (("level", "time"), kurtosis[:, s], {
             "long_name": f"kurtosis E[(Y_l - m_l)^4]/V_l^2 of the level's differences for {name} (NaN: "
-                         f"level 0, or not a mean of the table); above {KURTOSIS_WARN:g} the variance "
+                         f"level 0, or the skewness or flatness, no per-sample mean); above {KURTOSIS_WARN:g} the variance "
                          "V_l, and the plan made from it, rest on rare pairs (Giles)"})
         data[f"{name}_consistency"] = (("level", "time"), st.consistency[:, s], {
             "long_name": "|fine mean of level l-1 - coarse mean of level l| in sigma (Giles' check, "
