@@ -1267,7 +1267,8 @@ def _refuse(target: Target, spent: int, total: float, budget: Budget, what: str,
                 "if each target statistic is two standard errors larger")
     raise ValueError(f"target_error={target.error:g} is not accepted: {what} would bring the work to "
                      f"{total:.3g} path-steps{span} ({spent:.3g} already spent), {broken}; or ask for a larger "
-                     "target_error, fewer target_times or statistics")
+                     "target_error= (--target-error), fewer target_times= (--target-times) or "
+                     "target_statistics= (--target-statistics)")
 
 
 @dataclass
