@@ -80,8 +80,12 @@ def method_a(case: dict, t: float, eps: float, budget: float, seed: int, h_max: 
                        max_seconds=budget_s, h_max=h_max)
     except ValueError as exc:
         m = re.search(r"([0-9.]+e\+?[0-9]+) path-steps", str(exc))
-        return Row("", t, eps, label, math.nan, float(m.group(1)) if m else math.nan,
-                   "refused", str(exc)[:120])
+        # a refusal after the pilot names the plan at the estimates and, where much lower, the
+        # plan with each statistic two standard errors larger: both ends go in the note
+        low = re.search(r"and to ([0-9.]+e\+?[0-9]+)", str(exc))
+        note = (f"plan {float(m.group(1)):.3g} path-steps at the pilot's estimates, {float(low.group(1)):.3g} "
+                "two standard errors up; " if m and low else "") + str(exc)[:120]
+        return Row("", t, eps, label, math.nan, float(m.group(1)) if m else math.nan, "refused", note)
     seconds = time.perf_counter() - started
     certified = all(bool(ds[f"{s}_certified"].values.all()) for s in STATISTICS)
     worst = max(float(ds[f"{s}_relative_total_error"].values.max()) for s in STATISTICS)
@@ -224,6 +228,7 @@ def run(case_names: list[str], times: list[float], targets: list[float], *, pilo
                           method_e(name, t, eps, best, n, pilot_paths)]
                 for a in block[:len(a_h_max)]:
                     if a.how == "refused" and best is not None and math.isfinite(a.path_steps):
+                        # from the plan at the estimates (the note keeps the lower end)
                         a.seconds = a.path_steps / best.rate
                         a.how = "projected (refused)"
                 for r in block:

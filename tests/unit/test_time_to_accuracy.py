@@ -20,3 +20,20 @@ def test_the_speed_up_is_against_the_best_other_route_and_only_for_a_certified_r
     assert "(run, NOT certified)" in line and line.endswith("| – |")
     line = speedups(_rows("refused", "target_error=0.001 is not accepted")).splitlines()[-1]
     assert line.endswith("| – |")
+
+
+def test_a_refused_target_row_keeps_both_ends_of_the_plan(monkeypatch):
+    # The refusal after a pilot names the plan at the estimates and, much lower, the plan two
+    # standard errors up (1.71e12 against 1.8e10 on the OU pendulum at t = 1, 3e-4): the row's
+    # path-steps are the first, its note carries both.
+    from benchmarks import time_to_accuracy
+
+    def refuse(**_kwargs):
+        raise ValueError("target_error=0.0003 is not accepted: the plan would bring the work to 1.71e+12 "
+                         "path-steps at the estimates so far and to 1.8e+10, about 7.2 min here if each "
+                         "target statistic is two standard errors larger (3.1e+08 already spent), more than ...")
+
+    monkeypatch.setattr(time_to_accuracy, "_simulate", refuse)
+    row = time_to_accuracy.method_a({}, 1.0, 3e-4, 1e13, 1, 0.2, 400.0)
+    assert row.how == "refused" and row.path_steps == 1.71e12
+    assert row.note.startswith("plan 1.71e+12 path-steps at the pilot's estimates, 1.8e+10 two standard errors up; ")
