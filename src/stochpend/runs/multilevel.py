@@ -87,7 +87,9 @@ on, ``<name>_level_kurtosis``, above :data:`KURTOSIS_WARN` named by ``show``) co
 power sums of the members' differences, summed on the host beside the pairs' statistics
 (``bias.pair_sums(differences=...)``), for the statistics that are means of the table or of
 a user's observable of the state (NaN for S and F, no per-sample mean). What this version does not do: the Richardson-extrapolated
-(multilevel Richardson-Romberg) estimate. A sweep (:func:`stochpend.sweep.sweep`) runs
+(multilevel Richardson-Romberg) estimate: the least-cost plan gives the bias bound 1-3 % of the
+total error on the OU pendulum at t = 1 and 10, so it could save level 0 at most ~6 % of its
+samples (benchmarks/RESULTS_ACCURACY.md). A sweep (:func:`stochpend.sweep.sweep`) runs
 every set as this run; a checkpointed run saves its :class:`Journal` at round boundaries and
 replays it when resumed (:func:`stochpend.runs.checkpoint.run_target_checkpointed`).
 """
