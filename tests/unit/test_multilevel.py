@@ -566,8 +566,8 @@ def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
         xi, t = rng.normal(size=n), np.full(n, 1.0)
         status = np.zeros(n, dtype=np.uint8)
         status[[7, 99]] = 1  # pairs the accumulate kernel marked: not summed
-        out = np.zeros((4, observables.n_sums(cfg)))
-        assert out.shape[1] == power_sums.N_SUMS + 1
+        out = np.zeros((4, observables.n_sums(cfg) + power_sums.N_CROSS))
+        assert observables.n_sums(cfg) == power_sums.N_SUMS + 1
         cpu.difference_kernel(spec, cfg.observables)(x, Omega, xf, Omegaf, xi, t, status, np.zeros((0, n)),
                                                      OMEGA**2, q, out)
     finally:
@@ -581,6 +581,48 @@ def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
     for k in range(4):
         np.testing.assert_allclose(out[k, 1:1 + d.shape[1]], np.sum(d ** (k + 1), axis=0), rtol=1e-10)
         np.testing.assert_allclose(out[k, power_sums.N_SUMS], np.sum(du ** (k + 1)), rtol=1e-10)
+    # after the run's columns, the products of the differences of E2, E3, E4 (the skewness's and
+    # flatness's linearised differences need them)
+    dx = d[:, [c - 1 for c in power_sums.CROSS]]
+    first = power_sums.N_SUMS + 1
+    for k, monomials in enumerate(power_sums.CROSS_MONOMIALS):
+        want = [np.sum(dx[:, 0] ** a * dx[:, 1] ** b * dx[:, 2] ** c) for a, b, c in monomials]
+        np.testing.assert_allclose(out[k, first:first + len(monomials)], want, rtol=1e-9)
+
+
+def test_the_linearised_moments_are_the_moments_of_the_weighted_sum():
+    from stochpend.model import power_sums
+
+    rng = np.random.default_rng(5)
+    d = rng.standard_t(5, size=(4000, 3)) * [1.0, 0.3, 2.0]
+    w = np.array([0.7, -1.9, 0.05])
+    products = np.zeros((4, power_sums.N_CROSS))
+    for k, monomials in enumerate(power_sums.CROSS_MONOMIALS):
+        for j, (a, b, c) in enumerate(monomials):
+            products[k, j] = np.sum(d[:, 0] ** a * d[:, 1] ** b * d[:, 2] ** c)
+    got = power_sums.linearised_moments(products, np.float64(len(d)), w)
+    y = d @ w
+    np.testing.assert_allclose(got, [np.mean(y ** n) for n in range(1, 5)], rtol=1e-10)
+
+
+@pytest.mark.parametrize("level", [1, 3])
+def test_the_skewness_and_flatness_have_a_level_kurtosis_whose_variance_is_the_jackknifes(level):
+    # S and F are no per-sample means: their level difference is linearised at the pair's means,
+    # w . d with d the pairs' differences of E2, E3, E4. The variance of that per-sample value
+    # must be the jackknife's per-sample variance of the level's difference (the plan's V_l),
+    # within the noise of 256 batches; a wrong gradient or product would put it off by a factor.
+    names = ["mean_E", "mean_E2", "skewness", "flatness"]
+    config = SimulationConfig.build(noise="ou", D=1.0, tau=1.0, t_max=1.0, times=(0.5, 1.0), h_max=0.2, seed=3)
+    cfg = multilevel._target_config(config, multilevel.check_target(config, 0.01, target_statistics=names))
+    n = 20_000
+    r = multilevel.run_level(cfg, level, n, 0, multilevel.statistics_of(cfg, names), len(cfg.times) - 1,
+                             columns=multilevel._difference_columns(cfg, names))
+    var_moments = r.d2 - r.d1**2
+    var_jackknife = r.y_var * n
+    ratio = var_moments / var_jackknife
+    assert np.all((ratio > 0.6) & (ratio < 1.6)), ratio
+    kurt = multilevel.Level(level, [r]).kurtosis()
+    assert np.all(np.isfinite(kurt)) and np.all(kurt >= 1.0), kurt
 
 
 def test_a_users_observable_has_its_level_kurtosis():

@@ -57,12 +57,12 @@ import numba
 import numpy as np
 from numba import types
 from numba.core import cgutils
-from numba.extending import intrinsic
+from numba.extending import intrinsic, register_jitable
 
 from stochpend.engine import integrator, layout
 from stochpend.engine.integrator import KernelSpec
 from stochpend.engine.layout import CHUNK_ARRAYS, path_dtypes
-from stochpend.model import dynamics, initial, settings
+from stochpend.model import dynamics, initial, power_sums, settings
 from stochpend.model import observables as observables_
 from stochpend.model.observables import N_SUMS, S_COUNT, S_NONFINITE
 from stochpend.model.oscillators.pendulum import PENDULUM
@@ -635,6 +635,15 @@ def _accumulate_kernel(spec: KernelSpec, user: tuple):
     return _ranges(accumulate, items=10)  # the batches, rows of sums
 
 
+@register_jitable
+def _power(d: float, e: int) -> float:  # pragma: no cover - compiled
+    """d**e for a small e >= 0, by multiplication (a product's last bits fixed)."""
+    out = 1.0
+    for _ in range(e):
+        out *= d
+    return out
+
+
 def difference_kernel(spec: KernelSpec, observables: tuple[str, ...] = ()):
     """``differences(x, Omega, xf, Omegaf, xi, t, status, tracks, omega2, q, out)``: over the
     pairs whose ``status`` is 0 (both members finite, after the accumulate kernel marked the
@@ -643,9 +652,12 @@ def difference_kernel(spec: KernelSpec, observables: tuple[str, ...] = ()):
     columns c of the run's sums (:func:`accumulate_kernel`'s: the statistics table's
     :data:`stochpend.observables.SUMS` from column 1, then the user ``observables``' from
     N_SUMS, each member's value computed as the accumulate kernel computes it, with the pair's
-    shared ``xi``, ``t`` and ``tracks``), and ``out[:, 0]`` += the pairs summed. For the
+    shared ``xi``, ``t`` and ``tracks``), and ``out[:, 0]`` += the pairs summed; after the run's
+    columns, ``out[k, n_sums + j]`` += the products of the differences of the columns
+    :data:`stochpend.model.power_sums.CROSS` of degree k + 1 with the exponents
+    ``CROSS_MONOMIALS[k][j]`` (the skewness's and flatness's linearised differences). For the
     kurtosis of a multilevel estimator's level differences (Giles' diagnostic,
-    :mod:`stochpend.runs.multilevel`). ``out``: (4, N_SUMS + user columns) float64. Float64;
+    :mod:`stochpend.runs.multilevel`). ``out``: (4, n_sums + N_CROSS) float64. Float64;
     depends on the oscillator, the coupling and the user observables."""
     return _difference_kernel(spec, observables_.objects(observables))
 
@@ -660,6 +672,12 @@ def _difference_kernel(spec: KernelSpec, user: tuple):
     # Cached on disk as the accumulate kernel is (its reasons: _accumulate_kernel).
     builtin = not user or observables_.builtin_key(user) is not None
     users = observables_.builtin_key(user) or observables_.user_key(user)
+    n_sums = N_SUMS + n_user
+    cross = np.array([c - 1 for c in power_sums.CROSS], dtype=np.int64)  # indices of the values
+    n_products = np.array([len(m) for m in power_sums.CROSS_MONOMIALS], dtype=np.int64)
+    exponents = np.zeros((4, power_sums.N_CROSS, 3), dtype=np.int64)
+    for k, monomials in enumerate(power_sums.CROSS_MONOMIALS):
+        exponents[k, :len(monomials)] = monomials
 
     @numba.njit(nogil=True, cache=spec.oscillator.builtin and builtin, error_model="numpy")
     @own_index(f"differences/{spec.oscillator.name}/{spec.coupling}/{observables_.TABLE_KEY}/{users}")
@@ -691,6 +709,13 @@ def _difference_kernel(spec: KernelSpec, user: tuple):
                 out[1, first_user + c] += d2
                 out[2, first_user + c] += d2 * d
                 out[3, first_user + c] += d2 * d2
+            d_a = vf[cross[0]] - vc[cross[0]]
+            d_b = vf[cross[1]] - vc[cross[1]]
+            d_c = vf[cross[2]] - vc[cross[2]]
+            for k in range(4):
+                for m in range(n_products[k]):
+                    out[k, n_sums + m] += (_power(d_a, exponents[k, m, 0]) * _power(d_b, exponents[k, m, 1])
+                                           * _power(d_c, exponents[k, m, 2]))
 
     return differences
 
@@ -945,7 +970,8 @@ class LevelEngine:
         self.n_times = len(config.times)
         self.n_sums = observables_.n_sums(config)
         self.n_tracks = len(observables_.accumulators(observables_.objects(config.observables)))
-        self.differences = np.zeros((self.n_times, 4, self.n_sums)) if differences else None
+        self.differences = (np.zeros((self.n_times, 4, self.n_sums + power_sums.N_CROSS)) if differences
+                            else None)
         self.p0 = 0
         self.n = 0
 

@@ -32,6 +32,43 @@ __all__ = ["EnsembleSums", "LevelSums", "N_SUMS", "STATISTICS", "passage_slots"]
 S_COUNT, S_NONFINITE, N_SUMS = _table.S_COUNT, _table.S_NONFINITE, _table.N_SUMS
 S_E1 = _table.column("E")
 
+#: The table's columns whose pairs' differences the difference kernel also sums in products
+#: (``stochpend.engine.cpu.difference_kernel``): the skewness and flatness are functions of
+#: these means, and the moments of their linearised per-sample difference w . d need the
+#: cross products (:func:`linearised_moments`).
+CROSS = tuple(_table.column(name) for name in ("E2", "E3", "E4"))
+
+
+def _monomials(degree: int) -> list[tuple[int, int, int]]:
+    return [(a, b, degree - a - b) for a in range(degree, -1, -1) for b in range(degree - a, -1, -1)]
+
+
+#: Exponents (of CROSS's three differences) of the products summed for each degree 1..4, row
+#: k holding degree k + 1: 3, 6, 10 and 15 products, in this order.
+CROSS_MONOMIALS = tuple(tuple(_monomials(k + 1)) for k in range(4))
+#: Columns the products take after the run's sums in the differences array (the most, degree 4).
+N_CROSS = len(CROSS_MONOMIALS[-1])
+
+
+def linearised_moments(products: np.ndarray, count: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Raw moments E[(w . d)^n], n = 1..4, of a linear combination of CROSS's differences d:
+    ``products`` (..., 4, N_CROSS) the summed products (row k: degree k + 1, in
+    :data:`CROSS_MONOMIALS`'s order), ``count`` (...) the pairs summed, ``w`` (..., 3) the
+    weights. Returns (4, ...)."""
+    from math import factorial
+
+    out = []
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for k, monomials in enumerate(CROSS_MONOMIALS):
+            n = k + 1
+            total = np.zeros(np.shape(count))
+            for j, (a, b, c) in enumerate(monomials):
+                coefficient = factorial(n) / (factorial(a) * factorial(b) * factorial(c))
+                total = total + coefficient * w[..., 0] ** a * w[..., 1] ** b * w[..., 2] ** c * products[..., k, j]
+            out.append(total / count)
+    return np.array(out)
+
+
 # Each statistic: a function of the means m[..., c] = sums[..., c] / count.
 STATISTICS: dict[str, Callable[[np.ndarray], np.ndarray]] = {s.name: s.of for s in _table.STATISTICS}
 
@@ -250,7 +287,8 @@ class LevelSums:
     """The per-batch power sums of coupled members (``runner.run_batches`` with ``levels`` >
     1), shape (n_batches, n_times, levels, n_sums): member 0 the coarsest (step h), member m
     the step h / 2**m, each batch's sums over the same sets of members. ``differences``: the
-    raw power sums of two members' differences over the whole run, (n_times, 4, n_sums)
+    raw power sums of two members' differences over the whole run, (n_times, 4, n_sums +
+    N_CROSS), the products of CROSS's differences after the run's columns
     (``stochpend.engine.cpu.difference_kernel``), or None when not asked for."""
 
     sums: np.ndarray

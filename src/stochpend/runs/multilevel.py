@@ -86,7 +86,11 @@ it. The kurtosis of each pair level's differences (Giles' check of the variances
 on, ``<name>_level_kurtosis``, above :data:`KURTOSIS_WARN` named by ``show``) comes from the raw
 power sums of the members' differences, summed on the host beside the pairs' statistics
 (``bias.pair_sums(differences=...)``), for the statistics that are means of the table or of
-a user's observable of the state (NaN for S and F, no per-sample mean). What this version does not do: the Richardson-extrapolated
+a user's observable of the state; for S and F, no per-sample means, of their difference
+linearised at the pair's means, w . d (w the gradient of S or F in <E^2>, <E^3>, <E^4>, d the
+pair's differences of E^2, E^3, E^4), from the summed products of d (its variance agrees with
+the jackknife's V_l: tests/unit/test_multilevel.py); each round's at its own pairs' means.
+What this version does not do: the Richardson-extrapolated
 (multilevel Richardson-Romberg) estimate: the least-cost plan gives the bias bound 1-3 % of the
 total error on the OU pendulum at t = 1 and 10, so it could save level 0 at most ~6 % of its
 samples (benchmarks/RESULTS_ACCURACY.md). A sweep (:func:`stochpend.sweep.sweep`) runs
@@ -294,7 +298,8 @@ class Round:
     nonfinite: int
     #: Per-sample raw moments E[Y^k], k = 1..4, of the pairs' difference Y of each statistic that
     #: is a mean of the statistics table or of a user's observable (for the kurtosis of the
-    #: level's differences), (S, T); NaN at level 0 and for the skewness S and flatness F.
+    #: level's differences), (S, T); for the skewness S and flatness F, of their difference
+    #: linearised at the round's means (:func:`run_level`); NaN at level 0.
     d1: np.ndarray | None = None
     d2: np.ndarray | None = None
     d3: np.ndarray | None = None
@@ -367,7 +372,7 @@ def _difference_columns(config: SimulationConfig, names: Sequence[str]) -> list[
     kernel sums (``cpu.difference_kernel``): a mean of the table (``mean_E``, ``mean_E2``, ...)
     or of a user observable (the value column; for a function of the energy, its sum over the
     paths where it is finite, counted as 0 elsewhere); None for the skewness and flatness, which
-    are no per-sample mean."""
+    are no per-sample mean (their differences are linearised: :func:`run_level`)."""
     table = {s.name for s in observables.SUMS}
     users = {f"mean_{u}" for u in config.observables}
     return [observables.column(n[5:]) if n.startswith("mean_") and n[5:] in table
@@ -388,7 +393,10 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
     pairs at ``refined(config, l - 1)``) with the seed :func:`level_seed`, run to the output time
     of index ``stop`` only, reduced to the statistics ``of`` (:func:`statistics_of`) of the means.
     ``columns``: each statistic's column in the run's sums, or None (:func:`_difference_columns`):
-    a pair level's raw moments of the differences of those (``Round.d1`` .. ``d4``)."""
+    a pair level's raw moments of the differences of those (``Round.d1`` .. ``d4``); for a
+    statistic with None (S, F: functions of means), of its difference linearised at the pairs'
+    means (both members pooled), w . d, from the products of the differences of E^2, E^3, E^4
+    (``power_sums.linearised_moments``)."""
     seed = level_seed(config.seed, level, round_)
     n_b, _ = _batches(n)
     T = len(config.times)
@@ -406,7 +414,7 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
         return Round(_counts(n, stop, T), stop, cfg.t_max, int(path_steps), seed, n_b, f, f_var,
                      nan, nan.copy(), f, f_var, nonfinite)
     cfg = replace(bias.refined(cfg, level - 1), seed=seed)
-    dsums = np.zeros((len(cfg.times), 4, observables.n_sums(cfg)))
+    dsums = np.zeros((len(cfg.times), 4, observables.n_sums(cfg) + power_sums.N_CROSS))
     sums, path_steps = bias.pair_sums(cfg, n, n_b, backend=backend, progress=progress,
                                       what=f"level {level}", differences=dsums)  # (B, T', 2, n_sums)
     f, f_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :])))
@@ -414,13 +422,38 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
     y, y_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :]) - of(m[..., 0, :])))
     nonfinite = int(sums[:, -1, 0, power_sums.S_NONFINITE].sum())
     moments = np.full((4, f.shape[0], dsums.shape[0]), np.nan)
+    n_sums = sums.shape[-1]
     with np.errstate(invalid="ignore", divide="ignore"):
+        total = sums.sum(axis=0)  # (T', 2, n_sums)
+        pooled = (total / total[..., power_sums.S_COUNT:power_sums.S_COUNT + 1]).mean(axis=1)  # (T', n_sums)
         for i, col in enumerate(columns):
             if col is not None:
                 moments[:, i, :] = (dsums[:, :, col] / dsums[:, :, 0]).T
+            else:  # a function of means: its difference linearised at the pair's means, w . d
+                w = _gradient(partial(_one_of, of, i), pooled, power_sums.CROSS)
+                moments[:, i, :] = power_sums.linearised_moments(
+                    dsums[:, :, n_sums:n_sums + power_sums.N_CROSS], dsums[:, 0, 0], w)
     return Round(_counts(n, stop, T), stop, cfg.t_max, int(path_steps), seed, n_b, _pad(f, T), _pad(f_var, T),
                  _pad(c, T), _pad(c_var, T), _pad(y, T), _pad(y_var, T), nonfinite,
                  *(_pad(moments[k], T) for k in range(4)))
+
+
+def _one_of(of: Callable[[np.ndarray], np.ndarray], i: int, m: np.ndarray) -> np.ndarray:
+    return of(m)[..., i]
+
+
+def _gradient(g: Callable[[np.ndarray], np.ndarray], m: np.ndarray, columns: Sequence[int]) -> np.ndarray:
+    """The partial derivatives of ``g`` (a statistic of the means) at ``m`` (..., n_sums) in the
+    means of ``columns``, by central differences (a relative step of 1e-6): (..., len(columns))."""
+    out = []
+    for c in columns:
+        step = 1e-6 * np.where(m[..., c] != 0, np.abs(m[..., c]), 1.0)
+        up, down = m.copy(), m.copy()
+        up[..., c] += step
+        down[..., c] -= step
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out.append((g(up) - g(down)) / (2.0 * step))
+    return np.stack(out, axis=-1)
 
 
 def _counts(n: int, stop: int, T: int) -> np.ndarray:
@@ -496,8 +529,7 @@ class Level:
 
     def kurtosis(self) -> np.ndarray:
         """The kurtosis of the level's differences Y, E[(Y - m)^4] / V^2 from the rounds' raw
-        moments combined (weights: samples), (S, T); NaN where not known (level 0, the skewness
-        and flatness, no per-sample means)."""
+        moments combined (weights: samples), (S, T); NaN at level 0."""
         w = self._weights()
         zero = np.zeros_like(self.rounds[0].f)
         m1, m2, m3, m4 = (sum((np.where(wk > 0, wk * getattr(r, name), 0.0)
@@ -1493,7 +1525,7 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
         kurtosis = st.kurtosis if st.kurtosis is not None else np.full_like(st.m, np.nan)
         data[f"{name}_level_kurtosis"] = (("level", "time"), kurtosis[:, s], {
             "long_name": f"kurtosis E[(Y_l - m_l)^4]/V_l^2 of the level's differences for {name} (NaN: "
-                         f"level 0, or the skewness or flatness, no per-sample mean); above {KURTOSIS_WARN:g} the variance "
+                         f"level 0; the skewness and flatness: of their linearised difference); above {KURTOSIS_WARN:g} the variance "
                          "V_l, and the plan made from it, rest on rare pairs (Giles)"})
         data[f"{name}_consistency"] = (("level", "time"), st.consistency[:, s], {
             "long_name": "|fine mean of level l-1 - coarse mean of level l| in sigma (Giles' check, "
