@@ -228,9 +228,10 @@ def pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, *, backend
     (:mod:`stochpend.runs.multilevel`): the runner's host loop (``runner.run_batches`` with 2
     levels, the backend's ``LevelEngine``), with :func:`pair_spec`;
     the numbers do not depend on ``chunk_pairs`` or the threads. ``what``: the progress bar's
-    label. ``differences``: (n_times, 4, n_sums) float64, where the raw power sums of the
-    members' differences are added (``cpu.difference_kernel``; the kurtosis of a level's
-    differences), from the host arrays on every backend."""
+    label. ``differences``: (n_times, 4, n_sums + power_sums.N_CROSS) float64, where the raw
+    power sums of the members' differences (and the products of those of E^2, E^3, E^4) are
+    added (``cpu.difference_kernel``; the kurtosis of a level's differences), from the host
+    arrays on every backend."""
     from stochpend.engine import runner
 
     pairs = replace(config, paths=n_pairs, n_batches=n_batches)
