@@ -568,8 +568,11 @@ def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
         status[[7, 99]] = 1  # pairs the accumulate kernel marked: not summed
         out = np.zeros((4, observables.n_sums(cfg) + power_sums.N_CROSS))
         assert observables.n_sums(cfg) == power_sums.N_SUMS + 1
+        cpu.difference_kernel(spec, cfg.observables, products=True)(x, Omega, xf, Omegaf, xi, t, status,
+                                                                   np.zeros((0, n)), OMEGA**2, q, out)
+        plain = np.zeros((4, observables.n_sums(cfg)))  # without products: the same powers
         cpu.difference_kernel(spec, cfg.observables)(x, Omega, xf, Omegaf, xi, t, status, np.zeros((0, n)),
-                                                     OMEGA**2, q, out)
+                                                     OMEGA**2, q, plain)
     finally:
         unregister("ml_probe")
     values = integrator.statistics(spec.oscillator, spec.coupling)  # the kernels' own, called from Python
@@ -578,6 +581,7 @@ def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
                   for i in range(n) if ok[i]])
     du = (Omegaf * np.cos(xf) - Omega * np.cos(x))[ok]  # xi t cancels: the members share it
     assert np.all(out[:, 0] == n - 2)
+    assert np.array_equal(plain, out[:, :plain.shape[1]])
     for k in range(4):
         np.testing.assert_allclose(out[k, 1:1 + d.shape[1]], np.sum(d ** (k + 1), axis=0), rtol=1e-10)
         np.testing.assert_allclose(out[k, power_sums.N_SUMS], np.sum(du ** (k + 1)), rtol=1e-10)

@@ -155,7 +155,7 @@ def run_batches(
     checkpointer: Checkpointer | None = None,
     resume: RunState | None = None,
     levels: int = 1,
-    differences: bool = False,
+    differences: int = 0,
     what: str = "simulating",
 ) -> tuple[Any, int]:
     """Simulate batches ``first_batch .. stop_batch - 1`` and return ``(sums, path_steps)``.
@@ -168,7 +168,8 @@ def run_batches(
     ``levels`` > 1: each of the ``config.paths`` members of the ensemble is a set of ``levels``
     coupled members at steps h, h/2, ... driven by one noise path (the bias estimate's pairs, a
     multilevel target's levels; global paths from ``rng.COUPLED_PATH0``): ``sums`` is then a
-    ``stats.LevelSums`` (with the 2 members' ``differences`` when asked), ``path_steps`` the
+    ``stats.LevelSums`` (with the 2 members' ``differences`` when asked: 1 the powers of each
+    column's differences, 2 also the products for the skewness and flatness), ``path_steps`` the
     finest member's steps; not checkpointed. ``what``: the progress bar's label.
     """
     if levels != 1 and (checkpointer is not None or resume is not None):

@@ -287,8 +287,9 @@ class LevelSums:
     """The per-batch power sums of coupled members (``runner.run_batches`` with ``levels`` >
     1), shape (n_batches, n_times, levels, n_sums): member 0 the coarsest (step h), member m
     the step h / 2**m, each batch's sums over the same sets of members. ``differences``: the
-    raw power sums of two members' differences over the whole run, (n_times, 4, n_sums +
-    N_CROSS), the products of CROSS's differences after the run's columns
+    raw power sums of two members' differences over the whole run, (n_times, 4, n_sums), or
+    (n_times, 4, n_sums + N_CROSS) with the products of CROSS's differences after the run's
+    columns
     (``stochpend.engine.cpu.difference_kernel``), or None when not asked for."""
 
     sums: np.ndarray

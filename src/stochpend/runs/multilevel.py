@@ -414,9 +414,10 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
         return Round(_counts(n, stop, T), stop, cfg.t_max, int(path_steps), seed, n_b, f, f_var,
                      nan, nan.copy(), f, f_var, nonfinite)
     cfg = replace(bias.refined(cfg, level - 1), seed=seed)
-    dsums = np.zeros((len(cfg.times), 4, observables.n_sums(cfg) + power_sums.N_CROSS))
-    sums, path_steps = bias.pair_sums(cfg, n, n_b, backend=backend, progress=progress,
-                                      what=f"level {level}", differences=dsums)  # (B, T', 2, n_sums)
+    products = any(col is None for col in columns)  # S or F asked for: their linearised differences
+    dsums = np.zeros((len(cfg.times), 4, observables.n_sums(cfg) + (power_sums.N_CROSS if products else 0)))
+    sums, path_steps = bias.pair_sums(cfg, n, n_b, backend=backend, progress=progress, what=f"level {level}",
+                                      differences=dsums, products=products)  # (B, T', 2, n_sums)
     f, f_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :])))
     c, c_var = _jackknife(sums, lambda m: _st(of(m[..., 0, :])))
     y, y_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :]) - of(m[..., 0, :])))
