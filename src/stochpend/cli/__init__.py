@@ -187,12 +187,13 @@ class OneLineErrorsGroup(_LightHelp, TyperGroup):
             fail(usage_message(exc))
 
     def invoke(self, ctx: Any) -> Any:
-        from stochpend.files._files import signals_interrupt
+        from stochpend.files._files import signals_interrupt, take_pending
 
         _check_numba_threads()
         try:
             with signals_interrupt():  # SIGTERM, SIGHUP: unwind, remove temporaries, exit 128+n
-                return super().invoke(ctx)
+                value = super().invoke(ctx)
+                missed = take_pending()
         except typer.TyperException as exc:
             if type(exc).__name__ == "NoArgsIsHelpError":
                 raise
@@ -202,6 +203,14 @@ class OneLineErrorsGroup(_LightHelp, TyperGroup):
             # Click's "Aborted!" or death by the signal.
             _stop_listening()
             raise typer.Exit(128 + getattr(exc, "signum", 2)) from None
+        if missed is not None:
+            # A signal whose exception was dropped after the command's last boundary: the work
+            # is done and what it printed and wrote is complete; the exit status still says so.
+            _stop_listening()
+            console.print(f"[yellow]interrupted[/] by signal {missed} as the command finished: "
+                          "what it printed and wrote is complete", highlight=False, soft_wrap=True)
+            raise typer.Exit(128 + missed)
+        return value
 
 
 app = typer.Typer(

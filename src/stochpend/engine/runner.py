@@ -25,6 +25,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from stochpend.engine.layout import CHUNK_ARRAYS
+from stochpend.files._files import raise_pending
 from stochpend.model import observables
 from stochpend.model.passage import final_values
 from stochpend.model.power_sums import EnsembleSums
@@ -231,6 +232,7 @@ def run_batches(
             while True:
                 done = engine.advance(t_target, max_steps)
                 progress.update(state.done_work + engine.time_sum(t_target, done))
+                raise_pending()  # a Ctrl-C whose exception was dropped stops the run here
                 if done:
                     break
                 if checkpointer is not None:

@@ -29,7 +29,8 @@ import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-__all__ = ["Signalled", "WriteError", "check_output", "reason", "remove_temporaries", "signals_interrupt", "write_all", "write_atomic"]
+__all__ = ["Signalled", "WriteError", "check_output", "raise_pending", "reason", "record_signal", "remove_temporaries",
+           "signals_interrupt", "take_pending", "write_all", "write_atomic"]
 
 # Temporary files being written now, removed by a signal handler before the process ends.
 _TEMPORARIES: set[str] = set()
@@ -266,26 +267,76 @@ class Signalled(KeyboardInterrupt):
         self.signum = int(signum)
 
 
+# Signals delivered during a command (:func:`signals_interrupt`) whose exception may have been
+# dropped: Python prints and discards an exception raised in a weakref callback or ``__del__``
+# ("Exception ignored in ..."). A Ctrl-C that landed in the import system's module-lock
+# callback vanished so, and the run went on to its end and exited 0 (a fresh-clone CI run at
+# eced1d9). Each is taken back at the next point where the command can stop
+# (:func:`raise_pending`, a checkpointed run's :func:`stochpend.runs.checkpoint.deferred_signals`).
+_PENDING: list[int] = []
+
+
+def _interrupt(signum: int) -> KeyboardInterrupt:
+    return KeyboardInterrupt() if signum == signal.SIGINT else Signalled(signum)
+
+
+def take_pending() -> int | None:
+    """The first signal delivered during this command and not yet taken back (None: none), and
+    forget them all. Called from ordinary code, not while the signal's exception unwinds: a
+    signal still pending there had its exception dropped."""
+    if not _PENDING:
+        return None
+    signum = _PENDING[0]
+    _PENDING.clear()
+    return signum
+
+
+def record_signal(signum: int) -> None:
+    """Record a signal whose exception a handler is about to raise (:func:`take_pending`)."""
+    _PENDING.append(int(signum))
+
+
+def raise_pending() -> None:
+    """Raise again a signal whose exception was dropped (:func:`take_pending`): at a kernel
+    boundary, so that a Ctrl-C stops the run however it landed. Only in the main thread, where
+    Python raises the signal's own exception (a Dask worker's thread leaves it there)."""
+    if _PENDING and threading.current_thread() is threading.main_thread():
+        signum = take_pending()
+        assert signum is not None
+        raise _interrupt(signum)
+
+
 @contextlib.contextmanager
 def signals_interrupt() -> Iterator[None]:
     """Turn SIGTERM and SIGHUP (a batch system's stop, a dropped SSH session) into
     :class:`Signalled` for the duration of a command, as Python does SIGINT into
-    ``KeyboardInterrupt``; a signal ignored when the command started stays ignored. Outside the
-    main thread this does nothing."""
+    ``KeyboardInterrupt``, and record each of the three signals until the command takes it back
+    (:func:`raise_pending`: an exception dropped in a weakref callback must not lose it). A
+    signal ignored when the command started stays ignored. Outside the main thread this does
+    nothing."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def handler(signum: int, frame: object) -> None:
-        remove_temporaries()
-        raise Signalled(signum)
+        record_signal(signum)
+        if signum != signal.SIGINT:
+            remove_temporaries()
+        raise _interrupt(signum)
 
     previous = {}
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        if signal.getsignal(sig) is not signal.SIG_IGN:
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        current = signal.getsignal(sig)
+        # SIGINT only where it is Python's own (a caller's handler, or SIG_IGN, stays).
+        if current is not signal.SIG_IGN and (sig != signal.SIGINT or current is signal.default_int_handler):
             previous[sig] = signal.signal(sig, handler)
+    _PENDING.clear()
     try:
         yield
     finally:
         for sig, old in previous.items():
-            signal.signal(sig, old)
+            # A disposition set meanwhile stays: an exiting command ignores further signals
+            # (stochpend.cli._common._stop_listening), and a second Ctrl-C must not kill it.
+            if signal.getsignal(sig) is handler:
+                signal.signal(sig, old)
+        _PENDING.clear()

@@ -872,6 +872,7 @@ def deferred_signals(checkpointer: FileCheckpointer) -> Iterator[None]:
 
     def handler(signum: int, frame: Any) -> None:
         if checkpointer.stop_requested and signum == signal.SIGINT:
+            _files.record_signal(signum)  # raised again at the next boundary if dropped
             raise KeyboardInterrupt
         checkpointer.request_stop(signum)
 
@@ -880,6 +881,11 @@ def deferred_signals(checkpointer: FileCheckpointer) -> Iterator[None]:
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         if signal.getsignal(sig) is not signal.SIG_IGN:
             previous[sig] = signal.signal(sig, handler)
+    # A signal before the handlers were in place whose exception was dropped (a Ctrl-C in an
+    # import's weakref callback): the run stops at its first boundary, as for one that came now.
+    missed = _files.take_pending()
+    if missed is not None:
+        checkpointer.request_stop(missed)
     try:
         yield
     finally:
