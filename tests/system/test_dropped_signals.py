@@ -109,3 +109,18 @@ def test_after_the_last_boundary_the_exit_status_says_so(tmp_path, monkeypatch, 
     assert result.exit_code == 130, result.output
     assert "as the command finished: what it printed and wrote is complete" in result.output
     assert out.is_file()
+
+
+def test_a_signal_ignored_on_the_way_out_stays_ignored():
+    """A command exiting after a signal ignores further ones (cli._common._stop_listening); the
+    context's exit put SIGTERM's default back over that, so a SIGTERM in the last instant
+    killed the process by the signal instead of its exit 128 + n."""
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with _files.signals_interrupt():
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        assert signal.getsignal(signal.SIGTERM) is signal.SIG_IGN
+        assert signal.getsignal(signal.SIGINT) is before[signal.SIGINT]  # untouched: restored
+    finally:
+        for s, h in before.items():
+            signal.signal(s, h)
