@@ -124,3 +124,12 @@ def test_a_signal_ignored_on_the_way_out_stays_ignored():
     finally:
         for s, h in before.items():
             signal.signal(s, h)
+
+
+def test_outside_a_command_nothing_is_recorded():
+    """A Python caller's second Ctrl-C of a checkpointed run raises as Python does
+    (checkpoint.deferred_signals records it only inside a command): nothing may be left to stop
+    that caller's next run at its first boundary."""
+    _files.record_signal(signal.SIGINT)
+    _files.raise_pending()  # nothing recorded, nothing raised
+    assert _files.take_pending() is None

@@ -274,6 +274,10 @@ class Signalled(KeyboardInterrupt):
 # eced1d9). Each is taken back at the next point where the command can stop
 # (:func:`raise_pending`, a checkpointed run's :func:`stochpend.runs.checkpoint.deferred_signals`).
 _PENDING: list[int] = []
+# Whether a command listens (inside signals_interrupt): only then is a signal recorded. A Python
+# caller's second Ctrl-C of a checkpointed run raises as Python does, and nothing is left behind
+# to stop that caller's next run.
+_LISTENING = [False]
 
 
 def _interrupt(signum: int) -> KeyboardInterrupt:
@@ -292,8 +296,10 @@ def take_pending() -> int | None:
 
 
 def record_signal(signum: int) -> None:
-    """Record a signal whose exception a handler is about to raise (:func:`take_pending`)."""
-    _PENDING.append(int(signum))
+    """Record a signal whose exception a handler is about to raise (:func:`take_pending`), while
+    a command listens (:func:`signals_interrupt`); outside one, nothing."""
+    if _LISTENING[0]:
+        _PENDING.append(int(signum))
 
 
 def raise_pending() -> None:
@@ -331,9 +337,11 @@ def signals_interrupt() -> Iterator[None]:
         if current is not signal.SIG_IGN and (sig != signal.SIGINT or current is signal.default_int_handler):
             previous[sig] = signal.signal(sig, handler)
     _PENDING.clear()
+    _LISTENING[0] = True
     try:
         yield
     finally:
+        _LISTENING[0] = False
         for sig, old in previous.items():
             # A disposition set meanwhile stays: an exiting command ignores further signals
             # (stochpend.cli._common._stop_listening), and a second Ctrl-C must not kill it.
