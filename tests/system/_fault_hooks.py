@@ -10,7 +10,10 @@ process after installing HOOK:
   written to its temporary file and the process kills itself with SIGKILL;
 * ``barrier DIR``: once the result's temporary file is written, wait until two processes
   have reached that point (files in DIR), then put it in place: two runs finishing at the
-  same instant.
+  same instant;
+* ``drop-sigint``: when a checkpointed run is about to listen for signals (its lock taken),
+  SIGINT arrives inside a weakref callback, where Python prints its ``KeyboardInterrupt`` and
+  drops it, as when a Ctrl-C lands in the import system's module-lock callback.
 """
 
 from __future__ import annotations
@@ -80,6 +83,26 @@ def _barrier(folder: str) -> None:
     _files._put_in_place = put_in_place
 
 
+def _drop_sigint() -> None:
+    import weakref
+
+    from stochpend.runs import checkpoint
+
+    original = checkpoint.FileCheckpointer.signals
+
+    class Box:
+        pass
+
+    def signals(self):
+        box = Box()
+        ref = weakref.ref(box, lambda _: signal.raise_signal(signal.SIGINT))
+        del box  # the callback runs here; its KeyboardInterrupt is printed and dropped
+        assert ref() is None
+        return original(self)
+
+    checkpoint.FileCheckpointer.signals = signals
+
+
 def main(argv: list[str]) -> None:
     split = argv.index("--")
     hook, hook_args, args = argv[0], argv[1:split], argv[split + 1:]
@@ -89,6 +112,8 @@ def main(argv: list[str]) -> None:
         _kill_in_checkpoint_write(int(hook_args[0]))
     elif hook == "barrier":
         _barrier(hook_args[0])
+    elif hook == "drop-sigint":
+        _drop_sigint()
     elif hook != "none":
         raise SystemExit(f"unknown hook {hook!r}")
     from stochpend.cli import main as cli_main

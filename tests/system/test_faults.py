@@ -220,6 +220,25 @@ def test_a_second_ctrl_c_still_saves_and_exits_130(tmp_path, references, gap_s):
     _assert_identical(references["cpu-adaptive"], io.open_results(out))
 
 
+def test_a_ctrl_c_python_drops_still_saves_and_exits_130(tmp_path, references):
+    """A Ctrl-C that lands in a weakref callback (the import system's module-lock callback, in a
+    fresh-clone CI run at eced1d9) has its KeyboardInterrupt printed and dropped by Python; the
+    run went on to its end and exited 0. Made to happen here just as the run starts listening
+    for signals: the run saves at its first boundary, exits 130 advising the resume, and the
+    resume gives the uninterrupted run's bits."""
+    ckpt, out = tmp_path / "run.ckpt", tmp_path / "run.nc"
+    proc = _start("cpu-adaptive", ckpt, out, hook=["drop-sigint"], every="1h")
+    _, err = proc.communicate(timeout=300)
+    assert "Exception ignored" in err and "KeyboardInterrupt" in err, err  # the drop happened
+    assert proc.returncode == 130, err
+    assert "continue with: " in err.splitlines()[-1], err
+    assert ckpt.is_file() and not out.exists()
+    assert _fraction_done(ck.read(ckpt)) < 1
+    r = _resume(ckpt, "cpu-adaptive")
+    assert r.returncode == 0, r.stderr
+    _assert_identical(references["cpu-adaptive"], io.open_results(out))
+
+
 # -- crashes inside a write (the same code on every backend: io and checkpoint) -------------------
 #: A run of a fraction of a second: these faults strike in the writes, not mid-run.
 SMALL = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=300, t_max=20.0, times=_times(2.0, 10), seed=5)
