@@ -191,7 +191,9 @@ class OneLineErrorsGroup(_LightHelp, TyperGroup):
 
         _check_numba_threads()
         try:
-            with signals_interrupt():  # SIGTERM, SIGHUP: unwind, remove temporaries, exit 128+n
+            # SIGTERM, SIGHUP: unwind, remove temporaries, exit 128+n; each signal recorded until
+            # taken back (Python drops one whose exception lands in a weakref callback)
+            with signals_interrupt():
                 value = super().invoke(ctx)
                 missed = take_pending()
         except typer.TyperException as exc:
