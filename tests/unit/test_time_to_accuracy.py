@@ -3,7 +3,7 @@ target run certified its target, against the best of the other routes."""
 
 from __future__ import annotations
 
-from benchmarks.time_to_accuracy import Row, speedups
+from benchmarks.time_to_accuracy import Row, speedups, table
 
 
 def _rows(a_how: str, a_note: str) -> list[Row]:
@@ -37,3 +37,14 @@ def test_a_refused_target_row_keeps_both_ends_of_the_plan(monkeypatch):
     row = time_to_accuracy.method_a({}, 1.0, 3e-4, 1e13, 1, 0.2, 400.0)
     assert row.how == "refused" and row.path_steps == 1.71e12
     assert row.note.startswith("plan 1.71e+12 path-steps at the pilot's estimates, 1.8e+10 two standard errors up; ")
+
+
+def test_the_table_gives_no_ratio_to_a_refused_runs_projection():
+    """A refused (a)'s seconds project the plan at its pilot's estimates (1.71e12 path-steps
+    named where 2.4e10 was about right): the row printed 0.258x, which was no result."""
+    rows = _rows("projected (refused)", "plan 1.71e+12 path-steps at the pilot's estimates")
+    a_line, b_line = table(rows).splitlines()[2:4]
+    assert "projected (refused)" in a_line and a_line.endswith("| – |")
+    assert b_line.endswith("| 1× |")
+    rows = _rows("run", "levels 6, worst relative total 0.00098, certified")
+    assert table(rows).splitlines()[2].endswith("| 3× |")  # a run's ratio stays
