@@ -11,6 +11,7 @@ the last boundary. Each test first checks that the exception really was dropped.
 
 from __future__ import annotations
 
+import shlex
 import signal
 import sys
 import weakref
@@ -89,7 +90,9 @@ def test_a_checkpointed_run_saves_and_says_how_to_continue(tmp_path, monkeypatch
     assert result.exit_code == 130, result.output
     assert "continue with: " in result.output and ckpt.is_file() and not out.exists(), result.output
     monkeypatch.setattr(checkpoint.FileCheckpointer, "signals", real)
-    result = CliRunner().invoke(cli.app, ["resume", str(ckpt), "--quiet"])
+    advice = shlex.split(result.output.strip().splitlines()[-1].split("continue with: ", 1)[1])
+    assert advice[:2] == ["stochpend", "resume"], advice  # run as printed
+    result = CliRunner().invoke(cli.app, [*advice[1:], "--quiet"])
     assert result.exit_code == 0, result.output
     assert out.is_file() and not ckpt.exists()
 
