@@ -113,3 +113,48 @@ def test_the_total_error_of_skewness_and_flatness_covers_the_true_error(potentia
             covered[name] += abs(float(ds[name][0]) - want) <= float(ds[f"{name}_total_error"][0])
     for name, n in covered.items():
         assert n >= COVERAGE * SEEDS, (potential, name, n)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("potential", ["pendulum", "harmonic"])
+def test_the_total_error_of_a_time_average_and_a_running_sum_covers_the_true_error(potential):
+    """Per-path accumulators as targets (each coupled member tracks its own steps): in the
+    stationary Boltzmann law the time average of E over [0, t] has the exact mean <E>, and the
+    running integral of E the mean <E> t, at every t."""
+    from stochpend.model import observables as obs
+
+    mean_E = _exact(potential)["mean_E"]
+    t = 2.0
+    import math
+
+    if potential == "harmonic":  # E as the run's table has it (stochpend.model.oscillators)
+        def average(x, Omega, xi, t):
+            return 0.5 * Omega * Omega + 0.5 * x * x
+
+        def integral(x0, O0, xi0, x1, O1, xi1, t0, t1):
+            return 0.25 * (t1 - t0) * (O0 * O0 + x0 * x0 + O1 * O1 + x1 * x1)
+    else:
+        def average(x, Omega, xi, t):
+            return 0.5 * Omega * Omega - math.cos(x)
+
+        def integral(x0, O0, xi0, x1, O1, xi1, t0, t1):
+            return 0.5 * (t1 - t0) * (0.5 * O0 * O0 - math.cos(x0) + 0.5 * O1 * O1 - math.cos(x1))
+    exact = {"mean_cal_E_avg": mean_E, "mean_cal_E_int": mean_E * t}
+    registry = dict(obs._REGISTRY)
+    covered = {name: 0 for name in exact}
+    try:
+        obs.register(obs.TimeAverage("cal_E_avg", average, window=(0.0, t)))
+        obs.register(obs.RunningSum("cal_E_int", integral))
+        for seed in range(SEEDS):
+            ds = stochpend.simulate(noise="white", D=0.0, omega=OMEGA, potential=potential, t_max=t, times=(t,),
+                                    h_max=1.0, seed=seed, gamma=GAMMA, additive_D=D_A, initial_temperature=T,
+                                    observables=("cal_E_avg", "cal_E_int"), target_error=EPS,
+                                    target_statistics=tuple(exact))
+            assert ds.attrs["path_steps"] == int(ds["level_path_steps"].sum()) + ds.attrs["target_route_path_steps"]
+            for name, want in exact.items():
+                covered[name] += abs(float(ds[name][0]) - want) <= float(ds[f"{name}_total_error"][0])
+    finally:
+        obs._REGISTRY.clear()
+        obs._REGISTRY.update(registry)
+    for name, n in covered.items():
+        assert n >= COVERAGE * SEEDS, (potential, name, n)

@@ -30,6 +30,8 @@ CASES: dict[str, dict[str, Any]] = {
                     dyn_params=dict(gamma=0.3, additive_D=0.4, additive_tau=0.5)),
 }
 LEVELS = (2, 3, 4)
+#: Members carrying per-path accumulators (:func:`accumulators`), each its own.
+TRACKED_LEVELS = (2, 3)
 #: Output times (the second resumes where the first landed) and the steps of one call.
 TIMES = (0.75, 2.0)
 MAX_STEPS = 7
@@ -58,6 +60,30 @@ def initial_state(cfg, levels: int, n: int = PATHS) -> tuple[np.ndarray, ...]:
     return (*members, *zeros, np.zeros(n, dtype=np.uint64), np.zeros(n, dtype=np.uint8), *extra)
 
 
+def accumulators() -> tuple[Any, ...]:
+    """Two time averages (the whole run; a window from the first output time) of a function of
+    the state, the noise and the time, and a running sum (the noise's integral): what each
+    member tracks in the tracked cases."""
+    from stochpend.observables import RunningSum, TimeAverage
+
+    def f(x, Omega, xi, t):
+        return Omega * Omega + xi * x + 0.25 * t
+
+    return (TimeAverage("lv_all", f, window=(0.0, TIMES[-1])),
+            TimeAverage("lv_late", f, window=(TIMES[0], TIMES[-1])),
+            RunningSum("lv_int", lambda x0, O0, xi0, x1, O1, xi1, t0, t1: 0.5 * (t1 - t0) * (xi0 + xi1)))
+
+
+def tracked_state(cfg, levels: int, accs: tuple[Any, ...]) -> tuple[np.ndarray, ...]:
+    """:func:`initial_state` with every member's accumulators' slots from their start, after
+    ``status`` (``layout.state_arrays(levels, tracked=True)``)."""
+    from stochpend.model import observables
+
+    start = initial_state(cfg, levels)
+    at = 2 * levels + 6  # after the members and xi, xi_aux, t, t_comp, k, status
+    return (*start[:at], np.tile(observables.track_initial(accs), (levels, PATHS)), *start[at:])
+
+
 def main(out_path: str) -> None:
     if os.environ.get("NUMBA_ENABLE_CUDASIM") != "1":
         raise SystemExit("set NUMBA_ENABLE_CUDASIM=1 before running this script")
@@ -68,13 +94,16 @@ def main(out_path: str) -> None:
     from stochpend.numerics import rng
 
     out: dict[str, np.ndarray] = {}
+    accs = accumulators()
     for name in CASES:
         cfg = config(name)
         spec = integrator.KernelSpec.of(cfg)
         key0, key1 = rng.seed_to_key(cfg.seed)
-        for levels in LEVELS:
-            kernel = backend.levels_kernel(spec, levels)
-            state = tuple(cuda.to_device(a) for a in initial_state(cfg, levels))
+        runs = [(str(levels), backend.levels_kernel(spec, levels), initial_state(cfg, levels)) for levels in LEVELS]
+        runs += [(f"tracked{levels}", backend.tracked_levels_kernel(spec, accs, levels),
+                  tracked_state(cfg, levels, accs)) for levels in TRACKED_LEVELS]
+        for levels, kernel, start in runs:
+            state = tuple(cuda.to_device(a) for a in start)
             flag = cuda.to_device(np.zeros(1, dtype=np.int32))
             for t_target in TIMES:
                 while True:

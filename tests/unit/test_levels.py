@@ -24,7 +24,7 @@ import numba
 import numpy as np
 import pytest
 
-from stochpend.engine import cpu, integrator
+from stochpend.engine import cpu, integrator, layout
 from stochpend.engine import cuda as gpu
 from stochpend.numerics import rng
 from stochpend.numerics.mathlib import LIBM
@@ -34,10 +34,20 @@ from tests.unit import _levels_cudasim as cases
 HELPER = Path(__file__).with_name("_levels_cudasim.py")
 
 
-def _reference(spec):
-    """``reference(L, state, t_targets, key0, key1, path0, p, run) -> members (L, 2, n)``: the
-    members of L coupled levels, each advanced as a single run at its own step (see the module
-    docstring), from ``state`` (the layout of ``integrator.level_positions(L)``)."""
+@numba.njit
+def _no_track(tracks, i, m, x0, O0, xi0, x1, O1, xi1, t0, t1):  # pragma: no cover - compiled
+    return None
+
+
+def _reference(spec, track=_no_track):
+    """``reference(L, x0, O0, xi0, xa0, xad0, xaa0, t_targets, key0, key1, path0, p, run, tracks)
+    -> members (L, 2, n)``: the members of L coupled levels, each advanced as a single run at its
+    own step (see the module docstring), from ``state`` (the layout of
+    ``integrator.level_positions(L)``). ``track``: each member's accumulators' update after each
+    of its steps (``observables.track_step(accs).members``) into ``tracks`` (L * n_slots, n), as
+    a single tracked run updates them: from the state, the noise and the time at the step's
+    start to those at its end, the noise after the step's last draw, the end the next
+    sub-step's start (the clock's time after the coarse step for the last)."""
     b = integrator.build(spec)
     nz = spec.noise.kernel(np.float64, LIBM)
     coefficients = nz.coefficients
@@ -57,7 +67,7 @@ def _reference(spec):
     CHANNEL = "additive_noise" in spec.terms
 
     @numba.njit
-    def reference(L, x0, O0, xi0, xa0, xad0, xaa0, t_targets, key0, key1, path0, p, run):
+    def reference(L, x0, O0, xi0, xa0, xad0, xaa0, t_targets, key0, key1, path0, p, run, tracks):
         n = x0.shape[0]
         omega2, q, h_max, step_c = run[0], run[1], run[2], run[3]
         d = run[4] if FAMILY else (0.0,)
@@ -75,6 +85,7 @@ def _reference(spec):
             tt, tc, kk = 0.0, 0.0, np.uint64(0)
             I = np.empty(N)
             Z = np.empty(N)
+            X = np.empty(N)  # the noise after each draw
             for t_target in t_targets:
                 last = tt >= t_target
                 while not last:
@@ -84,6 +95,8 @@ def _reference(spec):
                         if FAMILY:
                             h = family_bounds(h, step_c, d)
                     h_clock, last = integrator.landing_step(tt, h, t_target)
+                    t_end, _ = integrator.advance_clock(tt, tc, h_clock, last, t_target)
+                    xn_start = xn
                     hf = h_clock / N
                     C = coefficients(hf, p)
                     if CHANNEL:
@@ -91,6 +104,7 @@ def _reference(spec):
                     for j in range(N):  # the finest member's draws, in order
                         n_j = kk + np.uint64(j)
                         I[j], xn, xa, S = noise_step(key0, key1, path, n_j, xn, xa, S, C)
+                        X[j] = xn
                         if CHANNEL:
                             Z[j], xad, xaa, Sa = channel_step(kan[0], kan[1], path, n_j, xad, xaa, Sa, Can)
                         else:
@@ -99,15 +113,24 @@ def _reference(spec):
                     for m in range(L - 1, -1, -1):  # finest first; then sum two by two
                         steps = 1 << m
                         hm = h_clock / steps
+                        starts = np.empty(steps + 1)
+                        starts[steps] = t_end
                         for s_ in range(steps):
                             t0 = tt
                             for bit in range(m):  # t + h/2 + h/4 ... for the bits of s_
                                 if (s_ >> (m - 1 - bit)) & 1:
                                     t0 += h_clock / (2 << bit)
+                            starts[s_] = t0
+                        per = N >> m  # the finest draws in one of member m's steps
+                        for s_ in range(steps):
+                            t0 = starts[s_]
+                            xb, Ob = mx[m], mO[m]
                             if FAMILY:
                                 mx[m], mO[m] = family_step(mx[m], mO[m], hm, omega2, Im[s_], q, t0, hm, Zm[s_], d)
                             else:
                                 mx[m], mO[m] = verlet(mx[m], mO[m], hm, omega2, Im[s_], q)
+                            track(tracks, i, m, xb, Ob, xn_start if s_ == 0 else X[s_ * per - 1], mx[m], mO[m],
+                                  X[(s_ + 1) * per - 1], t0, starts[s_ + 1])
                         width //= 2
                         for j in range(width):
                             Zm[j] = additive_sum(Zm[2 * j], Zm[2 * j + 1], hm, d)
@@ -122,11 +145,11 @@ def _reference(spec):
     return reference
 
 
-def _run_cpu(name, levels, kernel=None):
+def _run_cpu(name, levels, kernel=None, state=None):
     cfg = cases.config(name)
     spec = integrator.KernelSpec.of(cfg)
     kernel = kernel or cpu.levels_kernel(spec, levels)
-    state = cases.initial_state(cfg, levels)
+    state = cases.initial_state(cfg, levels) if state is None else state
     key0, key1 = rng.seed_to_key(cfg.seed)
     draws = 0
     for t_target in cases.TIMES:
@@ -159,13 +182,52 @@ def test_each_member_is_a_single_run_at_its_own_step_fed_the_summed_increments(n
         xaa0 = extra[1] if len(extra) > 1 else np.zeros(cases.PATHS)
         ref = reference(levels, start[0], start[1], start[I_XI], start[I_XI + 1], xad0, xaa0,
                         np.array(cases.TIMES), key0, key1, cases.PATH0, spec.noise.record(cfg),
-                        integrator.step_record(cfg))
+                        integrator.step_record(cfg), np.zeros((0, cases.PATHS)))
         for m in range(levels):
             assert np.array_equal(state[2 * m], ref[m, 0]), (name, levels, m)
             assert np.array_equal(state[2 * m + 1], ref[m, 1]), (name, levels, m)
         assert np.all(state[I_T] == cases.TIMES[-1]) and not np.any(state[I_ST])
         assert draws == int(np.sum(state[I_K])) and np.all(state[I_K] % 2 ** (levels - 1) == 0)
         assert not np.array_equal(state[0], state[2 * (levels - 1)])
+
+
+@pytest.mark.parametrize("name", list(cases.CASES))
+def test_each_members_accumulators_are_a_single_tracked_runs_at_its_own_step(name):
+    """L = 2 and 3 with per-path accumulators (``cpu.tracked_levels_kernel``, the multilevel
+    target on an accumulator's mean): each member's slots are the reference's, the member's
+    single run tracked step by step at its own step (its state, the noise after its last draw,
+    its sub-steps' times, the landing time at the end), to the last bit; the members' states
+    are the untracked kernel's; the members' accumulators differ."""
+    from stochpend.model import observables
+
+    cfg = cases.config(name)
+    spec = integrator.KernelSpec.of(cfg)
+    accs = cases.accumulators()
+    ns = len(accs)
+    track = observables.track_step(accs)
+    reference = _reference(spec, track.members)
+    key0, key1 = rng.seed_to_key(cfg.seed)
+    for levels in cases.TRACKED_LEVELS:
+        plain, _ = _run_cpu(name, levels)
+        start = cases.initial_state(cfg, levels)
+        I_XI, _, I_T, _, I_K, I_ST = integrator.level_positions(levels)
+        initial = np.tile(observables.track_initial(accs), (levels, cases.PATHS))
+        state = cases.tracked_state(cfg, levels, accs)  # layout.state_arrays(tracked=True)
+        assert layout.state_positions(levels, True, len(start) > I_ST + 2)["tracks"] == I_ST + 1
+        state, _ = _run_cpu(name, levels, cpu.tracked_levels_kernel(spec, accs, levels), state)
+        extra = start[I_ST + 1:]
+        xad0 = extra[0] if extra else np.zeros(cases.PATHS)
+        xaa0 = extra[1] if len(extra) > 1 else np.zeros(cases.PATHS)
+        ref_tracks = initial.copy()
+        ref = reference(levels, start[0], start[1], start[I_XI], start[I_XI + 1], xad0, xaa0,
+                        np.array(cases.TIMES), key0, key1, cases.PATH0, spec.noise.record(cfg),
+                        integrator.step_record(cfg), ref_tracks)
+        for m in range(levels):
+            assert np.array_equal(state[2 * m], ref[m, 0]) and np.array_equal(state[2 * m], plain[2 * m])
+            assert np.array_equal(state[2 * m + 1], ref[m, 1])
+        assert np.array_equal(state[I_ST + 1], ref_tracks), (name, levels)
+        assert np.all(np.isfinite(ref_tracks)) and not np.any(state[I_ST])
+        assert not np.array_equal(ref_tracks[:ns], ref_tracks[ns:2 * ns])
 
 
 @pytest.mark.parametrize("name", list(cases.CASES))
@@ -294,16 +356,24 @@ def background_run(folder: Path) -> _background.Command:
 @pytest.mark.gpu
 def test_cuda_simulator_levels_equal_the_cpu_bit_for_bit():
     """The CUDA kernel (one path per thread, simulated) gives the CPU kernel's state exactly, for
-    every case and L = 2, 3, 4."""
+    every case and L = 2, 3, 4, and with every member's accumulators (L = 2, 3) their slots too."""
     run = _background.start(__name__, background_run)
     done = run.wait(timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     sim = np.load(run.folder / "out.npz")
+    accs = cases.accumulators()
     for name in cases.CASES:
+        spec = integrator.KernelSpec.of(cases.config(name))
         for levels in cases.LEVELS:
             state, _ = _run_cpu(name, levels)
             for j, a in enumerate(state):
                 assert np.array_equal(sim[f"{name}/{levels}/{j}"], a), (name, levels, j)
+        for levels in cases.TRACKED_LEVELS:
+            state, _ = _run_cpu(name, levels, cpu.tracked_levels_kernel(spec, accs, levels),
+                                cases.tracked_state(cases.config(name), levels, accs))
+            assert state[2 * levels + 6].shape == (levels * len(accs), cases.PATHS)
+            for j, a in enumerate(state):
+                assert np.array_equal(sim[f"{name}/tracked{levels}/{j}"], a), (name, levels, j)
 
 
 # -- the law of each member ------------------------------------------------------------------------

@@ -445,6 +445,21 @@ def _pair_path_kernel(spec: KernelSpec):
 
 
 @functools.cache
+def tracked_levels_kernel(spec: KernelSpec, accs: tuple, levels: int):
+    """``levels`` coupled members (:func:`levels_kernel`'s signature) each carrying the per-path
+    accumulators ``accs`` in its own slots (``state`` of :func:`stochpend.engine.layout.state_arrays`
+    with ``tracked``: ``tracks`` of shape (levels * len(accs), n)), one set of members at a time
+    (``Integrator.advance_levels`` of the tracked build), the same KernelSpec: the members'
+    states are :func:`levels_kernel`'s, bit for bit. Cached on disk as :func:`tracked_kernel` is."""
+    from stochpend.model import observables
+
+    builtin = observables.builtin_key(accs)
+    cache = spec.cacheable and builtin is not None
+    return _one_at_a_time(integrator.build(spec, observables.track_step(accs)).advance_levels[levels],
+                          f"{spec.label}/levels{levels}/track:{builtin}" if cache else None, cache, levels)
+
+
+@functools.cache
 def levels_kernel(spec: KernelSpec, levels: int):
     """``advance(state, t_target, max_steps, key0, key1, path0, p, step_rec) -> (draws_taken,
     unfinished)``: ``levels`` coupled members (``integrator.build(spec).advance_levels``: steps
@@ -645,14 +660,15 @@ def _power(d: float, e: int) -> float:  # pragma: no cover - compiled
 
 
 def difference_kernel(spec: KernelSpec, observables: tuple[str, ...] = (), products: bool = False):
-    """``differences(x, Omega, xf, Omegaf, xi, t, status, tracks, omega2, q, out)``: over the
+    """``differences(x, Omega, xf, Omegaf, xi, t, status, tracks, tracks_f, omega2, q, out)``: over the
     pairs whose ``status`` is 0 (both members finite, after the accumulate kernel marked the
     rest), the raw power sums of each summed value's difference between the fine and the coarse
     member, d = v(xf, Omegaf) - v(x, Omega): ``out[k, c]`` += sum d_c**(k + 1), k = 0..3, for the
     columns c of the run's sums (:func:`accumulate_kernel`'s: the statistics table's
     :data:`stochpend.observables.SUMS` from column 1, then the user ``observables``' from
     N_SUMS, each member's value computed as the accumulate kernel computes it, with the pair's
-    shared ``xi``, ``t`` and ``tracks``), and ``out[:, 0]`` += the pairs summed; with
+    shared ``xi`` and ``t`` and each member's accumulators' slots, ``tracks`` the coarse
+    member's and ``tracks_f`` the fine one's), and ``out[:, 0]`` += the pairs summed; with
     ``products``, after the run's columns, ``out[k, n_sums + j]`` += the products of the differences of the columns
     :data:`stochpend.model.power_sums.CROSS` of degree k + 1 with the exponents
     ``CROSS_MONOMIALS[k][j]`` (the skewness's and flatness's linearised differences). For the
@@ -684,7 +700,7 @@ def _difference_kernel(spec: KernelSpec, user: tuple, PRODUCTS: bool):
     @numba.njit(nogil=True, cache=spec.oscillator.builtin and builtin, error_model="numpy")
     @own_index(f"differences/{spec.oscillator.name}/{spec.coupling}/{observables_.TABLE_KEY}/{users}"
                f"/{'products' if PRODUCTS else 'powers'}")
-    def differences(x, Omega, xf, Omegaf, xi, t, status, tracks, omega2, q, out):  # pragma: no cover - compiled
+    def differences(x, Omega, xf, Omegaf, xi, t, status, tracks, tracks_f, omega2, q, out):  # pragma: no cover
         for i in range(x.shape[0]):
             if status[i] != 0:
                 continue
@@ -694,7 +710,7 @@ def _difference_kernel(spec: KernelSpec, user: tuple, PRODUCTS: bool):
                 continue
             uc = user_values(np.float64(x[i]), np.float64(Omega[i]), np.float64(xi[i]), t[i], tracks, i,
                              omega2, q)
-            uf = user_values(np.float64(xf[i]), np.float64(Omegaf[i]), np.float64(xi[i]), t[i], tracks, i,
+            uf = user_values(np.float64(xf[i]), np.float64(Omegaf[i]), np.float64(xi[i]), t[i], tracks_f, i,
                              omega2, q)
             for k in range(4):
                 out[k, 0] += 1.0
@@ -947,21 +963,36 @@ class LevelEngine:
     one whose moments overflow marks the set non-finite. ``differences``: with 2 members, the
     raw power sums of their differences (:func:`difference_kernel`; 2: and their products) over
     the whole run, added chunk after chunk into one array (the kurtosis of a level's
-    differences). The members carry
-    no per-path accumulators (their statistics have no Richardson estimate), and a chunk is
-    never checkpointed. Float64 (:func:`stochpend.bias.pair_spec`)."""
+    differences). A chunk is never checkpointed. Float64 (:func:`stochpend.bias.pair_spec`).
+
+    ``tracked``: every member carries the run's per-path accumulators, each its own slots
+    (``tracks[m * n_slots + slot]``, updated after each of its steps: the multilevel target on
+    an accumulator's mean), one set of members at a time (:func:`tracked_levels_kernel`; on
+    CUDA one set a thread, ``cuda.tracked_levels_kernel``); a
+    noise with events is not accepted (a member's last step would see the noise before its
+    jump). Without it the members carry none: the bias estimate has no Richardson estimate
+    of an accumulator's statistics (see ``Statistic.richardson``)."""
 
     name = "cpu"
+    #: The accumulators whose final values the runner reads (first passages): never a level's.
     accs: tuple = ()
 
     def __init__(self, config, spec: KernelSpec, capacity: int, n_chunk_batches: int, *, levels: int,
-                 differences: int = 0) -> None:
+                 differences: int = 0, tracked: bool = False) -> None:
         if differences and levels != 2:
             raise ValueError(f"differences of levels={levels!r} are not accepted: only of 2 members")
         self.config = config
         self.spec = spec
         self.levels = levels
-        self.init, self.advance_k = self.kernels(spec, levels)
+        self.track_accs = observables_.accumulators(observables_.objects(config.observables)) if tracked else ()
+        if self.track_accs:
+            if spec.noise.has_events or (spec.additive is not None and spec.additive.has_events):
+                raise ValueError(f"noise={spec.noise.name!r} is not accepted for coupled levels with per-path "
+                                 "accumulators: its events would come after a member's last step had seen the "
+                                 "noise; the noises without events (white, ou, harmonic) are")
+            self.init, self.advance_k = init_kernel(spec), self.tracked_kernel(spec, self.track_accs, levels)
+        else:
+            self.init, self.advance_k = self.kernels(spec, levels)
         # The CPU's accumulate kernel on every backend: the run's own (compiled once for all).
         self.accumulate_k = accumulate_kernel(spec, config.observables)
         self.difference_k = (difference_kernel(spec, config.observables, products=differences >= 2) if differences
@@ -972,7 +1003,7 @@ class LevelEngine:
         # The kernels' state tuple, by name (stochpend.engine.layout): the members' arrays, the
         # shared noise, clock and status, then the additive channel's (a run with it).
         self.additive = dynamics.additive_arrays(config)
-        self.layout = layout.state_arrays(levels, channel=bool(self.additive))
+        self.layout = layout.state_arrays(levels, tracked=bool(self.track_accs), channel=bool(self.additive))
         self.n_times = len(config.times)
         self.n_sums = observables_.n_sums(config)
         self.n_tracks = len(observables_.accumulators(observables_.objects(config.observables)))
@@ -985,6 +1016,11 @@ class LevelEngine:
     def kernels(spec: KernelSpec, levels: int) -> tuple[Any, Any]:
         """The backend's init and levels kernels."""
         return init_kernel(spec), levels_kernel(spec, levels)
+
+    @staticmethod
+    def tracked_kernel(spec: KernelSpec, accs: tuple, levels: int) -> Any:
+        """The backend's levels kernel with every member's accumulators."""
+        return tracked_levels_kernel(spec, accs, levels)
 
     @staticmethod
     def default_chunk_paths(precision: str) -> int:
@@ -1001,6 +1037,8 @@ class LevelEngine:
         self.path0 = _U64(rng.COUPLED_PATH0 + p0)
         dtypes = path_dtypes("cpu", "float64")
         self.held = {name: np.empty(n, dtype=dtypes.get(name, dtypes["x"])) for name in self.layout}
+        if self.track_accs:  # every member's slots, each from the accumulators' start
+            self.held["tracks"] = np.tile(observables_.track_initial(self.track_accs), (self.levels, n))
         self.members = [self.held[name] for name in layout.member_arrays(self.levels)]
         x, Omega = self.members[0], self.members[1]
         self.init(tuple(self.held[name] for name in layout.state_arrays(1)), self.key0,
@@ -1050,12 +1088,12 @@ class LevelEngine:
         c = self.config
         members, xi, t, status = self.host_members()
         hist = np.zeros((self.nb, 2), dtype=np.int64)  # the kernel counts energies; not used
-        tracks = np.zeros((self.n_tracks, self.n))  # the accumulators' slots, which the members lack
+        tracks = self.member_tracks()
         q = self.step_rec[integrator.STEP_Q]
         sums = self.chunk_sums[:, j]
 
         def add(m: int) -> None:
-            self.accumulate_k(members[2 * m], members[2 * m + 1], xi, t, status, tracks, c.omega**2, q,
+            self.accumulate_k(members[2 * m], members[2 * m + 1], xi, t, status, tracks[m], c.omega**2, q,
                               c.batch_size, _NO_EDGES, sums[:, m], hist)
 
         add(0)
@@ -1067,8 +1105,22 @@ class LevelEngine:
                 add(m)
         self.put_status(status)  # sets whose moments overflowed stay excluded
         if self.difference_k is not None and self.differences is not None:
-            self.difference_k(members[0], members[1], members[2], members[3], xi, t, status, tracks,
-                              c.omega**2, q, self.differences[j])
+            self.difference_k(members[0], members[1], members[2], members[3], xi, t, status, tracks[0],
+                              tracks[1], c.omega**2, q, self.differences[j])
+
+    def member_tracks(self) -> list[np.ndarray]:
+        """Each member's accumulators' slots (n_slots, n), on the host; zeros where the members
+        carry none (the accumulate kernel reads them for the run's accumulator columns, which
+        then hold 0)."""
+        if not self.track_accs:
+            return [np.zeros((self.n_tracks, self.n))] * self.levels
+        n = len(self.track_accs)
+        tracks = self.host_tracks()
+        return [tracks[m * n:(m + 1) * n] for m in range(self.levels)]
+
+    def host_tracks(self) -> np.ndarray:
+        """Every member's accumulators' slots (levels * n_slots, n), on the host."""
+        return self.held["tracks"]
 
     def steps(self) -> int:
         """The finest member's draws (each of its steps one; member m takes 2**(m + 1 - levels)

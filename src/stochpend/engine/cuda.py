@@ -315,6 +315,28 @@ def tracked_kernel(spec: KernelSpec, accs: tuple):
 
 
 @functools.cache
+def tracked_levels_kernel(spec: KernelSpec, accs: tuple, levels: int):
+    """:func:`levels_kernel` with every member carrying the per-path accumulators ``accs`` in its
+    own slots (``state`` with ``tracks``, (levels * n_slots, n) float64, after ``status``:
+    :func:`stochpend.engine.layout.state_arrays`), one set of members per thread: the tracked
+    build's ``device_levels`` (the CPU's ``cpu.tracked_levels_kernel``, the same numbers).
+    Compiled in memory, once per process, as :func:`tracked_kernel`."""
+    advance_levels = integrator.build(spec, observables.track_step(accs)).device_levels[levels]
+
+    @cuda.jit
+    def advance(state, t_target, max_steps, key0, key1, path0, p, step_rec,
+                unfinished):  # pragma: no cover
+        i = cuda.grid(1)
+        if i >= state[0].shape[0]:
+            return
+        _, u = advance_levels(i, state, t_target, max_steps, key0, key1, path0, p, step_rec)
+        if u != 0:
+            unfinished[0] = 1
+
+    return advance
+
+
+@functools.cache
 def pair_advance_kernel(spec: KernelSpec):
     """``advance[blocks, threads](state, t_target, max_steps, key0, key1, path0, p, step_rec,
     unfinished)``: the integrator's ``advance_pair`` (the coupled coarse/fine pairs of the bias estimate) for
@@ -364,6 +386,11 @@ class LevelEngine(cpu.LevelEngine):
         _require(spec.precision)
         return init_kernel(spec), levels_kernel(spec, levels)
 
+    @staticmethod
+    def tracked_kernel(spec: KernelSpec, accs: tuple, levels: int) -> Any:
+        _require(spec.precision)
+        return tracked_levels_kernel(spec, accs, levels)
+
     def start(self, p0: int, n: int, nb: int) -> None:
         c = self.config
         self.p0, self.n, self.nb = p0, n, nb
@@ -372,6 +399,9 @@ class LevelEngine(cpu.LevelEngine):
         with _quiet():
             # The kernels' state, by name (self.layout: stochpend.engine.layout.state_arrays).
             self.d = {name: cuda.device_array(n, dtype=dtypes.get(name, dtypes["x"])) for name in self.layout}
+            if self.track_accs:  # every member's slots (cpu.LevelEngine.start)
+                self.d["tracks"] = cuda.to_device(np.tile(observables.track_initial(self.track_accs),
+                                                          (self.levels, n)))
             self.flag = cuda.device_array(1, dtype=np.int32)
             x, Omega = self.d["x"], self.d["Omega"]
             self.init[_blocks(n, THREADS_PER_BLOCK), THREADS_PER_BLOCK](
@@ -411,6 +441,10 @@ class LevelEngine(cpu.LevelEngine):
 
     def put_status(self, status: np.ndarray) -> None:
         self.d["status"].copy_to_device(status)
+
+    def host_tracks(self) -> np.ndarray:
+        """A host copy of every member's accumulators' slots (levels * n_slots, n)."""
+        return self.d["tracks"].copy_to_host()
 
     def steps(self) -> int:
         return int(np.sum(self.d["k"].copy_to_host(), dtype=np.uint64))
@@ -985,8 +1019,8 @@ def _advance_signature(precision: str, noise: Any, oscillator: Any, terms: froze
 
 
 def _pair_advance_signature(noise: Any, oscillator: Any, terms: frozenset = frozenset(),
-                            additive: Any = None, levels: int = 2):
-    sig = _advance_signature("float64", noise, oscillator, terms, additive)
+                            additive: Any = None, levels: int = 2, tracks: bool = False):
+    sig = _advance_signature("float64", noise, oscillator, terms, additive, tracks)
     f64 = nbtypes.Array(nbtypes.float64, 1, "C")
     x, Omega, *rest = sig[0].types
     # x, Omega, then the finer members' (the pair's fine member xf, Omegaf); path0 is a uint64
@@ -1083,4 +1117,13 @@ def _levels_kernels() -> list[tuple[str, object, tuple]]:
         for levels in integrator.LEVELS[2:]:
             out.append((f"levels {spec.label} [L={levels}]", levels_kernel(spec, levels).py_func,
                         _pair_advance_signature(spec.noise, pendulum, spec.terms, spec.additive, levels)))
+    # Pairs carrying every kind of accumulator (a target on an accumulator's mean): the OU
+    # pendulum, adaptive and fixed steps, and the family with the generic channel (no events).
+    accs = observables.accumulators(_user_objects()["all"])
+    for spec in (KernelSpec(pendulum, "force", builtin["ou"], "float64", True),
+                 KernelSpec(pendulum, "force", builtin["ou"], "float64", False),
+                 KernelSpec(pendulum, "force", builtin["white"], "float64", True, False,
+                            frozenset({"damping", "additive_noise"}), builtin["harmonic"])):
+        out.append((f"tracked levels {spec.label} [L=2]", tracked_levels_kernel(spec, accs, 2).py_func,
+                    _pair_advance_signature(spec.noise, pendulum, spec.terms, spec.additive, 2, tracks=True)))
     return out

@@ -307,6 +307,11 @@ def _track_nothing(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):
     return None
 
 
+@register_jitable
+def _track_member_nothing(tracks, i, member, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):
+    return None
+
+
 def _named(function: Any, name: str) -> Any:
     """``function`` renamed ``name`` (its qualname's last part too): the level trees make one
     closure per depth and piece, and :func:`stochpend.numerics._jitcache.name_closures` needs one name
@@ -384,6 +389,72 @@ def _member_tree(depth: int, step: Any, combine: Any, half: Any, inline: bool = 
     return jit(_named(members, f"{step.__name__}_members{depth + 1}{tail}"))
 
 
+@functools.cache
+def _draw_tree_states(depth: int, leaf: Any, inline: bool = False) -> Any:
+    """:func:`_draw_tree` that also returns the noise's value after each draw, as a tree ``Xt`` of
+    the integrals' shape: ``(It, Xt, a, b, S)``. The same draws in the same order (the same
+    numbers); for the per-member accumulators (:func:`_tracked_member_tree`), which see the
+    noise at each member's step ends."""
+    if depth == 0:
+        def draws(key0, key1, path, n, a, b, S, coef):
+            I, a, b, S = leaf(key0, key1, path, n, a, b, S, coef)
+            return I, a, a, b, S
+    else:
+        half_tree = _draw_tree_states(depth - 1, leaf, inline)
+        SPAN = _U64(2 ** (depth - 1))
+
+        def draws(key0, key1, path, n, a, b, S, coef):  # noqa: F811 - one per depth
+            I1, X1, a, b, S = half_tree(key0, key1, path, n, a, b, S, coef)
+            I2, X2, a, b, S = half_tree(key0, key1, path, n + SPAN, a, b, S, coef)
+            return (I1, I2), (X1, X2), a, b, S
+
+    name = f"{leaf.__name__}_states{depth}" + ("_inline" if inline else "")
+    return _inline(_named(draws, name)) if inline else register_jitable(_named(draws, name))
+
+
+@functools.cache
+def _tracked_member_tree(depth: int, step: Any, combine: Any, half: Any, track: Any, member: int = 0,
+                         inline: bool = False) -> Any:
+    """:func:`_member_tree` with each member's per-path accumulators: ``members(mem, h, h_clock,
+    t0, t1, It, zt, omega2, q, d, Xt, xi0, tracks, i) -> (mem, I, z, xi1)``, the same steps in
+    the same order (the same members), and after each step of member m (``member`` the coarsest
+    of this subtree) ``track(tracks, i, m, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1)``
+    (:func:`stochpend.model.observables.track_step`'s ``members``: member m's slots), in float64,
+    as :func:`advance_path` tracks a path. ``Xt`` the noise's values after each draw
+    (:func:`_draw_tree_states`), ``xi0`` its value at t0; ``t1`` the step's end on the clock
+    (the landing time on a landing step, so that a window ending at an output time keeps its
+    last step); a step's first half ends at t0 + h_clock/2, as the members take it. ``xi1``:
+    the noise after the subtree's last draw."""
+    jit = _inline if inline else register_jitable
+    tail = "_inline" if inline else ""
+    M = member
+    if depth == 0:
+        def one(mem, h, h_clock, t0, t1, It, zt, omega2, q, d, Xt, xi0, tracks, i):
+            x, Om = step(mem[0], mem[1], h, omega2, It, q, t0, h_clock, zt, d)
+            track(tracks, i, M, np.float64(mem[0]), np.float64(mem[1]), np.float64(xi0), np.float64(x),
+                  np.float64(Om), np.float64(Xt), t0, t1)
+            return (x, Om), It, zt, Xt
+
+        return jit(_named(one, f"{step.__name__}_tracked{M}_members1{tail}"))
+    finer = _tracked_member_tree(depth - 1, step, combine, half, track, member + 1, inline)
+
+    def members(mem, h, h_clock, t0, t1, It, zt, omega2, q, d, Xt, xi0, tracks, i):
+        hh = half * h
+        hc = 0.5 * h_clock
+        rest, I1, z1, xi_mid = finer(mem[2], hh, hc, t0, t0 + hc, It[0], zt[0], omega2, q, d, Xt[0], xi0,
+                                     tracks, i)
+        rest, I2, z2, xi1 = finer(rest, hh, hc, t0 + hc, t1, It[1], zt[1], omega2, q, d, Xt[1], xi_mid,
+                                  tracks, i)
+        I = I1 + I2
+        z = combine(z1, z2, hc, d)
+        x, Om = step(mem[0], mem[1], h, omega2, I, q, t0, h_clock, z, d)
+        track(tracks, i, M, np.float64(mem[0]), np.float64(mem[1]), np.float64(xi0), np.float64(x),
+              np.float64(Om), np.float64(xi1), t0, t1)
+        return (x, Om, rest), I, z, xi1
+
+    return jit(_named(members, f"{step.__name__}_tracked{M}_members{depth + 1}{tail}"))
+
+
 @register_jitable
 def _no_bound(h, c, d):
     return h
@@ -439,7 +510,7 @@ def _member_tuples(levels: int) -> tuple[Any, Any]:
 
 
 def the_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNamespace,
-             channel: SimpleNamespace, *, inline: bool = False) -> Any:
+             channel: SimpleNamespace, *, inline: bool = False, tracked: bool = False) -> Any:
     """**The step**, written once for every loop (the one-path and coupled-level loops of
     :func:`_step_loop`, the CPU's SIMD lanes of :func:`_lane_machine`, the CUDA thread):
     ``step(mem, noise_state, channel_state, keys, path, n, h, h_clock, t0, coef, omega2, q, d)
@@ -457,7 +528,14 @@ def the_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNa
     counter words); ``coef = (C, C_channel)`` the noise's and the additive
     channel's coefficients at the finest member's step. What stays in the loops: loading,
     the step control, the landing and the events, the clock, the finiteness check, masking and
-    write-back. ``inline``: the draw trees and this function inlined by Numba (the CPU's)."""
+    write-back. ``inline``: the draw trees and this function inlined by Numba (the CPU's).
+
+    ``tracked``: the members carry per-path accumulators (``members`` a
+    :func:`_tracked_member_tree`); the step then takes ``(..., d, t1, tracks, i)``, t1 the step's
+    end on the clock, and draws the noise with its values (:func:`_draw_tree_states`): the same
+    draws, the same members."""
+    if tracked:
+        return _tracked_step(LEVELS, draws, members, family, channel, inline)
     DEPTH = LEVELS - 1
     FAMILY = family.FAMILY
     CHANNEL = channel.CHANNEL
@@ -490,6 +568,38 @@ def the_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNa
     if inline:
         return _inline(_named(step, name))
     return register_jitable(_named(step, name))
+
+
+def _tracked_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNamespace,
+                  channel: SimpleNamespace, inline: bool) -> Any:
+    """:func:`the_step` with ``tracked``: its draws, with the noise's values after each
+    (:func:`_draw_tree_states`), and the tracked members. A function of its own, so that the
+    untracked step every other kernel compiles stays as it is."""
+    DEPTH = LEVELS - 1
+    FAMILY = family.FAMILY
+    CHANNEL = channel.CHANNEL
+    noise_path = _draw_tree_states(DEPTH, draws.noise, inline)
+    white_path = _draw_tree(DEPTH, draws.white, inline)
+    channel_path = _draw_tree(DEPTH, draws.channel, inline)
+
+    def step(mem, noise_state, channel_state, keys, path, n, h, h_clock, t0, coef, omega2, q, d, t1, tracks, i):
+        xi0 = noise_state[0]
+        xc = channel_state[0]
+        xca = channel_state[1]
+        Sa = channel_state[2]
+        It, Xt, xn, xa, S = noise_path(keys[0], keys[1], path, n, xi0, noise_state[1], noise_state[2], coef[0])
+        if FAMILY:  # the additive noise as the_step draws it
+            if CHANNEL:
+                zt, xc, xca, Sa = channel_path(keys[2], keys[3], path, n, xc, xca, Sa, coef[1])
+            else:
+                zt, _, _, _ = white_path(keys[0], keys[1], path, n, xc, xc, Sa, coef[1])
+        else:
+            zt = It
+        mem, _, _, _ = members(mem, h, h_clock, t0, t1, It, zt, omega2, q, d, Xt, xi0, tracks, i)
+        return mem, (xn, xa, S), (xc, xca, Sa)
+
+    name = f"{draws.noise.__name__}_tracked_step{LEVELS}" + ("_inline" if inline else "")
+    return _inline(_named(step, name)) if inline else register_jitable(_named(step, name))
 
 
 def _finest(LEVELS: int, real: Any) -> Any:
@@ -686,15 +796,20 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
     DEPTH = LEVELS - 1
     DRAWS = 2 ** DEPTH
     finest = _finest(LEVELS, real)
-    if FAMILY:
-        members_step = _member_tree(DEPTH, family.family_step, family.additive_sum, half)
+    # Accumulators: one path tracks its steps here; coupled members each track their own steps
+    # inside the step (_tracked_member_tree), with their own slots.
+    TRACKED = TRACK
+    PATH_TRACKED = TRACK and LEVELS == 1
+    MEMBERS_TRACKED = TRACK and LEVELS > 1
+    kick, combine = ((family.family_step, family.additive_sum) if FAMILY else (oscillator.verlet_step, _first))
+    if MEMBERS_TRACKED:
+        members_step = _tracked_member_tree(DEPTH, kick, combine, half, control.member_track)
     else:
-        members_step = _member_tree(DEPTH, oscillator.verlet_step, _first, half)
+        members_step = _member_tree(DEPTH, kick, combine, half)
     draws = SimpleNamespace(noise=noise.step, white=family.additive_step, channel=channel.step)
-    step = the_step(LEVELS, draws, members_step, family, channel, inline=inline)
+    step = the_step(LEVELS, draws, members_step, family, channel, inline=inline, tracked=MEMBERS_TRACKED)
     nest, flat = _member_tuples(LEVELS)
     assert LEVELS <= _MAX_LEVELS
-    TRACKED = TRACK and LEVELS == 1
     at = _loop_positions(LEVELS, TRACKED, CHANNEL)
     I_X1, I_X2, I_X3, I_O1, I_O2, I_O3 = at.X1, at.X2, at.X3, at.O1, at.O2, at.O3
     HAS_1, HAS_2, HAS_3 = at.HAS1, at.HAS2, at.HAS3
@@ -756,7 +871,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
                 if CHANNEL:
                     C_channel = a_coefficients(hf, p_channel)
                 h_cached = h
-            if TRACKED:
+            if PATH_TRACKED:
                 x_before = mem[0]
                 Om_before = mem[1]
                 xn_before = xn
@@ -764,8 +879,13 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             # The finest member's steps draw the noise (draws kk .. kk + DRAWS - 1); each
             # coarser member's kick uses the sum of its two halves' integrals, the exact
             # integral over its step (one member: one draw, its own step).
-            mem, ns, cs = step(mem, (xn, xa, S), (xc, xca, Sa), keys, path, kk, h, h_clock, tt,
-                               (C, C_channel), omega2_r, q, d)
+            if MEMBERS_TRACKED:  # each member's accumulators, to the step's end on the clock
+                t_end, _ = advance_clock(tt, tc, h_clock, event or last, t_land)
+                mem, ns, cs = step(mem, (xn, xa, S), (xc, xca, Sa), keys, path, kk, h, h_clock, tt,
+                                   (C, C_channel), omega2_r, q, d, t_end, tracks, i)
+            else:
+                mem, ns, cs = step(mem, (xn, xa, S), (xc, xca, Sa), keys, path, kk, h, h_clock, tt,
+                                   (C, C_channel), omega2_r, q, d)
             xn, xa, S = ns
             xc, xca, Sa = cs
             if event:  # the event of the noise(s) whose time the step landed on
@@ -784,7 +904,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             if not finite:
                 bad = True
                 break
-            if TRACKED:
+            if PATH_TRACKED:
                 track_step(tracks, i, np.float64(x_before), np.float64(Om_before),
                            np.float64(xn_before), np.float64(mem[0]), np.float64(mem[1]),
                            np.float64(xn), t_before, tt)
@@ -1159,7 +1279,8 @@ def build(spec: KernelSpec, track: Any = None) -> SimpleNamespace:
     family = _family_pieces(spec, real, mathlib, oscillator)
     channel = _channel_pieces(spec, real, mathlib, noise, family)
     control = SimpleNamespace(ADAPTIVE=spec.adaptive, escape=real(ESCAPE_STEP_FRACTION), TRACK=track is not None,
-                              track_step=_track_nothing if track is None else track)
+                              track_step=_track_nothing if track is None else track,
+                              member_track=getattr(track, "members", _track_member_nothing))
     # The step loop's pieces, in bundles (_step_loop).
     pieces: dict[str, Any] = dict(noise=noise, oscillator=oscillator, family=family, channel=channel,
                                   control=control)

@@ -157,6 +157,7 @@ def run_batches(
     resume: RunState | None = None,
     levels: int = 1,
     differences: int = 0,
+    tracked: bool = False,
     what: str = "simulating",
 ) -> tuple[Any, int]:
     """Simulate batches ``first_batch .. stop_batch - 1`` and return ``(sums, path_steps)``.
@@ -171,7 +172,9 @@ def run_batches(
     multilevel target's levels; global paths from ``rng.COUPLED_PATH0``): ``sums`` is then a
     ``stats.LevelSums`` (with the 2 members' ``differences`` when asked: 1 the powers of each
     column's differences, 2 also the products for the skewness and flatness), ``path_steps`` the
-    finest member's steps; not checkpointed. ``what``: the progress bar's label.
+    finest member's steps; not checkpointed; ``tracked``: each member carries the run's per-path
+    accumulators (``LevelEngine``; the multilevel target on an accumulator's mean). ``what``:
+    the progress bar's label.
     """
     if levels != 1 and (checkpointer is not None or resume is not None):
         raise ValueError("coupled levels are not checkpointed: checkpointer and resume must be None")
@@ -197,7 +200,8 @@ def run_batches(
         chunk_batches = resume.b1 - resume.b0
     capacity = min(chunk_batches * bs, total_paths)
     engine = (Engine(config, spec, capacity, chunk_batches) if levels == 1 else
-              Engine(config, spec, capacity, chunk_batches, levels=levels, differences=differences))
+              Engine(config, spec, capacity, chunk_batches, levels=levels, differences=differences,
+                     tracked=tracked))
 
     def chunk(b0: int, b1: int) -> tuple[int, int]:
         p0 = b0 * bs

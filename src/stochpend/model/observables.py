@@ -443,25 +443,32 @@ def track_step(accs: tuple[Any, ...]) -> Callable | None:
     """``track(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1)``: every accumulator's update
     of its slot ``tracks[slot, i]`` over one step of path i from time t0 (state x0, Omega0, xi0)
     to t1, in float64; ``None`` without accumulators (the integrator then compiles no tracking
-    at all)."""
+    at all).
+
+    Its attribute ``members`` is the same update for coupled members (the multilevel target's
+    levels): ``members(tracks, i, m, x0, ..., t1)`` updates member m's slots ``tracks[m * n +
+    slot, i]``, n = ``len(accs)``."""
     if not accs:
         return None
     from numba.extending import register_jitable
 
-    namespace: dict[str, Any] = {}
-    lines = ["def track(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):"]
-    for slot, a in enumerate(accs):
-        namespace[f"s{slot}"] = a.step_function()
-        lines.append(f"    tracks[{slot}, i] = s{slot}(tracks[{slot}, i], x0, Omega0, xi0, x1, Omega1, xi1, t0, t1)")
-    exec("\n".join(lines) + "\n", namespace)
-    function = namespace["track"]
-    function.__module__, function.__qualname__ = __name__, "track_step.<locals>.track"
     from stochpend.numerics._jitcache import name_closures
 
-    # A built-in set is named by its names alone, the same in every process (its kernel is
-    # cached on disk, and Numba keys a cached kernel on its closures' names).
-    name_closures([function], f"track/{builtin_key(accs) or user_key(accs)}")
-    return register_jitable(function)
+    namespace: dict[str, Any] = {f"s{slot}": a.step_function() for slot, a in enumerate(accs)}
+    n = len(accs)
+    for name, head, row in (("track", "", ""), ("members", "m, ", f"m * {n} + ")):
+        lines = [f"def {name}(tracks, i, {head}x0, Omega0, xi0, x1, Omega1, xi1, t0, t1):"]
+        lines += [f"    tracks[{row}{slot}, i] = s{slot}(tracks[{row}{slot}, i], x0, Omega0, xi0, x1, Omega1, xi1, "
+                  "t0, t1)" for slot in range(n)]
+        exec("\n".join(lines) + "\n", namespace)
+        function = namespace[name]
+        function.__module__, function.__qualname__ = __name__, f"track_step.<locals>.{name}"
+        # A built-in set is named by its names alone, the same in every process (its kernel is
+        # cached on disk, and Numba keys a cached kernel on its closures' names).
+        name_closures([function], f"track/{builtin_key(accs) or user_key(accs)}")
+    track = register_jitable(namespace["track"])
+    track.members = register_jitable(namespace["members"])
+    return track
 
 
 def track_initial(accs: tuple[Any, ...]) -> np.ndarray:

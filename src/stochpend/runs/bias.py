@@ -221,7 +221,7 @@ def _estimate(config: SimulationConfig, n_paths: int, progress: Progress, chunk_
 def pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, *, backend: str = "cpu",
               progress: Progress | None = None, chunk_pairs: int = CHUNK_PAIRS,
               what: str = "bias estimate", differences: np.ndarray | None = None,
-              products: bool = False) -> tuple[np.ndarray, int]:
+              products: bool = False, tracked: bool = False) -> tuple[np.ndarray, int]:
     """The coarse and fine members' per-batch sums, shape (n_batches, n_times, 2, n_sums)
     (member 0 coarse, 1 fine; batches of ceil(n_pairs / n_batches) pairs), of ``n_pairs``
     coupled pairs of ``config`` (pairs ``BIAS_PATH0 + i`` of its seed), and the path-steps they
@@ -232,13 +232,16 @@ def pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, *, backend
     label. ``differences``: (n_times, 4, n_sums) float64, where the raw power sums of the
     members' differences are added (``cpu.difference_kernel``; the kurtosis of a level's
     differences), from the host arrays on every backend; with ``products``, (n_times, 4, n_sums
-    + power_sums.N_CROSS), the products of those of E^2, E^3, E^4 after them."""
+    + power_sums.N_CROSS), the products of those of E^2, E^3, E^4 after them. ``tracked``: each
+    member carries the run's per-path accumulators (the multilevel target on an accumulator's
+    mean; without it their columns are 0)."""
     from stochpend.engine import runner
 
     pairs = replace(config, paths=n_pairs, n_batches=n_batches)
     acc, draws = runner.run_batches(pairs, 0, n_batches, backend=backend, precision="float64",  # pair_spec
                                     chunk_paths=chunk_pairs, progress=progress, levels=2,
-                                    differences=0 if differences is None else 2 if products else 1, what=what)
+                                    differences=0 if differences is None else 2 if products else 1,
+                                    tracked=tracked, what=what)
     if differences is not None:
         differences += acc.differences
     # A coarse step is one draw, each fine half step one: draws count the fine steps, and

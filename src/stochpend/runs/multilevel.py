@@ -1,8 +1,9 @@
 """A total-error target met by multilevel Monte Carlo on coupled levels (issue 35, items 1-3).
 
 ``simulate(..., target_error=eps)`` asks for a statistic P (a mean: ``mean_E``, ``mean_E2``, any
-``mean_<name>`` of a state observable, not of a per-path accumulator; or the paper's skewness S
-or flatness F, functions of means, see below) at the
+``mean_<name>`` of a state observable, of a time average or of a running sum (each coupled member
+then carries its own accumulators: :func:`tracked_statistics`), not of a first passage; or the
+paper's skewness S or flatness F, functions of means, see below) at the
 output times with a relative *total* error below eps, statistical and
 discretisation together, at a stated confidence (default 95 %). It is met by the multilevel
 estimator of Giles (2008) on the step ladder h_l = h_max / 2**l, l = 0 .. L (fixed steps:
@@ -186,13 +187,19 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
     conf = _number("target_confidence", target_confidence, "a number in (0.5, 1), e.g. 0.95",
                    lambda v: 0.5 < v < 1.0)
     known = [s.name for s in observables.STATISTICS if s.name.startswith("mean_")] + list(NONLINEAR)
-    # A per-path accumulator (a time average, a running sum such as the displacement, a first
-    # passage) is not carried by the coupled levels' members: their differences of it would be
-    # 0, and the bias bound with them (a target on the mean displacement was "certified" with a
-    # bias bound of exactly 0). Refused, named; the ordinary run reports its bias as unresolved.
-    carried = set(observables.accumulators(observables.objects(config.observables)))
-    known += [f"mean_{u}" for u in config.observables if observables.get(u) not in carried]
-    not_carried = {f"mean_{u}": u for u in config.observables if observables.get(u) in carried}
+    # A time average's or a running sum's mean is carried by the coupled levels' members, each
+    # tracking its own steps (tracked_statistics). A first passage is not: its step error is
+    # O(sqrt h) (a crossing within a step goes unseen) and its mean is conditional on having
+    # passed, so no weak expansion in h**alpha bounds its bias. With a noise that has events
+    # the members do not carry them (cpu.LevelEngine).
+    accs = observables.accumulators(observables.objects(config.observables))
+    events = _has_events(config)
+    not_carried = {f"mean_{a.name}": (a.name, "a first passage, whose step error is O(sqrt h)"
+                                      if isinstance(a, observables.FirstPassage) else
+                                      "a per-path accumulator, which the coupled levels do not carry with a "
+                                      f"noise that has events ({config.noise})")
+                   for a in accs if isinstance(a, observables.FirstPassage) or events}
+    known += [f"mean_{u}" for u in config.observables if f"mean_{u}" not in not_carried]
     if target_statistics is None:
         names: tuple[str, ...] = DEFAULT_STATISTICS
     else:
@@ -205,9 +212,9 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
         for s in names:
             if s in not_carried:
                 raise ValueError(f"target_statistics={target_statistics!r} is not accepted: {s} is the mean of "
-                                 f"the per-path accumulator {not_carried[s]!r}, which the coupled levels do not "
-                                 "carry, so no bias bound of it can be made; a target takes the means of the "
-                                 f"table and of observables of the state, skewness and flatness ({', '.join(known)})")
+                                 f"{not_carried[s][0]!r}, {not_carried[s][1]}, so no bias bound of it can be "
+                                 "made; a target takes the means of the table, of observables of the state, of "
+                                 f"time averages and running sums, skewness and flatness ({', '.join(known)})")
         bad = [s for s in names if s not in known]
         if not names or bad or len(set(names)) != len(names):
             raise ValueError(f"target_statistics={target_statistics!r} is not accepted: distinct names "
@@ -232,7 +239,32 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
         if index.size != want.size:
             raise ValueError(f"target_times={target_times!r} is not accepted: distinct times among "
                              "the run's output times")
+    for a in accs:  # a time average has no value until its window has begun
+        if isinstance(a, observables.TimeAverage) and f"mean_{a.name}" in names \
+                and run_times[index[0]] <= a.window[0]:
+            later = run_times[run_times > a.window[0]]
+            raise ValueError(f"target_times={target_times!r} is not accepted: mean_{a.name} is a time average "
+                             f"from t = {a.window[0]:g}, with no value at t = {run_times[index[0]]:g}; "
+                             + (f"give target_times after it (from {later[0]:g})" if later.size else
+                                "no output time is after it"))
     return Target(eps, conf, names, run_times[index], index)
+
+
+def _has_events(config: SimulationConfig) -> bool:
+    """Whether the run's noise (or its additive channel's) has events (the dichotomous noise)."""
+    from stochpend.engine.integrator import KernelSpec
+
+    spec = KernelSpec.of(config)
+    return spec.noise.has_events or (spec.additive is not None and spec.additive.has_events)
+
+
+def tracked_statistics(config: SimulationConfig, names: Sequence[str]) -> bool:
+    """Whether the target ``names`` include the mean of a per-path accumulator (a time average,
+    a running sum): then every level's members carry the run's accumulators, each its own
+    (``runner.run_batches(tracked=True)``: one set of members at a time on the CPU, one a
+    thread on CUDA)."""
+    accs = {f"mean_{a.name}" for a in observables.accumulators(observables.objects(config.observables))}
+    return any(name in accs for name in names)
 
 
 # -- streams ----------------------------------------------------------------------------------------
@@ -388,7 +420,7 @@ def _batches(n: int) -> tuple[int, int]:
 def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Callable[[np.ndarray], np.ndarray],
               stop: int,
               *, backend: str = "cpu", progress: Progress | None = None,
-              columns: Sequence[int | None] = ()) -> Round:
+              columns: Sequence[int | None] = (), tracked: bool = False) -> Round:
     """``n`` samples of ``level`` (0: an ordinary ensemble at ``config``'s step; l >= 1: coupled
     pairs at ``refined(config, l - 1)``) with the seed :func:`level_seed`, run to the output time
     of index ``stop`` only, reduced to the statistics ``of`` (:func:`statistics_of`) of the means.
@@ -396,7 +428,8 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
     a pair level's raw moments of the differences of those (``Round.d1`` .. ``d4``); for a
     statistic with None (S, F: functions of means), of its difference linearised at the pairs'
     means (both members pooled), w . d, from the products of the differences of E^2, E^3, E^4
-    (``power_sums.linearised_moments``)."""
+    (``power_sums.linearised_moments``). ``tracked``: a pair level's members carry the run's
+    per-path accumulators (:func:`tracked_statistics`; a level 0 run always does)."""
     seed = level_seed(config.seed, level, round_)
     n_b, _ = _batches(n)
     T = len(config.times)
@@ -417,7 +450,7 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
     products = any(col is None for col in columns)  # S or F asked for: their linearised differences
     dsums = np.zeros((len(cfg.times), 4, observables.n_sums(cfg) + (power_sums.N_CROSS if products else 0)))
     sums, path_steps = bias.pair_sums(cfg, n, n_b, backend=backend, progress=progress, what=f"level {level}",
-                                      differences=dsums, products=products)  # (B, T', 2, n_sums)
+                                      differences=dsums, products=products, tracked=tracked)  # (B, T', 2, n_sums)
     f, f_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :])))
     c, c_var = _jackknife(sums, lambda m: _st(of(m[..., 0, :])))
     y, y_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :]) - of(m[..., 0, :])))
@@ -1141,6 +1174,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
     from stochpend.numerics import _calibration
 
     load = _calibration.current_load()  # before this run adds its own threads
+    tracked = tracked_statistics(config, target.statistics)
     budget = check_pilot(config, target, backend=backend, max_path_steps=max_path_steps, max_seconds=max_seconds,
                          started=started)
     of = statistics_of(config, target.statistics)
@@ -1158,7 +1192,7 @@ def target_run(config: SimulationConfig, target: Target, *, backend: str = "cpu"
         round_ = len(levels[level].rounds)
         r = journal.round(level, n, round_, stop, level_seed(cfg.seed, level, round_),
                           lambda: run_level(cfg, level, n, round_, of, stop, backend=backend,
-                                                            columns=columns))
+                                                            columns=columns, tracked=tracked))
         levels[level].rounds.append(r)
         spent += r.path_steps
         budget.work_spent += r.path_steps + PATH_OVERHEAD_STEPS * (1 if level == 0 else 2) * int(r.n[r.stop])
@@ -1591,8 +1625,11 @@ def summary_lines(ds: Any) -> list[str]:
     conf = float(ds.attrs.get("target_confidence", math.nan))
     lines = [f"target: relative total error {eps:g} at {100 * conf:g} % confidence, "
              f"{int(ds.attrs.get('target_levels', 0))} levels"]
-    lines.append(f"{'statistic':<10} {'t':>8} {'estimate':>12} {'stat err':>9} {'bias bound':>10} "
-                 f"{'total':>9} {'rel':>8}  cert")
+    # Each column as wide as its header and values (at least the widths a table of the
+    # built-in statistics has): an accumulator's or an observable's longer name still fits 80
+    # columns.
+    header = ("statistic", "t", "estimate", "stat err", "bias bound", "total", "rel")
+    rows: list[tuple[str, ...]] = []
     notes = []
     for name in names:
         for i, t in enumerate(ds.time.values):
@@ -1600,12 +1637,16 @@ def summary_lines(ds: Any) -> list[str]:
             if not cert:
                 notes += textwrap.wrap(f"{name} at t = {t:.4g}: {_certify_text(ds, name, i)}", 78,
                                        initial_indent="  ", subsequent_indent="    ", break_on_hyphens=False)
-            lines.append(f"{name:<10} {t:>8.4g} {float(ds[name].values[i]):>12.6g} "
-                         f"{float(ds[f'{name}_stat_error'].values[i]):>9.3g} "
-                         f"{float(ds[f'{name}_bias_bound'].values[i]):>10.3g} "
-                         f"{float(ds[f'{name}_total_error'].values[i]):>9.3g} "
-                         f"{float(ds[f'{name}_relative_total_error'].values[i]):>8.2e}  "
-                         f"{'yes' if cert else 'no'}")
+            rows.append((name, f"{t:.4g}", f"{float(ds[name].values[i]):.6g}",
+                         f"{float(ds[f'{name}_stat_error'].values[i]):.3g}",
+                         f"{float(ds[f'{name}_bias_bound'].values[i]):.3g}",
+                         f"{float(ds[f'{name}_total_error'].values[i]):.3g}",
+                         f"{float(ds[f'{name}_relative_total_error'].values[i]):.2e}", "yes" if cert else "no"))
+    widths = [max(len(header[c]), *(len(r[c]) for r in rows)) for c in range(len(header))]
+    lines.append(" ".join([header[0].ljust(widths[0]), *(h.rjust(w) for h, w in zip(header[1:], widths[1:],
+                                                                                      strict=True))]) + "  cert")
+    lines += [" ".join([r[0].ljust(widths[0]), *(v.rjust(w) for v, w in zip(r[1:-1], widths[1:], strict=True))])
+              + f"  {r[-1]}" for r in rows]
     n_s = np.asarray(ds["n_samples"].values).reshape(len(ds["level"]), -1)
     first, last = (", ".join(str(int(v)) for v in n_s[:, k]) for k in (0, -1))
     compiling = float(ds.attrs.get("compile_time_s", 0.0) or 0.0)
