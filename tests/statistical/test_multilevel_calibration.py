@@ -158,3 +158,29 @@ def test_the_total_error_of_a_time_average_and_a_running_sum_covers_the_true_err
         obs._REGISTRY.update(registry)
     for name, n in covered.items():
         assert n >= COVERAGE * SEEDS, (potential, name, n)
+
+
+@pytest.mark.slow
+def test_the_total_error_of_the_displacements_variance_covers_the_true_error():
+    """A running sum's variance and effective diffusion (functions of its two columns' means):
+    the displacement of the damped harmonic oscillator in its Boltzmann law, whose variance is
+    2 T (1 - C(t)) / omega^2 with C the stationary position autocorrelation."""
+    import math
+
+    import numpy as np
+
+    t = 2.0
+    w1 = math.sqrt(OMEGA**2 - GAMMA**2 / 4)
+    C = math.exp(-GAMMA * t / 2) * (math.cos(w1 * t) + GAMMA / (2 * w1) * math.sin(w1 * t))
+    var = 2 * T / OMEGA**2 * (1 - C)
+    exact = {"var_displacement": var, "diffusion_displacement": var / (2 * t)}
+    covered = {name: 0 for name in exact}
+    for seed in range(SEEDS):
+        ds = stochpend.simulate(noise="white", D=0.0, omega=OMEGA, potential="harmonic", t_max=t, times=(t,),
+                                h_max=1.0, seed=seed, gamma=GAMMA, additive_D=D_A, initial_temperature=T,
+                                observables=("displacement",), target_error=EPS, target_statistics=tuple(exact))
+        for name, want in exact.items():
+            covered[name] += abs(float(ds[name][0]) - want) <= float(ds[f"{name}_total_error"][0])
+        assert np.isnan(ds["var_displacement_level_kurtosis"].values).all()
+    for name, n in covered.items():
+        assert n >= COVERAGE * SEEDS, (name, n)

@@ -192,6 +192,9 @@ def test_a_wall_time_budget_counts_the_paths_started_and_refuses_before_overrunn
     (dict(observables=("ml_late",), target_statistics=("mean_ml_late",)),
      "target_times=None is not accepted: mean_ml_late is a time average from t = 0.5, with no value at "
      "t = 0.5; give target_times after it (from 1)"),
+    (dict(observables=("displacement",), target_statistics=("diffusion_displacement",), times=(0.0, 1.0)),
+     "target_times=None is not accepted: diffusion_displacement is a running sum's diffusion per time, with no "
+     "value at t = 0; give target_times after it (from 1)"),
 ])
 def test_a_target_an_accumulators_levels_cannot_carry_is_refused_before_any_work(monkeypatch, kwargs, needle):
     """A first passage's mean (its step error is O(sqrt h): no weak expansion bounds its bias), an
@@ -208,7 +211,7 @@ def test_a_target_an_accumulators_levels_cannot_carry_is_refused_before_any_work
     obs.register(obs.FirstPassage("ml_first", lambda x, Omega, xi, t: math.cos(x), threshold=0.9))
     obs.register(obs.TimeAverage("ml_late", lambda x, Omega, xi, t: math.cos(x), window=(0.5, 1.0)))
     with pytest.raises(ValueError) as err:
-        stochpend.simulate(**{"noise": "ou", **kwargs}, t_max=1.0, times=(0.5, 1.0), theta0=1.0, target_error=0.05)
+        stochpend.simulate(**{"noise": "ou", "times": (0.5, 1.0), **kwargs}, t_max=1.0, theta0=1.0, target_error=0.05)
     msg = str(err.value)
     assert "\n" not in msg
     assert needle in msg, msg
@@ -250,6 +253,36 @@ def test_a_time_average_and_a_running_sum_are_targets_each_member_tracking_its_o
         assert levels.shape[0] >= 3 and np.all(np.abs(levels[1:3]) > 0), name
     z0 = (level0["mean_ml_E_avg"].values - T) / level0["mean_ml_E_avg_stderr"].values
     assert np.all(z0 > 8), z0  # level 0 alone is biased far beyond its error
+
+
+def test_a_running_sums_variance_and_diffusion_are_targets_that_cover_their_exact_values():
+    """The displacement x(t) - x(0) of the damped harmonic oscillator in its Boltzmann law has
+    the exact variance 2 T (1 - C(t)) / omega^2, C(t) = exp(-gamma t/2) (cos w1 t + gamma/(2 w1)
+    sin w1 t), w1 = sqrt(omega^2 - gamma^2/4) (the stationary position autocorrelation):
+    ``var_displacement`` and ``diffusion_displacement`` (var / 2t), functions of the running
+    sum's two columns' means, are targets as the skewness is, covering the exact values; their
+    level kurtosis is not measured (NaN), the rate's is the mean's."""
+    from stochpend.theory import family
+
+    gamma, D_a = 0.5, 0.4
+    T = family.temperature(D_a=D_a, gamma=gamma)
+    times = np.array([1.0, 2.0])
+    w1 = math.sqrt(OMEGA**2 - gamma**2 / 4)
+    C = np.exp(-gamma * times / 2) * (np.cos(w1 * times) + gamma / (2 * w1) * np.sin(w1 * times))
+    var = 2 * T / OMEGA**2 * (1 - C)
+    ds = stochpend.simulate(noise="white", D=0.0, omega=OMEGA, potential="harmonic", t_max=2.0, times=tuple(times),
+                            h_max=1.0, gamma=gamma, additive_D=D_a, initial_temperature=T, seed=3,
+                            observables=("displacement",), target_error=0.02,
+                            target_statistics=("var_displacement", "diffusion_displacement"))
+    for name, exact in (("var_displacement", var), ("diffusion_displacement", var / (2 * times))):
+        est, total = ds[name].values, ds[f"{name}_total_error"].values
+        assert np.all(ds[f"{name}_certified"].values == 1), name
+        assert np.all(np.abs(est - exact) <= total), (name, est, total, exact)
+        assert np.all(np.isnan(ds[f"{name}_level_kurtosis"].values)), name
+    cfg = SimulationConfig.build(noise="ou", t_max=1.0, times=[1.0], observables=("displacement",))
+    assert multilevel._difference_columns(cfg, ("rate_displacement", "mean_displacement", "var_displacement",
+                                                "skewness")) == [multilevel._user_column(cfg, "mean_displacement")] * 2 \
+        + [multilevel.NO_MOMENTS, None]
 
 
 def test_a_budget_the_run_fits_in_changes_no_number():

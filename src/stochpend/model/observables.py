@@ -715,7 +715,10 @@ class RunningSum:
         def per_t(m: np.ndarray, value: np.ndarray, factor: float) -> np.ndarray:
             if t is None:
                 raise ValueError(f"rate_{name} and diffusion_{name} need the run's output times")
-            return _ratio(value, np.where(t > 0, factor * t, np.nan))
+            # The last axis: the run's output times, or their first k (a multilevel target's
+            # round runs only as far as the latest time that needs it).
+            tk = t[:value.shape[-1]]
+            return _ratio(value, np.where(tk > 0, factor * tk, np.nan))
 
         def rate_(m: np.ndarray) -> np.ndarray:
             return per_t(m, mean_(m), 1.0)

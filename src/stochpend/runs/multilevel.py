@@ -200,6 +200,11 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
                                       f"noise that has events ({config.noise})")
                    for a in accs if isinstance(a, observables.FirstPassage) or events}
     known += [f"mean_{u}" for u in config.observables if f"mean_{u}" not in not_carried]
+    # A running sum's variance, and with its rates its mean and variance per time (the
+    # displacement's mean velocity and effective diffusion): functions of its two columns'
+    # means, as the skewness and flatness are of the energy's.
+    known += [s.name for a in accs if isinstance(a, observables.RunningSum) and f"mean_{a.name}" not in not_carried
+              for s in a.statistics(0) if not s.name.startswith("mean_")]
     if target_statistics is None:
         names: tuple[str, ...] = DEFAULT_STATISTICS
     else:
@@ -239,12 +244,16 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
         if index.size != want.size:
             raise ValueError(f"target_times={target_times!r} is not accepted: distinct times among "
                              "the run's output times")
-    for a in accs:  # a time average has no value until its window has begun
-        if isinstance(a, observables.TimeAverage) and f"mean_{a.name}" in names \
-                and run_times[index[0]] <= a.window[0]:
-            later = run_times[run_times > a.window[0]]
-            raise ValueError(f"target_times={target_times!r} is not accepted: mean_{a.name} is a time average "
-                             f"from t = {a.window[0]:g}, with no value at t = {run_times[index[0]]:g}; "
+    # A time average has no value until its window has begun, a rate or a diffusion none at t = 0.
+    starts = {f"mean_{a.name}": (a.window[0], f"a time average from t = {a.window[0]:g}") for a in accs
+              if isinstance(a, observables.TimeAverage)}
+    starts.update({f"{kind}_{a.name}": (0.0, f"a running sum's {kind} per time") for a in accs
+                   if isinstance(a, observables.RunningSum) for kind in ("rate", "diffusion")})
+    for name in names:
+        if name in starts and run_times[index[0]] <= starts[name][0]:
+            later = run_times[run_times > starts[name][0]]
+            raise ValueError(f"target_times={target_times!r} is not accepted: {name} is {starts[name][1]}, with no "
+                             f"value at t = {run_times[index[0]]:g}; "
                              + (f"give target_times after it (from {later[0]:g})" if later.size else
                                 "no output time is after it"))
     return Target(eps, conf, names, run_times[index], index)
@@ -259,11 +268,12 @@ def _has_events(config: SimulationConfig) -> bool:
 
 
 def tracked_statistics(config: SimulationConfig, names: Sequence[str]) -> bool:
-    """Whether the target ``names`` include the mean of a per-path accumulator (a time average,
-    a running sum): then every level's members carry the run's accumulators, each its own
-    (``runner.run_batches(tracked=True)``: one set of members at a time on the CPU, one a
-    thread on CUDA)."""
-    accs = {f"mean_{a.name}" for a in observables.accumulators(observables.objects(config.observables))}
+    """Whether the target ``names`` include a statistic of a per-path accumulator (a time
+    average's mean, a running sum's mean, variance, rate or diffusion): then every level's
+    members carry the run's accumulators, each its own (``runner.run_batches(tracked=True)``:
+    one set of members at a time on the CPU, one a thread on CUDA)."""
+    accs = {s.name for a in observables.accumulators(observables.objects(config.observables))
+            for s in a.statistics(0)}
     return any(name in accs for name in names)
 
 
@@ -399,16 +409,34 @@ def statistics_of(config: SimulationConfig, names: Sequence[str]) -> Callable[[n
     return of
 
 
+#: :func:`_difference_columns`' entry for a statistic whose level differences have no measured
+#: moments (a running sum's variance and effective diffusion): their kurtosis is NaN.
+NO_MOMENTS = -1
+
+
 def _difference_columns(config: SimulationConfig, names: Sequence[str]) -> list[int | None]:
     """Each target statistic's column in the run's sums whose pairs' differences the difference
     kernel sums (``cpu.difference_kernel``): a mean of the table (``mean_E``, ``mean_E2``, ...)
     or of a user observable (the value column; for a function of the energy, its sum over the
-    paths where it is finite, counted as 0 elsewhere); None for the skewness and flatness, which
-    are no per-sample mean (their differences are linearised: :func:`run_level`)."""
+    paths where it is finite, counted as 0 elsewhere), a running sum's rate too (its mean over
+    t: the same kurtosis); None for the skewness and flatness, which are no per-sample mean
+    (their differences are linearised: :func:`run_level`); :data:`NO_MOMENTS` for a running
+    sum's variance and diffusion (the difference kernel sums no products of a user's columns)."""
     table = {s.name for s in observables.SUMS}
     users = {f"mean_{u}" for u in config.observables}
-    return [observables.column(n[5:]) if n.startswith("mean_") and n[5:] in table
-            else _user_column(config, n) if n in users else None for n in names]
+    out: list[int | None] = []
+    for n in names:
+        if n.startswith("mean_") and n[5:] in table:
+            out.append(observables.column(n[5:]))
+        elif n in users:
+            out.append(_user_column(config, n))
+        elif n.startswith("rate_") and f"mean_{n[5:]}" in users:
+            out.append(_user_column(config, f"mean_{n[5:]}"))
+        elif n in NONLINEAR:
+            out.append(None)
+        else:
+            out.append(NO_MOMENTS)
+    return out
 
 
 def _batches(n: int) -> tuple[int, int]:
@@ -461,6 +489,8 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
         total = sums.sum(axis=0)  # (T', 2, n_sums)
         pooled = (total / total[..., power_sums.S_COUNT:power_sums.S_COUNT + 1]).mean(axis=1)  # (T', n_sums)
         for i, col in enumerate(columns):
+            if col == NO_MOMENTS:
+                continue  # not measured: NaN
             if col is not None:
                 moments[:, i, :] = (dsums[:, :, col] / dsums[:, :, 0]).T
             else:  # a function of means: its difference linearised at the pair's means, w . d
@@ -1560,7 +1590,8 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
         kurtosis = st.kurtosis if st.kurtosis is not None else np.full_like(st.m, np.nan)
         data[f"{name}_level_kurtosis"] = (("level", "time"), kurtosis[:, s], {
             "long_name": f"kurtosis E[(Y_l - m_l)^4]/V_l^2 of the level's differences for {name} (NaN: "
-                         f"level 0; the skewness and flatness: of their linearised difference); above {KURTOSIS_WARN:g} the variance "
+                         f"level 0; a running sum's variance and diffusion: not measured; the skewness and "
+                         f"flatness: of their linearised difference); above {KURTOSIS_WARN:g} the variance "
                          "V_l, and the plan made from it, rest on rare pairs (Giles)"})
         data[f"{name}_consistency"] = (("level", "time"), st.consistency[:, s], {
             "long_name": "|fine mean of level l-1 - coarse mean of level l| in sigma (Giles' check, "
