@@ -562,6 +562,29 @@ def test_a_target_run_interrupted_at_a_round_boundary_resumes_bit_for_bit(tmp_pa
     _assert_same_target_result(ref, io.open_results(tmp_path / "t.nc"))
 
 
+def test_a_target_on_the_displacement_interrupted_at_a_round_resumes_bit_for_bit(tmp_path):
+    """A target on a running sum's statistics (every coupled member tracking its own
+    displacement): interrupted after its second round, resumed, the uninterrupted run's numbers
+    to the bit."""
+    import warnings
+
+    from stochpend.runs import multilevel
+
+    own = dict(TARGET_OWN, torque=0.3)
+    kw = dict(TARGET_RUN, observables=("displacement",))
+    stats = ("mean_displacement", "diffusion_displacement")
+    config = SimulationConfig.build(**kw, noise_params=own)
+    target = multilevel.check_target(config, 0.05, target_statistics=stats)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = simulate(**kw, **own, target_error=0.05, target_statistics=stats)
+    assert np.all(np.abs(ref["mean_displacement_level_mean"].values[1:]) > 0)  # the levels carry it
+    path = _target_interrupted(tmp_path, config, target, 2)
+    ds = ck.resume(path)
+    assert ds.attrs["resumed"] == 1
+    _assert_same_target_result(ref, ds)
+
+
 def test_a_target_run_interrupted_in_its_late_time_route_resumes_bit_for_bit(tmp_path):
     """The OU pendulum's t = 100, where the levels decorrelate and two independent ensembles
     certify the time (tests/unit/test_multilevel.py): stopped after the route's first ensemble,
