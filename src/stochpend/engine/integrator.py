@@ -777,7 +777,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
     functions and its exact step ``step``), ``oscillator`` (``real``, ``half``, ``verlet``,
     ``step_size``), ``family`` (the family's terms: ``FAMILY``, ``family_step``, the additive
     white channel), ``channel`` (the additive channel of a coloured noise, ``CHANNEL``) and ``control``
-    (``ADAPTIVE``, ``escape``, the accumulators' ``TRACK``, ``track_step``). The step loop's
+    (``ADAPTIVE``, ``escape``, the accumulators' ``TRACK``, ``track_step``, ``member_track``). The step loop's
     closure captures each piece as it did when it was written inside :func:`build`."""
     real = oscillator.real
     half = oscillator.half
@@ -1269,8 +1269,11 @@ def build(spec: KernelSpec, track: Any = None) -> SimpleNamespace:
     ``track``: the per-path accumulators' step update
     (:func:`stochpend.observables.track_step`), called by ``advance_path`` after each step of a
     path that stays finite, with the state before and after it; their slots are ``state[8]``,
-    a float64 array (n_slots, n_paths). ``None`` (every run without accumulators): no tracking
-    is compiled, and the kernels are those of the KernelSpec alone.
+    a float64 array (n_slots, n_paths). Its ``members`` update is the coupled levels' loops'
+    (``advance_levels``, ``device_levels``): each member its own slots, after each of its own
+    steps (:func:`_tracked_member_tree`), the slots after ``status``. ``None`` (every run
+    without accumulators): no tracking is compiled, and the kernels are those of the KernelSpec
+    alone.
     """
     real = np.float32 if spec.precision == "float32" else np.float64
     mathlib = FAST if spec.fast_math else LIBM
