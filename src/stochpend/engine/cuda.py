@@ -298,20 +298,8 @@ def tracked_kernel(spec: KernelSpec, accs: tuple):
     """:func:`advance_kernel` of a run with per-path accumulators ``accs``
     (:func:`stochpend.observables.track_step`): ``state`` holds their slots after the path's
     arrays (:func:`stochpend.engine.layout.state_arrays`), (n_slots, n_paths) float64. Compiled
-    in memory, once per process."""
-    advance_path = integrator.build(spec, observables.track_step(accs)).advance_path
-
-    @cuda.jit
-    def advance(state, t_target, max_steps, key0, key1, path0, p, step_rec,
-                unfinished):  # pragma: no cover
-        i = cuda.grid(1)
-        if i >= state[0].shape[0]:
-            return
-        _, u = advance_path(i, state, t_target, max_steps, key0, key1, path0, p, step_rec)
-        if u != 0:
-            unfinished[0] = 1
-
-    return advance
+    in memory, once per process: :func:`tracked_levels_kernel` of one member (``advance_path``)."""
+    return tracked_levels_kernel(spec, accs, 1)
 
 
 @functools.cache
@@ -319,8 +307,9 @@ def tracked_levels_kernel(spec: KernelSpec, accs: tuple, levels: int):
     """:func:`levels_kernel` with every member carrying the per-path accumulators ``accs`` in its
     own slots (``state`` with ``tracks``, (levels * n_slots, n) float64, after ``status``:
     :func:`stochpend.engine.layout.state_arrays`), one set of members per thread: the tracked
-    build's ``device_levels`` (the CPU's ``cpu.tracked_levels_kernel``, the same numbers).
-    Compiled in memory, once per process, as :func:`tracked_kernel`."""
+    build's ``device_levels`` (the CPU's ``cpu.tracked_levels_kernel``, the same numbers; one
+    member: ``advance_path``, :func:`tracked_kernel`). Compiled in memory, once per process (a
+    user's accumulators are functions of this process)."""
     advance_levels = integrator.build(spec, observables.track_step(accs)).device_levels[levels]
 
     @cuda.jit
