@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -255,6 +256,26 @@ def test_a_time_average_and_a_running_sum_are_targets_each_member_tracking_its_o
     assert np.all(z0 > 8), z0  # level 0 alone is biased far beyond its error
 
 
+def test_an_accumulator_no_target_reads_is_not_carried_and_moves_no_number():
+    """A target on <E> of a run that also lists the displacement: the levels do not carry it
+    (level 0 then runs in SIMD lanes, not one path at a time: 3 times faster on the OU
+    pendulum), and every number is the run's without it; the calibration keeps the two kernels'
+    rates apart."""
+    from stochpend.runs import resources
+
+    plain = stochpend.simulate(**CHEAP, seed=3, target_error=0.05)
+    carried = stochpend.simulate(**CHEAP, seed=3, target_error=0.05, observables=("displacement",))
+    for name, var in plain.data_vars.items():
+        assert np.array_equal(var.values, carried[name].values, equal_nan=True), name
+    assert carried.attrs["path_steps"] == plain.attrs["path_steps"]
+    cfg = SimulationConfig.build(noise="ou", t_max=1.0, times=[1.0], observables=("displacement",))
+    assert resources.kernel_kind(cfg) == resources.kernel_kind(replace(cfg, observables=())) + " tracked"
+    target = multilevel.check_target(cfg, 0.05)
+    assert multilevel._target_config(cfg, target).observables == ()
+    target = multilevel.check_target(cfg, 0.05, target_statistics=("diffusion_displacement",))
+    assert multilevel._target_config(cfg, target).observables == ("displacement",)
+
+
 def test_a_running_sums_variance_and_diffusion_are_targets_that_cover_their_exact_values():
     """The displacement x(t) - x(0) of the damped harmonic oscillator in its Boltzmann law has
     the exact variance 2 T (1 - C(t)) / omega^2, C(t) = exp(-gamma t/2) (cos w1 t + gamma/(2 w1)
@@ -279,6 +300,12 @@ def test_a_running_sums_variance_and_diffusion_are_targets_that_cover_their_exac
         assert np.all(ds[f"{name}_certified"].values == 1), name
         assert np.all(np.abs(est - exact) <= total), (name, est, total, exact)
         assert np.all(np.isnan(ds[f"{name}_level_kurtosis"].values)), name
+    # a target time that is not the run's first: the diffusion divides by its own t
+    later = stochpend.simulate(noise="white", D=0.0, omega=OMEGA, potential="harmonic", t_max=2.0,
+                               times=tuple(times), h_max=1.0, gamma=gamma, additive_D=D_a, initial_temperature=T,
+                               seed=3, observables=("displacement",), target_error=0.02, target_times=[2.0],
+                               target_statistics=("diffusion_displacement",))
+    assert abs(float(later["diffusion_displacement"][0]) - var[1] / 4) <= float(later["diffusion_displacement_total_error"][0])
     cfg = SimulationConfig.build(noise="ou", t_max=1.0, times=[1.0], observables=("displacement",))
     assert multilevel._difference_columns(cfg, ("rate_displacement", "mean_displacement", "var_displacement",
                                                 "skewness")) == [multilevel._user_column(cfg, "mean_displacement")] * 2 \

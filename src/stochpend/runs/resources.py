@@ -350,12 +350,15 @@ def _memory_parts(*, paths: int, chunk: int, chunk_given: bool, batch_size: int,
 
 def kernel_kind(config: Any, precision: str = "float64") -> str:
     """The calibration's name for the CPU kernel of ``config`` ("cpu pendulum/force/ou/..."): a
-    quartic oscillator's or the one-path kernel's rate is not the pendulum's SIMD lanes'. Imports
-    the CPU backend (Numba); "cpu" where the kernel cannot be named."""
+    quartic oscillator's or the one-path kernel's rate is not the pendulum's SIMD lanes', nor is
+    a run's with per-path accumulators (" tracked": one path at a time, 3 to 5 times slower on
+    the OU pendulum). Imports the CPU backend (Numba); "cpu" where the kernel cannot be named."""
     try:
         from stochpend.engine import cpu
+        from stochpend.model import observables
 
-        return f"cpu {cpu.spec_for(config, precision).label}"
+        tracked = observables.accumulators(observables.objects(getattr(config, "observables", ())))
+        return f"cpu {cpu.spec_for(config, precision).label}" + (" tracked" if tracked else "")
     except Exception:  # a configuration the backend refuses: the caller's own check says why
         return "cpu"
 
