@@ -186,9 +186,12 @@ def test_a_wall_time_budget_counts_the_paths_started_and_refuses_before_overrunn
 
 @pytest.mark.parametrize(("kwargs", "needle"), [
     (dict(observables=("ml_first",), target_statistics=("mean_ml_first",)),
-     "mean_ml_first is the mean of 'ml_first', a first passage, whose step error is O(sqrt h), so no bias bound"),
-    (dict(noise="dichotomous", observables=("displacement",), target_statistics=("mean_displacement",)),
-     "mean_displacement is the mean of 'displacement', a per-path accumulator, which the coupled levels do not "
+     "mean_ml_first is a statistic of 'ml_first', a first passage, whose step error is O(sqrt h), so no bias "
+     "bound"),
+    (dict(observables=("ml_first",), target_statistics=("passed_ml_first",)),
+     "passed_ml_first is a statistic of 'ml_first', a first passage"),
+    (dict(noise="dichotomous", observables=("displacement",), target_statistics=("var_displacement",)),
+     "var_displacement is a statistic of 'displacement', a per-path accumulator, which the coupled levels do not "
      "carry with a noise that has events (dichotomous)"),
     (dict(observables=("ml_late",), target_statistics=("mean_ml_late",)),
      "target_times=None is not accepted: mean_ml_late is a time average from t = 0.5, with no value at "

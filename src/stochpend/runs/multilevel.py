@@ -194,17 +194,17 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
     # the members do not carry them (cpu.LevelEngine).
     accs = observables.accumulators(observables.objects(config.observables))
     events = _has_events(config)
-    not_carried = {f"mean_{a.name}": (a.name, "a first passage, whose step error is O(sqrt h)"
-                                      if isinstance(a, observables.FirstPassage) else
-                                      "a per-path accumulator, which the coupled levels do not carry with a "
-                                      f"noise that has events ({config.noise})")
-                   for a in accs if isinstance(a, observables.FirstPassage) or events}
+    not_carried = {s.name: (a.name, "a first passage, whose step error is O(sqrt h)"
+                            if isinstance(a, observables.FirstPassage) else
+                            "a per-path accumulator, which the coupled levels do not carry with a "
+                            f"noise that has events ({config.noise})")
+                   for a in accs if isinstance(a, observables.FirstPassage) or events for s in a.statistics(0)}
     known += [f"mean_{u}" for u in config.observables if f"mean_{u}" not in not_carried]
     # A running sum's variance, and with its rates its mean and variance per time (the
     # displacement's mean velocity and effective diffusion): functions of its two columns'
     # means, as the skewness and flatness are of the energy's.
-    known += [s.name for a in accs if isinstance(a, observables.RunningSum) and f"mean_{a.name}" not in not_carried
-              for s in a.statistics(0) if not s.name.startswith("mean_")]
+    known += [s.name for a in accs if isinstance(a, observables.RunningSum)
+              for s in a.statistics(0) if not s.name.startswith("mean_") and s.name not in not_carried]
     if target_statistics is None:
         names: tuple[str, ...] = DEFAULT_STATISTICS
     else:
@@ -216,7 +216,7 @@ def check_target(config: SimulationConfig, target_error: Any, target_confidence:
             names = ()
         for s in names:
             if s in not_carried:
-                raise ValueError(f"target_statistics={target_statistics!r} is not accepted: {s} is the mean of "
+                raise ValueError(f"target_statistics={target_statistics!r} is not accepted: {s} is a statistic of "
                                  f"{not_carried[s][0]!r}, {not_carried[s][1]}, so no bias bound of it can be "
                                  "made; a target takes the means of the table, of observables of the state, of "
                                  f"time averages and running sums, skewness and flatness ({', '.join(known)})")
