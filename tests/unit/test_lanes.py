@@ -185,3 +185,49 @@ def test_ctrl_c_in_the_callers_share_stops_the_other_workers_taking_pieces():
     with pytest.raises(KeyboardInterrupt):
         cpu._on_workers(call, 2, stop=lambda: next_piece.fill(cpu._NO_MORE_PIECES))
     assert 0 < len(taken) < pieces // 10, len(taken)
+
+
+def test_lanes_carry_accumulators_with_the_one_path_numbers():
+    """A run with per-path accumulators in the lanes (``cpu.tracked_kernel``: each lane carries
+    its path's slots, updated after every step taken that stays finite) against one path at a
+    time (``cpu.tracked_path_kernel``), bit for bit: the state and every slot (the displacement,
+    a time average over a window from an output time, a first passage, a running sum), the
+    per-call counts; escaped and non-finite paths keep the slots of their last good step;
+    lanes refilled, calls ended mid-segment; the state is the untracked lanes' state."""
+    import math
+
+    from stochpend.model import observables
+    from stochpend.model.observables import FirstPassage, RunningSum, TimeAverage
+
+    accs = (*observables.objects(("displacement",)),
+            TimeAverage("e_late", lambda x, Omega, xi, t: 0.5 * Omega * Omega - math.cos(x), window=(1.0, 2.5)),
+            FirstPassage("up", lambda x, Omega, xi, t: Omega, threshold=1.2),
+            RunningSum("work", lambda x0, O0, xi0, x1, O1, xi1, t0, t1: 0.5 * (t1 - t0) * (xi0 * O0 + xi1 * O1)))
+    spec = integrator.spec("ou", adaptive=True, fast_math=True)
+    initial = observables.track_initial(accs)
+    runs = []
+    for kernel in (cpu.tracked_kernel(spec, accs), cpu.tracked_path_kernel(spec, accs)):
+        tracks = np.tile(initial, (1, 130))
+
+        def carry(p, tracks=tracks, kernel=kernel):
+            p.Omega[[5, 70]] = 3e9  # escapes before its first step
+            p.xi[[20, 100]] = np.nan  # the first step is non-finite
+            p.arrays = lambda: (p.x, p.Omega, p.xi, p.xi_aux, p.t, p.t_comp, p.k, p.status, tracks)
+
+        kern = types.SimpleNamespace(init=cpu.init_kernel(spec), advance=kernel, spec=spec)
+        state, calls = _run(kern, 130, setup=carry)
+        runs.append((state, calls, tracks))
+    (a, calls_a, tracks_a), (b, calls_b, tracks_b) = runs
+    assert "_lanes_kernel" in cpu.tracked_kernel(spec, accs).kernel.py_func.__qualname__
+    _assert_same(a, b)
+    assert calls_a == calls_b
+    np.testing.assert_array_equal(tracks_a, tracks_b)
+    bad = np.zeros(130, dtype=bool)
+    bad[[5, 20, 70, 100]] = True
+    np.testing.assert_array_equal(tracks_a[:, bad], np.tile(initial, (1, 4)))  # no good step
+    assert np.all(np.isfinite(tracks_a[[0, 1, 3]][:, ~bad]))
+    passed = tracks_a[2, ~bad] >= 0.0
+    assert 0 < passed.sum() < passed.size  # some passed, some not: both branches ran in lanes
+    plain, _ = _run(_kernels("ou", True, "lanes"), 130,
+                    setup=lambda p: (p.Omega.__setitem__([5, 70], 3e9), p.xi.__setitem__([20, 100], np.nan)))
+    _assert_same(a, plain)

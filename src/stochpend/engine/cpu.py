@@ -245,13 +245,31 @@ def path_kernel(spec: KernelSpec):
 @functools.cache
 def tracked_kernel(spec: KernelSpec, accs: tuple):
     """``advance`` of a run with per-path accumulators ``accs``
-    (:func:`stochpend.observables.track_step`): :func:`path_kernel`'s driver, one path at a
-    time, with ``state`` holding the accumulators' slots after the path's arrays
-    (:func:`stochpend.engine.layout.state_arrays`). The same KernelSpec (fast math included), so
-    every other number of the run is what the run without them gives, bit for bit (the SIMD
-    drivers agree with ``path_kernel`` of their KernelSpec). Cached on disk when the KernelSpec
-    is and every accumulator is built in (``observables.builtin_key``: the displacement), else
-    compiled in memory once per process (a user's functions)."""
+    (:func:`stochpend.observables.track_step`), ``state`` holding the accumulators' slots after
+    the path's arrays (:func:`stochpend.engine.layout.state_arrays`): in SIMD lanes, each lane
+    carrying its path's slots, when the KernelSpec has them (``integrator.build_level_lanes``
+    with the track), else one path at a time (:func:`tracked_path_kernel`). The same
+    KernelSpec (fast math included), so every other number of the run is what the run without
+    them gives, bit for bit, and the lanes give the one-path numbers, slots included."""
+    if integrator.lanes_supported(spec):
+        return _tracked_lanes(spec, accs)
+    return tracked_path_kernel(spec, accs)
+
+
+@functools.cache
+def _tracked_lanes(spec: KernelSpec, accs: tuple):
+    return _with_workers(_lanes_kernel(spec, 1, accs),
+                         (integrator.lane_f_rows(1, len(accs)), integrator.LANE_COUNT),
+                         (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
+                         (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
+
+
+@functools.cache
+def tracked_path_kernel(spec: KernelSpec, accs: tuple):
+    """:func:`tracked_kernel` one path at a time: :func:`path_kernel`'s driver over
+    ``build(spec, track).advance_path``. Cached on disk when the KernelSpec is and every
+    accumulator is built in (``observables.builtin_key``: the displacement), else compiled in
+    memory once per process (a user's functions), as the lanes are."""
     from stochpend.model import observables
 
     builtin = observables.builtin_key(accs)
@@ -292,17 +310,28 @@ def _take(typingctx, counter):
     return types.int64(counter), codegen
 
 
-def _lanes_kernel(spec: KernelSpec, levels: int = 1):
+def _lanes_kernel(spec: KernelSpec, levels: int = 1, accs: tuple = ()):
     """One worker of the lane machine of ``levels`` coupled members (``build_level_lanes``; 1:
     the run's paths, 2: the bias estimate's pairs): takes pieces of the paths from the shared
     counter ``next_piece`` until none is left; :func:`_with_workers` runs ``nw`` of them on
     threads. A plain ``nogil`` function, not a ``parallel=True`` one: Numba's parallel lowering
     compiles the driver twice over (about 2 s more on a cold cache) for a loop over the workers
-    that Python threads run as well."""
-    advance_range = integrator.build_level_lanes(spec, levels).advance_range
+    that Python threads run as well. ``accs``: the run's per-path accumulators (one member),
+    carried in the lanes; cached on disk as :func:`tracked_path_kernel` is."""
+    index = {1: spec.label, 2: spec.label + "/pairs"}.get(levels, f"{spec.label}/lanes{levels}")
+    cache = spec.cacheable
+    track = None
+    if accs:
+        from stochpend.model import observables
 
-    @numba.njit(nogil=True, cache=spec.cacheable, error_model="numpy")
-    @own_index({1: spec.label, 2: spec.label + "/pairs"}.get(levels, f"{spec.label}/lanes{levels}"))
+        track = observables.track_step(accs)
+        builtin = observables.builtin_key(accs)
+        cache = cache and builtin is not None
+        index = f"{spec.label}/lanes/track:{builtin or observables.user_key(accs)}"
+    advance_range = integrator.build_level_lanes(spec, levels, track).advance_range
+
+    @numba.njit(nogil=True, cache=cache, error_model="numpy")
+    @own_index(index)
     def advance(state, t_target, max_steps, key0, key1, path0, p, step_rec, scratch, next_piece,
                 nw):  # pragma: no cover - compiled
         n_paths = state[0].shape[0]
@@ -786,8 +815,8 @@ def compiled_kernels(spec: KernelSpec, *, pairs: bool = True, observables: tuple
     one_path = advance_kernel(spec) is path_kernel(spec)  # no SIMD driver: less to compile
     suffix = "_one_path" if one_path else ""
     out = {"init": init_kernel(spec), "accumulate": accumulate_kernel(spec, observables)}
-    if accs:
-        out["advance_one_path"] = tracked_kernel(spec, accs)
+    if accs:  # in lanes when the KernelSpec has them, as advance_kernel is
+        out["advance" + suffix] = tracked_kernel(spec, accs)
     else:
         out["advance" + suffix] = advance_kernel(spec)
     if pairs:

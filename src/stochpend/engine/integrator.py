@@ -1487,10 +1487,17 @@ def build_lanes(spec: KernelSpec) -> SimpleNamespace:
     return build_level_lanes(spec, 1)
 
 
-def lane_f_rows(levels: int) -> int:
+def lane_f_rows(levels: int, n_slots: int = 0) -> int:
     """Rows of the float64 scratch of the lane machine of ``levels`` members: the one-path
-    machine's ``LANE_F_ROWS``, then members 1 .. levels - 1's x and Omega."""
-    return LANE_F_ROWS + 2 * (levels - 1)
+    machine's ``LANE_F_ROWS``, then members 1 .. levels - 1's x and Omega; with ``n_slots``
+    per-path accumulators (one member), their slots, then ``LANE_TRACK_ROWS`` rows of each
+    lane's last step (its state, time and step count before it)."""
+    return LANE_F_ROWS + 2 * (levels - 1) + (n_slots + LANE_TRACK_ROWS if n_slots else 0)
+
+
+#: The tracked lane machine's rows of a lane's last step, after its slots: x, Omega, xi, t and
+#: the lane's step count before the step.
+LANE_TRACK_ROWS = 5
 
 
 @functools.cache
@@ -1502,7 +1509,7 @@ def build_pair_lanes(spec: KernelSpec) -> SimpleNamespace:
 
 
 @functools.cache
-def build_level_lanes(spec: KernelSpec, levels: int) -> SimpleNamespace:
+def build_level_lanes(spec: KernelSpec, levels: int, track: Any = None) -> SimpleNamespace:
     """:func:`build`'s ``advance_levels[levels]`` (``levels`` coupled members at steps h, h/2,
     ..., h/2**(levels-1) driven by one noise path) for ``LANE_COUNT`` paths side by side, as
     :func:`build_lanes` runs ``advance_path``: the same numbers, operation for operation, so a
@@ -1514,13 +1521,21 @@ def build_level_lanes(spec: KernelSpec, levels: int) -> SimpleNamespace:
     (:func:`level_positions`); ``scratch = (fs, us, js)``, ``fs`` of shape
     (:func:`lane_f_rows` ``(levels)``, ``LANE_COUNT``), ``us`` and ``js`` as for
     :func:`build_lanes`.
+
+    ``track``: per-path accumulators (:func:`stochpend.observables.track_step`, one member only):
+    ``state`` holds their slots ``tracks`` (:func:`level_positions` with them), each lane carries
+    its path's slots in ``fs`` (``lane_f_rows(1, track.n_slots)`` rows), and after each vector
+    step every lane whose step was taken and stayed finite updates them, from its state, noise
+    and time before and after the step, as ``advance_path`` of ``build(spec, track)`` does.
     """
+    if track is not None and levels != 1:
+        raise ValueError(f"levels={levels!r} is not accepted with per-path accumulators in lanes: only 1")
     if levels not in LEVELS:
         raise ValueError(f"levels={levels!r} is not accepted: one of {', '.join(map(str, LEVELS))}")
     if not lanes_supported(spec):
         raise ValueError(f"spec {spec.label} is not accepted: the lane machine needs "
                          "integrator.lanes_supported(spec)")
-    return _lane_machine(spec, levels)
+    return _lane_machine(spec, levels, track)
 
 
 def _keyed_draws(spec: KernelSpec, steps: SimpleNamespace) -> SimpleNamespace:
@@ -1560,7 +1575,7 @@ def _keyed_draws(spec: KernelSpec, steps: SimpleNamespace) -> SimpleNamespace:
     return SimpleNamespace(noise=noise_keyed, white=white_keyed, channel=channel_keyed)
 
 
-def _lane_load_store(spec: KernelSpec, LEVELS: int, steps: SimpleNamespace) -> SimpleNamespace:
+def _lane_load_store(spec: KernelSpec, LEVELS: int, steps: SimpleNamespace, N_SLOTS: int = 0) -> SimpleNamespace:
     """The lane machine's scalar part: ``fill(lane, nxt, hi, state, t_target, path0, scratch)
     -> (nxt, loaded)`` loads the next path of ``nxt .. hi - 1`` that is neither frozen nor
     finished into ``lane``; ``store(lane, state, scratch, t_target) -> (draws, unfinished)``
@@ -1569,16 +1584,20 @@ def _lane_load_store(spec: KernelSpec, LEVELS: int, steps: SimpleNamespace) -> S
     two over every lane. The scratch's rows: ``fs`` x, Omega, xi, aux, t,
     t_comp, xi_a, aux_a, then members 1.. 's x and Omega; ``us`` k and the path's counter
     words; ``js`` the path's index (-1: none), steps in this call, active, escaped or
-    non-finite."""
+    non-finite. ``N_SLOTS`` per-path accumulators: their slots ride in ``fs`` from row
+    ``lane_f_rows(LEVELS)``, loaded and stored with the path."""
     load_aux = spec.noise.kernel(steps.real, FAST).load_aux
     channel = steps.pieces["channel"]
     a_load_aux = channel.a_load_aux
     CHANNEL = channel.CHANNEL
-    at = _loop_positions(LEVELS, False, CHANNEL)  # the state's arrays, by name
+    TRACKED = N_SLOTS > 0
+    at = _loop_positions(LEVELS, TRACKED, CHANNEL)  # the state's arrays, by name
     I_XI, I_XA, I_T, I_TC, I_K, I_ST, I_ADD, I_AUXA = at.XI, at.XA, at.T, at.TC, at.K, at.ST, at.ADD, at.AUXA
+    I_TRK = at.TRK
     X1, X2, X3, O1, O2, O3 = at.X1, at.X2, at.X3, at.O1, at.O2, at.O3
     HAS_1, HAS_2, HAS_3 = at.HAS1, at.HAS2, at.HAS3
-    F_ROWS = lane_f_rows(LEVELS)
+    F_ROWS = lane_f_rows(LEVELS, N_SLOTS)
+    T0 = lane_f_rows(LEVELS)  # the first slot's row
     DRAWS = 2 ** (LEVELS - 1)
     # Member m's x in fs (row R_m; Omega the next); members beyond LEVELS take member 0's, never
     # touched (every use is under HAS_m).
@@ -1608,6 +1627,10 @@ def _lane_load_store(spec: KernelSpec, LEVELS: int, steps: SimpleNamespace) -> S
         if CHANNEL:
             fs[6, lane] = state[I_ADD][i]
             fs[7, lane] = a_load_aux(state[I_AUXA][i])
+        if TRACKED:  # a compile-time constant: an untracked machine reads no slot
+            tracks = state[I_TRK]
+            for s in range(N_SLOTS):
+                fs[T0 + s, lane] = tracks[s, i]
         path = _U64(path0 + i)
         us[0, lane] = state[I_K][i]
         us[1, lane] = path & rng._MASK32
@@ -1652,6 +1675,10 @@ def _lane_load_store(spec: KernelSpec, LEVELS: int, steps: SimpleNamespace) -> S
         if CHANNEL:
             state[I_ADD][i] = fs[6, lane]
             state[I_AUXA][i] = fs[7, lane]
+        if TRACKED:
+            tracks = state[I_TRK]
+            for s in range(N_SLOTS):
+                tracks[s, i] = fs[T0 + s, lane]
         state[I_K][i] = us[0, lane]
         js[0, lane] = -1
         if js[3, lane] != 0:
@@ -1752,12 +1779,22 @@ def _lane_scalars(spec: KernelSpec, LEVELS: int, steps: SimpleNamespace) -> tupl
             _inline(_named(lane_finite, f"lane_finite{LEVELS}")), _inline(lane_records))
 
 
-def _lane_machine(spec: KernelSpec, LEVELS: int) -> SimpleNamespace:
+def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNamespace:
     """The lane machine of :func:`build_level_lanes`: the lanes' loading, masking, step control,
     landing, clock, write-back and refill around :func:`the_step` of ``LEVELS`` members with
     keyed draws (:func:`_keyed_draws`). ``LEVELS`` is a compile-time constant, so each machine
-    compiles to its own branch-free lane loop."""
+    compiles to its own branch-free lane loop.
+
+    ``track`` (one member): a loop before the lane loop keeps each lane's state, time and step
+    count in ``fs``, and one after it updates the slots of the lanes whose step was taken and
+    stayed finite. The lane loop stays as it is: the accumulators' functions are calls (a
+    user's among them), and those or more stores in it stop its vectorization."""
     steps = build(spec)
+    TRACKED = track is not None
+    N_SLOTS = track.n_slots if TRACKED else 0
+    track_step = track if TRACKED else _track_nothing
+    T0 = lane_f_rows(LEVELS)  # the slots' first row, then those of the lane's last step
+    B0 = T0 + N_SLOTS
     real = steps.real
     oscillator = steps.pieces["oscillator"]
     family = steps.pieces["family"]
@@ -1783,7 +1820,7 @@ def _lane_machine(spec: KernelSpec, LEVELS: int) -> SimpleNamespace:
     name_closures([members], f"lane-members/{spec.label}")
     step = the_step(LEVELS, _keyed_draws(spec, steps), members, family, channel, inline=True)
     nest, flat = _member_tuples(LEVELS)
-    scalar = _lane_load_store(spec, LEVELS, steps)
+    scalar = _lane_load_store(spec, LEVELS, steps, N_SLOTS)
     refill = scalar.refill
     store_and_refill = scalar.store_and_refill
     idle = scalar.idle
@@ -1824,6 +1861,13 @@ def _lane_machine(spec: KernelSpec, LEVELS: int) -> SimpleNamespace:
         bs = js[1]
         ba = js[2]
         bbad = js[3]
+        if TRACKED:  # a compile-time constant: the untracked machine has none of these rows
+            b_x = fs[B0]
+            b_O = fs[B0 + 1]
+            b_xi = fs[B0 + 2]
+            b_t = fs[B0 + 3]
+            b_steps = fs[B0 + 4]
+            lane_tracks = fs[T0:B0]
         p_channel, keys = lane_records(step_rec, rk0, rk1)
         idle(scratch, t_target)
         steps_taken = 0
@@ -1834,6 +1878,15 @@ def _lane_machine(spec: KernelSpec, LEVELS: int) -> SimpleNamespace:
             nxt, n_active = refill(nxt, hi, state, t_target, path0, scratch)
         while n_active > 0:
             n_done = 0
+            if TRACKED:
+                # Each lane's state before its step, for the accumulators' update after it. In a
+                # loop of its own: more stores in the lane loop stop LLVM vectorizing it.
+                for lane in range(lanes):
+                    b_x[lane] = bx0[lane]
+                    b_O[lane] = bO0[lane]
+                    b_xi[lane] = bxi[lane]
+                    b_t[lane] = bt[lane]
+                    b_steps[lane] = bs[lane]
             for lane in range(lanes):
                 # Every load first and every store last, unconditionally: a conditional store,
                 # or a load after a store, makes LLVM's alias checks fail and the scalar loop run.
@@ -1886,6 +1939,14 @@ def _lane_machine(spec: KernelSpec, LEVELS: int) -> SimpleNamespace:
                 bbad[lane] = 1 if bad else bad_before
                 ba[lane] = 0 if done else active
                 n_done += 1 if done else 0
+            if TRACKED:
+                # advance_path's update after a step taken that stayed finite, lane by lane: the
+                # step was taken when the lane's step count moved, and stayed finite when the
+                # lane is not marked bad (an active lane never is before its step).
+                for lane in range(lanes):
+                    if bs[lane] != b_steps[lane] and bbad[lane] == 0:
+                        track_step(lane_tracks, lane, b_x[lane], b_O[lane], b_xi[lane], bx0[lane], bO0[lane],
+                                   bxi[lane], b_t[lane], bt[lane])
             if n_done == 0:
                 continue
             # Write the finished lanes back and refill them (scalar, rare).
@@ -1894,7 +1955,8 @@ def _lane_machine(spec: KernelSpec, LEVELS: int) -> SimpleNamespace:
             unfinished += u
         return steps_taken, unfinished
 
-    name_closures([advance_range, lanes], f"lanes{LEVELS}/{spec.label}")
+    name_closures([advance_range, lanes], f"lanes{LEVELS}/{spec.label}"
+                  + (f"/track:{track.key}" if TRACKED else ""))
     return SimpleNamespace(spec=spec, advance_range=advance_range, lanes=lanes)
 
 

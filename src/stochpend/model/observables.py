@@ -447,7 +447,8 @@ def track_step(accs: tuple[Any, ...]) -> Callable | None:
 
     Its attribute ``members`` is the same update for coupled members (the multilevel target's
     levels): ``members(tracks, i, m, x0, ..., t1)`` updates member m's slots ``tracks[m * n +
-    slot, i]``, n = ``len(accs)``."""
+    slot, i]``, n = ``len(accs)``; ``n_slots`` is n, ``key`` the set's name in a kernel's
+    name (:func:`builtin_key`, else :func:`user_key`)."""
     if not accs:
         return None
     from numba.extending import register_jitable
@@ -468,6 +469,10 @@ def track_step(accs: tuple[Any, ...]) -> Callable | None:
         name_closures([function], f"track/{builtin_key(accs) or user_key(accs)}")
     track = register_jitable(namespace["track"])
     track.members = register_jitable(namespace["members"])
+    # What a kernel built on it needs besides the function: its slot count (the CPU's lanes
+    # carry the slots in their scratch) and the key that names the set in a kernel's name.
+    track.n_slots = n
+    track.key = builtin_key(accs) or user_key(accs)
     return track
 
 
