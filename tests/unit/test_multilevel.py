@@ -261,9 +261,9 @@ def test_a_time_average_and_a_running_sum_are_targets_each_member_tracking_its_o
 
 def test_an_accumulator_no_target_reads_is_not_carried_and_moves_no_number():
     """A target on <E> of a run that also lists the displacement: the levels do not carry it
-    (level 0 then runs in SIMD lanes, not one path at a time: 3 times faster on the OU
-    pendulum), and every number is the run's without it; the calibration keeps the two kernels'
-    rates apart."""
+    (level 0's lanes then carry no slots), and every number is the run's without it; the
+    calibration keeps the two kernels' rates apart, and the lanes' with accumulators apart from
+    one path's at a time (the kind the lanes had before they carried them)."""
     from stochpend.runs import resources
 
     plain = stochpend.simulate(**CHEAP, seed=3, target_error=0.05)
@@ -272,7 +272,10 @@ def test_an_accumulator_no_target_reads_is_not_carried_and_moves_no_number():
         assert np.array_equal(var.values, carried[name].values, equal_nan=True), name
     assert carried.attrs["path_steps"] == plain.attrs["path_steps"]
     cfg = SimulationConfig.build(noise="ou", t_max=1.0, times=[1.0], observables=("displacement",))
-    assert resources.kernel_kind(cfg) == resources.kernel_kind(replace(cfg, observables=())) + " tracked"
+    assert resources.kernel_kind(cfg) == resources.kernel_kind(replace(cfg, observables=())) + " tracked lanes"
+    dichotomous = SimulationConfig.build(noise="dichotomous", tau=1.0, t_max=1.0, times=[1.0],
+                                         observables=("displacement",))  # no lanes: one path at a time
+    assert resources.kernel_kind(dichotomous).endswith("dichotomous/float64/adaptive/libm tracked")
     target = multilevel.check_target(cfg, 0.05)
     assert multilevel._target_config(cfg, target).observables == ()
     target = multilevel.check_target(cfg, 0.05, target_statistics=("diffusion_displacement",))

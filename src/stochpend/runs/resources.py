@@ -351,15 +351,20 @@ def _memory_parts(*, paths: int, chunk: int, chunk_given: bool, batch_size: int,
 def kernel_kind(config: Any, precision: str = "float64") -> str:
     """The calibration's name for the CPU kernel of ``config`` ("cpu pendulum/force/ou/..."): a
     quartic oscillator's or the one-path kernel's rate is not the pendulum's SIMD lanes', nor is
-    a run's with per-path accumulators (" tracked": the lanes also update each path's slots
-    after every step, about 1.2 times slower with the displacement on the OU pendulum; 3 to 5
-    times one path at a time where the KernelSpec has no lanes). Imports the CPU backend (Numba); "cpu" where the kernel cannot be named."""
+    a run's with per-path accumulators (" tracked lanes": the lanes also update each path's
+    slots after every step, about 1.2 times slower with the displacement on the OU pendulum;
+    " tracked": one path at a time, where the KernelSpec has no lanes, and the lanes' kind
+    before they carried accumulators, 2 to 3 times slower: its samples are not theirs).
+    Imports the CPU backend (Numba); "cpu" where the kernel cannot be named."""
     try:
-        from stochpend.engine import cpu
+        from stochpend.engine import cpu, integrator
         from stochpend.model import observables
 
         tracked = observables.accumulators(observables.objects(getattr(config, "observables", ())))
-        return f"cpu {cpu.spec_for(config, precision).label}" + (" tracked" if tracked else "")
+        spec = cpu.spec_for(config, precision)
+        if not tracked:
+            return f"cpu {spec.label}"
+        return f"cpu {spec.label} tracked" + (" lanes" if integrator.lanes_supported(spec) else "")
     except Exception:  # a configuration the backend refuses: the caller's own check says why
         return "cpu"
 
