@@ -1779,6 +1779,45 @@ def _lane_scalars(spec: KernelSpec, LEVELS: int, steps: SimpleNamespace) -> tupl
             _inline(_named(lane_finite, f"lane_finite{LEVELS}")), _inline(lane_records))
 
 
+def _lane_tracking(track: Any, T0: int) -> tuple[Any, Any]:
+    """The tracked lane machine's two loops over the lanes, around its vector lane loop (in
+    loops of their own: more stores or the accumulators' calls in the lane loop stop LLVM
+    vectorizing it). ``keep_before(fs, js)``: each lane's x, Omega, xi, t (``fs`` rows 0, 1, 2,
+    4) and step count (``js`` row 1) before its step, into the rows after its slots;
+    ``track_lanes(fs, js)``: ``advance_path``'s update of the slots (``track``, rows ``T0 ..``)
+    after a step taken that stayed finite: the lane's step count moved and it is not marked
+    bad (an active lane never is before its step). ``track`` None: functions never called."""
+    N_SLOTS = 0 if track is None else track.n_slots
+    track_step = _track_nothing if track is None else track
+    B0 = T0 + N_SLOTS
+
+    # Inlined by Numba into the machine, rows taken as 1-d views, as the lane loop takes them:
+    # as calls indexing (row, lane), the copy did not vectorize and a run with the
+    # displacement took 25 % longer.
+    @_inline
+    def keep_before(fs, js):
+        x, Omega, xi, t, steps = fs[0], fs[1], fs[2], fs[4], js[1]
+        b_x, b_Omega, b_xi, b_t, b_steps = fs[B0], fs[B0 + 1], fs[B0 + 2], fs[B0 + 3], fs[B0 + 4]
+        for lane in range(LANE_COUNT):
+            b_x[lane] = x[lane]
+            b_Omega[lane] = Omega[lane]
+            b_xi[lane] = xi[lane]
+            b_t[lane] = t[lane]
+            b_steps[lane] = steps[lane]
+
+    @_inline
+    def track_lanes(fs, js):
+        x, Omega, xi, t, steps, bad = fs[0], fs[1], fs[2], fs[4], js[1], js[3]
+        b_x, b_Omega, b_xi, b_t, b_steps = fs[B0], fs[B0 + 1], fs[B0 + 2], fs[B0 + 3], fs[B0 + 4]
+        slots = fs[T0:B0]
+        for lane in range(LANE_COUNT):
+            if steps[lane] != b_steps[lane] and bad[lane] == 0:
+                track_step(slots, lane, b_x[lane], b_Omega[lane], b_xi[lane], x[lane], Omega[lane], xi[lane],
+                           b_t[lane], t[lane])
+
+    return keep_before, track_lanes
+
+
 def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNamespace:
     """The lane machine of :func:`build_level_lanes`: the lanes' loading, masking, step control,
     landing, clock, write-back and refill around :func:`the_step` of ``LEVELS`` members with
@@ -1787,14 +1826,11 @@ def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNam
 
     ``track`` (one member): a loop before the lane loop keeps each lane's state, time and step
     count in ``fs``, and one after it updates the slots of the lanes whose step was taken and
-    stayed finite. The lane loop stays as it is: the accumulators' functions are calls (a
-    user's among them), and those or more stores in it stop its vectorization."""
+    stayed finite (:func:`_lane_tracking`); the lane loop stays as it is."""
     steps = build(spec)
     TRACKED = track is not None
     N_SLOTS = track.n_slots if TRACKED else 0
-    track_step = track if TRACKED else _track_nothing
-    T0 = lane_f_rows(LEVELS)  # the slots' first row, then those of the lane's last step
-    B0 = T0 + N_SLOTS
+    keep_before, track_lanes = _lane_tracking(track, lane_f_rows(LEVELS))
     real = steps.real
     oscillator = steps.pieces["oscillator"]
     family = steps.pieces["family"]
@@ -1861,13 +1897,6 @@ def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNam
         bs = js[1]
         ba = js[2]
         bbad = js[3]
-        if TRACKED:  # a compile-time constant: the untracked machine has none of these rows
-            b_x = fs[B0]
-            b_O = fs[B0 + 1]
-            b_xi = fs[B0 + 2]
-            b_t = fs[B0 + 3]
-            b_steps = fs[B0 + 4]
-            lane_tracks = fs[T0:B0]
         p_channel, keys = lane_records(step_rec, rk0, rk1)
         idle(scratch, t_target)
         steps_taken = 0
@@ -1878,15 +1907,8 @@ def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNam
             nxt, n_active = refill(nxt, hi, state, t_target, path0, scratch)
         while n_active > 0:
             n_done = 0
-            if TRACKED:
-                # Each lane's state before its step, for the accumulators' update after it. In a
-                # loop of its own: more stores in the lane loop stop LLVM vectorizing it.
-                for lane in range(lanes):
-                    b_x[lane] = bx0[lane]
-                    b_O[lane] = bO0[lane]
-                    b_xi[lane] = bxi[lane]
-                    b_t[lane] = bt[lane]
-                    b_steps[lane] = bs[lane]
+            if TRACKED:  # a compile-time constant: the untracked machine has none of this
+                keep_before(fs, js)
             for lane in range(lanes):
                 # Every load first and every store last, unconditionally: a conditional store,
                 # or a load after a store, makes LLVM's alias checks fail and the scalar loop run.
@@ -1940,13 +1962,7 @@ def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNam
                 ba[lane] = 0 if done else active
                 n_done += 1 if done else 0
             if TRACKED:
-                # advance_path's update after a step taken that stayed finite, lane by lane: the
-                # step was taken when the lane's step count moved, and stayed finite when the
-                # lane is not marked bad (an active lane never is before its step).
-                for lane in range(lanes):
-                    if bs[lane] != b_steps[lane] and bbad[lane] == 0:
-                        track_step(lane_tracks, lane, b_x[lane], b_O[lane], b_xi[lane], bx0[lane], bO0[lane],
-                                   bxi[lane], b_t[lane], bt[lane])
+                track_lanes(fs, js)
             if n_done == 0:
                 continue
             # Write the finished lanes back and refill them (scalar, rare).
@@ -1955,7 +1971,7 @@ def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNam
             unfinished += u
         return steps_taken, unfinished
 
-    name_closures([advance_range, lanes], f"lanes{LEVELS}/{spec.label}"
+    name_closures([advance_range, lanes, keep_before, track_lanes], f"lanes{LEVELS}/{spec.label}"
                   + (f"/track:{track.key}" if TRACKED else ""))
     return SimpleNamespace(spec=spec, advance_range=advance_range, lanes=lanes)
 
