@@ -547,8 +547,9 @@ def _target_config(config: SimulationConfig, target: Target) -> SimulationConfig
     energy-histogram bin, and only the user observables a target statistic is of: the levels
     report the target's statistics alone, binning each path's energy at each time cost level 0
     a sixth of its time (14 of 85 ns a path of one step, measured), and an accumulator no
-    target reads would send level 0 one path at a time instead of in SIMD lanes (3 times
-    slower on the OU pendulum; its other numbers are the same to the bit either way)."""
+    target reads would make level 0's lanes update its slots after every step (1.1 to 1.3
+    times the work with the displacement on the OU pendulum; 3 times when level 0 went one
+    path at a time; its other numbers are the same to the bit either way)."""
     idx = [int(i) for i in target.index]
     needed = tuple(u for u in config.observables if any(
         s.name in target.statistics for s in observables.user_statistics((u,), config.times)))

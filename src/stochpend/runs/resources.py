@@ -354,7 +354,7 @@ def kernel_kind(config: Any, precision: str = "float64") -> str:
     a run's with per-path accumulators (" tracked lanes": the lanes also update each path's
     slots after every step, about 1.2 times slower with the displacement on the OU pendulum;
     " tracked": one path at a time, where the KernelSpec has no lanes, and the lanes' kind
-    before they carried accumulators, 2 to 3 times slower: its samples are not theirs).
+    before they carried accumulators, 2.5 to 3.4 times slower: its samples are not theirs).
     Imports the CPU backend (Numba); "cpu" where the kernel cannot be named."""
     try:
         from stochpend.engine import cpu, integrator
