@@ -231,3 +231,47 @@ def test_lanes_carry_accumulators_with_the_one_path_numbers():
     plain, _ = _run(_kernels("ou", True, "lanes"), 130,
                     setup=lambda p: (p.Omega.__setitem__([5, 70], 3e9), p.xi.__setitem__([20, 100], np.nan)))
     _assert_same(a, plain)
+
+
+def _many_rows(o0, o1, o2, o3, o4, o5, o6, o7, o8, o9, o10, o11, a, b, c, d, e, f, g, h):  # pragma: no cover
+    for i in range(a.shape[0]):
+        u = a[i] * b[i] + c[i]
+        v = d[i] * e[i] - f[i]
+        w = g[i] + h[i]
+        o0[i] = u
+        o1[i] = v
+        o2[i] = w
+        o3[i] = u * v
+        o4[i] = v * w
+        o5[i] = u * w
+        o6[i] = u + v
+        o7[i] = v + w
+        o8[i] = u - w
+        o9[i] = u * u
+        o10[i] = v * v
+        o11[i] = w * w
+
+
+def test_wide_alias_checks_let_llvm_vectorize_a_loop_over_many_rows_and_only_that_compile():
+    """``cpu._wide_alias_checks``, around the tracked pair lanes' compile: a loop writing 12
+    arrays and reading 8 needs more runtime alias checks than LLVM allows by default, so
+    compiled plainly it has no vector of doubles in its LLVM IR; compiled through the wrapper it
+    has; and a plain compile after it has none again (the limit set back, not left raised for
+    every later compile in the process). The tracked pair lanes compile through it."""
+    import re
+
+    rows = [np.zeros(64) for _ in range(20)]
+    vector = re.compile(r"<\d+ x double>")
+
+    def ir(dispatcher):
+        dispatcher(*rows)
+        return "\n".join(dispatcher.inspect_llvm().values())
+
+    assert not vector.search(ir(numba.njit(_many_rows)))
+    assert vector.search(ir(cpu._wide_alias_checks(numba.njit(_many_rows))))
+    assert not vector.search(ir(numba.njit(_many_rows)))
+    from stochpend.model import observables
+
+    spec = integrator.spec("ou", adaptive=True, fast_math=True)
+    kernel = cpu.tracked_levels_kernel(spec, observables.objects(("displacement",)), 2).kernel
+    assert kernel.compile.__qualname__.startswith("_wide_alias_checks")

@@ -271,6 +271,67 @@ def test_the_simd_lanes_give_every_members_one_path_numbers(name):
         assert not np.array_equal(lanes[0], cases.initial_state(cfg, levels, 40)[0])
 
 
+@pytest.mark.parametrize("name", ["ou", "family", "additive_ou"])
+def test_the_tracked_pair_lanes_give_the_one_path_numbers(name):
+    """A pair whose members carry accumulators (the multilevel target on an accumulator's
+    mean) in the CPU's SIMD lanes (``cpu.tracked_levels_kernel``: each lane carries both
+    members' slots; the fine member's state between its half steps comes out of the lane loop,
+    ``integrator._keep_mid``) against the tracked one-pair loop of the same fast-math KernelSpec,
+    bit for bit: every array of the state, both members' slots, the draws per call. 40 pairs
+    in calls of 7 steps (lanes refilled and resumed); with step control two escape before their
+    first step, and two turn non-finite in it (the one-pair loop has updated their slots inside
+    that step, so the lanes do too). The members are the untracked pair lanes' members. The OU pendulum, the
+    family's terms with the additive white noise, and the additive OU channel (its arrays come
+    after the slots)."""
+    from stochpend.model import observables
+
+    cfg = cases.config(name)
+    spec = integrator.KernelSpec.of(cfg, fast_math=True)
+    accs = cases.accumulators()
+    n, at = 40, 2 * 2 + 6  # the slots after the members and xi, xi_aux, t, t_comp, k, status
+    key0, key1 = rng.seed_to_key(cfg.seed)
+    escape = [5, 30] if spec.adaptive else []  # a fixed step has no escape
+
+    def start(tracked=True):
+        s = list(cases.initial_state(cfg, 2, n))
+        s[1][escape] = s[3][escape] = 3e9  # both members escape before their first step
+        s[4][[9, 22]] = np.nan  # the noise: the first step is non-finite
+        if tracked:
+            s.insert(at, np.tile(observables.track_initial(accs), (2, n)))
+        return tuple(s)
+
+    lanes_kernel = cpu.tracked_levels_kernel(spec, accs, 2)
+    assert "_lanes_kernel" in lanes_kernel.kernel.py_func.__qualname__  # the lanes, not a path loop
+    one_pair = cpu._one_at_a_time(integrator.build(spec, observables.track_step(accs)).advance_pair, None,
+                                  False, 2)
+    runs = []
+    for kernel in (lanes_kernel, one_pair):
+        state, draws = start(), []
+        for t_target in cases.TIMES:
+            while True:
+                d, unfinished = kernel(state, t_target, cases.MAX_STEPS, key0, key1, cases.PATH0,
+                                       spec.noise.record(cfg), integrator.step_record(cfg))
+                draws.append((int(d), int(unfinished)))
+                if unfinished == 0:
+                    break
+        runs.append((state, draws))
+    (lanes, lane_draws), (one, one_draws) = runs
+    assert lane_draws == one_draws and len(lane_draws) > len(cases.TIMES)
+    for j, (a, b) in enumerate(zip(lanes, one, strict=True)):
+        assert np.array_equal(a, b, equal_nan=True), (name, j)
+    tracks = lanes[at]
+    good = np.ones(n, dtype=bool)
+    good[[*escape, 9, 22]] = False
+    np.testing.assert_array_equal(lanes[9], (~good).astype(np.uint8))
+    np.testing.assert_array_equal(tracks[:, escape], np.tile(observables.track_initial(accs), (2, len(escape))))
+    assert np.all(np.isfinite(tracks[:, good]))
+    assert not np.array_equal(tracks[:3, good], tracks[3:, good])  # each member its own slots
+    untracked = list(start(tracked=False))
+    plain, _ = _run_cpu(name, 2, cpu.levels_kernel(spec, 2), tuple(untracked))
+    for j in range(4):  # the members
+        assert np.array_equal(lanes[j], plain[j], equal_nan=True), (name, j)
+
+
 def test_two_levels_are_the_bias_estimates_pair():
     """L = 2 is ``advance_pair`` (the bias estimate's step loop) and its CPU kernel the one-pair
     kernel; 1 is ``advance_path``. (The pair's numbers: the reference above at L = 2, and

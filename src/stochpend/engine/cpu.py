@@ -327,7 +327,7 @@ def _lanes_kernel(spec: KernelSpec, levels: int = 1, accs: tuple = ()):
         track = observables.track_step(accs)
         builtin = observables.builtin_key(accs)
         cache = cache and builtin is not None
-        index = f"{spec.label}/lanes/track:{builtin or observables.user_key(accs)}"
+        index = f"{spec.label}/{'lanes' if levels == 1 else 'pairs'}/track:{builtin or observables.user_key(accs)}"
     advance_range = integrator.build_level_lanes(spec, levels, track).advance_range
 
     @numba.njit(nogil=True, cache=cache, error_model="numpy")
@@ -474,14 +474,64 @@ def _pair_path_kernel(spec: KernelSpec):
 
 
 @functools.cache
+def _tracked_pair_lanes(spec: KernelSpec, accs: tuple):
+    return _with_workers(_wide_alias_checks(_lanes_kernel(spec, 2, accs)),
+                         (integrator.lane_f_rows(2, len(accs)), integrator.LANE_COUNT),
+                         (integrator.LANE_U_ROWS, integrator.LANE_COUNT),
+                         (integrator.LANE_I_ROWS, integrator.LANE_COUNT))
+
+
+#: LLVM's limit on a vectorized loop's runtime alias checks, ``(option, raised, LLVM's
+#: default)``, raised while the tracked pair lanes compile (:func:`_wide_alias_checks`).
+#: Their lane loop stores the fine member's state between its half steps into four rows more of
+#: the scratch (``integrator._keep_mid``); at the default LLVM gives up on checking that many
+#: rows against each other ("too many memory checks needed") and runs the loop one lane at a
+#: time: the OU pendulum's tracked pair lanes had 112 ``ymm`` references in their x86 code at
+#: the default and 2567 with the limit raised (the untracked pair lanes: 2485).
+WIDE_ALIAS_CHECKS = (("vectorize-memory-check-threshold", 1024, 128),)
+
+
+def _wide_alias_checks(kernel):
+    """``kernel`` (a Numba dispatcher) whose compiles run with LLVM's alias-check limit raised
+    (:data:`WIDE_ALIAS_CHECKS`) and set back to LLVM's default after, under Numba's compiler
+    lock, so that no other compile sees them. The limit changes which loops are vectorized,
+    not what a loop computes: a kernel compiled without them (loaded from a cache another
+    process wrote) gives the same numbers, one lane at a time. (Numba's dispatcher calls its
+    ``compile`` attribute on a first call too, so the instance's own is the one that runs.)"""
+    import llvmlite.binding as llvm
+    from numba.core.compiler_lock import global_compiler_lock
+
+    compile_ = kernel.compile
+
+    def compile(signature):
+        with global_compiler_lock:
+            for option, raised, _ in WIDE_ALIAS_CHECKS:
+                llvm.set_option("", f"-{option}={raised}")
+            try:
+                return compile_(signature)
+            finally:
+                for option, _, default in WIDE_ALIAS_CHECKS:
+                    llvm.set_option("", f"-{option}={default}")
+
+    kernel.compile = compile
+    return kernel
+
+
+@functools.cache
 def tracked_levels_kernel(spec: KernelSpec, accs: tuple, levels: int):
     """``levels`` coupled members (:func:`levels_kernel`'s signature) each carrying the per-path
     accumulators ``accs`` in its own slots (``state`` of :func:`stochpend.engine.layout.state_arrays`
-    with ``tracked``: ``tracks`` of shape (levels * len(accs), n)), one set of members at a time
-    (``Integrator.advance_levels`` of the tracked build), the same KernelSpec: the members'
-    states are :func:`levels_kernel`'s, bit for bit. Cached on disk as :func:`tracked_kernel` is."""
+    with ``tracked``: ``tracks`` of shape (levels * len(accs), n)), the same KernelSpec: the
+    members' states are :func:`levels_kernel`'s, bit for bit. A pair in SIMD lanes when the
+    KernelSpec has them (``integrator.build_level_lanes`` with the track, each lane carrying
+    both members' slots, compiled with LLVM's alias-check limit raised: :func:`_wide_alias_checks`),
+    giving the one-pair loop's numbers, slots included; else, and for 3 or 4 members, one set
+    of members at a time (``Integrator.advance_levels`` of the tracked build). Cached on disk as
+    :func:`tracked_kernel` is."""
     from stochpend.model import observables
 
+    if levels == 2 and integrator.lanes_supported(spec):
+        return _tracked_pair_lanes(spec, accs)
     builtin = observables.builtin_key(accs)
     cache = spec.cacheable and builtin is not None
     return _one_at_a_time(integrator.build(spec, observables.track_step(accs)).advance_levels[levels],
@@ -996,8 +1046,9 @@ class LevelEngine:
 
     ``tracked``: every member carries the run's per-path accumulators, each its own slots
     (``tracks[m * n_slots + slot]``, updated after each of its steps: the multilevel target on
-    an accumulator's mean), one set of members at a time (:func:`tracked_levels_kernel`; on
-    CUDA one set a thread, ``cuda.tracked_levels_kernel``); a
+    an accumulator's mean), a pair in SIMD lanes where the KernelSpec has them, else one set of
+    members at a time (:func:`tracked_levels_kernel`; on CUDA one set a thread,
+    ``cuda.tracked_levels_kernel``); a
     noise with events is not accepted (a member's last step would see the noise before its
     jump). Without it the members carry none: the bias estimate has no Richardson estimate
     of an accumulator's statistics (see ``Statistic.richardson``)."""

@@ -416,15 +416,18 @@ def _draw_tree_states(depth: int, leaf: Any, inline: bool = False) -> Any:
 def _tracked_member_tree(depth: int, step: Any, combine: Any, half: Any, track: Any, member: int = 0,
                          inline: bool = False) -> Any:
     """:func:`_member_tree` with each member's per-path accumulators: ``members(mem, h, h_clock,
-    t0, t1, It, zt, omega2, q, d, Xt, xi0, tracks, i) -> (mem, I, z, xi1)``, the same steps in
-    the same order (the same members), and after each step of member m (``member`` the coarsest
-    of this subtree) ``track(tracks, i, m, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1)``
+    t0, t1, It, zt, omega2, q, d, Xt, xi0, tracks, i) -> (mem, I, z, xi1, mid)``, the same steps
+    in the same order (the same members), and after each step of member m (``member`` the
+    coarsest of this subtree) ``track(tracks, i, m, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1)``
     (:func:`stochpend.model.observables.track_step`'s ``members``: member m's slots), in float64,
     as :func:`advance_path` tracks a path. ``Xt`` the noise's values after each draw
     (:func:`_draw_tree_states`), ``xi0`` its value at t0; ``t1`` the step's end on the clock
     (the landing time on a landing step, so that a window ending at an output time keeps its
     last step); a step's first half ends at t0 + h_clock/2, as the members take it. ``xi1``:
-    the noise after the subtree's last draw."""
+    the noise after the subtree's last draw. ``mid = (x, Omega, xi, t)``: the next finer
+    member's state, the noise and the time between its two half steps (a single member: its
+    state at t1), for the CPU's tracked pair lanes (``_lane_tracking``), which update the
+    slots after the step, outside their vector loop, with ``track`` doing nothing inside it."""
     jit = _inline if inline else register_jitable
     tail = "_inline" if inline else ""
     M = member
@@ -433,7 +436,7 @@ def _tracked_member_tree(depth: int, step: Any, combine: Any, half: Any, track: 
             x, Om = step(mem[0], mem[1], h, omega2, It, q, t0, h_clock, zt, d)
             track(tracks, i, M, np.float64(mem[0]), np.float64(mem[1]), np.float64(xi0), np.float64(x),
                   np.float64(Om), np.float64(Xt), t0, t1)
-            return (x, Om), It, zt, Xt
+            return (x, Om), It, zt, Xt, (np.float64(x), np.float64(Om), np.float64(Xt), t1)
 
         return jit(_named(one, f"{step.__name__}_tracked{M}_members1{tail}"))
     finer = _tracked_member_tree(depth - 1, step, combine, half, track, member + 1, inline)
@@ -441,16 +444,18 @@ def _tracked_member_tree(depth: int, step: Any, combine: Any, half: Any, track: 
     def members(mem, h, h_clock, t0, t1, It, zt, omega2, q, d, Xt, xi0, tracks, i):
         hh = half * h
         hc = 0.5 * h_clock
-        rest, I1, z1, xi_mid = finer(mem[2], hh, hc, t0, t0 + hc, It[0], zt[0], omega2, q, d, Xt[0], xi0,
+        t_mid = t0 + hc
+        rest, I1, z1, xi_mid, _ = finer(mem[2], hh, hc, t0, t_mid, It[0], zt[0], omega2, q, d, Xt[0], xi0,
+                                        tracks, i)
+        mid = (np.float64(rest[0]), np.float64(rest[1]), np.float64(xi_mid), t_mid)
+        rest, I2, z2, xi1, _ = finer(rest, hh, hc, t_mid, t1, It[1], zt[1], omega2, q, d, Xt[1], xi_mid,
                                      tracks, i)
-        rest, I2, z2, xi1 = finer(rest, hh, hc, t0 + hc, t1, It[1], zt[1], omega2, q, d, Xt[1], xi_mid,
-                                  tracks, i)
         I = I1 + I2
         z = combine(z1, z2, hc, d)
         x, Om = step(mem[0], mem[1], h, omega2, I, q, t0, h_clock, z, d)
         track(tracks, i, M, np.float64(mem[0]), np.float64(mem[1]), np.float64(xi0), np.float64(x),
               np.float64(Om), np.float64(xi1), t0, t1)
-        return (x, Om, rest), I, z, xi1
+        return (x, Om, rest), I, z, xi1, mid
 
     return jit(_named(members, f"{step.__name__}_tracked{M}_members{depth + 1}{tail}"))
 
@@ -532,8 +537,8 @@ def the_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNa
 
     ``tracked``: the members carry per-path accumulators (``members`` a
     :func:`_tracked_member_tree`); the step then takes ``(..., d, t1, tracks, i)``, t1 the step's
-    end on the clock, and draws the noise with its values (:func:`_draw_tree_states`): the same
-    draws, the same members."""
+    end on the clock, draws the noise with its values (:func:`_draw_tree_states`): the same
+    draws, the same members, and returns the members' ``mid`` after the channel's state."""
     if tracked:
         return _tracked_step(LEVELS, draws, members, family, channel, inline)
     DEPTH = LEVELS - 1
@@ -573,8 +578,9 @@ def the_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNa
 def _tracked_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: SimpleNamespace,
                   channel: SimpleNamespace, inline: bool) -> Any:
     """:func:`the_step` with ``tracked``: its draws, with the noise's values after each
-    (:func:`_draw_tree_states`), and the tracked members. A function of its own, so that the
-    untracked step every other kernel compiles stays as it is."""
+    (:func:`_draw_tree_states`), and the tracked members; returns ``(mem, noise_state,
+    channel_state, mid)``, ``mid`` the members' (:func:`_tracked_member_tree`). A function of
+    its own, so that the untracked step every other kernel compiles stays as it is."""
     DEPTH = LEVELS - 1
     FAMILY = family.FAMILY
     CHANNEL = channel.CHANNEL
@@ -595,8 +601,8 @@ def _tracked_step(LEVELS: int, draws: SimpleNamespace, members: Any, family: Sim
                 zt, _, _, _ = white_path(keys[0], keys[1], path, n, xc, xc, Sa, coef[1])
         else:
             zt = It
-        mem, _, _, _ = members(mem, h, h_clock, t0, t1, It, zt, omega2, q, d, Xt, xi0, tracks, i)
-        return mem, (xn, xa, S), (xc, xca, Sa)
+        mem, _, _, _, mid = members(mem, h, h_clock, t0, t1, It, zt, omega2, q, d, Xt, xi0, tracks, i)
+        return mem, (xn, xa, S), (xc, xca, Sa), mid
 
     name = f"{draws.noise.__name__}_tracked_step{LEVELS}" + ("_inline" if inline else "")
     return _inline(_named(step, name)) if inline else register_jitable(_named(step, name))
@@ -881,8 +887,8 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             # integral over its step (one member: one draw, its own step).
             if MEMBERS_TRACKED:  # each member's accumulators, to the step's end on the clock
                 t_end, _ = advance_clock(tt, tc, h_clock, event or last, t_land)
-                mem, ns, cs = step(mem, (xn, xa, S), (xc, xca, Sa), keys, path, kk, h, h_clock, tt,
-                                   (C, C_channel), omega2_r, q, d, t_end, tracks, i)
+                mem, ns, cs, _ = step(mem, (xn, xa, S), (xc, xca, Sa), keys, path, kk, h, h_clock, tt,
+                                      (C, C_channel), omega2_r, q, d, t_end, tracks, i)
             else:
                 mem, ns, cs = step(mem, (xn, xa, S), (xc, xca, Sa), keys, path, kk, h, h_clock, tt,
                                    (C, C_channel), omega2_r, q, d)
@@ -1490,14 +1496,21 @@ def build_lanes(spec: KernelSpec) -> SimpleNamespace:
 def lane_f_rows(levels: int, n_slots: int = 0) -> int:
     """Rows of the float64 scratch of the lane machine of ``levels`` members: the one-path
     machine's ``LANE_F_ROWS``, then members 1 .. levels - 1's x and Omega; with ``n_slots``
-    per-path accumulators (one member), their slots, then ``LANE_TRACK_ROWS`` rows of each
-    lane's last step (its state, time and step count before it)."""
-    return LANE_F_ROWS + 2 * (levels - 1) + (n_slots + LANE_TRACK_ROWS if n_slots else 0)
+    per-path accumulators (each member's), every member's slots, then the rows of each lane's
+    last step (``LANE_TRACK_ROWS``, or ``LANE_PAIR_TRACK_ROWS`` for a pair)."""
+    track_rows = LANE_TRACK_ROWS if levels == 1 else LANE_PAIR_TRACK_ROWS
+    return LANE_F_ROWS + 2 * (levels - 1) + (levels * n_slots + track_rows if n_slots else 0)
 
 
 #: The tracked lane machine's rows of a lane's last step, after its slots: x, Omega, xi, t and
 #: the lane's step count before the step.
 LANE_TRACK_ROWS = 5
+
+#: The tracked pair machine's rows of a lane's last step, after its slots: both members' x and
+#: Omega, xi, t and the step count before the step (7), then the fine member's x, Omega, the
+#: noise and the time between its two half steps (4, written by the lane loop: the tracked
+#: step's ``mid``, :func:`_tracked_member_tree`).
+LANE_PAIR_TRACK_ROWS = 11
 
 
 @functools.cache
@@ -1522,14 +1535,16 @@ def build_level_lanes(spec: KernelSpec, levels: int, track: Any = None) -> Simpl
     (:func:`lane_f_rows` ``(levels)``, ``LANE_COUNT``), ``us`` and ``js`` as for
     :func:`build_lanes`.
 
-    ``track``: per-path accumulators (:func:`stochpend.observables.track_step`, one member only):
-    ``state`` holds their slots ``tracks`` (:func:`level_positions` with them), each lane carries
-    its path's slots in ``fs`` (``lane_f_rows(1, track.n_slots)`` rows), and after each vector
-    step every lane whose step was taken and stayed finite updates them, from its state, noise
-    and time before and after the step, as ``advance_path`` of ``build(spec, track)`` does.
+    ``track``: per-path accumulators (:func:`stochpend.observables.track_step`; one member or a
+    pair): ``state`` holds their slots ``tracks`` (:func:`level_positions` with them, each
+    member's), each lane carries its path's slots in ``fs`` (``lane_f_rows(levels,
+    track.n_slots)`` rows), and after each vector step every lane whose step was taken updates
+    them, from its state, noise and time before and after the step (and a pair's fine member
+    from its state between its two half steps), as ``advance_path`` (one member: a step that
+    stayed finite) and ``advance_pair`` of ``build(spec, track)`` do.
     """
-    if track is not None and levels != 1:
-        raise ValueError(f"levels={levels!r} is not accepted with per-path accumulators in lanes: only 1")
+    if track is not None and levels not in (1, 2):
+        raise ValueError(f"levels={levels!r} is not accepted with per-path accumulators in lanes: 1 or 2")
     if levels not in LEVELS:
         raise ValueError(f"levels={levels!r} is not accepted: one of {', '.join(map(str, LEVELS))}")
     if not lanes_supported(spec):
@@ -1584,8 +1599,8 @@ def _lane_load_store(spec: KernelSpec, LEVELS: int, steps: SimpleNamespace, N_SL
     two over every lane. The scratch's rows: ``fs`` x, Omega, xi, aux, t,
     t_comp, xi_a, aux_a, then members 1.. 's x and Omega; ``us`` k and the path's counter
     words; ``js`` the path's index (-1: none), steps in this call, active, escaped or
-    non-finite. ``N_SLOTS`` per-path accumulators: their slots ride in ``fs`` from row
-    ``lane_f_rows(LEVELS)``, loaded and stored with the path."""
+    non-finite. ``N_SLOTS`` slots of per-path accumulators (every member's): they ride in ``fs``
+    from row ``lane_f_rows(LEVELS)``, loaded and stored with the path."""
     load_aux = spec.noise.kernel(steps.real, FAST).load_aux
     channel = steps.pieces["channel"]
     a_load_aux = channel.a_load_aux
@@ -1596,7 +1611,7 @@ def _lane_load_store(spec: KernelSpec, LEVELS: int, steps: SimpleNamespace, N_SL
     I_TRK = at.TRK
     X1, X2, X3, O1, O2, O3 = at.X1, at.X2, at.X3, at.O1, at.O2, at.O3
     HAS_1, HAS_2, HAS_3 = at.HAS1, at.HAS2, at.HAS3
-    F_ROWS = lane_f_rows(LEVELS, N_SLOTS)
+    F_ROWS = lane_f_rows(LEVELS, N_SLOTS // LEVELS)
     T0 = lane_f_rows(LEVELS)  # the first slot's row
     DRAWS = 2 ** (LEVELS - 1)
     # Member m's x in fs (row R_m; Omega the next); members beyond LEVELS take member 0's, never
@@ -1779,43 +1794,116 @@ def _lane_scalars(spec: KernelSpec, LEVELS: int, steps: SimpleNamespace) -> tupl
             _inline(_named(lane_finite, f"lane_finite{LEVELS}")), _inline(lane_records))
 
 
-def _lane_tracking(track: Any, T0: int) -> tuple[Any, Any]:
+def _lane_tracking(track: Any, LEVELS: int) -> tuple[Any, Any, int]:
     """The tracked lane machine's two loops over the lanes, around its vector lane loop (in
     loops of their own: more stores or the accumulators' calls in the lane loop stop LLVM
-    vectorizing it). ``keep_before(fs, js)``: each lane's x, Omega, xi, t (``fs`` rows 0, 1, 2,
-    4) and step count (``js`` row 1) before its step, into the rows after its slots;
-    ``track_lanes(fs, js)``: ``advance_path``'s update of the slots (``track``, rows ``T0 ..``)
-    after a step taken that stayed finite: the lane's step count moved and it is not marked
-    bad (an active lane never is before its step). ``track`` None: functions never called."""
-    N_SLOTS = 0 if track is None else track.n_slots
-    track_step = _track_nothing if track is None else track
+    vectorizing it). ``keep_before(fs, js)``: each lane's members' x and Omega, xi, t (``fs``
+    rows 0, 1, [members 1's], 2, 4) and step count (``js`` row 1) before its step, into the rows
+    after its slots; ``track_lanes(fs, js)``: the update of the slots (``track``, rows ``T0 ..``)
+    after a step taken.
+
+    One member: ``advance_path``'s update, after a step taken that stayed finite (the lane's
+    step count moved and it is not marked bad; an active lane never is before its step). A pair
+    (``track.members``): ``advance_pair``'s, after a step taken, finite or not (its tracked
+    members update inside the step, before the finiteness check): the fine member's two half
+    steps through its state between them (the rows ``MID`` .. ``MID + 3``, which the lane loop
+    writes: the tracked step's ``mid``), then the coarse member's step. ``track`` None:
+    functions never called. Returns ``(keep_before, track_lanes, MID)``."""
+    N_SLOTS = 0 if track is None else LEVELS * track.n_slots
+    T0 = lane_f_rows(LEVELS)
     B0 = T0 + N_SLOTS
+    R1 = LANE_F_ROWS  # a pair's fine member's x (Omega the next)
+    MID = B0 + 7
+    if track is None:
+        track_step = _track_nothing
+    else:
+        track_step = track if LEVELS == 1 else track.members
 
     # Inlined by Numba into the machine, rows taken as 1-d views, as the lane loop takes them:
     # as calls indexing (row, lane), the copy did not vectorize and a run with the
     # displacement took 25 % longer.
+    if LEVELS == 1:
+        @_inline
+        def keep_before(fs, js):
+            x, Omega, xi, t, steps = fs[0], fs[1], fs[2], fs[4], js[1]
+            b_x, b_Omega, b_xi, b_t, b_steps = fs[B0], fs[B0 + 1], fs[B0 + 2], fs[B0 + 3], fs[B0 + 4]
+            for lane in range(LANE_COUNT):
+                b_x[lane] = x[lane]
+                b_Omega[lane] = Omega[lane]
+                b_xi[lane] = xi[lane]
+                b_t[lane] = t[lane]
+                b_steps[lane] = steps[lane]
+
+        @_inline
+        def track_lanes(fs, js):
+            x, Omega, xi, t, steps, bad = fs[0], fs[1], fs[2], fs[4], js[1], js[3]
+            b_x, b_Omega, b_xi, b_t, b_steps = fs[B0], fs[B0 + 1], fs[B0 + 2], fs[B0 + 3], fs[B0 + 4]
+            slots = fs[T0:B0]
+            for lane in range(LANE_COUNT):
+                if steps[lane] != b_steps[lane] and bad[lane] == 0:
+                    track_step(slots, lane, b_x[lane], b_Omega[lane], b_xi[lane], x[lane], Omega[lane], xi[lane],
+                               b_t[lane], t[lane])
+
+        return keep_before, track_lanes, MID
+
     @_inline
-    def keep_before(fs, js):
-        x, Omega, xi, t, steps = fs[0], fs[1], fs[2], fs[4], js[1]
-        b_x, b_Omega, b_xi, b_t, b_steps = fs[B0], fs[B0 + 1], fs[B0 + 2], fs[B0 + 3], fs[B0 + 4]
+    def keep_pair(fs, js):
+        x, Omega, xf, Omf, xi, t, steps = fs[0], fs[1], fs[R1], fs[R1 + 1], fs[2], fs[4], js[1]
+        b_x, b_Omega, b_xf, b_Omf = fs[B0], fs[B0 + 1], fs[B0 + 2], fs[B0 + 3]
+        b_xi, b_t, b_steps = fs[B0 + 4], fs[B0 + 5], fs[B0 + 6]
         for lane in range(LANE_COUNT):
             b_x[lane] = x[lane]
             b_Omega[lane] = Omega[lane]
+            b_xf[lane] = xf[lane]
+            b_Omf[lane] = Omf[lane]
             b_xi[lane] = xi[lane]
             b_t[lane] = t[lane]
             b_steps[lane] = steps[lane]
 
     @_inline
-    def track_lanes(fs, js):
-        x, Omega, xi, t, steps, bad = fs[0], fs[1], fs[2], fs[4], js[1], js[3]
-        b_x, b_Omega, b_xi, b_t, b_steps = fs[B0], fs[B0 + 1], fs[B0 + 2], fs[B0 + 3], fs[B0 + 4]
+    def track_pair(fs, js):
+        x, Omega, xf, Omf, xi, t, steps = fs[0], fs[1], fs[R1], fs[R1 + 1], fs[2], fs[4], js[1]
+        b_x, b_Omega, b_xf, b_Omf = fs[B0], fs[B0 + 1], fs[B0 + 2], fs[B0 + 3]
+        b_xi, b_t, b_steps = fs[B0 + 4], fs[B0 + 5], fs[B0 + 6]
+        m_x, m_Om, m_xi, m_t = fs[MID], fs[MID + 1], fs[MID + 2], fs[MID + 3]
         slots = fs[T0:B0]
         for lane in range(LANE_COUNT):
-            if steps[lane] != b_steps[lane] and bad[lane] == 0:
-                track_step(slots, lane, b_x[lane], b_Omega[lane], b_xi[lane], x[lane], Omega[lane], xi[lane],
+            if steps[lane] != b_steps[lane]:
+                track_step(slots, lane, 1, b_xf[lane], b_Omf[lane], b_xi[lane], m_x[lane], m_Om[lane], m_xi[lane],
+                           b_t[lane], m_t[lane])
+                track_step(slots, lane, 1, m_x[lane], m_Om[lane], m_xi[lane], xf[lane], Omf[lane], xi[lane],
+                           m_t[lane], t[lane])
+                track_step(slots, lane, 0, b_x[lane], b_Omega[lane], b_xi[lane], x[lane], Omega[lane], xi[lane],
                            b_t[lane], t[lane])
 
-    return keep_before, track_lanes
+    return keep_pair, track_pair, MID
+
+
+def _lane_steps(spec: KernelSpec, steps: SimpleNamespace, LEVELS: int, pair_tracked: bool) -> tuple[Any, Any]:
+    """The lane machine's ``(step, pair_step)``: :func:`the_step` of ``LEVELS`` members with keyed
+    draws (:func:`_keyed_draws`), inlined by Numba; with ``pair_tracked``, the tracked pair's
+    step (:func:`the_step` with ``tracked``, the same members, whose ``track`` does nothing and
+    whose ``mid`` the machine keeps for its slots' update after the lane loop), else ``step``."""
+    oscillator = steps.pieces["oscillator"]
+    family = steps.pieces["family"]
+    channel = steps.pieces["channel"]
+    if family.FAMILY:
+        member_step, combine = steps.family_step_inline, steps.additive_sum_inline
+    else:
+        member_step, combine = oscillator.verlet_step, _first
+    members = _member_tree(LEVELS - 1, member_step, combine, oscillator.half, True)
+    # The member trees are shared between the machines of one KernelSpec (a tree of L members holds
+    # that of L - 1): named for the KernelSpec, not for the machine built first in a process (else the
+    # pair machine a compile helper builds alone and the one built after the run's would differ
+    # in name and never share a cache entry).
+    name_closures([members], f"lane-members/{spec.label}")
+    keyed = _keyed_draws(spec, steps)
+    step = the_step(LEVELS, keyed, members, family, channel, inline=True)
+    if not pair_tracked:
+        return step, step
+    kept = _tracked_member_tree(1, member_step, combine, oscillator.half, _track_member_nothing, 0, True)
+    name_closures([kept], f"lane-tracked-members/{spec.label}")
+    return step, the_step(2, keyed, kept, family, channel, inline=True, tracked=True)
 
 
 def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNamespace:
@@ -1824,19 +1912,22 @@ def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNam
     keyed draws (:func:`_keyed_draws`). ``LEVELS`` is a compile-time constant, so each machine
     compiles to its own branch-free lane loop.
 
-    ``track`` (one member): a loop before the lane loop keeps each lane's state, time and step
-    count in ``fs``, and one after it updates the slots of the lanes whose step was taken and
-    stayed finite (:func:`_lane_tracking`); the lane loop stays as it is."""
+    ``track`` (one member or a pair): a loop before the lane loop keeps each lane's state, time
+    and step count in ``fs``, and one after it updates the slots of the lanes whose step was
+    taken (:func:`_lane_tracking`); one member's lane loop stays as it is. A pair's takes the
+    tracked step (:func:`the_step` with ``tracked``, its ``track`` doing nothing) and stores the
+    fine member's state between its half steps (its ``mid``) in ``fs`` with the other stores:
+    four stores more in the lane loop, which LLVM vectorizes only with more runtime alias checks
+    than it allows by default (``cpu.WIDE_ALIAS_CHECKS``, set around this machine's compile)."""
     steps = build(spec)
     TRACKED = track is not None
-    N_SLOTS = track.n_slots if TRACKED else 0
-    keep_before, track_lanes = _lane_tracking(track, lane_f_rows(LEVELS))
+    PAIR_TRACKED = TRACKED and LEVELS == 2
+    N_SLOTS = LEVELS * track.n_slots if TRACKED else 0
+    keep_before, track_lanes, MID = _lane_tracking(track, LEVELS)
     real = steps.real
-    oscillator = steps.pieces["oscillator"]
     family = steps.pieces["family"]
     channel = steps.pieces["channel"]
-    nz = spec.noise.kernel(real, FAST)
-    coefficients = nz.coefficients
+    coefficients = spec.noise.kernel(real, FAST).coefficients
     a_coefficients = steps.a_coefficients
     dyn_of = family.dyn_of
     CHANNEL = channel.CHANNEL
@@ -1844,26 +1935,13 @@ def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNam
     zero_r = real(0.0)
     DRAWS = 2 ** (LEVELS - 1)
     FINEST = real(0.5 ** (LEVELS - 1))
-    if family.FAMILY:
-        members = _member_tree(LEVELS - 1, steps.family_step_inline, steps.additive_sum_inline,
-                               oscillator.half, True)
-    else:
-        members = _member_tree(LEVELS - 1, oscillator.verlet_step, _first, oscillator.half, True)
-    # The member trees are shared between the machines of one KernelSpec (a tree of L members holds
-    # that of L - 1): named for the KernelSpec, not for the machine built first in a process (else the
-    # pair machine a compile helper builds alone and the one built after the run's would differ
-    # in name and never share a cache entry).
-    name_closures([members], f"lane-members/{spec.label}")
-    step = the_step(LEVELS, _keyed_draws(spec, steps), members, family, channel, inline=True)
+    step, pair_step = _lane_steps(spec, steps, LEVELS, PAIR_TRACKED)
     nest, flat = _member_tuples(LEVELS)
     scalar = _lane_load_store(spec, LEVELS, steps, N_SLOTS)
-    refill = scalar.refill
-    store_and_refill = scalar.store_and_refill
-    idle = scalar.idle
+    refill, store_and_refill, idle = scalar.refill, scalar.store_and_refill, scalar.idle
     # Member m's rows in fs (row 0 for members beyond LEVELS: read by nest, never written).
     R1, R2, R3 = (LANE_F_ROWS + 2 * (m - 1) if m < LEVELS else 0 for m in range(1, _MAX_LEVELS))
     HAS_1, HAS_2, HAS_3 = (m < LEVELS for m in range(1, _MAX_LEVELS))
-
     lane_step, lane_clock, lane_finite, lane_records = _lane_scalars(spec, LEVELS, steps)
 
     @register_jitable
@@ -1897,6 +1975,10 @@ def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNam
         bs = js[1]
         ba = js[2]
         bbad = js[3]
+        if PAIR_TRACKED:  # a compile-time constant: rows that only the tracked pair machine has
+            bmx, bmO, bmxi, bmt = fs[MID], fs[MID + 1], fs[MID + 2], fs[MID + 3]
+        else:
+            bmx = bmO = bmxi = bmt = bx0
         p_channel, keys = lane_records(step_rec, rk0, rk1)
         idle(scratch, t_target)
         steps_taken = 0
@@ -1927,9 +2009,15 @@ def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNam
                 h, h_clock, last, esc = lane_step(mem, xn, tt, t_target, h_max, h_max_r, c_r, omega2_r, q, d)
                 hf = FINEST * h if LEVELS > 1 else h
                 coef = (coefficients(hf, p), a_coefficients(hf, p_channel))
-                new, ns, cs = step(mem, (xn, xa, zero_r), (xc, xca, zero_r), keys, (bc2[lane], bc3[lane]),
-                                   kk, h, h_clock, tt, coef, omega2_r, q, d)
-                t_new, tc_new = lane_clock(tt, tc, h_clock, last, t_target)
+                if PAIR_TRACKED:  # the fine member's mid, for the step's end on the clock
+                    t_new, tc_new = lane_clock(tt, tc, h_clock, last, t_target)
+                    new, ns, cs, mid = pair_step(mem, (xn, xa, zero_r), (xc, xca, zero_r), keys,
+                                                 (bc2[lane], bc3[lane]), kk, h, h_clock, tt, coef, omega2_r, q,
+                                                 d, t_new, 0, lane)
+                else:
+                    new, ns, cs = step(mem, (xn, xa, zero_r), (xc, xca, zero_r), keys, (bc2[lane], bc3[lane]),
+                                       kk, h, h_clock, tt, coef, omega2_r, q, d)
+                    t_new, tc_new = lane_clock(tt, tc, h_clock, last, t_target)
                 m = flat(new)
                 o = flat(mem)
                 finite = lane_finite(m, ns)
@@ -1960,6 +2048,11 @@ def _lane_machine(spec: KernelSpec, LEVELS: int, track: Any = None) -> SimpleNam
                 bs[lane] = steps_after
                 bbad[lane] = 1 if bad else bad_before
                 ba[lane] = 0 if done else active
+                if PAIR_TRACKED:  # read after the loop for the lanes whose step was taken
+                    bmx[lane] = mid[0]
+                    bmO[lane] = mid[1]
+                    bmxi[lane] = mid[2]
+                    bmt[lane] = mid[3]
                 n_done += 1 if done else 0
             if TRACKED:
                 track_lanes(fs, js)
