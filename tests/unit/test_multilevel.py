@@ -273,6 +273,8 @@ def test_an_accumulator_no_target_reads_is_not_carried_and_moves_no_number():
     assert carried.attrs["path_steps"] == plain.attrs["path_steps"]
     cfg = SimulationConfig.build(noise="ou", t_max=1.0, times=[1.0], observables=("displacement",))
     assert resources.kernel_kind(cfg) == resources.kernel_kind(replace(cfg, observables=())) + " tracked lanes"
+    # a target's coupled pairs with them run in lanes too: their rate is not the one-pair loop's
+    assert multilevel.rate_kind(cfg) == f"target {resources.kernel_kind(cfg)} and pairs"
     dichotomous = SimulationConfig.build(noise="dichotomous", tau=1.0, t_max=1.0, times=[1.0],
                                          observables=("displacement",))  # no lanes: one path at a time
     assert resources.kernel_kind(dichotomous).endswith("dichotomous/float64/adaptive/libm tracked")
