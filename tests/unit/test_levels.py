@@ -230,6 +230,21 @@ def test_each_members_accumulators_are_a_single_tracked_runs_at_its_own_step(nam
         assert not np.array_equal(ref_tracks[:ns], ref_tracks[ns:2 * ns])
 
 
+def _calls(kernel, state, cfg, spec):
+    """``state`` advanced through the cases' output times, ``MAX_STEPS`` a call: ``(state, [(draws,
+    unfinished) of every call])``."""
+    key0, key1 = rng.seed_to_key(cfg.seed)
+    calls = []
+    for t_target in cases.TIMES:
+        while True:
+            d, unfinished = kernel(state, t_target, cases.MAX_STEPS, key0, key1, cases.PATH0,
+                                   spec.noise.record(cfg), integrator.step_record(cfg))
+            calls.append((int(d), int(unfinished)))
+            if unfinished == 0:
+                break
+    return state, calls
+
+
 @pytest.mark.parametrize("name", list(cases.CASES))
 def test_the_simd_lanes_give_every_members_one_path_numbers(name):
     """L = 3, 4 in the CPU's SIMD lanes (``integrator.build_level_lanes``: the step of
@@ -244,7 +259,6 @@ def test_the_simd_lanes_give_every_members_one_path_numbers(name):
     cfg = cases.config(name)
     spec = integrator.KernelSpec.of(cfg, fast_math=True)
     built = integrator.build(spec)
-    key0, key1 = rng.seed_to_key(cfg.seed)
     for levels in ((3, 4) if name == "ou" else (3,)):
         one_path = cpu._one_at_a_time(built.advance_levels[levels], None, False, levels)
         if not integrator.lanes_supported(spec):
@@ -252,19 +266,8 @@ def test_the_simd_lanes_give_every_members_one_path_numbers(name):
             continue
         lanes_kernel = cpu.levels_kernel(spec, levels)
         assert "_lanes_kernel" in lanes_kernel.kernel.py_func.__qualname__  # the lanes, not a path loop
-        runs = []
-        for kernel in (lanes_kernel, one_path):
-            state = cases.initial_state(cfg, levels, 40)
-            draws = []
-            for t_target in cases.TIMES:
-                while True:
-                    d, unfinished = kernel(state, t_target, cases.MAX_STEPS, key0, key1, cases.PATH0,
-                                           spec.noise.record(cfg), integrator.step_record(cfg))
-                    draws.append((int(d), int(unfinished)))
-                    if unfinished == 0:
-                        break
-            runs.append((state, draws))
-        (lanes, lane_draws), (one, one_draws) = runs
+        (lanes, lane_draws), (one, one_draws) = (_calls(kernel, cases.initial_state(cfg, levels, 40), cfg, spec)
+                                                 for kernel in (lanes_kernel, one_path))
         assert lane_draws == one_draws, (name, levels)
         for j, (a, b) in enumerate(zip(lanes, one, strict=True)):
             assert np.array_equal(a, b), (name, levels, j)
@@ -276,20 +279,19 @@ def test_the_tracked_pair_lanes_give_the_one_path_numbers(name):
     """A pair whose members carry accumulators (the multilevel target on an accumulator's
     mean) in the CPU's SIMD lanes (``cpu.tracked_levels_kernel``: each lane carries both
     members' slots; the fine member's state between its half steps comes out of the lane loop,
-    ``integrator._keep_mid``) against the tracked one-pair loop of the same fast-math KernelSpec,
-    bit for bit: every array of the state, both members' slots, the draws per call. 40 pairs
-    in calls of 7 steps (lanes refilled and resumed); with step control two escape before their
-    first step, and two turn non-finite in it (the one-pair loop has updated their slots inside
-    that step, so the lanes do too). The members are the untracked pair lanes' members. The OU pendulum, the
-    family's terms with the additive white noise, and the additive OU channel (its arrays come
-    after the slots)."""
+    the tracked step's ``mid``) against the tracked one-pair loop of the same fast-math
+    KernelSpec, bit for bit: every array of the state, both members' slots, the draws per call.
+    40 pairs in calls of 7 steps (lanes refilled and resumed); with step control two escape
+    before their first step, and two turn non-finite in it (the one-pair loop has updated their
+    slots inside that step, so the lanes do too). The members are the untracked pair lanes'
+    members. The OU pendulum, the family's terms with the additive white noise, and the additive
+    OU channel (its arrays come after the slots)."""
     from stochpend.model import observables
 
     cfg = cases.config(name)
     spec = integrator.KernelSpec.of(cfg, fast_math=True)
     accs = cases.accumulators()
     n, at = 40, 2 * 2 + 6  # the slots after the members and xi, xi_aux, t, t_comp, k, status
-    key0, key1 = rng.seed_to_key(cfg.seed)
     escape = [5, 30] if spec.adaptive else []  # a fixed step has no escape
 
     def start(tracked=True):
@@ -304,18 +306,7 @@ def test_the_tracked_pair_lanes_give_the_one_path_numbers(name):
     assert "_lanes_kernel" in lanes_kernel.kernel.py_func.__qualname__  # the lanes, not a path loop
     one_pair = cpu._one_at_a_time(integrator.build(spec, observables.track_step(accs)).advance_pair, None,
                                   False, 2)
-    runs = []
-    for kernel in (lanes_kernel, one_pair):
-        state, draws = start(), []
-        for t_target in cases.TIMES:
-            while True:
-                d, unfinished = kernel(state, t_target, cases.MAX_STEPS, key0, key1, cases.PATH0,
-                                       spec.noise.record(cfg), integrator.step_record(cfg))
-                draws.append((int(d), int(unfinished)))
-                if unfinished == 0:
-                    break
-        runs.append((state, draws))
-    (lanes, lane_draws), (one, one_draws) = runs
+    (lanes, lane_draws), (one, one_draws) = (_calls(kernel, start(), cfg, spec) for kernel in (lanes_kernel, one_pair))
     assert lane_draws == one_draws and len(lane_draws) > len(cases.TIMES)
     for j, (a, b) in enumerate(zip(lanes, one, strict=True)):
         assert np.array_equal(a, b, equal_nan=True), (name, j)
