@@ -290,7 +290,7 @@ def test_a_running_sums_variance_and_diffusion_are_targets_that_cover_their_exac
     sin w1 t), w1 = sqrt(omega^2 - gamma^2/4) (the stationary position autocorrelation):
     ``var_displacement`` and ``diffusion_displacement`` (var / 2t), functions of the running
     sum's two columns' means, are targets as the skewness is, covering the exact values; their
-    level kurtosis is not measured (NaN), the rate's is the mean's."""
+    level kurtosis is measured, the same for both (var / 2t: a scale), the rate's is the mean's."""
     from stochpend.theory import family
 
     gamma, D_a = 0.5, 0.4
@@ -307,7 +307,10 @@ def test_a_running_sums_variance_and_diffusion_are_targets_that_cover_their_exac
         est, total = ds[name].values, ds[f"{name}_total_error"].values
         assert np.all(ds[f"{name}_certified"].values == 1), name
         assert np.all(np.abs(est - exact) <= total), (name, est, total, exact)
-        assert np.all(np.isnan(ds[f"{name}_level_kurtosis"].values)), name
+        kurt = ds[f"{name}_level_kurtosis"].values
+        assert np.all(np.isnan(kurt[0])) and np.all(kurt[1:] >= 1.0), (name, kurt)
+    np.testing.assert_allclose(ds["diffusion_displacement_level_kurtosis"].values[1:],
+                               ds["var_displacement_level_kurtosis"].values[1:], rtol=1e-6)
     # a target time that is not the run's first: the diffusion divides by its own t
     later = stochpend.simulate(noise="white", D=0.0, omega=OMEGA, potential="harmonic", t_max=2.0,
                                times=tuple(times), h_max=1.0, gamma=gamma, additive_D=D_a, initial_temperature=T,
@@ -317,7 +320,7 @@ def test_a_running_sums_variance_and_diffusion_are_targets_that_cover_their_exac
     cfg = SimulationConfig.build(noise="ou", t_max=1.0, times=[1.0], observables=("displacement",))
     assert multilevel._difference_columns(cfg, ("rate_displacement", "mean_displacement", "var_displacement",
                                                 "skewness")) == [multilevel._user_column(cfg, "mean_displacement")] * 2 \
-        + [multilevel.NO_MOMENTS, None]
+        + [(multilevel._user_column(cfg, "mean_displacement"), 0), None]
 
 
 def test_a_budget_the_run_fits_in_changes_no_number():
@@ -662,14 +665,16 @@ def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
     from stochpend import bias
     from stochpend.engine import cpu, integrator
     from stochpend.model import observables, power_sums
-    from stochpend.observables import Observable, register, unregister
+    from stochpend.observables import Observable, RunningSum, register, unregister
 
     # A user's observable of the state (it reads xi and t, which the members share) has its
-    # differences summed after the table's, in its column of the run's sums.
+    # differences summed after the table's, in its column of the run's sums; a running sum's two
+    # columns (the sum and its square, read from each member's slot) after it.
     register(Observable("ml_probe", lambda x, Omega, xi, t: Omega * math.cos(x) + xi * t))
+    register(RunningSum("ml_sum", lambda x0, O0, xi0, x1, O1, xi1, t0, t1: (t1 - t0) * O1))
     try:
         cfg = SimulationConfig.build(noise="white", D=0.5, omega=OMEGA, t_max=1.0, times=[1.0],
-                                     observables=("ml_probe",))
+                                     observables=("ml_probe", "ml_sum"))
         spec = bias.pair_spec(cfg, "cpu")
         q = integrator.step_record(cfg)[1]
         rng = np.random.default_rng(35)
@@ -679,16 +684,20 @@ def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
         xi, t = rng.normal(size=n), np.full(n, 1.0)
         status = np.zeros(n, dtype=np.uint8)
         status[[7, 99]] = 1  # pairs the accumulate kernel marked: not summed
-        out = np.zeros((4, observables.n_sums(cfg) + power_sums.N_CROSS))
-        assert observables.n_sums(cfg) == power_sums.N_SUMS + 1
+        n_sums = observables.n_sums(cfg)
+        assert n_sums == power_sums.N_SUMS + 3
+        assert power_sums.product_columns(cfg.observables) == power_sums.N_CROSS + power_sums.N_SUM_PRODUCTS
+        out = np.zeros((4, n_sums + power_sums.product_columns(cfg.observables)))
+        tracks, tracks_f = rng.normal(size=(1, n)), rng.normal(size=(1, n))  # each member's sum
+        tracks_f += 0.2 * tracks
         cpu.difference_kernel(spec, cfg.observables, products=True)(x, Omega, xf, Omegaf, xi, t, status,
-                                                                   np.zeros((0, n)), np.zeros((0, n)), OMEGA**2,
-                                                                   q, out)
-        plain = np.zeros((4, observables.n_sums(cfg)))  # without products: the same powers
-        cpu.difference_kernel(spec, cfg.observables)(x, Omega, xf, Omegaf, xi, t, status, np.zeros((0, n)),
-                                                     np.zeros((0, n)), OMEGA**2, q, plain)
+                                                                   tracks, tracks_f, OMEGA**2, q, out)
+        plain = np.zeros((4, n_sums))  # without products: the same powers
+        cpu.difference_kernel(spec, cfg.observables)(x, Omega, xf, Omegaf, xi, t, status, tracks,
+                                                     tracks_f, OMEGA**2, q, plain)
     finally:
         unregister("ml_probe")
+        unregister("ml_sum")
     values = integrator.statistics(spec.oscillator, spec.coupling)  # the kernels' own, called from Python
     ok = status == 0
     d = np.array([np.subtract(values(xf[i], Omegaf[i], OMEGA**2, q)[2], values(x[i], Omega[i], OMEGA**2, q)[2])
@@ -702,9 +711,19 @@ def test_the_difference_kernel_sums_the_powers_of_each_pairs_differences():
     # after the run's columns, the products of the differences of E2, E3, E4 (the skewness's and
     # flatness's linearised differences need them)
     dx = d[:, [c - 1 for c in power_sums.CROSS]]
-    first = power_sums.N_SUMS + 1
+    first = n_sums
     for k, monomials in enumerate(power_sums.CROSS_MONOMIALS):
         want = [np.sum(dx[:, 0] ** a * dx[:, 1] ** b * dx[:, 2] ** c) for a, b, c in monomials]
+        np.testing.assert_allclose(out[k, first:first + len(monomials)], want, rtol=1e-9)
+    # the running sum: its sum's and its square's differences, and their products
+    d_s = (tracks_f[0] - tracks[0])[ok]
+    d_q = (tracks_f[0] ** 2 - tracks[0] ** 2)[ok]
+    for k in range(4):
+        np.testing.assert_allclose(out[k, power_sums.N_SUMS + 1:power_sums.N_SUMS + 3],
+                                   [np.sum(d_s ** (k + 1)), np.sum(d_q ** (k + 1))], rtol=1e-10)
+    first = n_sums + power_sums.N_CROSS
+    for k, monomials in enumerate(power_sums.SUM_MONOMIALS):
+        want = [np.sum(d_s ** a * d_q ** b) for a, b in monomials]
         np.testing.assert_allclose(out[k, first:first + len(monomials)], want, rtol=1e-9)
 
 
@@ -720,6 +739,14 @@ def test_the_linearised_moments_are_the_moments_of_the_weighted_sum():
             products[k, j] = np.sum(d[:, 0] ** a * d[:, 1] ** b * d[:, 2] ** c)
     got = power_sums.linearised_moments(products, np.float64(len(d)), w)
     y = d @ w
+    np.testing.assert_allclose(got, [np.mean(y ** n) for n in range(1, 5)], rtol=1e-10)
+    # a running sum's two columns (SUM_MONOMIALS)
+    products = np.zeros((4, power_sums.N_SUM_PRODUCTS))
+    for k, monomials in enumerate(power_sums.SUM_MONOMIALS):
+        for j, (a, b) in enumerate(monomials):
+            products[k, j] = np.sum(d[:, 0] ** a * d[:, 1] ** b)
+    got = power_sums.linearised_moments(products, np.float64(len(d)), w[:2], power_sums.SUM_MONOMIALS)
+    y = d[:, :2] @ w[:2]
     np.testing.assert_allclose(got, [np.mean(y ** n) for n in range(1, 5)], rtol=1e-10)
 
 
@@ -740,6 +767,27 @@ def test_the_skewness_and_flatness_have_a_level_kurtosis_whose_variance_is_the_j
     ratio = var_moments / var_jackknife
     assert np.all((ratio > 0.6) & (ratio < 1.6)), ratio
     kurt = multilevel.Level(level, [r]).kurtosis()
+    assert np.all(np.isfinite(kurt)) and np.all(kurt >= 1.0), kurt
+
+
+def test_a_running_sums_variance_has_a_level_kurtosis_whose_variance_is_the_jackknifes():
+    # The variance of a running sum S (here the displacement) is S^2 - S S of two columns' means:
+    # its level difference is linearised at the pair's means, w . (dS, dS^2), as the skewness's
+    # is. The variance of that per-sample value must be the jackknife's per-sample variance of
+    # the level's difference (within the noise of 256 batches); the difference of S alone, or
+    # a wrong weight, would put it off by a factor.
+    names = ["mean_displacement", "var_displacement"]
+    config = SimulationConfig.build(noise="ou", D=1.0, tau=1.0, t_max=1.0, times=(0.5, 1.0), h_max=0.2, seed=3,
+                                    observables=("displacement",))
+    cfg = multilevel._target_config(config, multilevel.check_target(config, 0.01, target_statistics=names))
+    n = 20_000
+    columns = multilevel._difference_columns(cfg, names)
+    assert isinstance(columns[1], tuple)
+    r = multilevel.run_level(cfg, 1, n, 0, multilevel.statistics_of(cfg, names), len(cfg.times) - 1,
+                             columns=columns, tracked=multilevel.tracked_statistics(cfg, names))
+    ratio = (r.d2 - r.d1**2) / (r.y_var * n)
+    assert np.all((ratio > 0.6) & (ratio < 1.6)), ratio
+    kurt = multilevel.Level(1, [r]).kurtosis()
     assert np.all(np.isfinite(kurt)) and np.all(kurt >= 1.0), kurt
 
 

@@ -750,10 +750,13 @@ def difference_kernel(spec: KernelSpec, observables: tuple[str, ...] = (), produ
     member's and ``tracks_f`` the fine one's), and ``out[:, 0]`` += the pairs summed; with
     ``products``, after the run's columns, ``out[k, n_sums + j]`` += the products of the differences of the columns
     :data:`stochpend.model.power_sums.CROSS` of degree k + 1 with the exponents
-    ``CROSS_MONOMIALS[k][j]`` (the skewness's and flatness's linearised differences). For the
+    ``CROSS_MONOMIALS[k][j]`` (the skewness's and flatness's linearised differences), then for
+    each running sum among ``observables`` (in their order) the products of the differences of
+    its two columns (S and S^2) with the exponents ``power_sums.SUM_MONOMIALS[k][j]``, from
+    ``n_sums + N_CROSS + N_SUM_PRODUCTS * r`` (its variance's and diffusion's). For the
     kurtosis of a multilevel estimator's level differences (Giles' diagnostic,
     :mod:`stochpend.runs.multilevel`). ``out``: (4, n_sums), with ``products`` (4, n_sums +
-    N_CROSS), float64. Float64; depends on the oscillator, the coupling and the user
+    ``power_sums.product_columns(observables)``), float64. Float64; depends on the oscillator, the coupling and the user
     observables. The products cost more than the rest (92 ns a pair without them, 165
     to 313 ns with, one thread, 2e6 pairs): only a target on the skewness or flatness asks for them."""
     return _difference_kernel(spec, observables_.objects(observables), bool(products))
@@ -775,6 +778,12 @@ def _difference_kernel(spec: KernelSpec, user: tuple, PRODUCTS: bool):
     exponents = np.zeros((4, power_sums.N_CROSS, 3), dtype=np.int64)
     for k, monomials in enumerate(power_sums.CROSS_MONOMIALS):
         exponents[k, :len(monomials)] = monomials
+    # Each running sum's first user column (its sum; its square the next), for its products.
+    starts = np.cumsum([0] + [observables_._columns(o) for o in user])
+    sum_columns = np.array([starts[j] for j, o in enumerate(user) if isinstance(o, observables_.RunningSum)],
+                           dtype=np.int64)
+    n_running = len(sum_columns)
+    first_sum_product = n_sums + power_sums.N_CROSS
 
     @numba.njit(nogil=True, cache=spec.oscillator.builtin and builtin, error_model="numpy")
     @own_index(f"differences/{spec.oscillator.name}/{spec.coupling}/{observables_.TABLE_KEY}/{users}"
@@ -815,6 +824,13 @@ def _difference_kernel(spec: KernelSpec, user: tuple, PRODUCTS: bool):
                     for m in range(n_products[k]):
                         out[k, n_sums + m] += (_power(d_a, exponents[k, m, 0]) * _power(d_b, exponents[k, m, 1])
                                                * _power(d_c, exponents[k, m, 2]))
+                for r in range(n_running):  # a running sum's S and S^2 (SUM_MONOMIALS' order)
+                    d_s = uf[sum_columns[r]] - uc[sum_columns[r]]
+                    d_q = uf[sum_columns[r] + 1] - uc[sum_columns[r] + 1]
+                    first = first_sum_product + power_sums.N_SUM_PRODUCTS * r
+                    for k in range(4):
+                        for m in range(k + 2):
+                            out[k, first + m] += _power(d_s, k + 1 - m) * _power(d_q, m)
 
     return differences
 
@@ -1087,7 +1103,7 @@ class LevelEngine:
         self.n_times = len(config.times)
         self.n_sums = observables_.n_sums(config)
         self.n_tracks = len(observables_.accumulators(observables_.objects(config.observables)))
-        width = self.n_sums + (power_sums.N_CROSS if differences >= 2 else 0)
+        width = self.n_sums + (power_sums.product_columns(config.observables) if differences >= 2 else 0)
         self.differences = np.zeros((self.n_times, 4, width)) if differences else None
         self.p0 = 0
         self.n = 0

@@ -49,22 +49,48 @@ CROSS_MONOMIALS = tuple(tuple(_monomials(k + 1)) for k in range(4))
 #: Columns the products take after the run's sums in the differences array (the most, degree 4).
 N_CROSS = len(CROSS_MONOMIALS[-1])
 
+#: Exponents (of a running sum's two columns' differences, the sum S and its square S^2) of the
+#: products summed for each degree 1..4: 2, 3, 4 and 5 products. The variance S^2 - S S and
+#: its diffusion are functions of those two means, and the moments of their linearised
+#: per-sample difference need these (:func:`linearised_moments`).
+SUM_MONOMIALS = tuple(tuple((a, k + 1 - a) for a in range(k + 1, -1, -1)) for k in range(4))
+#: Columns each running sum's products take, after CROSS's, in the differences array.
+N_SUM_PRODUCTS = len(SUM_MONOMIALS[-1])
 
-def linearised_moments(products: np.ndarray, count: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Raw moments E[(w . d)^n], n = 1..4, of a linear combination of CROSS's differences d:
-    ``products`` (..., 4, N_CROSS) the summed products (row k: degree k + 1, in
-    :data:`CROSS_MONOMIALS`'s order), ``count`` (...) the pairs summed, ``w`` (..., 3) the
-    weights. Returns (4, ...)."""
-    from math import factorial
+
+def product_columns(observables_: tuple[str, ...]) -> int:
+    """Columns after the run's sums that the difference kernel's products take
+    (``cpu.difference_kernel(products=True)``): CROSS's, then :data:`N_SUM_PRODUCTS` for each
+    running sum among the run's observables, in their order."""
+    return N_CROSS + N_SUM_PRODUCTS * len(running_sums(observables_))
+
+
+def running_sums(observables_: tuple[str, ...]) -> tuple[_table.RunningSum, ...]:
+    """The running sums among a run's user observables, in the order of their products."""
+    if not observables_:
+        return ()
+    return tuple(o for o in _table.objects(tuple(observables_)) if isinstance(o, _table.RunningSum))
+
+
+def linearised_moments(products: np.ndarray, count: np.ndarray, w: np.ndarray,
+                       monomials_by_degree: tuple = CROSS_MONOMIALS) -> np.ndarray:
+    """Raw moments E[(w . d)^n], n = 1..4, of a linear combination of differences d: of CROSS's
+    (``products`` (..., 4, N_CROSS) the summed products, row k: degree k + 1, in
+    :data:`CROSS_MONOMIALS`'s order, ``w`` (..., 3) the weights), or of a running sum's two
+    columns (``monomials_by_degree`` :data:`SUM_MONOMIALS`, ``products`` (..., 4,
+    N_SUM_PRODUCTS), ``w`` (..., 2)); ``count`` (...) the pairs summed. Returns (4, ...)."""
+    from math import factorial, prod
 
     out = []
     with np.errstate(invalid="ignore", divide="ignore"):
-        for k, monomials in enumerate(CROSS_MONOMIALS):
+        for k, monomials in enumerate(monomials_by_degree):
             n = k + 1
             total = np.zeros(np.shape(count))
-            for j, (a, b, c) in enumerate(monomials):
-                coefficient = factorial(n) / (factorial(a) * factorial(b) * factorial(c))
-                total = total + coefficient * w[..., 0] ** a * w[..., 1] ** b * w[..., 2] ** c * products[..., k, j]
+            for j, exponents in enumerate(monomials):
+                term = factorial(n) / prod(factorial(e) for e in exponents)
+                for i, e in enumerate(exponents):  # left to right, as written out for three columns
+                    term = term * w[..., i] ** e
+                total = total + term * products[..., k, j]
             out.append(total / count)
     return np.array(out)
 

@@ -232,7 +232,8 @@ def pair_sums(config: SimulationConfig, n_pairs: int, n_batches: int, *, backend
     label. ``differences``: (n_times, 4, n_sums) float64, where the raw power sums of the
     members' differences are added (``cpu.difference_kernel``; the kurtosis of a level's
     differences), from the host arrays on every backend; with ``products``, (n_times, 4, n_sums
-    + power_sums.N_CROSS), the products of those of E^2, E^3, E^4 after them. ``tracked``: each
+    + power_sums.product_columns(observables)), the products of those of E^2, E^3, E^4 and of
+    each running sum's two columns after them. ``tracked``: each
     member carries the run's per-path accumulators (the multilevel target on an accumulator's
     mean; without it their columns are 0)."""
     from stochpend.engine import runner

@@ -90,7 +90,8 @@ power sums of the members' differences, summed on the host beside the pairs' sta
 a user's observable of the state; for S and F, no per-sample means, of their difference
 linearised at the pair's means, w . d (w the gradient of S or F in <E^2>, <E^3>, <E^4>, d the
 pair's differences of E^2, E^3, E^4), from the summed products of d (its variance agrees with
-the jackknife's V_l: tests/unit/test_multilevel.py); each round's at its own pairs' means.
+the jackknife's V_l: tests/unit/test_multilevel.py); each round's at its own pairs' means. A
+running sum's variance and diffusion likewise, in the sum and its square.
 What this version does not do: the Richardson-extrapolated
 (multilevel Richardson-Romberg) estimate: the least-cost plan gives the bias bound 1-3 % of the
 total error on the OU pendulum at t = 1 and 10, so it could save level 0 at most ~6 % of its
@@ -411,22 +412,25 @@ def statistics_of(config: SimulationConfig, names: Sequence[str]) -> Callable[[n
 
 
 #: :func:`_difference_columns`' entry for a statistic whose level differences have no measured
-#: moments (a running sum's variance and effective diffusion): their kurtosis is NaN.
+#: moments (none of the statistics a target accepts now): its kurtosis is NaN.
 NO_MOMENTS = -1
 
 
-def _difference_columns(config: SimulationConfig, names: Sequence[str]) -> list[int | None]:
+def _difference_columns(config: SimulationConfig, names: Sequence[str]) -> list[int | tuple[int, int] | None]:
     """Each target statistic's column in the run's sums whose pairs' differences the difference
     kernel sums (``cpu.difference_kernel``): a mean of the table (``mean_E``, ``mean_E2``, ...)
     or of a user observable (the value column; for a function of the energy, its sum over the
     paths where it is finite, counted as 0 elsewhere), a running sum's rate too (its mean over
     t: the same kurtosis); None for the skewness and flatness, which are no per-sample mean
-    (their differences are linearised: :func:`run_level`); :data:`NO_MOMENTS` for a running
-    sum's variance and diffusion (the difference kernel sums no products of a user's columns)."""
+    (their differences are linearised in E^2, E^3, E^4: :func:`run_level`); ``(column, r)`` for
+    the variance and diffusion of running sum r (``power_sums.running_sums``), linearised in its
+    two columns (the sum and its square, from ``column``) likewise."""
     table = {s.name for s in observables.SUMS}
     users = {f"mean_{u}" for u in config.observables}
-    out: list[int | None] = []
+    running = [o.name for o in power_sums.running_sums(config.observables)]
+    out: list[int | tuple[int, int] | None] = []
     for n in names:
+        kind, _, of_name = n.partition("_")
         if n.startswith("mean_") and n[5:] in table:
             out.append(observables.column(n[5:]))
         elif n in users:
@@ -435,6 +439,8 @@ def _difference_columns(config: SimulationConfig, names: Sequence[str]) -> list[
             out.append(_user_column(config, f"mean_{n[5:]}"))
         elif n in NONLINEAR:
             out.append(None)
+        elif kind in ("var", "diffusion") and of_name in running:
+            out.append((_user_column(config, f"mean_{of_name}"), running.index(of_name)))
         else:
             out.append(NO_MOMENTS)
     return out
@@ -449,7 +455,7 @@ def _batches(n: int) -> tuple[int, int]:
 def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Callable[[np.ndarray], np.ndarray],
               stop: int,
               *, backend: str = "cpu", progress: Progress | None = None,
-              columns: Sequence[int | None] = (), tracked: bool = False) -> Round:
+              columns: Sequence[int | tuple[int, int] | None] = (), tracked: bool = False) -> Round:
     """``n`` samples of ``level`` (0: an ordinary ensemble at ``config``'s step; l >= 1: coupled
     pairs at ``refined(config, l - 1)``) with the seed :func:`level_seed`, run to the output time
     of index ``stop`` only, reduced to the statistics ``of`` (:func:`statistics_of`) of the means.
@@ -457,7 +463,8 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
     a pair level's raw moments of the differences of those (``Round.d1`` .. ``d4``); for a
     statistic with None (S, F: functions of means), of its difference linearised at the pairs'
     means (both members pooled), w . d, from the products of the differences of E^2, E^3, E^4
-    (``power_sums.linearised_moments``). ``tracked``: a pair level's members carry the run's
+    (``power_sums.linearised_moments``); for ``(column, r)`` (a running sum's variance or
+    diffusion), likewise of the differences of its sum and its square. ``tracked``: a pair level's members carry the run's
     per-path accumulators (:func:`tracked_statistics`; a level 0 run always does)."""
     seed = level_seed(config.seed, level, round_)
     n_b, _ = _batches(n)
@@ -476,8 +483,10 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
         return Round(_counts(n, stop, T), stop, cfg.t_max, int(path_steps), seed, n_b, f, f_var,
                      nan, nan.copy(), f, f_var, nonfinite)
     cfg = replace(bias.refined(cfg, level - 1), seed=seed)
-    products = any(col is None for col in columns)  # S or F asked for: their linearised differences
-    dsums = np.zeros((len(cfg.times), 4, observables.n_sums(cfg) + (power_sums.N_CROSS if products else 0)))
+    # S, F or a running sum's variance asked for: their linearised differences need the products
+    products = any(col is None or isinstance(col, tuple) for col in columns)
+    dsums = np.zeros((len(cfg.times), 4, observables.n_sums(cfg)
+                      + (power_sums.product_columns(cfg.observables) if products else 0)))
     sums, path_steps = bias.pair_sums(cfg, n, n_b, backend=backend, progress=progress, what=f"level {level}",
                                       differences=dsums, products=products, tracked=tracked)  # (B, T', 2, n_sums)
     f, f_var = _jackknife(sums, lambda m: _st(of(m[..., 1, :])))
@@ -492,7 +501,13 @@ def run_level(config: SimulationConfig, level: int, n: int, round_: int, of: Cal
         for i, col in enumerate(columns):
             if col == NO_MOMENTS:
                 continue  # not measured: NaN
-            if col is not None:
+            if isinstance(col, tuple):  # a running sum's variance or diffusion: w . (dS, dS^2)
+                column, r = col  # (not c: the coarse members' statistics above)
+                w = _gradient(partial(_one_of, of, i), pooled, (column, column + 1))
+                first = n_sums + power_sums.N_CROSS + power_sums.N_SUM_PRODUCTS * r
+                moments[:, i, :] = power_sums.linearised_moments(
+                    dsums[:, :, first:first + power_sums.N_SUM_PRODUCTS], dsums[:, 0, 0], w, power_sums.SUM_MONOMIALS)
+            elif col is not None:
                 moments[:, i, :] = (dsums[:, :, col] / dsums[:, :, 0]).T
             else:  # a function of means: its difference linearised at the pair's means, w . d
                 w = _gradient(partial(_one_of, of, i), pooled, power_sums.CROSS)
