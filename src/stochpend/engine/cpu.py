@@ -495,8 +495,8 @@ def _wide_alias_checks(kernel):
     """``kernel`` (a Numba dispatcher) whose compiles run with LLVM's alias-check limit raised
     (:data:`WIDE_ALIAS_CHECKS`) and set back to LLVM's default after, under Numba's compiler
     lock, so that no other compile sees them. The limit changes which loops are vectorized,
-    not what a loop computes: a kernel compiled without them (loaded from a cache another
-    process wrote) gives the same numbers, one lane at a time. (Numba's dispatcher calls its
+    not what a loop computes: a kernel compiled without it gives the same numbers, one lane at
+    a time. (Numba's dispatcher calls its
     ``compile`` attribute on a first call too, so the instance's own is the one that runs.)"""
     import llvmlite.binding as llvm
     from numba.core.compiler_lock import global_compiler_lock
@@ -756,9 +756,11 @@ def difference_kernel(spec: KernelSpec, observables: tuple[str, ...] = (), produ
     ``n_sums + N_CROSS + N_SUM_PRODUCTS * r`` (its variance's and diffusion's). For the
     kurtosis of a multilevel estimator's level differences (Giles' diagnostic,
     :mod:`stochpend.runs.multilevel`). ``out``: (4, n_sums), with ``products`` (4, n_sums +
-    ``power_sums.product_columns(observables)``), float64. Float64; depends on the oscillator, the coupling and the user
-    observables. The products cost more than the rest (92 ns a pair without them, 165
-    to 313 ns with, one thread, 2e6 pairs): only a target on the skewness or flatness asks for them."""
+    ``power_sums.product_columns(observables)``), float64. Float64; depends on the oscillator,
+    the coupling and the user observables. The products cost more than the rest (92 ns a pair
+    without them, 165 to 313 ns with, one thread, 2e6 pairs, measured before the running sums'
+    were added): only a target on the skewness, the flatness or a running sum's variance or
+    diffusion asks for them."""
     return _difference_kernel(spec, observables_.objects(observables), bool(products))
 
 
