@@ -916,3 +916,23 @@ def test_the_table_gives_each_levels_diagnostics_at_the_last_time():
     assert all(len(ln) <= 80 for ln in lines)
     older = multilevel.summary_lines(ds.drop_vars(["mean_E_beta", "mean_E2_beta"]))
     assert older == lines[:lines.index(lines[at])] and not any(ln.startswith("levels at") for ln in older)
+
+
+def test_show_writes_a_crafted_statistic_name_as_visible_text(tmp_path):
+    """A target file is a file: a statistic named with a terminal escape (clear the screen) and
+    Rich markup reaches the terminal as visible text, in every line that names it, and the
+    table keeps its 80 columns."""
+    from stochpend import io
+
+    ds = stochpend.simulate(**CHEAP, seed=7, target_error=0.02)
+    bad = "m\x1b[2Jx[red]"
+    ds = ds.rename({v: v.replace("mean_E2", bad) for v in ds.data_vars if v.startswith("mean_E2")})
+    ds.attrs["target_statistics"] = f"mean_E,{bad}"
+    io.to_netcdf(ds, tmp_path / "crafted.nc")
+    shown = CliRunner().invoke(app, ["show", str(tmp_path / "crafted.nc")])
+    assert shown.exit_code == 0, shown.output
+    assert "\x1b" not in shown.output
+    named = [ln for ln in shown.stdout.splitlines() if "m\\x1b[2Jx[red]" in ln]
+    # the table's rows, the levels' rows and the rates (and the kurtosis line where it is the largest)
+    assert len(named) >= ds.sizes["time"] + ds.sizes["level"] + 1, named
+    assert max(len(ln) for ln in shown.stdout.splitlines()) <= 80

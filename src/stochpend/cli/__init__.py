@@ -742,9 +742,12 @@ def _shown(path: Path, ds: Any, kind: str, rows: int) -> tuple[list[Any], list[s
     tables: list[Any]
     try:
         if kind == "target":
+            from rich.text import Text
+
             from stochpend.runs.multilevel import summary_lines
 
-            tables = ["\n".join(summary_lines(ds))]
+            # A Text, not a string: Rich would read a statistic's name from the file as markup.
+            tables = [Text("\n".join(summary_lines(ds)))]
         elif kind == "sweep":
             from stochpend.cli._scale import sweep_table
 

@@ -1663,6 +1663,15 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
 
 
 
+def _labels(names: list[str]) -> dict[str, str]:
+    """Each statistic's name as the table prints it: a file's text, so control characters are
+    written as visible escapes and a name longer than a statistic's (64) is shortened
+    (:mod:`stochpend.text._terminal`)."""
+    from stochpend.text._terminal import plain, short
+
+    return {name: plain(short(name, 64)) for name in names}
+
+
 def _certify_text(ds: Any, name: str, i: int) -> str:
     """What certifying an uncertified entry would take, and by which route."""
     cost = float(ds[f"{name}_cost_to_certify"].values[i])
@@ -1680,6 +1689,7 @@ def summary_lines(ds: Any) -> list[str]:
     bias bound, total and whether it is certified; then the cost (stdout lines)."""
     names = [n for n in str(ds.attrs.get("target_statistics", "")).split(",") if n and n in ds]
     eps = float(ds.attrs.get("target_error", math.nan))
+    label = _labels(names)
     conf = float(ds.attrs.get("target_confidence", math.nan))
     lines = [f"target: relative total error {eps:g} at {100 * conf:g} % confidence, "
              f"{int(ds.attrs.get('target_levels', 0))} levels"]
@@ -1693,9 +1703,9 @@ def summary_lines(ds: Any) -> list[str]:
         for i, t in enumerate(ds.time.values):
             cert = int(ds[f"{name}_certified"].values[i])
             if not cert:
-                notes += textwrap.wrap(f"{name} at t = {t:.4g}: {_certify_text(ds, name, i)}", 78,
+                notes += textwrap.wrap(f"{label[name]} at t = {t:.4g}: {_certify_text(ds, name, i)}", 78,
                                        initial_indent="  ", subsequent_indent="    ", break_on_hyphens=False)
-            rows.append((name, f"{t:.4g}", f"{float(ds[name].values[i]):.6g}",
+            rows.append((label[name], f"{t:.4g}", f"{float(ds[name].values[i]):.6g}",
                          f"{float(ds[f'{name}_stat_error'].values[i]):.3g}",
                          f"{float(ds[f'{name}_bias_bound'].values[i]):.3g}",
                          f"{float(ds[f'{name}_total_error'].values[i]):.3g}",
@@ -1718,7 +1728,7 @@ def summary_lines(ds: Any) -> list[str]:
              if f"{name}_level_kurtosis" in ds and np.any(np.isfinite(ds[f"{name}_level_kurtosis"].values))]
     if worst:
         k, name = max(worst)
-        lines += textwrap.wrap(f"kurtosis of the level differences: at most {k:.3g} ({name})"
+        lines += textwrap.wrap(f"kurtosis of the level differences: at most {k:.3g} ({label[name]})"
                                + (f", above {KURTOSIS_WARN:g}: the levels' variances rest on rare pairs"
                                   if k > KURTOSIS_WARN else ""), 78, subsequent_indent="  ")
     fails = int(ds.attrs.get("target_consistency_failures", 0))
@@ -1740,6 +1750,7 @@ def level_lines(ds: Any, names: list[str]) -> list[str]:
     if not names or any(f"{name}_{part}" not in ds for name in names for part in parts) \
             or any(v not in ds for v in ("n_samples", "cost_per_sample", "h")):
         return []
+    label = _labels(names)
     j = len(ds.time.values) - 1
     t = float(ds.time.values[j])
     n_s = np.asarray(ds["n_samples"].values).reshape(len(ds["level"]), -1)[:, j]
@@ -1757,11 +1768,11 @@ def level_lines(ds: Any, names: list[str]) -> list[str]:
                                 "consistency")]
         for level in range(len(steps)):
             m, v, k, d, c = (float(col[level]) for col in columns)
-            rows.append((name, str(level), f"{float(steps[level]):.4g}", str(int(n_s[level])),
+            rows.append((label[name], str(level), f"{float(steps[level]):.4g}", str(int(n_s[level])),
                          num(float(cost[level]), ".4g"), num(m, ".3g"), num(v, ".3g"), num(k, ".3g"),
                          num(d, ".2g"), num(c, ".2g")))
         alpha, used, beta = (float(ds[f"{name}_{rate}"].values[j]) for rate in ("alpha", "alpha_used", "beta"))
-        rates.append(f"{name}: alpha {num(alpha, '.3g')} (bias bound with {num(used, '.3g')}), "
+        rates.append(f"{label[name]}: alpha {num(alpha, '.3g')} (bias bound with {num(used, '.3g')}), "
                      f"beta {num(beta, '.3g')}")
     widths = [max(len(header[c]), *(len(r[c]) for r in rows)) for c in range(len(header))]
     lines = [f"levels at t = {t:.4g} (Y_l = P_l - P_(l-1), Y_0 = P_0; cost: path-steps a sample; check: "
