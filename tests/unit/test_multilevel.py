@@ -635,6 +635,10 @@ def test_a_decorrelated_late_time_is_certified_by_two_independent_runs():
     assert ds.attrs["target_route_path_steps"] > 0
     assert ds.attrs["path_steps"] == int(ds["level_path_steps"].sum()) + ds.attrs["target_route_path_steps"]
     assert float(ds["mean_E_relative_total_error"].values[-1]) <= 0.05
+    # the table's levels at t = 100 are not what gave its estimate there, and it says so
+    said = " ".join(multilevel.summary_lines(ds))
+    assert "at t = 100 the estimate of mean_E is two independent runs'" in said
+    assert "independent runs'" not in " ".join(multilevel.summary_lines(ds.isel(time=[0])))
     h = float(ds["h"].values[0])
     plain = stochpend.simulate(noise="ou", t_max=100.0, times=[100.0], h_max=h / 2, step_c=0.0, paths=20_000,
                                seed=5, bias_paths=0, progress=False)

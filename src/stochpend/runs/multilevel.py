@@ -1588,8 +1588,8 @@ def _dataset(config: SimulationConfig, cfg: SimulationConfig, target: Target, le
         data[name] = ("time", estimate[s], {"long_name": f"{name}, multilevel estimate (telescope), or where "
                                             f"{name}_route is 1 the finer of two independent ensembles"})
         data[f"{name}_route"] = ("time", by_route[s].astype(np.int8), {
-            "long_name": "0: the multilevel estimate; 1: two independent ensembles at h and h/2 "
-                         f"({name}_route_h), the finer the estimate, their difference the bias bound"})
+            "long_name": "0: the multilevel estimate; 1: two independent ensembles at h and h/2, the "
+                         "finer the estimate, their difference the bias bound"})
         data[f"{name}_stat_error"] = ("time", half[s], {
             "long_name": f"statistical half-width of {name} at confidence 1 - (1 - c)/2 (Student t, "
                          "Satterthwaite dof)"})
@@ -1785,6 +1785,10 @@ def level_lines(ds: Any, names: list[str]) -> list[str]:
     lines += textwrap.wrap(f"rates at t = {t:.4g}: " + "; ".join(rates)
                            + f"; gamma {num(float(ds.attrs.get('target_gamma', math.nan)), '.3g')}", 78,
                            subsequent_indent="  ")
+    routed = [label[name] for name in names if f"{name}_route" in ds and int(ds[f"{name}_route"].values[j]) == 1]
+    if routed:
+        lines += textwrap.wrap(f"at t = {t:.4g} the estimate of {', '.join(routed)} is two independent runs' "
+                               "(their pairs decorrelate there), not these levels'", 78, subsequent_indent="  ")
     return lines
 
 
