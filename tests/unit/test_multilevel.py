@@ -887,39 +887,40 @@ def test_the_plans_cost_of_a_sample_is_the_path_steps_the_levels_spend():
 
 
 def test_the_table_gives_each_levels_diagnostics_at_the_last_time():
-    """Giles' per-level table in the printed summary (and so in ``show``): per statistic and
-    level the step, samples, cost, mean, variance, kurtosis, decorrelation and consistency at
-    the last output time, then the fitted rates; each value is the result's own, and a file
-    without those variables still prints its summary, without the levels."""
+    """Giles' per-level table in the printed summary (and so in ``show``): per statistic its
+    fitted rates, then per level the step, samples, cost, mean, variance, kurtosis,
+    decorrelation and consistency at the last output time; each value is the result's own, and
+    a file without those variables still prints its summary, without the levels."""
     ds = stochpend.simulate(**CHEAP, seed=7, target_error=0.02)
     lines = multilevel.summary_lines(ds)
     at = next(i for i, ln in enumerate(lines) if ln.startswith("levels at t = "))
     t = float(ds.time.values[-1])
     assert lines[at].startswith(f"levels at t = {t:.4g} ")
-    header = next(i for i in range(at, len(lines)) if lines[i].startswith("statistic "))
-    assert lines[header].split() == ["statistic", "l", "h_l", "N_l", "cost", "mean", "Y_l", "var", "Y_l", "kurt",
-                                     "decor", "check"]
-    rows = [ln.split() for ln in lines[header + 1:] if ln.startswith("mean_E")]
+    header = next(i for i in range(at, len(lines)) if lines[i].split()[:2] == ["l", "h_l"])
+    assert lines[header].split() == ["l", "h_l", "N_l", "cost", "mean", "Y_l", "var", "Y_l", "kurt", "decor", "check"]
     levels = ds.sizes["level"]
-    assert [r[:2] for r in rows] == [[name, str(level)] for name in ("mean_E", "mean_E2") for level in range(levels)]
-    for name, level, h, n, cost, mean, var, kurt, decor, check in rows:
-        at_t = dict(level=int(level), time=-1)
-        assert float(h) == pytest.approx(float(ds["h"].values[int(level)]), rel=1e-3)
-        assert int(n) == int(ds["n_samples"].isel(at_t))
-        assert float(cost) == pytest.approx(float(ds["cost_per_sample"].isel(at_t)), rel=1e-3)
-        assert float(mean) == pytest.approx(float(ds[f"{name}_level_mean"].isel(at_t)), rel=5e-3)
-        assert float(var) == pytest.approx(float(ds[f"{name}_level_variance"].isel(at_t)), rel=5e-3)
-        if level == "0":  # no difference at level 0
-            assert (kurt, decor, check) == ("-", "-", "-")
-        else:
-            assert float(kurt) == pytest.approx(float(ds[f"{name}_level_kurtosis"].isel(at_t)), rel=5e-3)
-            assert float(check) == pytest.approx(float(ds[f"{name}_consistency"].isel(at_t)), rel=5e-2, abs=0.01)
-    rates = " ".join(lines[header + 1 + len(rows):])
-    beta = float(ds["mean_E_beta"].values[-1])
-    assert rates.startswith(f"rates at t = {t:.4g}: mean_E: alpha ") and f"beta {beta:.3g}" in rates
+    for name in ("mean_E", "mean_E2"):
+        title = next(i for i in range(header, len(lines)) if lines[i].startswith(f"{name}: alpha "))
+        beta = float(ds[f"{name}_beta"].values[-1])
+        assert f"beta {beta:.3g}" in lines[title]
+        rows = [ln.split() for ln in lines[title + 1:title + 1 + levels]]
+        assert [r[0] for r in rows] == [str(level) for level in range(levels)]
+        for level, h, n, cost, mean, var, kurt, decor, check in rows:
+            at_t = dict(level=int(level), time=-1)
+            assert float(h) == pytest.approx(float(ds["h"].values[int(level)]), rel=1e-3)
+            assert int(n) == int(ds["n_samples"].isel(at_t))
+            assert float(cost) == pytest.approx(float(ds["cost_per_sample"].isel(at_t)), rel=1e-3)
+            assert float(mean) == pytest.approx(float(ds[f"{name}_level_mean"].isel(at_t)), rel=5e-3)
+            assert float(var) == pytest.approx(float(ds[f"{name}_level_variance"].isel(at_t)), rel=5e-3)
+            if level == "0":  # no difference at level 0
+                assert (kurt, decor, check) == ("-", "-", "-")
+            else:
+                assert float(kurt) == pytest.approx(float(ds[f"{name}_level_kurtosis"].isel(at_t)), rel=5e-3)
+                assert float(check) == pytest.approx(float(ds[f"{name}_consistency"].isel(at_t)), rel=5e-2,
+                                                     abs=0.01)
     assert all(len(ln) <= 80 for ln in lines)
     older = multilevel.summary_lines(ds.drop_vars(["mean_E_beta", "mean_E2_beta"]))
-    assert older == lines[:lines.index(lines[at])] and not any(ln.startswith("levels at") for ln in older)
+    assert older == lines[:at]
 
 
 def test_show_writes_a_crafted_statistic_name_as_visible_text(tmp_path):
@@ -937,6 +938,6 @@ def test_show_writes_a_crafted_statistic_name_as_visible_text(tmp_path):
     assert shown.exit_code == 0, shown.output
     assert "\x1b" not in shown.output
     named = [ln for ln in shown.stdout.splitlines() if "m\\x1b[2Jx[red]" in ln]
-    # the table's rows, the levels' rows and the rates (and the kurtosis line where it is the largest)
-    assert len(named) >= ds.sizes["time"] + ds.sizes["level"] + 1, named
+    # the table's rows and the levels' block title (and the kurtosis line where it is the largest)
+    assert len(named) >= ds.sizes["time"] + 1, named
     assert max(len(ln) for ln in shown.stdout.splitlines()) <= 80

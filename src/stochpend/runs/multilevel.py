@@ -1740,11 +1740,12 @@ def summary_lines(ds: Any) -> list[str]:
 
 def level_lines(ds: Any, names: list[str]) -> list[str]:
     """The levels of a target result at its last output time, as Giles' MLMC drivers print
-    them: per statistic and level l the fine step h_l, the samples N_l, the path-steps a sample
-    costs, the mean and variance of Y_l = P_l - P_(l-1) (Y_0 = P_0), its kurtosis, the pairs'
-    decorrelation sqrt(1 - r) and the consistency check in sigma; then the fitted rates alpha
-    (weak), beta (variance) and gamma (cost). Values the run could not measure are '-'; none
-    for a file that lacks them (one written before they were recorded)."""
+    them: per statistic its fitted rates alpha (weak) and beta (variance), then per level l the
+    fine step h_l, the samples N_l, the path-steps a sample costs, the mean and variance of Y_l
+    = P_l - P_(l-1) (Y_0 = P_0), its kurtosis, the pairs' decorrelation sqrt(1 - r) and the
+    consistency check in sigma (a block per statistic, so that a long name does not widen the
+    rows past 80 columns). Values the run could not measure are '-'; no lines for a file that
+    lacks them (one written before they were recorded)."""
     parts = ("level_mean", "level_variance", "level_kurtosis", "level_decorrelation", "consistency", "alpha",
              "alpha_used", "beta")
     if not names or any(f"{name}_{part}" not in ds for name in names for part in parts) \
@@ -1760,31 +1761,30 @@ def level_lines(ds: Any, names: list[str]) -> list[str]:
     def num(value: float, spec: str) -> str:
         return format(value, spec) if math.isfinite(value) else "-"
 
-    header = ("statistic", "l", "h_l", "N_l", "cost", "mean Y_l", "var Y_l", "kurt", "decor", "check")
-    rows, rates = [], []
+    header = ("l", "h_l", "N_l", "cost", "mean Y_l", "var Y_l", "kurt", "decor", "check")
+    blocks: list[tuple[str, list[tuple[str, ...]]]] = []
     for name in names:
         columns = [np.asarray(ds[f"{name}_{part}"].values)[:, j]
                    for part in ("level_mean", "level_variance", "level_kurtosis", "level_decorrelation",
                                 "consistency")]
+        rows: list[tuple[str, ...]] = []
         for level in range(len(steps)):
             m, v, k, d, c = (float(col[level]) for col in columns)
-            rows.append((label[name], str(level), f"{float(steps[level]):.4g}", str(int(n_s[level])),
+            rows.append((str(level), f"{float(steps[level]):.4g}", str(int(n_s[level])),
                          num(float(cost[level]), ".4g"), num(m, ".3g"), num(v, ".3g"), num(k, ".3g"),
                          num(d, ".2g"), num(c, ".2g")))
         alpha, used, beta = (float(ds[f"{name}_{rate}"].values[j]) for rate in ("alpha", "alpha_used", "beta"))
-        rates.append(f"{label[name]}: alpha {num(alpha, '.3g')} (bias bound with {num(used, '.3g')}), "
-                     f"beta {num(beta, '.3g')}")
-    widths = [max(len(header[c]), *(len(r[c]) for r in rows)) for c in range(len(header))]
-    lines = [f"levels at t = {t:.4g} (Y_l = P_l - P_(l-1), Y_0 = P_0; cost: path-steps a sample; check: "
-             f"Giles' consistency in sigma, fails above {CONSISTENCY_SIGMA:g}):"]
-    lines[0:1] = textwrap.wrap(lines[0], 78, subsequent_indent="  ")
-    lines.append(" ".join([header[0].ljust(widths[0]), *(h.rjust(w) for h, w in zip(header[1:], widths[1:],
-                                                                                      strict=True))]))
-    lines += [" ".join([r[0].ljust(widths[0]), *(v.rjust(w) for v, w in zip(r[1:], widths[1:], strict=True))])
-              for r in rows]
-    lines += textwrap.wrap(f"rates at t = {t:.4g}: " + "; ".join(rates)
-                           + f"; gamma {num(float(ds.attrs.get('target_gamma', math.nan)), '.3g')}", 78,
-                           subsequent_indent="  ")
+        blocks.append((f"{label[name]}: alpha {num(alpha, '.3g')} (bias bound with {num(used, '.3g')}), "
+                       f"beta {num(beta, '.3g')}", rows))
+    widths = [max(len(header[c]), *(len(r[c]) for _, rows in blocks for r in rows)) for c in range(len(header))]
+    lines = textwrap.wrap(f"levels at t = {t:.4g} (Y_l = P_l - P_(l-1), Y_0 = P_0; cost: path-steps a sample; "
+                          f"check: Giles' consistency in sigma, fails above {CONSISTENCY_SIGMA:g}; gamma "
+                          f"{num(float(ds.attrs.get('target_gamma', math.nan)), '.3g')}):", 78,
+                          subsequent_indent="  ")
+    lines.append("  " + " ".join(h.rjust(w) for h, w in zip(header, widths, strict=True)))
+    for title, block in blocks:
+        lines += textwrap.wrap(title, 78, subsequent_indent="  ")
+        lines += ["  " + " ".join(v.rjust(w) for v, w in zip(r, widths, strict=True)) for r in block]
     routed = [label[name] for name in names if f"{name}_route" in ds and int(ds[f"{name}_route"].values[j]) == 1]
     if routed:
         lines += textwrap.wrap(f"at t = {t:.4g} the estimate of {', '.join(routed)} is two independent runs' "
