@@ -39,6 +39,11 @@ def pytest_configure(config: pytest.Config) -> None:
     device tests launch small test kernels directly, which numba-cuda warns about)."""
     if importlib.util.find_spec("numba_cuda") is not None:
         config.addinivalue_line("filterwarnings", "ignore::numba.cuda.core.errors.NumbaPerformanceWarning")
+    # The suite's kernels compile for the target a user's do (512-bit vectors on an AVX-512 host:
+    # stochpend.numerics._cputarget), whichever test module makes the process's first Numba kernel.
+    from stochpend.numerics import _cputarget
+
+    _cputarget.configure_numba()
 
 
 def _xdist_worker(config: pytest.Config) -> str | None:

@@ -16,6 +16,12 @@ workers and child processes inherit it), ``stochpend --cpu-target baseline`` or
 :func:`select` before the first kernel of the process compiles. Numba's cache keeps the two
 targets' kernels apart (its index is keyed by the CPU name and features).
 
+On an x86-64 host with AVX-512 the kernels are compiled with 512-bit vectors
+(:func:`prefer_wide_vectors`): LLVM tunes Intel's AVX-512 server cores (``skylake-avx512`` to
+``emeraldrapids``) to prefer 256-bit vectors, so Numba's lane loops ran there at half the width
+the hardware has (AMD's ``znver4`` has no such preference). The width changes how many paths
+one instruction steps, not a number.
+
 Every result names the target its kernels were compiled for (the ``cpu_target`` attribute,
 :func:`describe`).
 """
@@ -83,6 +89,7 @@ def select(target: str) -> None:
     (Numba's default). Must come before the process compiles or loads its first Numba kernel;
     afterwards only the target already in use is accepted. ValueError (one line) otherwise.
     """
+    global _wide_features
     if target not in TARGETS:
         raise ValueError(f"cpu_target={target!r} is not accepted: one of {', '.join(TARGETS)}")
     if target == "baseline":
@@ -109,12 +116,78 @@ def select(target: str) -> None:
     if numba is not None:  # Numba read the environment at import: set its config directly
         numba.config.CPU_NAME = name
         numba.config.CPU_FEATURES = features
+    if target == "host":  # the host's own features again, with 512-bit vectors where it has AVX-512
+        _wide_features = None
+        if numba is not None:
+            prefer_wide_vectors()
 
 
 def apply_environment() -> None:
-    """Apply :data:`ENV` if it asks for the baseline (called before any kernel is compiled)."""
+    """Apply :data:`ENV` if it asks for the baseline (called before any kernel is compiled); for
+    the host, 512-bit vectors where it has AVX-512 (:func:`prefer_wide_vectors`), once Numba is
+    imported (``import stochpend`` loads neither Numba nor LLVM)."""
     if requested() == "baseline":
         select("baseline")
+    elif "numba" in sys.modules:
+        prefer_wide_vectors()
+
+
+def configure_numba() -> None:
+    """:func:`apply_environment`, for the modules that make a Numba kernel when imported: each calls
+    it after importing Numba and before its first ``numba.njit``, since Numba fixes its code
+    generator (CPU name, features) when it makes its first kernel, compiled or not. An unknown
+    ``STOCHPEND_CPU_TARGET`` is left to the run's own check (``RunOptions.build``). Imports Numba."""
+    import numba  # noqa: F401 - the caller makes kernels; apply_environment acts once Numba is in
+
+    try:
+        apply_environment()
+    except ValueError:
+        pass
+
+
+#: The LLVM feature that turns off its preference for 256-bit vectors on Intel's AVX-512 cores
+#: (X86's ``TuningPrefer256Bit``; without it the preferred width is 512).
+WIDE_FEATURE = "-prefer-256-bit"
+#: The features this process set for its host (None: it set none).
+_wide_features: str | None = None
+
+
+def wide_features(features: dict[str, bool], flattened: str) -> str | None:
+    """The features string for 512-bit vectors: ``flattened`` (LLVM's host features, ``+avx,...``)
+    with :data:`WIDE_FEATURE`, where ``features`` (the same as a map) has AVX-512; else None."""
+    if not features.get("avx512f", False):
+        return None
+    return f"{flattened},{WIDE_FEATURE}"
+
+
+def prefer_wide_vectors() -> bool:
+    """Compile this process's kernels for its host with 512-bit vectors where the host has
+    AVX-512: the host's own CPU name and features, with LLVM's 256-bit preference off.
+
+    On a 2-vCPU Intel Xeon (``emeraldrapids``, 2026-11-29) this took the fixed-step OU pendulum
+    from 86-99 to 118-122 M path-steps/s and the adaptive lanes from 43-44 to 54, the numbers the
+    same to the bit (benchmarks/RESULTS.md). Does nothing (returns False) for the baseline target,
+    where ``NUMBA_CPU_NAME`` or ``NUMBA_CPU_FEATURES`` is set (the user's own choice), off x86-64,
+    or once Numba has compiled (its code generator is fixed then). Returns whether this process's
+    kernels are compiled so. Sets Numba's configuration, not the environment: a child process
+    decides for itself."""
+    global _wide_features
+    import numba
+
+    if _wide_features is not None:
+        return numba.config.CPU_FEATURES == _wide_features
+    if (requested() != "host" or _compiled() or platform.machine().lower() not in ("x86_64", "amd64")
+            or numba.config.CPU_NAME is not None or numba.config.CPU_FEATURES is not None):
+        return False
+    import llvmlite.binding as ll
+
+    features = ll.get_host_cpu_features()
+    wide = wide_features(dict(features), features.flatten())
+    if wide is None:
+        return False
+    numba.config.CPU_NAME = str(ll.get_host_cpu_name())
+    numba.config.CPU_FEATURES = _wide_features = wide
+    return True
 
 
 def _host_name() -> str:
@@ -138,6 +211,8 @@ def describe() -> str:
     name = current_name()
     if name == BASELINE_NAME and numba.config.CPU_FEATURES == BASELINE_FEATURES:
         return f"{name} (baseline)"
+    if _wide_features is not None and numba.config.CPU_FEATURES == _wide_features:
+        return f"{name} (host, 512-bit vectors)"
     if numba.config.CPU_NAME:
         return f"{name} (NUMBA_CPU_NAME, features {numba.config.CPU_FEATURES or 'host'})"
     return f"{name} (host)"
@@ -156,15 +231,22 @@ def planned() -> str:
     name = os.environ.get("NUMBA_CPU_NAME")
     if name:
         return f"{name} (NUMBA_CPU_NAME, features {os.environ.get('NUMBA_CPU_FEATURES') or 'host'})"
-    return f"this machine's CPU (host: {_model_name()})"
+    wide = (", 512-bit vectors" if os.environ.get("NUMBA_CPU_FEATURES") is None
+            and "avx512f" in _cpuinfo("flags").split() else "")
+    return f"this machine's CPU (host: {_model_name()}{wide})"
 
 
-def _model_name() -> str:
+def _cpuinfo(field: str) -> str:
+    """The first value of ``field`` in /proc/cpuinfo ("" where there is none)."""
     try:
         with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
             for line in f:
-                if line.startswith("model name"):
+                if line.split(":", 1)[0].strip() == field:
                     return line.split(":", 1)[1].strip()
     except OSError:
         pass
-    return platform.processor() or platform.machine()
+    return ""
+
+
+def _model_name() -> str:
+    return _cpuinfo("model name") or platform.processor() or platform.machine()
