@@ -165,8 +165,8 @@ def prefer_wide_vectors() -> bool:
     AVX-512: the host's own CPU name and features, with LLVM's 256-bit preference off.
 
     On a 2-vCPU Intel Xeon (``emeraldrapids``, 2026-11-29) this took the fixed-step OU pendulum
-    from 86-99 to 118-122 M path-steps/s and the adaptive lanes from 43-44 to 54, the numbers the
-    same to the bit (benchmarks/RESULTS.md). Does nothing (returns False) for the baseline target,
+    from 75-83 to 89-103 M path-steps/s and the adaptive lanes from 33-46 to 45-48, the numbers
+    the same to the bit (``python -m benchmarks.vector_width``, docs/performance.md). Does nothing (returns False) for the baseline target,
     where ``NUMBA_CPU_NAME`` or ``NUMBA_CPU_FEATURES`` is set (the user's own choice), off x86-64,
     or once Numba has compiled (its code generator is fixed then). Returns whether this process's
     kernels are compiled so. Sets Numba's configuration, not the environment: a child process
