@@ -303,12 +303,9 @@ class Runner:
         self.verbose = verbose
         self.records: list[dict] = []
 
-    def env(self, threads: int | None = None, cache_dir: str | None = None,
-            wide: bool = False) -> dict:
+    def env(self, threads: int | None = None, cache_dir: str | None = None) -> dict:
         env = dict(os.environ)
         env["NUMBA_CACHE_DIR"] = cache_dir or self.cache_dir
-        if wide:
-            env["NUMBA_CPU_FEATURES"] = wide_features()
         env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
         if threads:
             env["OMP_NUM_THREADS"] = str(threads)
@@ -322,7 +319,7 @@ class Runner:
         t0 = time.perf_counter()
         proc = subprocess.run(
             [sys.executable, "-m", "benchmarks", "--worker", json.dumps(spec)],
-            cwd=ROOT, env=self.env(spec.get("threads"), cache_dir, spec.get("wide", False)),
+            cwd=ROOT, env=self.env(spec.get("threads"), cache_dir),
             capture_output=True, text=True,
             timeout=timeout,
         )
@@ -463,19 +460,6 @@ def machine_info() -> dict:
     except OSError:
         pass
     return info
-
-
-def wide_features() -> str:
-    """The host's LLVM features plus ``-prefer-256-bit``: lets LLVM use 512-bit vectors.
-
-    LLVM's tuning for recent Intel and AMD cores prefers 256-bit vectors; Numba passes the host
-    CPU's name and features, so its loops are vectorized 4 doubles wide. The environment
-    variable NUMBA_CPU_FEATURES (read when Numba starts) replaces the feature string.
-    """
-    import llvmlite.binding as ll
-
-    ll.initialize_native_target()
-    return ll.get_host_cpu_features().flatten() + ",-prefer-256-bit"
 
 
 def find_bench_python() -> str | None:
