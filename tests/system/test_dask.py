@@ -63,6 +63,9 @@ def test_local_cluster_two_workers_is_bit_identical(reference):
     _assert_identical(reference, ds)
     assert ds.attrs["sweep_engine"] == "dask-distributed" and ds.attrs["sweep_workers"] == 2
     assert any(n.startswith("Dask dashboard: http") for n in notes)
+    # The workers, asked before their first kernel, name the target their kernels compiled for:
+    # this machine's, as this process's (512-bit vectors on an AVX-512 host: stochpend.numerics._cputarget).
+    assert ds.attrs["sweep_worker_cpu_targets"] == ds.attrs["cpu_target"]
 
 
 class TaskCounter:

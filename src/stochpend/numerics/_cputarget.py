@@ -205,7 +205,10 @@ def current_name() -> str:
 
 def describe() -> str:
     """What a result's ``cpu_target`` attribute says: the CPU name the kernels were compiled for
-    and why, e.g. ``"znver4 (host)"`` or ``"x86-64-v3 (baseline)"``."""
+    and why, e.g. ``"znver4 (host)"`` or ``"x86-64-v3 (baseline)"``. In a process that has
+    made no kernel yet (a Dask worker asked before its first task) it first settles what they
+    will be compiled for (:func:`configure_numba`), so that the answer holds for them."""
+    configure_numba()
     import numba
 
     name = current_name()
