@@ -74,10 +74,11 @@ def test_the_wide_features_are_the_hosts_own_with_the_256_bit_preference_off():
     assert _cputarget.wide_features({"avx2": True}, "+avx2") is None
 
 
+# The engine first: it makes kernels when imported, before any run's own check of the target.
 _PROBE = """
+import stochpend.engine.cpu
 import numba, numpy as np
 import stochpend
-from stochpend.numerics import _cputarget
 ds = stochpend.simulate(noise="white", D=1.0, omega=1.0, paths=64, t_max=0.5, n_times=1, bias_paths=0)
 @numba.njit
 def axpy(a, x, y):

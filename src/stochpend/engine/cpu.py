@@ -67,10 +67,8 @@ from stochpend.model import observables as observables_
 from stochpend.model.observables import N_SUMS, S_COUNT, S_NONFINITE
 from stochpend.model.oscillators.pendulum import PENDULUM
 from stochpend.model.power_sums import LevelSums
-from stochpend.numerics import _cputarget, rng
+from stochpend.numerics import rng
 from stochpend.numerics._jitcache import own_index
-
-_cputarget.configure_numba()  # before this module's first kernel
 
 #: Paths per lock-step block (the integrator's lane count).
 BLOCK = integrator.LANES

@@ -33,11 +33,9 @@ import numba
 import numpy as np
 
 from stochpend.model import dynamics
-from stochpend.numerics import _cputarget, rng
+from stochpend.numerics import rng
 from stochpend.numerics._jitcache import own_index
 from stochpend.numerics.mathlib import LIBM
-
-_cputarget.configure_numba()  # before this module's first kernel
 
 __all__ = ["MAX_ATTEMPTS", "additive_states", "boltzmann", "check", "temperature"]
 

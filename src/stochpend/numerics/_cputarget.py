@@ -133,9 +133,9 @@ def apply_environment() -> None:
 
 
 def configure_numba() -> None:
-    """:func:`apply_environment`, for the modules that make a Numba kernel when imported: each calls
-    it after importing Numba and before its first ``numba.njit``, since Numba fixes its code
-    generator (CPU name, features) when it makes its first kernel, compiled or not. An unknown
+    """:func:`apply_environment` before a Numba kernel is made (``_jitcache.own_index``, which
+    names every cached kernel, calls it under the ``numba.njit``), since Numba fixes its code
+    generator (CPU name, features) when it makes a process's first kernel, compiled or not. An unknown
     ``STOCHPEND_CPU_TARGET`` is left to the run's own check (``RunOptions.build``). Imports Numba."""
     import numba  # noqa: F401 - the caller makes kernels; apply_environment acts once Numba is in
 

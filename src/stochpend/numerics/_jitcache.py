@@ -32,7 +32,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from stochpend.numerics import _sources
+from stochpend.numerics import _cputarget, _sources
 
 _PACKAGE = Path(__file__).resolve().parent.parent  # the package's root
 
@@ -159,6 +159,9 @@ def own_index(key: str):
     """
 
     def rename(fn):
+        # Before the decorator above it makes the kernel: Numba fixes its CPU target when it makes
+        # a process's first kernel (512-bit vectors on an AVX-512 host: stochpend.numerics._cputarget).
+        _cputarget.configure_numba()
         fn.__qualname__ = f"{fn.__qualname__}_{tag(key)}"
         fn._stochpend_named = True
         name_closures([fn], key)

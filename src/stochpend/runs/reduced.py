@@ -107,8 +107,6 @@ from stochpend.numerics import _cputarget, rng
 from stochpend.numerics._jitcache import own_index
 from stochpend.text._docs import documented
 
-_cputarget.configure_numba()  # before this module's first kernel
-
 __all__ = [
     "ORDERS",
     "ReducedConfig",
