@@ -7,6 +7,7 @@ pinned versions of ``benchmarks/cuda-tools.txt`` and runs this script)::
     make cuda-registers CUDA_ARGS="--filter float64 --out out/registers.md"
     PYTHONPATH=src .venv-cuda/bin/python benchmarks/cuda_registers.py [--filter S] [--out FILE]
         [--lto] [--ref GIT_REF] [--ptx-dir DIR] [--subset all|ci]
+    python benchmarks/cuda_registers.py --compare BEFORE.md AFTER.md
 
 What it does, per kernel variant:
 
@@ -49,6 +50,13 @@ argument types the host code launches it with.
 ``--ref GIT_REF`` measures ``src/`` as committed at that revision (exported with ``git
 archive`` into a temporary directory; the working tree is not touched), for a baseline while
 ``src/`` is being changed.
+
+``--compare BEFORE.md AFTER.md`` compiles nothing: it reads two tables this script wrote (with
+``--out``) and lists every kernel in both whose registers changed, with its occupancy limit
+before and after, then a summary line. Exit status 1 when a kernel has more registers after
+than before, or a kernel of AFTER spills or failed to compile: issue 33's "no kernel with more
+registers, no spills" as a command. Labels are compared after :data:`LABEL_RENAMES` (the
+additive OU channel's label changed with the channel's rewrite).
 
 ``--subset ci`` keeps a representative subset (:func:`in_ci_subset`: every kernel kind, 74 of
 192 kernels); ``make cuda-compile-check [CUDA_CHECK=ci]`` is ``--lto --subset ...`` with the table
@@ -389,6 +397,68 @@ def source_at(ref: str | None):
         yield f"git {ref} ({commit})"
 
 
+#: Labels that name the same kernel under an older name: (old, new) substrings. The additive
+#: OU channel was ``+additive_ou`` until the three additive channels became one (issue 33, item 5).
+LABEL_RENAMES = (("+additive_ou+", "+additive_noise=ou+"),)
+
+#: The modules that have held the CUDA backend, newest first: ``--ref`` of a revision before the
+#: package's folders became its layers (81e8b64) finds it at the second.
+BACKEND_MODULES = ("stochpend.engine.cuda", "stochpend._backends.cuda")
+
+
+@dataclass(frozen=True)
+class TableRow:
+    """One kernel's row of a table this script wrote: registers, spills (bytes), or failed."""
+
+    registers: int
+    spill_stores: int
+    spill_loads: int
+    failed: bool = False
+
+
+def read_table(text: str) -> dict[str, TableRow]:
+    """The kernels of a table this script wrote, by label (:data:`LABEL_RENAMES` applied)."""
+    rows: dict[str, TableRow] = {}
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if not line.startswith("| ") or len(cells) < 4 or cells[0] == "kernel":
+            continue
+        label = cells[0]
+        for old, new in LABEL_RENAMES:
+            label = label.replace(old, new)
+        if cells[1] == "compile failed":
+            rows[label] = TableRow(0, 0, 0, failed=True)
+            continue
+        try:
+            rows[label] = TableRow(int(cells[1]), int(cells[2]), int(cells[3]))
+        except ValueError:
+            continue
+    return rows
+
+
+def compare(before: dict[str, TableRow], after: dict[str, TableRow]) -> tuple[list[str], bool]:
+    """The lines of a comparison of two tables (a summary, then a table of every kernel in both
+    whose registers changed, largest rise first) and whether AFTER keeps issue 33's criterion:
+    no kernel in both with more registers, no kernel of AFTER that spills or failed."""
+    common = [label for label in before if label in after and not before[label].failed and not after[label].failed]
+    changed = [label for label in common if after[label].registers != before[label].registers]
+    more = [label for label in changed if after[label].registers > before[label].registers]
+    spilling = [label for label, r in after.items() if r.spill_stores or r.spill_loads]
+    failed = [label for label, r in after.items() if r.failed]
+    lines = [f"{len(before)} kernels before, {len(after)} after, {len(common)} in both: "
+             f"{len(common) - len(changed)} the same, {len(changed) - len(more)} fewer registers, "
+             f"{len(more)} more; {len(spilling)} spill after, {len(failed)} failed after."]
+    if changed:
+        lines += ["", "| kernel | before | after | change | occupancy limit before | after |",
+                  "|---|---:|---:|---:|---|---|"]
+        for label in sorted(changed, key=lambda k: (before[k].registers - after[k].registers, k)):
+            b, a = before[label].registers, after[label].registers
+            lines.append(f"| {label} | {b} | {a} | {a - b:+d} | {warps_from_registers(b)}/{MAX_WARPS_PER_SM} "
+                         f"warps | {warps_from_registers(a)}/{MAX_WARPS_PER_SM} warps |")
+    lines += [f"spills after: {label}" for label in spilling] + [f"failed after: {label}" for label in failed]
+    return lines, not (more or spilling or failed)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -403,7 +473,24 @@ def main(argv: list[str] | None = None) -> int:
                         help="also keep each kernel's PTX in this directory")
     parser.add_argument("--subset", choices=("all", "ci"), default="all",
                         help="all kernels (default), or ci: every kernel kind, about a third of them")
+    parser.add_argument("--compare", nargs=2, type=Path, default=None, metavar=("BEFORE", "AFTER"),
+                        help="compile nothing: compare two tables written with --out (exit 1 on a "
+                             "kernel with more registers, a spill or a failure in AFTER)")
     args = parser.parse_args(argv)
+
+    if args.compare is not None:
+        try:
+            before, after = (read_table(path.read_text()) for path in args.compare)
+        except (OSError, UnicodeDecodeError) as error:
+            print(f"error: --compare: {error}", file=sys.stderr)
+            return 2
+        if not before or not after:
+            empty = args.compare[0] if not before else args.compare[1]
+            print(f"error: --compare: {empty} holds no table of kernels", file=sys.stderr)
+            return 2
+        lines, kept = compare(before, after)
+        print("\n".join(lines))
+        return 0 if kept else 1
 
     try:
         cuda = load_numba_cuda()
@@ -419,11 +506,21 @@ def main(argv: list[str] | None = None) -> int:
     from numba import types as nt
 
     with source_at(args.ref) as source:
-        try:
-            import stochpend.engine.cuda as backend
-        except Exception as error:
-            print(f"error: cannot import stochpend.engine.cuda from {source}: "
-                  f"{type(error).__name__}: {error}", file=sys.stderr)
+        backend = None
+        for module in BACKEND_MODULES:
+            try:
+                backend = importlib.import_module(module)
+                break
+            except ModuleNotFoundError as error:
+                if error.name is None or not module.startswith(error.name):
+                    print(f"error: cannot import {module} from {source}: {error}", file=sys.stderr)
+                    return 1
+            except Exception as error:
+                print(f"error: cannot import {module} from {source}: "
+                      f"{type(error).__name__}: {error}", file=sys.stderr)
+                return 1
+        if backend is None:
+            print(f"error: none of {', '.join(BACKEND_MODULES)} in {source}", file=sys.stderr)
             return 1
 
         variants = kernel_variants(backend, nt)
