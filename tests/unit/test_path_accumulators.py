@@ -30,7 +30,8 @@ from stochpend.runs.simulate import run
 from tests._checkpoints import StopAfter
 
 RUN = dict(noise="ou", D=1.0, tau=1.0, omega=1.0, paths=2000, t_max=10.0, n_times=4, seed=11)
-NAMES = ("Om2_avg", "t_avg", "t_late", "xi_int", "escape", "at_t", "x_now", "minus_x", "x2_avg")
+NAMES = ("Om2_avg", "t_avg", "t_late", "xi_int", "escape", "at_t", "x_now", "minus_x", "x2_avg", "xi_avg",
+         "first_flip")
 
 
 @pytest.fixture(autouse=True)
@@ -44,6 +45,8 @@ def accumulators():
     register(Observable("x_now", lambda x, Omega, xi, t: x))
     register(FirstPassage("minus_x", lambda x, Omega, xi, t: -x, threshold=0.5))
     register(TimeAverage("x2_avg", lambda x, Omega, xi, t: x * x, window=(0.0, 2.0 * math.pi)))
+    register(TimeAverage("xi_avg", lambda x, Omega, xi, t: xi, window=(0.0, 4.0)))
+    register(FirstPassage("first_flip", lambda x, Omega, xi, t: -xi, threshold=0.0))
     yield
     for name in NAMES:
         unregister(name)
@@ -117,6 +120,29 @@ def test_a_first_passage_and_a_time_average_converge_at_second_order():
         errors.append(abs(ds.mean_x2_avg.values[-1] - 0.5))
     ratios = np.array(errors[:-1]) / np.array(errors[1:])
     assert np.all((ratios > 3.6) & (ratios < 4.4)), (errors, ratios)
+
+
+def test_an_event_noise_is_seen_before_its_jump_so_the_accumulators_are_exact_at_any_step():
+    """The dichotomous noise is constant between flips and the step lands on each flip, so the
+    trapezoid integrates it exactly and its first flip is found at the flip's time, whatever
+    the step: where the accumulators see the noise at each step's end before its jump (its
+    left limit; the next step starts after it). From xi0 = +a, E xi(t) = a exp(-t/tau): the
+    mean of (1/T) int_0^T xi dt is a tau (1 - exp(-T/tau))/T, and the first flip (where -xi
+    reaches 0) is exponential with rate 1/(2 tau), censored at t_end. With the value after the
+    jump at a step's end (before the fix) both were off by 9 standard errors at this step."""
+    D, tau, T, t_end = 2.0, 1.0, 4.0, 20.0
+    a = math.sqrt(D / (2 * tau))
+    ds = stochpend.simulate(noise="dichotomous", D=D, tau=tau, omega=1.0, paths=200_000, t_max=t_end,
+                            times=(T, t_end), seed=3, h_max=0.2, step_c=0.0, xi0=a, bias_paths=0,
+                            observables=("xi_avg", "xi_int", "first_flip"))
+    integral = a * tau * (1 - math.exp(-T / tau))
+    rate = 1 / (2 * tau)
+    first_flip = (1 / rate - (t_end + 1 / rate) * math.exp(-rate * t_end)) / (1 - math.exp(-rate * t_end))
+    z = {"xi_avg": (ds.mean_xi_avg.values[0] - integral / T) / ds.mean_xi_avg_stderr.values[0],
+         "xi_int": (ds.mean_xi_int.values[0] - integral) / ds.mean_xi_int_stderr.values[0],
+         "first_flip": (ds.mean_first_flip.values[1] - first_flip) / ds.mean_first_flip_stderr.values[1]}
+    assert all(abs(v) < 4 for v in z.values()), z
+    assert ds.mean_xi_avg_stderr.values[0] < 0.01 * integral / T  # resolved to 1 %: the old error was 5 %
 
 
 def test_a_first_passage_between_output_times_is_censored_until_then():

@@ -894,6 +894,11 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
                                    (C, C_channel), omega2_r, q, d)
             xn, xa, S = ns
             xc, xca, Sa = cs
+            # The accumulators see the step's own end: the noise before a jump at t1 (its left
+            # limit), as the coupled members do; the next step starts after the jump. So a
+            # trapezoid over the step is exact for a piecewise-constant noise, and a crossing
+            # made by the jump is found at the jump's time by the next step.
+            xn_end = xn
             if event:  # the event of the noise(s) whose time the step landed on
                 xn, xa, xc, xca = at_events(xn, xa, xc, xca, t_land, t_ev, t_ev_a, keys, path, kk, p, p_channel)
             kk += _U64(DRAWS)
@@ -913,7 +918,7 @@ def _step_loop(LEVELS: int, noise: SimpleNamespace, oscillator: SimpleNamespace,
             if PATH_TRACKED:
                 track_step(tracks, i, np.float64(x_before), np.float64(Om_before),
                            np.float64(xn_before), np.float64(mem[0]), np.float64(mem[1]),
-                           np.float64(xn), t_before, tt)
+                           np.float64(xn_end), t_before, tt)
             if last:
                 break
         write_back(i, state, mem, xn, xa, xc, xca, tt, tc, kk, bad)

@@ -442,7 +442,8 @@ def accumulators(user: tuple[Any, ...]) -> tuple[Any, ...]:
 def track_step(accs: tuple[Any, ...]) -> Callable | None:
     """``track(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1)``: every accumulator's update
     of its slot ``tracks[slot, i]`` over one step of path i from time t0 (state x0, Omega0, xi0)
-    to t1, in float64; ``None`` without accumulators (the integrator then compiles no tracking
+    to t1, in float64 (xi1 the noise at the step's end before a jump of an event noise at t1:
+    the step's own value, which the next step's xi0 is not); ``None`` without accumulators (the integrator then compiles no tracking
     at all).
 
     Its attribute ``members`` is the same update for coupled members (the multilevel target's
@@ -667,8 +668,10 @@ class FirstPassage:
 @dataclass(frozen=True, eq=False)
 class RunningSum:
     """A per-path sum of ``increment(x0, Omega0, xi0, x1, Omega1, xi1, t0, t1)`` over the
-    integrator's steps (from the state at t0 to the state at t1, xi the noise's value): a counter,
-    a work, a displacement, an integral of the noise. Reported as
+    integrator's steps (from the state at t0 to the state at t1, xi the noise's value; at a step
+    that ends on a flip of an event noise, xi1 is the value before the flip, the step's own, and
+    the next step's xi0 the value after it, so a sum of xi1 - xi0 leaves the flips out): a
+    counter, a work, a displacement, an integral of the noise. Reported as
     ``mean_<name>`` and ``var_<name>``, the ensemble mean and variance of the sum at each output
     time. :data:`DISPLACEMENT` is one: the increment (t1 - t0)(Omega0 + Omega1)/2 is the step's
     own drift (x1 - x0 before x is wrapped), so its sum is the unwrapped displacement x(t) - x(0)
