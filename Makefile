@@ -96,7 +96,7 @@ cuda-registers: $(CUDA_STAMP)
 # joint: stochpend.engine.cuda.kernel_variants()) compiled for sm_90 offline, the path a launch
 # takes (nvJitLink LTO, then ptxas): no GPU needed; fails on any compile failure. The table of
 # registers and spills goes to out/cuda-compile-check.md. CUDA_CHECK=ci: the representative subset
-# (every kind, 84 of the 212 kernels) that .ci/run uses; docs/gpu.md, "Developer notes": timings.
+# (every kind, 85 of the 214 kernels) that .ci/run uses; docs/gpu.md, "Developer notes": timings.
 CUDA_CHECK ?= all
 
 cuda-compile-check: $(CUDA_STAMP)

@@ -956,6 +956,10 @@ def _other_kernels(precisions: tuple[str, ...]) -> list[tuple[str, object, tuple
         accs = observables.accumulators(user["all"])
         out.append((f"tracked {spec.label} [all]", tracked_kernel(spec, accs).py_func,
                     _advance_signature(precision, spec.noise, pendulum, terms, spec.additive, tracks=True)))
+        # A noise with events: the accumulators see the noise before its flip at a step's end.
+        spec = KernelSpec(pendulum, "force", builtin["dichotomous"], precision, True)
+        out.append((f"tracked {spec.label} [all]", tracked_kernel(spec, accs).py_func,
+                    _advance_signature(precision, spec.noise, pendulum, tracks=True)))
     # accumulate: the statistics of each oscillator and coupling (no user observables), then
     # every kind of user observable (the histogram's shared or global counting is chosen at run
     # time, in the same kernel).
