@@ -443,8 +443,8 @@ def track_step(accs: tuple[Any, ...]) -> Callable | None:
     """``track(tracks, i, x0, Omega0, xi0, x1, Omega1, xi1, t0, t1)``: every accumulator's update
     of its slot ``tracks[slot, i]`` over one step of path i from time t0 (state x0, Omega0, xi0)
     to t1, in float64 (xi1 the noise at the step's end before a jump of an event noise at t1:
-    the step's own value, which the next step's xi0 is not); ``None`` without accumulators (the integrator then compiles no tracking
-    at all).
+    the step's own value, which the next step's xi0 is not); ``None`` without accumulators (the
+    integrator then compiles no tracking at all).
 
     Its attribute ``members`` is the same update for coupled members (the multilevel target's
     levels): ``members(tracks, i, m, x0, ..., t1)`` updates member m's slots ``tracks[m * n +
